@@ -1,0 +1,3 @@
+//! The kernel. STUB: being written.
+/// The kernel.
+pub struct Kernel;

@@ -1,0 +1,1 @@
+//! Mechanics and units. STUB: being written.

@@ -1,0 +1,1 @@
+//! gantry, the motion master: CLI commands, demo, trace output.
