@@ -1,3 +1,165 @@
-//! The kernel. STUB: being written.
-/// The kernel.
-pub struct Kernel;
+//! The kernel: all axes of a machine, stepped once per cycle.
+//!
+//! `step` is the RT path: no allocation, no locks, no panics, bounded work. Everything
+//! it needs is allocated in [`Kernel::new`].
+
+use crate::axis::command::{Command, CommandError};
+use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
+use crate::axis::status::AxisStatus;
+use crate::axis::{Axis, AxisConfig, AxisFeedback, AxisKind, AxisSetpoint, ConfigError};
+
+/// Shortest and longest cycle time the kernel accepts (s).
+pub const CYCLE_RANGE_S: (f64, f64) = (50e-6, 0.1);
+
+/// All axes and the cycle clock.
+#[derive(Clone, Debug)]
+pub struct Kernel {
+    axes: Vec<Axis>,
+    /// Order in which axes are stepped: sources of shadow axes first.
+    order: Vec<usize>,
+    setpoints: Vec<AxisSetpoint>,
+    handles: HandleTable,
+    dt: f64,
+    tick: u64,
+}
+
+impl Kernel {
+    /// A kernel with cycle time `cycle_s` (s) and the given axes (indices follow the order
+    /// of `configs`).
+    pub fn new(cycle_s: f64, configs: Vec<AxisConfig>) -> Result<Self, ConfigError> {
+        if !(cycle_s >= CYCLE_RANGE_S.0 && cycle_s <= CYCLE_RANGE_S.1) {
+            return Err(ConfigError::CycleTime { cycle_s });
+        }
+        for (i, c) in configs.iter().enumerate() {
+            if configs[..i].iter().any(|o| o.name == c.name) {
+                return Err(ConfigError::DuplicateName {
+                    axis: c.name.clone(),
+                });
+            }
+            if let AxisKind::Shadow { source } = c.kind {
+                let ok = configs
+                    .get(source)
+                    .is_some_and(|s| !matches!(s.kind, AxisKind::Shadow { .. }));
+                if !ok {
+                    return Err(ConfigError::BadShadowSource {
+                        axis: c.name.clone(),
+                        source_index: source,
+                    });
+                }
+            }
+        }
+        let axes = configs
+            .into_iter()
+            .map(Axis::new)
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut order: Vec<usize> = (0..axes.len())
+            .filter(|&i| !matches!(axes[i].config().kind, AxisKind::Shadow { .. }))
+            .collect();
+        order.extend(
+            (0..axes.len()).filter(|&i| matches!(axes[i].config().kind, AxisKind::Shadow { .. })),
+        );
+        Ok(Self {
+            setpoints: vec![AxisSetpoint::default(); axes.len()],
+            axes,
+            order,
+            handles: HandleTable::new(),
+            dt: cycle_s,
+            tick: 0,
+        })
+    }
+
+    /// Cycle time (s).
+    pub fn cycle_time(&self) -> f64 {
+        self.dt
+    }
+
+    /// Index of the last cycle run (0 before the first).
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// Time of the last cycle (s).
+    pub fn time(&self) -> f64 {
+        self.tick as f64 * self.dt
+    }
+
+    /// The axes.
+    pub fn axes(&self) -> &[Axis] {
+        &self.axes
+    }
+
+    /// Index of the axis called `name`.
+    pub fn axis_index(&self, name: &str) -> Option<usize> {
+        self.axes.iter().position(|a| a.name() == name)
+    }
+
+    /// Status of axis `axis` after the last cycle.
+    pub fn axis_status(&self, axis: usize) -> Option<&AxisStatus> {
+        self.axes.get(axis).map(Axis::status)
+    }
+
+    /// Submits a command; it takes effect from the current set values and is visible in
+    /// the next cycle. The handle's status says whether it was accepted: a refused command
+    /// has status `Error` and changed nothing.
+    pub fn submit(&mut self, axis: usize, cmd: Command) -> HandleId {
+        let h = self.handles.issue(CommandStatus::Busy);
+        let status = match self.axes.get_mut(axis) {
+            None => Err(CommandError::NoSuchAxis { axis }),
+            Some(a) => a.apply(&cmd, h, &mut self.handles),
+        };
+        let status = status.unwrap_or_else(CommandStatus::Error);
+        self.handles.set(h, status);
+        h
+    }
+
+    /// Like [`Kernel::submit`], but a refused command is returned as an error.
+    pub fn command(&mut self, axis: usize, cmd: Command) -> Result<HandleId, CommandError> {
+        let h = self.submit(axis, cmd);
+        match self.handles.get(h) {
+            CommandStatus::Error(e) => Err(e),
+            _ => Ok(h),
+        }
+    }
+
+    /// Status of a command.
+    pub fn command_status(&self, h: HandleId) -> CommandStatus {
+        self.handles.get(h)
+    }
+
+    /// Runs one cycle: `feedback[i]` holds the actual values of axis `i` (missing entries
+    /// count as default; simulated and virtual axes ignore them). Returns the set values.
+    pub fn step(&mut self, feedback: &[AxisFeedback]) -> &[AxisSetpoint] {
+        self.tick += 1;
+        let none = AxisFeedback::default();
+        for &i in &self.order {
+            let kind = match self.axes.get(i) {
+                Some(a) => a.config().kind,
+                None => continue,
+            };
+            let fb = match kind {
+                AxisKind::Shadow { source } => self.shadow_feedback(source),
+                _ => *feedback.get(i).unwrap_or(&none),
+            };
+            if let (Some(axis), Some(sp)) = (self.axes.get_mut(i), self.setpoints.get_mut(i)) {
+                *sp = axis.step(self.tick, self.dt, &fb, &mut self.handles);
+            }
+        }
+        &self.setpoints
+    }
+
+    /// A shadow axis reads its source's set and actual values as its own feedback.
+    fn shadow_feedback(&self, source: usize) -> AxisFeedback {
+        match self.axes.get(source) {
+            Some(src) => {
+                let s = src.status();
+                AxisFeedback {
+                    position: s.actual_position,
+                    velocity: s.actual_velocity,
+                    operation_enabled: false,
+                    fault: None,
+                }
+            }
+            None => AxisFeedback::default(),
+        }
+    }
+}

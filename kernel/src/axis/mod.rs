@@ -1,13 +1,746 @@
-//! The axis. STUB: being written.
-/// Kind of axis.
-#[derive(Clone, Copy, Debug)]
+//! One axis: its configuration, PLCopen state, set-value source and status.
+//!
+//! Commands are applied between cycles ([`Axis::apply`], in `apply.rs`) and plan from the
+//! last set values, so a new move continues the old one without a jump; [`Axis::step`]
+//! samples the running profile at the cycle's time, chains buffered moves inside the
+//! cycle (no standstill cycle between them) and derives the status.
+
+pub mod command;
+pub mod handle;
+pub mod motion;
+pub mod state;
+pub mod status;
+
+mod apply;
+
+use crate::mechanics::{Direction, Mechanics};
+use crate::profile::{KinematicState, Limits, RampType};
+use command::{CommandError, RampBreakMode};
+use handle::{CommandStatus, HandleTable};
+use motion::{Motion, MotionKind, Queue};
+use state::AxisState;
+use status::{AxisFault, AxisStatus, SlopeState, StatusBits};
+
+/// What kind of axis (seed 000 §2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum AxisKind {
-    /** simulated */
+    /// A drive on the bus: set values out, actual values in.
+    Real,
+    /// Configured like a real axis but not connected: actual = set.
     Simulated,
+    /// No drive, a pure set-value generator (master for gearing/camming).
+    Virtual,
+    /// Encoder only: never enabled, never commanded; actual values in.
+    External,
+    /// Mirrors set and actual values of the axis with index `source`.
+    Shadow {
+        /// Index of the mirrored axis in the kernel.
+        source: usize,
+    },
 }
-/// Axis configuration.
+
+impl AxisKind {
+    /// Name for messages and configuration.
+    pub const fn name(self) -> &'static str {
+        match self {
+            AxisKind::Real => "real",
+            AxisKind::Simulated => "simulated",
+            AxisKind::Virtual => "virtual",
+            AxisKind::External => "external",
+            AxisKind::Shadow { .. } => "shadow",
+        }
+    }
+
+    /// Whether the axis takes motion and power commands.
+    pub const fn is_commandable(self) -> bool {
+        matches!(
+            self,
+            AxisKind::Real | AxisKind::Simulated | AxisKind::Virtual
+        )
+    }
+
+    /// Whether the actual values come from the bus.
+    pub const fn has_feedback(self) -> bool {
+        matches!(self, AxisKind::Real | AxisKind::External)
+    }
+}
+
+/// Default dynamics of an axis' moves (used when a command leaves an operand out).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dynamics {
+    /// Speed (units/s).
+    pub speed: f64,
+    /// Acceleration (units/s²).
+    pub acceleration: f64,
+    /// Deceleration (units/s²).
+    pub deceleration: f64,
+    /// Jerk (units/s³).
+    pub jerk: f64,
+    /// Ramp type.
+    pub ramp: RampType,
+    /// Target window (units).
+    pub target_window: f64,
+}
+
+/// Configuration of one axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisConfig {
+    /// Name (e.g. "x").
+    pub name: String,
+    /// Kind.
+    pub kind: AxisKind,
+    /// Mechanics: modulo, allowed direction, software limits.
+    pub mechanics: Mechanics,
+    /// Maximum speed, acceleration, deceleration and jerk the axis may ever be commanded.
+    pub max: Limits,
+    /// Defaults for moves that leave operands out.
+    pub defaults: Dynamics,
+    /// Deceleration of QuickStop (units/s²).
+    pub quick_stop_deceleration: f64,
+    /// What a new MovePtp does during the deceleration ramp.
+    pub ramp_break: RampBreakMode,
+    /// Whether absolute moves need a homed axis.
+    pub homing_required: bool,
+    /// Position restored at power-up (e.g. stored encoder value × scaling); not homed.
+    pub initial_position: f64,
+}
+
+impl AxisConfig {
+    /// A linear axis with generous defaults: vmax 100, amax/dmax 1000, jmax 10000 units,
+    /// S-curve, no modulo, no software limits, homing required for absolute moves.
+    pub fn new(name: &str, kind: AxisKind) -> Self {
+        let max = Limits {
+            vmax: 100.0,
+            amax: 1000.0,
+            dmax: 1000.0,
+            jmax: 10_000.0,
+        };
+        Self {
+            name: name.to_string(),
+            kind,
+            mechanics: Mechanics::default(),
+            max,
+            defaults: Dynamics {
+                speed: max.vmax,
+                acceleration: max.amax,
+                deceleration: max.dmax,
+                jerk: max.jmax,
+                ramp: RampType::SCurve,
+                target_window: 0.01,
+            },
+            quick_stop_deceleration: max.dmax,
+            ramp_break: RampBreakMode::None,
+            homing_required: !matches!(kind, AxisKind::Virtual),
+            initial_position: 0.0,
+        }
+    }
+
+    /// Checks the configuration; the error names the axis and the field.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let name = &self.name;
+        let pos = |field: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::NotPositive {
+                    axis: name.clone(),
+                    field,
+                    value: v,
+                })
+            }
+        };
+        pos("max.speed", self.max.vmax)?;
+        pos("max.acceleration", self.max.amax)?;
+        pos("max.deceleration", self.max.dmax)?;
+        pos("max.jerk", self.max.jmax)?;
+        pos("defaults.speed", self.defaults.speed)?;
+        pos("defaults.acceleration", self.defaults.acceleration)?;
+        pos("defaults.deceleration", self.defaults.deceleration)?;
+        pos("defaults.jerk", self.defaults.jerk)?;
+        pos("quick_stop_deceleration", self.quick_stop_deceleration)?;
+        let over = |field: &'static str, v: f64, max: f64| {
+            if v <= max {
+                Ok(())
+            } else {
+                Err(ConfigError::AboveMax {
+                    axis: name.clone(),
+                    field,
+                    value: v,
+                    max,
+                })
+            }
+        };
+        over("defaults.speed", self.defaults.speed, self.max.vmax)?;
+        over(
+            "defaults.acceleration",
+            self.defaults.acceleration,
+            self.max.amax,
+        )?;
+        over(
+            "defaults.deceleration",
+            self.defaults.deceleration,
+            self.max.dmax,
+        )?;
+        over("defaults.jerk", self.defaults.jerk, self.max.jmax)?;
+        if !(self.defaults.target_window.is_finite() && self.defaults.target_window >= 0.0) {
+            return Err(ConfigError::NotPositive {
+                axis: name.clone(),
+                field: "defaults.target_window",
+                value: self.defaults.target_window,
+            });
+        }
+        if !self.initial_position.is_finite() {
+            return Err(ConfigError::NotPositive {
+                axis: name.clone(),
+                field: "initial_position",
+                value: self.initial_position,
+            });
+        }
+        self.mechanics
+            .validate()
+            .map_err(|source| ConfigError::Mechanics {
+                axis: name.clone(),
+                source,
+            })
+    }
+}
+
+/// A configuration mistake; names the axis and the field.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum ConfigError {
+    /// A value must be a finite number > 0.
+    #[error("axis {axis}: {field} = {value} must be a finite number > 0")]
+    NotPositive {
+        /// Axis name.
+        axis: String,
+        /// Field.
+        field: &'static str,
+        /// Value.
+        value: f64,
+    },
+    /// A default exceeds the axis maximum.
+    #[error("axis {axis}: {field} = {value} exceeds the axis maximum {max}")]
+    AboveMax {
+        /// Axis name.
+        axis: String,
+        /// Field.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Maximum.
+        max: f64,
+    },
+    /// The mechanics are inconsistent.
+    #[error("axis {axis}: {source}")]
+    Mechanics {
+        /// Axis name.
+        axis: String,
+        /// What is wrong.
+        source: crate::mechanics::MechanicsError,
+    },
+    /// Two axes have the same name.
+    #[error("axis name {axis} is used twice")]
+    DuplicateName {
+        /// Axis name.
+        axis: String,
+    },
+    /// A shadow axis names a missing axis or another shadow axis.
+    #[error("shadow axis {axis}: source index {source_index} is not a non-shadow axis")]
+    BadShadowSource {
+        /// Axis name.
+        axis: String,
+        /// The index given.
+        source_index: usize,
+    },
+    /// The cycle time is out of range.
+    #[error("cycle time {cycle_s} s is not in [50 µs, 100 ms]")]
+    CycleTime {
+        /// The value given.
+        cycle_s: f64,
+    },
+}
+
+/// Actual values of one axis from the bus (ignored for simulated and virtual axes).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AxisFeedback {
+    /// Actual position (units; wrapped on modulo axes).
+    pub position: f64,
+    /// Actual velocity (units/s).
+    pub velocity: f64,
+    /// The drive is in Operation enabled.
+    pub operation_enabled: bool,
+    /// The drive reports a fault with this error code.
+    pub fault: Option<u16>,
+}
+
+/// Set values of one axis for the drive layer.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AxisSetpoint {
+    /// Set position (units; wrapped into the period on modulo axes).
+    pub position: f64,
+    /// Whole modulo periods (so the drive layer can count exactly; 0 on normal axes).
+    pub turns: i64,
+    /// Set velocity (units/s), for velocity feed-forward.
+    pub velocity: f64,
+    /// Set acceleration (units/s²).
+    pub acceleration: f64,
+    /// Whether the drive should be enabled.
+    pub enable: bool,
+}
+
+/// One axis.
 #[derive(Clone, Debug)]
-pub struct AxisConfig;
-/// An axis.
-#[derive(Clone, Debug)]
-pub struct Axis;
+pub struct Axis {
+    cfg: AxisConfig,
+    state: AxisState,
+    /// Power requested on.
+    powered: bool,
+    homed: bool,
+    /// Set values of the axis' own motion (without a superimposed jog), in the frame.
+    main: KinematicState,
+    /// The running source; `None` holds `main.p`.
+    motion: Option<Motion>,
+    /// A jog superimposed on the running motion (MAJ with Merge disabled).
+    overlay: Option<Motion>,
+    /// Set values of the overlay (relative displacement and its derivatives).
+    overlay_set: KinematicState,
+    queue: Queue,
+    /// Whole periods subtracted from the frame on modulo axes.
+    frame_turns: i64,
+    /// Last PTP target in the frame (for RelTarget and target window).
+    last_target: Option<f64>,
+    last_window: f64,
+    /// Direction of the last move (for AbsModuloKeepDirection).
+    last_direction: f64,
+    /// Last-used PTP and velocity dynamics (Jetter: commands without operands use them).
+    ptp_dynamics: Dynamics,
+    vel_dynamics: Dynamics,
+    /// Release arrived while Stop was still decelerating.
+    release_pending: bool,
+    /// Handle of a pending Power.Enable on a real axis (waits for the drive).
+    enable_handle: Option<handle::HandleId>,
+    /// Axis position minus drive position (SetPosition on a real axis moves no motor).
+    position_offset: f64,
+    actual_p: f64,
+    actual_v: f64,
+    last_tick: u64,
+    status: AxisStatus,
+}
+
+impl Axis {
+    /// A new axis at its configured initial position, disabled and not homed.
+    pub fn new(cfg: AxisConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let p0 = cfg.initial_position;
+        let mut axis = Self {
+            state: AxisState::Disabled,
+            powered: false,
+            homed: false,
+            main: KinematicState::at_rest(p0),
+            motion: None,
+            overlay: None,
+            overlay_set: KinematicState::default(),
+            queue: Queue::default(),
+            frame_turns: 0,
+            last_target: None,
+            last_window: cfg.defaults.target_window,
+            last_direction: 1.0,
+            ptp_dynamics: cfg.defaults,
+            vel_dynamics: cfg.defaults,
+            release_pending: false,
+            enable_handle: None,
+            position_offset: 0.0,
+            actual_p: p0,
+            actual_v: 0.0,
+            last_tick: 0,
+            status: AxisStatus::default(),
+            cfg,
+        };
+        axis.normalise_frame();
+        axis.actual_p = axis.main.p;
+        axis.refresh_status();
+        Ok(axis)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AxisConfig {
+        &self.cfg
+    }
+
+    /// The name.
+    pub fn name(&self) -> &str {
+        &self.cfg.name
+    }
+
+    /// The status after the last cycle.
+    pub fn status(&self) -> &AxisStatus {
+        &self.status
+    }
+
+    /// PLCopen state.
+    pub fn state(&self) -> AxisState {
+        self.state
+    }
+
+    fn period(&self) -> Option<f64> {
+        self.cfg.mechanics.modulo.map(|m| m.period())
+    }
+
+    /// Moves whole periods out of the frame so positions stay small on modulo axes.
+    fn normalise_frame(&mut self) {
+        let Some(period) = self.period() else { return };
+        let n = (self.main.p / period).floor();
+        if n == 0.0 || !n.is_finite() {
+            return;
+        }
+        let shift = n * period;
+        self.main.p -= shift;
+        self.actual_p -= shift;
+        self.frame_turns = self.frame_turns.saturating_add(n as i64);
+        if let Some(t) = self.last_target.as_mut() {
+            *t -= shift;
+        }
+        if let Some(m) = self.motion.as_mut() {
+            m.profile.shift(-shift);
+            if let MotionKind::Ptp { target, .. } | MotionKind::Halt { target } = &mut m.kind {
+                *target -= shift;
+            }
+        }
+    }
+
+    /// Runs one cycle: `now` is the cycle index, `dt` the cycle time (s).
+    pub(crate) fn step(
+        &mut self,
+        now: u64,
+        dt: f64,
+        fb: &AxisFeedback,
+        handles: &mut HandleTable,
+    ) -> AxisSetpoint {
+        self.last_tick = now;
+        if self.cfg.kind.has_feedback() {
+            self.take_feedback(fb, handles);
+        }
+        self.advance(now, dt, handles);
+        if let Some(o) = self.overlay {
+            self.overlay_set = o.sample(now, dt);
+        }
+        self.check_software_limits(handles);
+        if !self.cfg.kind.has_feedback() {
+            self.actual_p = self.main.p + self.overlay_set.p;
+            self.actual_v = self.main.v + self.overlay_set.v;
+        }
+        if self.motion.is_none() && self.overlay.is_none() {
+            self.normalise_frame();
+        }
+        self.refresh_status();
+        let drive_position = match self.cfg.mechanics.modulo {
+            Some(m) if self.position_offset != 0.0 => m.wrap(self.status.set.p - self.position_offset),
+            _ => self.status.set.p - self.position_offset,
+        };
+        AxisSetpoint {
+            position: drive_position,
+            turns: self.status.turns,
+            velocity: self.status.set.v,
+            acceleration: self.status.set.a,
+            enable: self.powered,
+        }
+    }
+
+    fn take_feedback(&mut self, fb: &AxisFeedback, handles: &mut HandleTable) {
+        let p = fb.position + self.position_offset;
+        self.actual_p = match self.cfg.mechanics.modulo {
+            Some(m) => m.follow(self.main.p, p),
+            None => p,
+        };
+        self.actual_v = fb.velocity;
+        if matches!(self.cfg.kind, AxisKind::External) {
+            self.main = KinematicState::at_rest(self.actual_p);
+            self.main.v = fb.velocity;
+            return;
+        }
+        if let Some(code) = fb.fault {
+            if self.state != AxisState::ErrorStop {
+                self.fault(AxisFault::Drive { code }, handles);
+            }
+            // A faulted drive is not driven: the set value follows the actual.
+            self.motion = None;
+            self.main = KinematicState::at_rest(self.actual_p);
+        }
+        if let Some(h) = self.enable_handle {
+            if fb.operation_enabled {
+                handles.set(h, CommandStatus::Done);
+                self.enable_handle = None;
+                if self.state == AxisState::Disabled {
+                    self.state = AxisState::Standstill;
+                }
+            }
+        }
+    }
+
+    /// Samples the running motion, ending it (and starting the next queued move inside
+    /// the same cycle) when its profile is over.
+    fn advance(&mut self, now: u64, dt: f64, handles: &mut HandleTable) {
+        // Each pass either samples or retires one motion; the queue bounds the passes.
+        for _ in 0..=motion::QUEUE_CAPACITY + 1 {
+            let Some(m) = self.motion else {
+                self.main.v = 0.0;
+                self.main.a = 0.0;
+                self.main.j = 0.0;
+                return;
+            };
+            let ended = m.ended(now, dt);
+            let next_waits = !self.queue.is_empty();
+            if !ended || (!m.kind.is_finite() && !next_waits) {
+                self.main = m.sample(now, dt);
+                if ended && !m.kind.is_finite() {
+                    self.reanchor_continuous(now, dt);
+                }
+                return;
+            }
+            // The profile ended at `end`; what comes next starts exactly then.
+            let end = m.profile.end_state();
+            let end_epoch = m.end_epoch(dt);
+            self.main = end;
+            self.retire(m, handles);
+            if let Some(q) = self.queue.pop() {
+                if let Err(e) = self.start_queued(q, end, end_epoch, dt, handles) {
+                    self.fault(AxisFault::Command(e), handles);
+                }
+            }
+        }
+    }
+
+    /// A velocity move past its ramp: restart its profile from the current state so
+    /// positions never grow large inside one profile.
+    fn reanchor_continuous(&mut self, now: u64, dt: f64) {
+        let Some(period) = self.period() else { return };
+        if self.main.p.abs() < 2.0 * period {
+            return;
+        }
+        let _ = dt;
+        self.normalise_frame();
+        if let Some(m) = self.motion.as_mut() {
+            m.profile = crate::profile::Profile::new(self.main);
+            m.epoch = motion::Epoch::at(now);
+        }
+    }
+
+    /// Ends a motion whose profile is over.
+    fn retire(&mut self, m: Motion, handles: &mut HandleTable) {
+        self.motion = None;
+        match m.kind {
+            MotionKind::Ptp { .. } | MotionKind::Halt { .. } => {
+                handles.set(m.handle, CommandStatus::Done);
+                if self.queue.is_empty() && self.state != AxisState::ErrorStop {
+                    self.state = AxisState::Standstill;
+                }
+            }
+            MotionKind::Velocity { .. } | MotionKind::Jog => {
+                // Ended only because a buffered move takes over.
+                handles.set(m.handle, CommandStatus::Done);
+            }
+            MotionKind::Stop => {
+                handles.set(m.handle, CommandStatus::Done);
+                if self.release_pending {
+                    self.release_pending = false;
+                    self.state = AxisState::Standstill;
+                }
+            }
+            MotionKind::QuickStop | MotionKind::Disable => {
+                handles.set(m.handle, CommandStatus::Done);
+                self.power_off(handles);
+            }
+        }
+        if self.state == AxisState::ErrorStop {
+            self.queue.drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
+        }
+    }
+
+    /// Power off at once: aborts everything.
+    fn power_off(&mut self, handles: &mut HandleTable) {
+        self.abort_all(handles, CommandStatus::Aborted);
+        self.powered = false;
+        if self.state != AxisState::ErrorStop {
+            self.state = AxisState::Disabled;
+        }
+    }
+
+    /// Ends the running motion, the overlay and the queue with `status`.
+    fn abort_all(&mut self, handles: &mut HandleTable, status: CommandStatus) {
+        if let Some(m) = self.motion.take() {
+            handles.set(m.handle, status);
+        }
+        if let Some(o) = self.overlay.take() {
+            handles.set(o.handle, status);
+            self.fold_overlay_values();
+        }
+        self.queue.drain(|q| handles.set(q.handle(), status));
+        self.main.v = 0.0;
+        self.main.a = 0.0;
+        self.main.j = 0.0;
+    }
+
+    /// Adds the overlay's displacement into the main set values (when the overlay ends).
+    fn fold_overlay_values(&mut self) {
+        self.main.p += self.overlay_set.p;
+        self.main.v += self.overlay_set.v;
+        self.main.a += self.overlay_set.a;
+        self.overlay_set = KinematicState::default();
+    }
+
+    /// Goes to ErrorStop: the running commands end in error and the axis decelerates
+    /// with its maximum deceleration.
+    fn fault(&mut self, fault: AxisFault, handles: &mut HandleTable) {
+        let err = match fault {
+            AxisFault::Command(e) => e,
+            _ => CommandError::AxisFault {
+                command: self.motion.map(|m| m.command).unwrap_or("no command"),
+            },
+        };
+        if let Some(m) = self.motion.take() {
+            handles.set(m.handle, CommandStatus::Error(err));
+        }
+        if let Some(o) = self.overlay.take() {
+            handles.set(o.handle, CommandStatus::Error(err));
+            self.fold_overlay_values();
+        }
+        self.queue
+            .drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
+        self.state = AxisState::ErrorStop;
+        self.status.error = Some(fault);
+        // Decelerate to a stop with the axis' maximum deceleration.
+        let _ = self.start_stop_motion(
+            MotionKind::Stop,
+            self.cfg.max.dmax,
+            handle::HandleId(u64::MAX),
+            "ErrorStop",
+        );
+    }
+
+    /// Continuous moves with software limits: brake so the set position stops at the
+    /// limit, and go to ErrorStop.
+    fn check_software_limits(&mut self, handles: &mut HandleTable) {
+        let Some((min, max)) = self.cfg.mechanics.software_limits else {
+            return;
+        };
+        if !self.homed || self.period().is_some() {
+            return;
+        }
+        let continuous = self.motion.is_some_and(|m| m.kind.is_continuous()) || self.overlay.is_some();
+        if !continuous {
+            return;
+        }
+        let mut s = self.main;
+        s.p += self.overlay_set.p;
+        s.v += self.overlay_set.v;
+        s.a += self.overlay_set.a;
+        let limit = if s.v > 0.0 { max } else { min };
+        let stop = self.stopping_point(s);
+        let beyond = if s.v > 0.0 { stop >= limit } else { stop <= limit };
+        if beyond && s.v != 0.0 {
+            self.fault(AxisFault::SoftwareLimit { limit }, handles);
+            // Replace the plain stop by one that ends exactly at the limit when possible.
+            let params = motion::MoveParams {
+                limits: self.cfg.max,
+                ramp: self.ptp_dynamics.ramp,
+            };
+            if let Ok(p) = crate::profile::plan_position(params.ramp, self.main, limit, 0.0, &params.limits) {
+                if let Some(m) = self.motion.as_mut() {
+                    m.profile = p;
+                    m.kind = MotionKind::Halt { target: limit };
+                }
+            }
+        }
+    }
+
+    /// Where the axis would stop from `s` with its running deceleration.
+    fn stopping_point(&self, s: KinematicState) -> f64 {
+        let params = self.motion.map(|m| m.params).unwrap_or(motion::MoveParams {
+            limits: self.cfg.max,
+            ramp: self.vel_dynamics.ramp,
+        });
+        match crate::profile::plan_velocity(params.ramp, s, 0.0, &params.limits) {
+            Ok(p) => p.end_state().p,
+            Err(_) => s.p,
+        }
+    }
+
+    /// Recomputes the status from the current values.
+    fn refresh_status(&mut self) {
+        let mut set = self.main;
+        set.p += self.overlay_set.p;
+        set.v += self.overlay_set.v;
+        set.a += self.overlay_set.a;
+        set.j += self.overlay_set.j;
+        let (p_wrapped, turns) = match self.period() {
+            Some(period) => {
+                let n = (set.p / period).floor();
+                let mut w = set.p - n * period;
+                let mut n = n as i64;
+                if w >= period {
+                    w -= period;
+                    n += 1;
+                }
+                (w, self.frame_turns.saturating_add(n))
+            }
+            None => (set.p, 0),
+        };
+        let shift = set.p - p_wrapped;
+        let actual = self.actual_p - shift;
+        let eps_v = 1e-9 * self.cfg.max.vmax.max(1e-9);
+        let eps_a = 1e-9 * self.cfg.max.amax.max(1e-9);
+        let slope = SlopeState::of(&set, eps_v, eps_a);
+        let target = self.last_target.map(|t| match self.cfg.mechanics.modulo {
+            Some(m) => m.wrap(t),
+            None => t,
+        });
+        let in_window = self.last_target.is_some_and(|t| {
+            let d = match self.cfg.mechanics.modulo {
+                Some(m) => m.delta_shortest(m.wrap(t), m.wrap(self.actual_p)),
+                None => self.actual_p - t,
+            };
+            d.abs() <= self.last_window
+        });
+        let continuous_jog = self.motion.is_some_and(|m| matches!(m.kind, MotionKind::Jog));
+        self.status = AxisStatus {
+            state: self.state,
+            slope,
+            set: KinematicState { p: p_wrapped, ..set },
+            actual_position: actual,
+            actual_velocity: self.actual_v,
+            turns,
+            bits: StatusBits {
+                accelerating: slope == SlopeState::Accelerating,
+                decelerating: slope == SlopeState::Decelerating,
+                moving: set.v.abs() > eps_v,
+                jogging: continuous_jog || self.overlay.is_some(),
+                gearing: false,
+                camming: false,
+                homing: self.state == AxisState::Homing,
+                stopping: self.state == AxisState::Stopping
+                    || self
+                        .motion
+                        .is_some_and(|m| matches!(m.kind, MotionKind::Stop | MotionKind::QuickStop)),
+                homed: self.homed,
+                in_target_window: in_window,
+                max_speed_exceeded: set.v.abs() > self.cfg.max.vmax * (1.0 + 1e-9),
+                error: self.state == AxisState::ErrorStop,
+            },
+            target,
+            error: if self.state == AxisState::ErrorStop {
+                self.status.error
+            } else {
+                None
+            },
+        };
+    }
+
+    /// Whether the direction `sign` (+1/−1) is allowed on this axis.
+    fn direction_allowed(&self, sign: f64) -> bool {
+        match self.cfg.mechanics.direction {
+            Direction::Both => true,
+            Direction::PositiveOnly => sign >= 0.0,
+            Direction::NegativeOnly => sign <= 0.0,
+        }
+    }
+}

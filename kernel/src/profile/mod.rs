@@ -279,6 +279,16 @@ impl Profile {
         Ok(())
     }
 
+    /// Moves the whole profile by `dp` in position (modulo axes move whole periods out
+    /// of the frame this way; velocities and times are unchanged).
+    pub fn shift(&mut self, dp: f64) {
+        self.origin.p += dp;
+        self.end.p += dp;
+        for seg in self.segments.iter_mut().take(self.len) {
+            seg.start.p += dp;
+        }
+    }
+
     /// Replaces the exact final state (a planner sets the exact target position so that
     /// floating-point integration error never reaches the end state).
     pub fn set_end(&mut self, end: KinematicState) {

@@ -1,0 +1,769 @@
+//! Motion commands and their operands (SPEC §3; Jetter MovePtp/MoveVelocity/MoveHalt,
+//! Logix MAJ, PLCopen buffer modes), and the errors a command can be refused with.
+//!
+//! Every operand is validated before the command touches the axis: an out-of-range
+//! operand gives a [`CommandError`] that names it (like Logix' EXERR) and the axis goes on
+//! with what it was doing.
+
+use thiserror::Error;
+
+use super::state::AxisState;
+use crate::profile::{PlanError, RampType};
+
+/// How a MovePtp target is interpreted (seed 000 §6.4.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PositioningMode {
+    /// Absolute position; normal (non-modulo) axes only.
+    AbsNormal,
+    /// Relative to the last set target (`RelTarget 0` finishes an interrupted move).
+    RelTarget,
+    /// Relative to the actual position.
+    RelActual,
+    /// Modulo axes: absolute position within the period, moving in the positive direction.
+    AbsModuloPos,
+    /// Modulo axes: absolute position within the period, moving in the negative direction.
+    AbsModuloNeg,
+    /// Modulo axes: absolute position within the period, the shortest way.
+    AbsModuloAuto,
+    /// Modulo axes: absolute position within the period, in the direction of the last move.
+    AbsModuloKeepDirection,
+}
+
+impl PositioningMode {
+    /// Whether the mode is only for modulo axes.
+    pub const fn is_modulo(self) -> bool {
+        matches!(
+            self,
+            Self::AbsModuloPos
+                | Self::AbsModuloNeg
+                | Self::AbsModuloAuto
+                | Self::AbsModuloKeepDirection
+        )
+    }
+
+    /// Whether the target is an absolute position (and so needs a homed axis).
+    pub const fn is_absolute(self) -> bool {
+        !matches!(self, Self::RelTarget | Self::RelActual)
+    }
+}
+
+/// How a new command joins the one in progress (PLCopen Part 1, "BufferMode").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BufferMode {
+    /// Take over at once from the current state.
+    #[default]
+    Aborting,
+    /// Start in the cycle the previous move ends (no standstill cycle).
+    Buffered,
+    /// Pass the junction at the lower of the two moves' speeds.
+    BlendingLow,
+    /// Pass the junction at the previous move's speed.
+    BlendingPrevious,
+    /// Pass the junction at the next move's speed.
+    BlendingNext,
+    /// Pass the junction at the higher of the two moves' speeds.
+    BlendingHigh,
+}
+
+impl BufferMode {
+    /// Whether the new command waits for the previous one.
+    pub const fn is_queued(self) -> bool {
+        !matches!(self, Self::Aborting)
+    }
+}
+
+/// What a new MovePtp does while the current PTP move is on its deceleration ramp
+/// (seed 000 §6.1.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum RampBreakMode {
+    /// Finish to the first target, then go straight on to the second.
+    #[default]
+    None,
+    /// Abort the deceleration with the new maximum deceleration and go straight to the
+    /// second target, when the distance allows it; otherwise as `None`.
+    Immediate,
+}
+
+/// Direction of a velocity move or jog.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MoveDirection {
+    /// Positive (Logix "Forward").
+    Positive,
+    /// Negative (Logix "Reverse").
+    Negative,
+}
+
+impl MoveDirection {
+    /// +1 or −1.
+    pub const fn sign(self) -> f64 {
+        match self {
+            Self::Positive => 1.0,
+            Self::Negative => -1.0,
+        }
+    }
+
+    /// The other direction.
+    pub const fn reversed(self) -> Self {
+        match self {
+            Self::Positive => Self::Negative,
+            Self::Negative => Self::Positive,
+        }
+    }
+}
+
+/// Point-to-point move (Jetter `MovePtp.Start`). `None` operands keep the last value used
+/// on this axis (or the configured default), as Jetter does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MovePtp {
+    /// How `target` is interpreted.
+    pub mode: PositioningMode,
+    /// Target position or distance (units).
+    pub target: f64,
+    /// Maximum speed (units/s, > 0).
+    pub speed: Option<f64>,
+    /// Acceleration (units/s², > 0).
+    pub acceleration: Option<f64>,
+    /// Deceleration (units/s², > 0).
+    pub deceleration: Option<f64>,
+    /// Jerk (units/s³, > 0), S-curve only.
+    pub jerk: Option<f64>,
+    /// Target window (units, ≥ 0) for the "in target window" status.
+    pub target_window: Option<f64>,
+    /// Ramp type.
+    pub ramp: Option<RampType>,
+    /// How the move joins the one in progress.
+    pub buffer: BufferMode,
+}
+
+impl MovePtp {
+    /// A move with every optional operand left at its last-used value.
+    pub const fn new(mode: PositioningMode, target: f64) -> Self {
+        Self {
+            mode,
+            target,
+            speed: None,
+            acceleration: None,
+            deceleration: None,
+            jerk: None,
+            target_window: None,
+            ramp: None,
+            buffer: BufferMode::Aborting,
+        }
+    }
+
+    /// Sets the speed.
+    pub const fn speed(mut self, v: f64) -> Self {
+        self.speed = Some(v);
+        self
+    }
+
+    /// Sets acceleration and deceleration.
+    pub const fn accel(mut self, a: f64, d: f64) -> Self {
+        self.acceleration = Some(a);
+        self.deceleration = Some(d);
+        self
+    }
+
+    /// Sets the jerk.
+    pub const fn jerk(mut self, j: f64) -> Self {
+        self.jerk = Some(j);
+        self
+    }
+
+    /// Sets the ramp type.
+    pub const fn ramp(mut self, r: RampType) -> Self {
+        self.ramp = Some(r);
+        self
+    }
+
+    /// Sets the buffer mode.
+    pub const fn buffered(mut self, b: BufferMode) -> Self {
+        self.buffer = b;
+        self
+    }
+}
+
+/// Continuous move at constant velocity (Jetter `MoveVelocity.Start`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MoveVelocity {
+    /// Direction.
+    pub direction: MoveDirection,
+    /// Speed (units/s, > 0).
+    pub speed: Option<f64>,
+    /// Acceleration (units/s², > 0).
+    pub acceleration: Option<f64>,
+    /// Deceleration used when the move is stopped (units/s², > 0).
+    pub deceleration: Option<f64>,
+    /// Jerk (units/s³, > 0), S-curve only.
+    pub jerk: Option<f64>,
+    /// Ramp type.
+    pub ramp: Option<RampType>,
+    /// How the move joins the one in progress.
+    pub buffer: BufferMode,
+}
+
+impl MoveVelocity {
+    /// A velocity move in `direction` at `speed`, other operands last-used.
+    pub const fn new(direction: MoveDirection, speed: f64) -> Self {
+        Self {
+            direction,
+            speed: Some(speed),
+            acceleration: None,
+            deceleration: None,
+            jerk: None,
+            ramp: None,
+            buffer: BufferMode::Aborting,
+        }
+    }
+}
+
+/// Unit of a jog's speed or rate operand (Logix MAJ "Speed Units", "Accel Units").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RateUnits {
+    /// Units per second (per s² for rates).
+    PerSecond,
+    /// Percent of the axis' configured maximum.
+    PercentOfMax,
+}
+
+/// Unit of a jog's jerk operands (Logix MAJ "Jerk Units").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum JerkUnits {
+    /// Units per second³.
+    PerSecond3,
+    /// Percent of the axis' configured maximum jerk.
+    PercentOfMax,
+    /// Percent of the ramp time spent changing acceleration (100 % = triangular
+    /// acceleration, no constant-acceleration phase).
+    PercentOfTime,
+}
+
+/// Speed a merging jog runs at (Logix MAJ "Merge Speed").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MergeSpeed {
+    /// The jog's own `speed` operand.
+    Programmed,
+    /// The speed the axis has when the jog starts (the `speed` operand is ignored).
+    Current,
+}
+
+/// Velocity profile of a jog (Logix MAJ "Profile").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum JogProfile {
+    /// Linear ramps.
+    Trapezoid,
+    /// Jerk-limited ramps.
+    SCurve,
+}
+
+/// Jog at constant speed until stopped (Logix MAJ).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Jog {
+    /// Direction.
+    pub direction: MoveDirection,
+    /// Speed, in `speed_units`.
+    pub speed: f64,
+    /// Unit of `speed`.
+    pub speed_units: RateUnits,
+    /// Acceleration, in `accel_units`.
+    pub accel: f64,
+    /// Unit of `accel`.
+    pub accel_units: RateUnits,
+    /// Deceleration, in `decel_units`.
+    pub decel: f64,
+    /// Unit of `decel`.
+    pub decel_units: RateUnits,
+    /// Trapezoid or S-curve.
+    pub profile: JogProfile,
+    /// Jerk while speeding up, in `jerk_units` (S-curve only; must still be valid).
+    pub accel_jerk: f64,
+    /// Jerk while slowing down, in `jerk_units`.
+    pub decel_jerk: f64,
+    /// Unit of the jerks.
+    pub jerk_units: JerkUnits,
+    /// `true`: end every other motion and jog alone. `false`: a jog started while another
+    /// single-axis move runs is superimposed on it.
+    pub merge: bool,
+    /// With `merge`, which speed the jog runs at.
+    pub merge_speed: MergeSpeed,
+}
+
+impl Jog {
+    /// A trapezoid jog at `speed` units/s with rates in units/s², not merging.
+    pub const fn new(direction: MoveDirection, speed: f64, accel: f64, decel: f64) -> Self {
+        Self {
+            direction,
+            speed,
+            speed_units: RateUnits::PerSecond,
+            accel,
+            accel_units: RateUnits::PerSecond,
+            decel,
+            decel_units: RateUnits::PerSecond,
+            profile: JogProfile::Trapezoid,
+            accel_jerk: 100.0,
+            decel_jerk: 100.0,
+            jerk_units: JerkUnits::PercentOfTime,
+            merge: false,
+            merge_speed: MergeSpeed::Programmed,
+        }
+    }
+}
+
+/// How a halt ends (Jetter `MCAxisHaltModes`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum HaltMode {
+    /// Decelerate to a stop.
+    Normal,
+    /// Decelerate to a stop, then return to the position the halt was given at.
+    AtActualPosition,
+}
+
+/// Which power command (Jetter `Power.Enable/Disable`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PowerCommand {
+    /// Enable the drive; the axis goes to Standstill at its actual position.
+    Enable,
+    /// Bring a moving axis to a stop with its deceleration, then disable.
+    Disable,
+    /// Disable at once, whatever the axis is doing.
+    DisableForced,
+}
+
+/// Which on-the-fly change of the running move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum DynamicsChange {
+    /// New maximum speed.
+    Speed,
+    /// New acceleration.
+    Acceleration,
+    /// New deceleration.
+    Deceleration,
+    /// New jerk.
+    Jerk,
+}
+
+/// Every command an axis takes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// Power on or off.
+    Power(PowerCommand),
+    /// Leave ErrorStop (acknowledge the error).
+    Reset,
+    /// Point-to-point move.
+    MovePtp(MovePtp),
+    /// Constant-velocity move.
+    MoveVelocity(MoveVelocity),
+    /// Reverse the running velocity move (same speed, other direction, its acceleration).
+    Reverse,
+    /// Jog.
+    Jog(Jog),
+    /// Change one dynamic limit of the running move from its current state.
+    Change(DynamicsChange, f64),
+    /// Halt: decelerate to a stop (`deceleration` `None` keeps the running move's).
+    Halt {
+        /// Normal or AtActualPosition.
+        mode: HaltMode,
+        /// Deceleration (units/s², > 0).
+        deceleration: Option<f64>,
+    },
+    /// Stop: abort everything, decelerate, and lock the axis until [`Command::Release`].
+    Stop {
+        /// Deceleration (units/s², > 0); `None`: the axis' maximum deceleration.
+        deceleration: Option<f64>,
+    },
+    /// Release a stopped axis (the falling edge of MC_Stop's Execute).
+    Release,
+    /// Quick stop with the configured quick-stop deceleration, then disable.
+    QuickStop,
+    /// Set the position without moving. Absolute marks the axis homed.
+    SetPosition {
+        /// New position (absolute) or shift (relative), units.
+        position: f64,
+        /// Shift by `position` instead of setting it.
+        relative: bool,
+    },
+    /// Explicitly mark the axis homed (or not homed).
+    SetHomed(bool),
+}
+
+impl Command {
+    /// Short name for messages.
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Command::Power(PowerCommand::Enable) => "Power.Enable",
+            Command::Power(PowerCommand::Disable) => "Power.Disable",
+            Command::Power(PowerCommand::DisableForced) => "Power.Disable(Forced)",
+            Command::Reset => "Reset",
+            Command::MovePtp(_) => "MovePtp",
+            Command::MoveVelocity(_) => "MoveVelocity",
+            Command::Reverse => "MoveVelocity.Reverse",
+            Command::Jog(_) => "Jog",
+            Command::Change(DynamicsChange::Speed, _) => "NewSpeed",
+            Command::Change(DynamicsChange::Acceleration, _) => "NewAcceleration",
+            Command::Change(DynamicsChange::Deceleration, _) => "NewDeceleration",
+            Command::Change(DynamicsChange::Jerk, _) => "NewJerk",
+            Command::Halt { .. } => "Halt",
+            Command::Stop { .. } => "Stop",
+            Command::Release => "Stop.Release",
+            Command::QuickStop => "QuickStop",
+            Command::SetPosition { .. } => "SetPosition",
+            Command::SetHomed(_) => "SetHomed",
+        }
+    }
+}
+
+/// A command operand, numbered like Logix' EXERR (the first operand after the axis is 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Operand {
+    /// Target position or distance.
+    Target,
+    /// Speed.
+    Speed,
+    /// Acceleration.
+    Acceleration,
+    /// Deceleration.
+    Deceleration,
+    /// Jerk (for jogs: accel jerk).
+    Jerk,
+    /// Decel jerk of a jog.
+    DecelJerk,
+    /// Target window.
+    TargetWindow,
+    /// Position of SetPosition.
+    Position,
+    /// Positioning mode.
+    Mode,
+    /// Direction.
+    Direction,
+}
+
+impl Operand {
+    /// Operand name as in the command's documentation.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Operand::Target => "target",
+            Operand::Speed => "speed",
+            Operand::Acceleration => "acceleration",
+            Operand::Deceleration => "deceleration",
+            Operand::Jerk => "jerk",
+            Operand::DecelJerk => "decel jerk",
+            Operand::TargetWindow => "target window",
+            Operand::Position => "position",
+            Operand::Mode => "mode",
+            Operand::Direction => "direction",
+        }
+    }
+}
+
+impl core::fmt::Display for Operand {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Why an operand is out of range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RangeProblem {
+    /// NaN or infinite.
+    NotFinite,
+    /// Must be > 0.
+    NotPositive,
+    /// Must be ≥ 0.
+    Negative,
+    /// Above the axis' configured maximum.
+    AboveAxisMax,
+    /// Percent operand outside (0, 100].
+    PercentOutOfRange,
+}
+
+impl RangeProblem {
+    const fn text(self) -> &'static str {
+        match self {
+            RangeProblem::NotFinite => "is not a finite number",
+            RangeProblem::NotPositive => "must be > 0",
+            RangeProblem::Negative => "must be >= 0",
+            RangeProblem::AboveAxisMax => "exceeds the axis maximum",
+            RangeProblem::PercentOutOfRange => "must be a percentage in (0, 100]",
+        }
+    }
+}
+
+impl core::fmt::Display for RangeProblem {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.text())
+    }
+}
+
+/// Why a command was refused or ended in error. `Copy`, so it can live in the RT status.
+#[derive(Clone, Copy, Debug, Error, PartialEq)]
+pub enum CommandError {
+    /// An operand is out of range.
+    #[error("{command}: operand {operand} = {value} {problem} (limit {limit})")]
+    OperandOutOfRange {
+        /// Command name.
+        command: &'static str,
+        /// Which operand.
+        operand: Operand,
+        /// Its value.
+        value: f64,
+        /// What is wrong.
+        problem: RangeProblem,
+        /// The limit it was checked against (NaN where there is none).
+        limit: f64,
+    },
+    /// A modulo positioning mode on an axis without a modulo period.
+    #[error("{command}: mode {mode:?} needs a modulo axis")]
+    ModuloModeOnNormalAxis {
+        /// Command name.
+        command: &'static str,
+        /// The mode given.
+        mode: PositioningMode,
+    },
+    /// AbsNormal on a modulo axis.
+    #[error("{command}: mode AbsNormal is for normal (non-modulo) axes; use an AbsModulo mode")]
+    AbsNormalOnModuloAxis {
+        /// Command name.
+        command: &'static str,
+    },
+    /// The target lies outside the software limits.
+    #[error("{command}: target {target} is outside the software limits [{min}, {max}]")]
+    OutsideSoftwareLimits {
+        /// Command name.
+        command: &'static str,
+        /// The target.
+        target: f64,
+        /// Lower limit.
+        min: f64,
+        /// Upper limit.
+        max: f64,
+    },
+    /// The move would run in a direction the axis may not move in.
+    #[error("{command}: the axis may only move {allowed}, this move goes {wanted}")]
+    DirectionNotAllowed {
+        /// Command name.
+        command: &'static str,
+        /// "positive" or "negative".
+        allowed: &'static str,
+        /// "positive" or "negative".
+        wanted: &'static str,
+    },
+    /// The command is not allowed in the axis' PLCopen state.
+    #[error("{command} is not allowed in state {state:?}")]
+    NotAllowedInState {
+        /// Command name.
+        command: &'static str,
+        /// The axis state.
+        state: AxisState,
+    },
+    /// The command needs a homed axis.
+    #[error("{command}: the axis is not homed (home it, set an absolute position or mark it homed)")]
+    NotHomed {
+        /// Command name.
+        command: &'static str,
+    },
+    /// The axis kind takes no such command (external and shadow axes are never commanded).
+    #[error("{command}: a {kind} axis cannot be commanded")]
+    NotCommandable {
+        /// Command name.
+        command: &'static str,
+        /// Axis kind name.
+        kind: &'static str,
+    },
+    /// No move is running that the command could change.
+    #[error("{command}: no move of the right kind is running")]
+    NothingToChange {
+        /// Command name.
+        command: &'static str,
+    },
+    /// Too many commands are waiting (buffered) on this axis.
+    #[error("{command}: the axis' buffer of {capacity} waiting moves is full")]
+    QueueFull {
+        /// Command name.
+        command: &'static str,
+        /// Queue capacity.
+        capacity: usize,
+    },
+    /// The profile planner failed.
+    #[error("{command}: planning failed: {error}")]
+    Plan {
+        /// Command name.
+        command: &'static str,
+        /// The planner's error.
+        error: PlanError,
+    },
+    /// The command was accepted but the axis went to ErrorStop while it ran.
+    #[error("the axis went to ErrorStop while {command} ran")]
+    AxisFault {
+        /// Command name.
+        command: &'static str,
+    },
+    /// No axis with that index.
+    #[error("no axis with index {axis}")]
+    NoSuchAxis {
+        /// The index given.
+        axis: usize,
+    },
+}
+
+impl CommandError {
+    /// Logix-style EXERR: the number of the offending operand (first after the axis = 1),
+    /// or 0 where the error is not about one operand.
+    pub const fn operand_number(&self) -> u8 {
+        match self {
+            CommandError::OperandOutOfRange { operand, .. } => match operand {
+                Operand::Mode | Operand::Direction => 1,
+                Operand::Target | Operand::Position => 2,
+                Operand::Speed => 3,
+                Operand::Acceleration => 4,
+                Operand::Deceleration => 5,
+                Operand::Jerk => 6,
+                Operand::DecelJerk => 7,
+                Operand::TargetWindow => 8,
+            },
+            CommandError::ModuloModeOnNormalAxis { .. }
+            | CommandError::AbsNormalOnModuloAxis { .. } => 1,
+            CommandError::OutsideSoftwareLimits { .. } => 2,
+            _ => 0,
+        }
+    }
+}
+
+/// Checks that `value` is finite and > 0 and at most `max`.
+pub(crate) fn positive(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+    max: f64,
+) -> Result<f64, CommandError> {
+    let problem = if !value.is_finite() {
+        RangeProblem::NotFinite
+    } else if value <= 0.0 {
+        RangeProblem::NotPositive
+    } else if value > max * (1.0 + 1e-12) {
+        RangeProblem::AboveAxisMax
+    } else {
+        return Ok(value.min(max));
+    };
+    Err(CommandError::OperandOutOfRange {
+        command,
+        operand,
+        value,
+        problem,
+        limit: max,
+    })
+}
+
+/// Checks that `value` is finite.
+pub(crate) fn finite(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+) -> Result<f64, CommandError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(CommandError::OperandOutOfRange {
+            command,
+            operand,
+            value,
+            problem: RangeProblem::NotFinite,
+            limit: f64::NAN,
+        })
+    }
+}
+
+/// Checks that `value` is finite and ≥ 0.
+pub(crate) fn non_negative(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+) -> Result<f64, CommandError> {
+    let v = finite(command, operand, value)?;
+    if v < 0.0 {
+        return Err(CommandError::OperandOutOfRange {
+            command,
+            operand,
+            value,
+            problem: RangeProblem::Negative,
+            limit: 0.0,
+        });
+    }
+    Ok(v)
+}
+
+/// Converts a rate given in `units` to units/s^n: percent of `max` or as is.
+pub(crate) fn rate(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+    units: RateUnits,
+    max: f64,
+) -> Result<f64, CommandError> {
+    match units {
+        RateUnits::PerSecond => positive(command, operand, value, max),
+        RateUnits::PercentOfMax => percent(command, operand, value).map(|p| p / 100.0 * max),
+    }
+}
+
+/// Checks a percentage in (0, 100].
+pub(crate) fn percent(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+) -> Result<f64, CommandError> {
+    if value.is_finite() && value > 0.0 && value <= 100.0 {
+        Ok(value)
+    } else {
+        Err(CommandError::OperandOutOfRange {
+            command,
+            operand,
+            value,
+            problem: if value.is_finite() {
+                RangeProblem::PercentOutOfRange
+            } else {
+                RangeProblem::NotFinite
+            },
+            limit: 100.0,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positive_names_operand_and_problem() {
+        let e = positive("MovePtp", Operand::Speed, -1.0, 10.0).unwrap_err();
+        assert_eq!(e.operand_number(), 3);
+        assert_eq!(
+            e.to_string(),
+            "MovePtp: operand speed = -1 must be > 0 (limit 10)"
+        );
+        assert!(matches!(
+            positive("MovePtp", Operand::Speed, f64::NAN, 10.0),
+            Err(CommandError::OperandOutOfRange {
+                problem: RangeProblem::NotFinite,
+                ..
+            })
+        ));
+        assert!(matches!(
+            positive("MovePtp", Operand::Speed, 11.0, 10.0),
+            Err(CommandError::OperandOutOfRange {
+                problem: RangeProblem::AboveAxisMax,
+                ..
+            })
+        ));
+        assert_eq!(positive("MovePtp", Operand::Speed, 10.0, 10.0), Ok(10.0));
+    }
+
+    #[test]
+    fn percent_rates_scale_the_axis_maximum() {
+        assert_eq!(
+            rate("Jog", Operand::Speed, 50.0, RateUnits::PercentOfMax, 200.0),
+            Ok(100.0)
+        );
+        assert!(rate("Jog", Operand::Speed, 150.0, RateUnits::PercentOfMax, 200.0).is_err());
+        assert!(rate("Jog", Operand::Speed, 0.0, RateUnits::PercentOfMax, 200.0).is_err());
+    }
+}

@@ -1,0 +1,152 @@
+//! What an axis reports every cycle: slope state, status bits and the values a user
+//! watches (Jetter `Mechanism.Slope`, Logix MotionStatus bits).
+
+use super::command::CommandError;
+use super::state::AxisState;
+use crate::profile::KinematicState;
+
+/// Slope (ramp) state of the set values (seed 000 §6.4.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SlopeState {
+    /// Set velocity and acceleration are zero.
+    #[default]
+    Stopped,
+    /// |set velocity| rising.
+    Accelerating,
+    /// Constant set velocity.
+    ConstantSpeed,
+    /// |set velocity| falling.
+    Decelerating,
+}
+
+impl SlopeState {
+    /// Classifies a set-value state. `eps_v`/`eps_a` are what counts as zero.
+    pub fn of(s: &KinematicState, eps_v: f64, eps_a: f64) -> Self {
+        let moving = s.v.abs() > eps_v;
+        let accel = s.a.abs() > eps_a;
+        match (moving, accel) {
+            (false, false) => SlopeState::Stopped,
+            (true, false) => SlopeState::ConstantSpeed,
+            (false, true) => SlopeState::Accelerating,
+            (true, true) if s.a * s.v > 0.0 => SlopeState::Accelerating,
+            (true, true) => SlopeState::Decelerating,
+        }
+    }
+
+    /// Name as Jetter writes it.
+    pub const fn name(self) -> &'static str {
+        match self {
+            SlopeState::Stopped => "Stopped",
+            SlopeState::Accelerating => "Accelerating",
+            SlopeState::ConstantSpeed => "ConstantSpeed",
+            SlopeState::Decelerating => "Decelerating",
+        }
+    }
+}
+
+/// Axis status bits (SPEC §3; Logix MotionStatus).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct StatusBits {
+    /// |set velocity| rising.
+    pub accelerating: bool,
+    /// |set velocity| falling.
+    pub decelerating: bool,
+    /// Set velocity is not zero.
+    pub moving: bool,
+    /// A jog runs.
+    pub jogging: bool,
+    /// Gearing to a master (later issue).
+    pub gearing: bool,
+    /// Camming to a master (later issue).
+    pub camming: bool,
+    /// A homing run is in progress.
+    pub homing: bool,
+    /// Stop or QuickStop is active.
+    pub stopping: bool,
+    /// The position is referenced.
+    pub homed: bool,
+    /// The actual position is within the target window of the last PTP target.
+    pub in_target_window: bool,
+    /// |set velocity| exceeds the configured maximum speed (e.g. a superimposed jog).
+    pub max_speed_exceeded: bool,
+    /// The axis is in ErrorStop.
+    pub error: bool,
+}
+
+/// Everything an axis reports after a cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AxisStatus {
+    /// PLCopen state.
+    pub state: AxisState,
+    /// Slope state of the set values.
+    pub slope: SlopeState,
+    /// Set values; `p` is wrapped into the period on modulo axes.
+    pub set: KinematicState,
+    /// Actual position, on the same side of the modulo wrap as `set.p`.
+    pub actual_position: f64,
+    /// Actual velocity.
+    pub actual_velocity: f64,
+    /// Whole modulo periods of the set position (0 on normal axes).
+    pub turns: i64,
+    /// Status bits.
+    pub bits: StatusBits,
+    /// Target of the last PTP move (wrapped on modulo axes), if any.
+    pub target: Option<f64>,
+    /// Why the axis is in ErrorStop.
+    pub error: Option<AxisFault>,
+}
+
+/// Why an axis went to ErrorStop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AxisFault {
+    /// The running command failed (e.g. planning failed).
+    Command(CommandError),
+    /// The drive reported a fault (CiA-402 error code 0x603F).
+    Drive {
+        /// Error code.
+        code: u16,
+    },
+    /// The following error exceeded its window.
+    FollowingError {
+        /// |set − actual| (units).
+        error: f64,
+        /// The window (units).
+        window: f64,
+    },
+    /// The set position reached a software limit during a continuous move.
+    SoftwareLimit {
+        /// The limit that was reached (units).
+        limit: f64,
+    },
+}
+
+impl core::fmt::Display for AxisFault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            AxisFault::Command(e) => write!(f, "{e}"),
+            AxisFault::Drive { code } => write!(f, "drive fault, error code 0x{code:04X}"),
+            AxisFault::FollowingError { error, window } => {
+                write!(f, "following error {error} exceeds window {window}")
+            }
+            AxisFault::SoftwareLimit { limit } => {
+                write!(f, "software limit {limit} reached")
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_state_follows_sign_of_a_times_v() {
+        let s = |v, a| SlopeState::of(&KinematicState { p: 0.0, v, a, j: 0.0 }, 1e-9, 1e-9);
+        assert_eq!(s(0.0, 0.0), SlopeState::Stopped);
+        assert_eq!(s(0.0, 1.0), SlopeState::Accelerating);
+        assert_eq!(s(1.0, 1.0), SlopeState::Accelerating);
+        assert_eq!(s(-1.0, -1.0), SlopeState::Accelerating);
+        assert_eq!(s(-1.0, 1.0), SlopeState::Decelerating);
+        assert_eq!(s(2.0, 0.0), SlopeState::ConstantSpeed);
+    }
+}
