@@ -1,0 +1,203 @@
+//! Fuzzed command sequences: whatever arrives (NaN, huge, negative, out-of-state), `step`
+//! never panics, never yields NaN, and the set values stay continuous: position and
+//! velocity always, acceleration too when every ramp is an S-curve.
+
+mod common;
+
+use common::*;
+use gantry_kernel::axis::command::{
+    BufferMode, Command, DynamicsChange, HaltMode, Jog, JogProfile, MoveDirection, MovePtp,
+    MoveVelocity, PositioningMode, PowerCommand,
+};
+use gantry_kernel::profile::RampType;
+use gantry_kernel::Kernel;
+use proptest::prelude::*;
+
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        6 => -200.0..200.0f64,
+        1 => Just(0.0),
+        1 => Just(f64::NAN),
+        1 => Just(f64::INFINITY),
+        1 => Just(-1e300),
+        1 => 1e-9..1e-3f64,
+    ]
+}
+
+fn speed() -> impl Strategy<Value = f64> {
+    prop_oneof![8 => 0.5..100.0f64, 1 => value()]
+}
+
+fn mode() -> impl Strategy<Value = PositioningMode> {
+    prop_oneof![
+        Just(PositioningMode::AbsNormal),
+        Just(PositioningMode::RelTarget),
+        Just(PositioningMode::RelActual),
+        Just(PositioningMode::AbsModuloPos),
+        Just(PositioningMode::AbsModuloNeg),
+        Just(PositioningMode::AbsModuloAuto),
+        Just(PositioningMode::AbsModuloKeepDirection),
+    ]
+}
+
+fn buffer() -> impl Strategy<Value = BufferMode> {
+    prop_oneof![
+        3 => Just(BufferMode::Aborting),
+        1 => Just(BufferMode::Buffered),
+        1 => Just(BufferMode::BlendingLow),
+        1 => Just(BufferMode::BlendingPrevious),
+        1 => Just(BufferMode::BlendingNext),
+        1 => Just(BufferMode::BlendingHigh),
+    ]
+}
+
+fn dir() -> impl Strategy<Value = MoveDirection> {
+    prop_oneof![Just(MoveDirection::Positive), Just(MoveDirection::Negative)]
+}
+
+/// Commands whose ramps are all S-curves (when `scurve_only`), or anything.
+fn command(scurve_only: bool) -> impl Strategy<Value = Command> {
+    let ramp = if scurve_only {
+        Just(RampType::SCurve).boxed()
+    } else {
+        prop_oneof![
+            Just(RampType::Trapezoid),
+            Just(RampType::SCurve),
+            Just(RampType::Sine),
+            Just(RampType::LinearSine)
+        ]
+        .boxed()
+    };
+    let ptp = (mode(), value(), speed(), speed(), speed(), speed(), buffer(), ramp.clone()).prop_map(
+        |(mode, target, v, a, d, j, b, r)| {
+            Command::MovePtp(MovePtp {
+                mode,
+                target,
+                speed: Some(v),
+                acceleration: Some(a * 10.0),
+                deceleration: Some(d * 10.0),
+                jerk: Some(j * 100.0),
+                target_window: Some(0.01),
+                ramp: Some(r),
+                buffer: b,
+            })
+        },
+    );
+    let vel = (dir(), speed(), speed(), speed(), buffer(), ramp).prop_map(|(d, v, a, dec, b, r)| {
+        let mut m = MoveVelocity::new(d, v);
+        m.acceleration = Some(a * 10.0);
+        m.deceleration = Some(dec * 10.0);
+        m.jerk = Some(500.0);
+        m.ramp = Some(r);
+        m.buffer = b;
+        Command::MoveVelocity(m)
+    });
+    let jog = (dir(), speed(), any::<bool>(), any::<bool>()).prop_map(move |(d, v, merge, cur)| {
+        let mut j = Jog::new(d, v, 50.0, 50.0);
+        j.merge = merge;
+        if cur {
+            j.merge_speed = gantry_kernel::axis::command::MergeSpeed::Current;
+        }
+        if scurve_only {
+            j.profile = JogProfile::SCurve;
+        }
+        Command::Jog(j)
+    });
+    let change = (
+        prop_oneof![
+            Just(DynamicsChange::Speed),
+            Just(DynamicsChange::Acceleration),
+            Just(DynamicsChange::Deceleration),
+            Just(DynamicsChange::Jerk)
+        ],
+        speed(),
+    )
+        .prop_map(|(c, v)| Command::Change(c, v));
+    let misc = prop_oneof![
+        Just(Command::Reverse),
+        Just(Command::Halt { mode: HaltMode::Normal, deceleration: None }),
+        Just(Command::Halt { mode: HaltMode::AtActualPosition, deceleration: Some(30.0) }),
+        Just(Command::Stop { deceleration: None }),
+        Just(Command::Release),
+        Just(Command::Reset),
+        Just(Command::Power(PowerCommand::Enable)),
+        Just(Command::Power(PowerCommand::Disable)),
+        Just(Command::SetHomed(true)),
+        value().prop_map(|p| Command::SetPosition { position: p, relative: false }),
+    ];
+    let rare = prop_oneof![
+        Just(Command::QuickStop),
+        Just(Command::Power(PowerCommand::DisableForced)),
+    ];
+    if scurve_only {
+        prop_oneof![6 => ptp, 2 => vel, 2 => jog, 2 => change, 3 => misc].boxed()
+    } else {
+        prop_oneof![6 => ptp, 2 => vel, 2 => jog, 2 => change, 3 => misc, 1 => rare].boxed()
+    }
+}
+
+/// Runs a sequence of (wait cycles, axis, command) and checks continuity each cycle.
+fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
+    let mut lin = linear("x");
+    lin.mechanics.software_limits = Some((-150.0, 150.0));
+    lin.defaults.ramp = RampType::SCurve;
+    let mut rot = rotary("r");
+    rot.defaults.ramp = RampType::SCurve;
+    let configs = vec![lin, rot];
+    let max: Vec<_> = configs.iter().map(|c| c.max).collect();
+    let mut k = Kernel::new(DT, configs).unwrap();
+    for i in 0..2 {
+        k.submit(i, Command::Power(PowerCommand::Enable));
+    }
+    k.step(&[]);
+    let mut prev: Vec<_> = (0..2).map(|i| *k.axis_status(i).unwrap()).collect();
+    for (wait, axis, cmd) in seq {
+        let jumpy = matches!(cmd, Command::Power(PowerCommand::DisableForced) | Command::SetPosition { .. });
+        let _ = k.submit(*axis % 2, *cmd);
+        if jumpy {
+            prev = (0..2).map(|i| *k.axis_status(i).unwrap()).collect();
+        }
+        for _ in 0..*wait {
+            k.step(&[]);
+            for i in 0..2 {
+                let s = *k.axis_status(i).unwrap();
+                let p = prev[i];
+                let m = max[i];
+                assert!(s.set.p.is_finite() && s.set.v.is_finite() && s.set.a.is_finite(), "{s:?}");
+                let dp = if i == 1 {
+                    (s.turns - p.turns) as f64 * 360.0 + s.set.p - p.set.p
+                } else {
+                    s.set.p - p.set.p
+                };
+                // A superimposed jog can double the speed; allow for it.
+                let vbound = 2.0 * m.vmax * DT * 1.0001 + 1e-9;
+                assert!(dp.abs() <= vbound, "axis {i} position jump {dp} after {cmd:?}");
+                let dv = s.set.v - p.set.v;
+                assert!(dv.abs() <= 2.0 * m.amax * DT * 1.0001 + 1e-9, "axis {i} velocity jump {dv} after {cmd:?}");
+                if scurve_only {
+                    let da = s.set.a - p.set.a;
+                    assert!(da.abs() <= 2.0 * m.jmax * DT * 1.0001 + 1e-6, "axis {i} acceleration jump {da} after {cmd:?}");
+                }
+                prev[i] = s;
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha, ..ProptestConfig::default() })]
+
+    #[test]
+    fn any_command_sequence_keeps_position_and_velocity_continuous(
+        seq in prop::collection::vec((0usize..400, 0usize..2, command(false)), 1..40)
+    ) {
+        check(&seq, false);
+    }
+
+    #[test]
+    fn s_curve_sequences_keep_acceleration_continuous(
+        seq in prop::collection::vec((0usize..400, 0usize..2, command(true)), 1..40)
+    ) {
+        check(&seq, true);
+    }
+}
