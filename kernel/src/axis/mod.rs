@@ -61,7 +61,10 @@ impl AxisKind {
 
     /// Whether the actual values come from the bus.
     pub const fn has_feedback(self) -> bool {
-        matches!(self, AxisKind::Real | AxisKind::External)
+        matches!(
+            self,
+            AxisKind::Real | AxisKind::External | AxisKind::Shadow { .. }
+        )
     }
 }
 
@@ -453,7 +456,7 @@ impl Axis {
             None => p,
         };
         self.actual_v = fb.velocity;
-        if matches!(self.cfg.kind, AxisKind::External) {
+        if matches!(self.cfg.kind, AxisKind::External | AxisKind::Shadow { .. }) {
             self.main = KinematicState::at_rest(self.actual_p);
             self.main.v = fb.velocity;
             return;
@@ -504,8 +507,12 @@ impl Axis {
             self.retire(m, handles);
             if let Some(q) = self.queue.pop() {
                 if let Err(e) = self.start_queued(q, end, end_epoch, dt, handles) {
+                    handles.set(q.handle(), CommandStatus::Error(e));
                     self.fault(AxisFault::Command(e), handles);
                 }
+            } else if self.overlay.is_some() && self.state == AxisState::Standstill {
+                // A superimposed jog still moves the axis.
+                self.state = AxisState::ContinuousMotion;
             }
         }
     }
