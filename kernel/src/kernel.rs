@@ -105,7 +105,11 @@ impl Kernel {
         let h = self.handles.issue(CommandStatus::Busy);
         let status = match self.axes.get_mut(axis) {
             None => Err(CommandError::NoSuchAxis { axis }),
-            Some(a) => a.apply(&cmd, h, &mut self.handles),
+            Some(a) => {
+                let r = a.apply(&cmd, h, &mut self.handles);
+                a.refresh_status();
+                r
+            }
         };
         let status = status.unwrap_or_else(CommandStatus::Error);
         self.handles.set(h, status);

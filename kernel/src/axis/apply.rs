@@ -65,7 +65,7 @@ impl Axis {
             }
             Command::QuickStop => {
                 self.fold_overlay(handles);
-                self.abort_all(handles, CommandStatus::Aborted);
+                self.abort_all_but_values(handles);
                 self.start_stop_motion(
                     MotionKind::QuickStop,
                     self.cfg.quick_stop_deceleration,
@@ -137,7 +137,7 @@ impl Axis {
                     .map(|m| m.params.limits.dmax)
                     .unwrap_or(self.ptp_dynamics.deceleration);
                 self.fold_overlay(handles);
-                self.abort_all(handles, CommandStatus::Aborted);
+                self.abort_all_but_values(handles);
                 self.start_stop_motion(MotionKind::Disable, decel, h, "Power.Disable")?;
                 self.state = AxisState::Stopping;
                 Ok(CommandStatus::Active)

@@ -500,9 +500,17 @@ impl Axis {
                 }
                 return;
             }
-            // The profile ended at `end`; what comes next starts exactly then.
-            let end = m.profile.end_state();
-            let end_epoch = m.end_epoch(dt);
+            // The profile ended at `end`; what comes next starts exactly then — or, behind
+            // a velocity move whose ramp ended before the next move was queued, from the
+            // last cycle's set values.
+            let mut end = m.profile.end_state();
+            let mut end_epoch = m.end_epoch(dt);
+            let prev = now.saturating_sub(1);
+            if !m.kind.is_finite() && m.epoch.elapsed(prev, dt) > m.profile.duration() {
+                end = m.sample(prev, dt);
+                end.j = 0.0;
+                end_epoch = motion::Epoch::at(prev);
+            }
             self.main = end;
             self.retire(m, handles);
             if let Some(q) = self.queue.pop() {
@@ -673,7 +681,7 @@ impl Axis {
     }
 
     /// Recomputes the status from the current values.
-    fn refresh_status(&mut self) {
+    pub(crate) fn refresh_status(&mut self) {
         let mut set = self.main;
         set.p += self.overlay_set.p;
         set.v += self.overlay_set.v;
