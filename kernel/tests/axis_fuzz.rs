@@ -184,8 +184,24 @@ fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
     }
 }
 
+/// Fixed seed so every run checks the same sequences; `GANTRY_FUZZ_SEED` explores others.
+fn fuzz_seed() -> u64 {
+    std::env::var("GANTRY_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x6a6e7472)
+}
+
+/// Number of sequences per property (`GANTRY_FUZZ_CASES` to run more).
+fn fuzz_cases() -> u32 {
+    std::env::var("GANTRY_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(64)
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        cases: fuzz_cases(),
+        failure_persistence: None,
+        rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(fuzz_seed()),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn any_command_sequence_keeps_position_and_velocity_continuous(

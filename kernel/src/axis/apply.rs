@@ -6,7 +6,7 @@
 //! acceleration for S-curves).
 
 use super::command::{
-    finite, non_negative, percent, positive, rate, BufferMode, Command, CommandError,
+    non_negative, percent, position, positive, rate, RangeProblem, BufferMode, Command, CommandError,
     DynamicsChange, HaltMode, JerkUnits, Jog, JogProfile, MergeSpeed, MoveDirection, MovePtp,
     MoveVelocity, Operand, PositioningMode, PowerCommand, RampBreakMode,
 };
@@ -75,9 +75,16 @@ impl Axis {
                 self.state = AxisState::Stopping;
                 Ok(CommandStatus::Active)
             }
-            Command::SetPosition { position, relative } => {
-                let v = finite(name, Operand::Position, position)?;
-                let new_p = if relative { self.main.p + v } else { v };
+            Command::SetPosition {
+                position: value,
+                relative,
+            } => {
+                let v = position(name, Operand::Position, value)?;
+                let mut new_p = if relative { self.main.p + v } else { v };
+                if let Some(m) = self.cfg.mechanics.modulo {
+                    // The position within the period; whole turns are not the user's to set.
+                    new_p = self.main.p + m.delta_positive(m.wrap(self.main.p), m.wrap(new_p));
+                }
                 let shift = new_p - self.main.p;
                 self.main.p = new_p;
                 self.actual_p += shift;
@@ -190,7 +197,7 @@ impl Axis {
             Operand::TargetWindow,
             m.target_window.unwrap_or(d.target_window),
         )?;
-        finite(name, Operand::Target, m.target)?;
+        position(name, Operand::Target, m.target)?;
         let ramp = m.ramp.unwrap_or(d.ramp);
         let used = Dynamics {
             speed,
@@ -275,7 +282,7 @@ impl Axis {
                         command: name,
                         operand: Operand::Target,
                         value: m.target,
-                        problem: super::command::RangeProblem::AboveAxisMax,
+                        problem: RangeProblem::OutsidePeriod,
                         limit: period,
                     });
                 }
@@ -311,15 +318,7 @@ impl Axis {
                 from.p + delta
             }
         };
-        if !target.is_finite() {
-            return Err(CommandError::OperandOutOfRange {
-                command: name,
-                operand: Operand::Target,
-                value: target,
-                problem: super::command::RangeProblem::NotFinite,
-                limit: f64::NAN,
-            });
-        }
+        position(name, Operand::Target, target)?;
         if let (Some((min, max)), true, None) = (
             self.cfg.mechanics.software_limits,
             self.homed,

@@ -474,7 +474,15 @@ pub enum RangeProblem {
     AboveAxisMax,
     /// Percent operand outside (0, 100].
     PercentOutOfRange,
+    /// A position beyond ±[`MAX_POSITION`], where f64 no longer resolves a count.
+    BeyondPositionRange,
+    /// A modulo position outside [0, period).
+    OutsidePeriod,
 }
+
+/// Largest |position| (units) a command may name: beyond it an f64 no longer resolves
+/// 0.1 µm, so such a value is a mistake, not a position.
+pub const MAX_POSITION: f64 = 1e9;
 
 impl RangeProblem {
     const fn text(self) -> &'static str {
@@ -484,6 +492,8 @@ impl RangeProblem {
             RangeProblem::Negative => "must be >= 0",
             RangeProblem::AboveAxisMax => "exceeds the axis maximum",
             RangeProblem::PercentOutOfRange => "must be a percentage in (0, 100]",
+            RangeProblem::BeyondPositionRange => "is beyond the position range",
+            RangeProblem::OutsidePeriod => "must lie in [0, period)",
         }
     }
 }
@@ -670,6 +680,25 @@ pub(crate) fn finite(
             limit: f64::NAN,
         })
     }
+}
+
+/// Checks that a position or distance is finite and within ±[`MAX_POSITION`].
+pub(crate) fn position(
+    command: &'static str,
+    operand: Operand,
+    value: f64,
+) -> Result<f64, CommandError> {
+    let v = finite(command, operand, value)?;
+    if v.abs() > MAX_POSITION {
+        return Err(CommandError::OperandOutOfRange {
+            command,
+            operand,
+            value,
+            problem: RangeProblem::BeyondPositionRange,
+            limit: MAX_POSITION,
+        });
+    }
+    Ok(v)
 }
 
 /// Checks that `value` is finite and ≥ 0.
