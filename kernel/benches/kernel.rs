@@ -35,7 +35,8 @@ fn busy_kernel(n: usize) -> Kernel {
     let mut k = Kernel::new(DT, configs).expect("config");
     for i in 0..n {
         let l = limits(i);
-        k.command(i, Command::Power(PowerCommand::Enable)).expect("enable");
+        k.command(i, Command::Power(PowerCommand::Enable))
+            .expect("enable");
         k.command(
             i,
             Command::MovePtp(

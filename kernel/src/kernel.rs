@@ -31,7 +31,7 @@ impl Kernel {
             return Err(ConfigError::CycleTime { cycle_s });
         }
         for (i, c) in configs.iter().enumerate() {
-            if configs[..i].iter().any(|o| o.name == c.name) {
+            if configs.iter().take(i).any(|o| o.name == c.name) {
                 return Err(ConfigError::DuplicateName {
                     axis: c.name.clone(),
                 });
@@ -52,12 +52,11 @@ impl Kernel {
             .into_iter()
             .map(Axis::new)
             .collect::<Result<Vec<_>, _>>()?;
+        let is_shadow = |a: &Axis| matches!(a.config().kind, AxisKind::Shadow { .. });
         let mut order: Vec<usize> = (0..axes.len())
-            .filter(|&i| !matches!(axes[i].config().kind, AxisKind::Shadow { .. }))
+            .filter(|&i| axes.get(i).is_some_and(|a| !is_shadow(a)))
             .collect();
-        order.extend(
-            (0..axes.len()).filter(|&i| matches!(axes[i].config().kind, AxisKind::Shadow { .. })),
-        );
+        order.extend((0..axes.len()).filter(|&i| axes.get(i).is_some_and(is_shadow)));
         Ok(Self {
             setpoints: vec![AxisSetpoint::default(); axes.len()],
             axes,

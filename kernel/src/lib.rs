@@ -4,6 +4,16 @@
 //! heap allocation in [`Kernel::step`]. Positions are `f64` in user units; the drive layer
 //! converts them to integer counts with [`mechanics::Scaling`].
 #![deny(missing_docs)]
+// The RT path must not panic: no unwrap, expect, panics or unchecked indexing outside tests.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::indexing_slicing,
+        clippy::panic
+    )
+)]
 
 pub mod axis;
 pub mod kernel;

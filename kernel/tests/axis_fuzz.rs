@@ -68,8 +68,17 @@ fn command(scurve_only: bool) -> impl Strategy<Value = Command> {
         ]
         .boxed()
     };
-    let ptp = (mode(), value(), speed(), speed(), speed(), speed(), buffer(), ramp.clone()).prop_map(
-        |(mode, target, v, a, d, j, b, r)| {
+    let ptp = (
+        mode(),
+        value(),
+        speed(),
+        speed(),
+        speed(),
+        speed(),
+        buffer(),
+        ramp.clone(),
+    )
+        .prop_map(|(mode, target, v, a, d, j, b, r)| {
             Command::MovePtp(MovePtp {
                 mode,
                 target,
@@ -81,17 +90,17 @@ fn command(scurve_only: bool) -> impl Strategy<Value = Command> {
                 ramp: Some(r),
                 buffer: b,
             })
-        },
-    );
-    let vel = (dir(), speed(), speed(), speed(), buffer(), ramp).prop_map(|(d, v, a, dec, b, r)| {
-        let mut m = MoveVelocity::new(d, v);
-        m.acceleration = Some(a * 10.0);
-        m.deceleration = Some(dec * 10.0);
-        m.jerk = Some(500.0);
-        m.ramp = Some(r);
-        m.buffer = b;
-        Command::MoveVelocity(m)
-    });
+        });
+    let vel =
+        (dir(), speed(), speed(), speed(), buffer(), ramp).prop_map(|(d, v, a, dec, b, r)| {
+            let mut m = MoveVelocity::new(d, v);
+            m.acceleration = Some(a * 10.0);
+            m.deceleration = Some(dec * 10.0);
+            m.jerk = Some(500.0);
+            m.ramp = Some(r);
+            m.buffer = b;
+            Command::MoveVelocity(m)
+        });
     let jog = (dir(), speed(), any::<bool>(), any::<bool>()).prop_map(move |(d, v, merge, cur)| {
         let mut j = Jog::new(d, v, 50.0, 50.0);
         j.merge = merge;
@@ -115,15 +124,24 @@ fn command(scurve_only: bool) -> impl Strategy<Value = Command> {
         .prop_map(|(c, v)| Command::Change(c, v));
     let misc = prop_oneof![
         Just(Command::Reverse),
-        Just(Command::Halt { mode: HaltMode::Normal, deceleration: None }),
-        Just(Command::Halt { mode: HaltMode::AtActualPosition, deceleration: Some(30.0) }),
+        Just(Command::Halt {
+            mode: HaltMode::Normal,
+            deceleration: None
+        }),
+        Just(Command::Halt {
+            mode: HaltMode::AtActualPosition,
+            deceleration: Some(30.0)
+        }),
         Just(Command::Stop { deceleration: None }),
         Just(Command::Release),
         Just(Command::Reset),
         Just(Command::Power(PowerCommand::Enable)),
         Just(Command::Power(PowerCommand::Disable)),
         Just(Command::SetHomed(true)),
-        value().prop_map(|p| Command::SetPosition { position: p, relative: false }),
+        value().prop_map(|p| Command::SetPosition {
+            position: p,
+            relative: false
+        }),
     ];
     let rare = prop_oneof![
         Just(Command::QuickStop),
@@ -152,7 +170,10 @@ fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
     k.step(&[]);
     let mut prev: Vec<_> = (0..2).map(|i| *k.axis_status(i).unwrap()).collect();
     for (wait, axis, cmd) in seq {
-        let jumpy = matches!(cmd, Command::Power(PowerCommand::DisableForced) | Command::SetPosition { .. });
+        let jumpy = matches!(
+            cmd,
+            Command::Power(PowerCommand::DisableForced) | Command::SetPosition { .. }
+        );
         let _ = k.submit(*axis % 2, *cmd);
         if jumpy {
             prev = (0..2).map(|i| *k.axis_status(i).unwrap()).collect();
@@ -163,7 +184,10 @@ fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
                 let s = *k.axis_status(i).unwrap();
                 let p = prev[i];
                 let m = max[i];
-                assert!(s.set.p.is_finite() && s.set.v.is_finite() && s.set.a.is_finite(), "{s:?}");
+                assert!(
+                    s.set.p.is_finite() && s.set.v.is_finite() && s.set.a.is_finite(),
+                    "{s:?}"
+                );
                 let dp = if i == 1 {
                     (s.turns - p.turns) as f64 * 360.0 + s.set.p - p.set.p
                 } else {
@@ -171,12 +195,21 @@ fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
                 };
                 // A superimposed jog can double the speed; allow for it.
                 let vbound = 2.0 * m.vmax * DT * 1.0001 + 1e-9;
-                assert!(dp.abs() <= vbound, "axis {i} position jump {dp} after {cmd:?}");
+                assert!(
+                    dp.abs() <= vbound,
+                    "axis {i} position jump {dp} after {cmd:?}"
+                );
                 let dv = s.set.v - p.set.v;
-                assert!(dv.abs() <= 2.0 * m.amax * DT * 1.0001 + 1e-9, "axis {i} velocity jump {dv} after {cmd:?}");
+                assert!(
+                    dv.abs() <= 2.0 * m.amax * DT * 1.0001 + 1e-9,
+                    "axis {i} velocity jump {dv} after {cmd:?}"
+                );
                 if scurve_only {
                     let da = s.set.a - p.set.a;
-                    assert!(da.abs() <= 2.0 * m.jmax * DT * 1.0001 + 1e-6, "axis {i} acceleration jump {da} after {cmd:?}");
+                    assert!(
+                        da.abs() <= 2.0 * m.jmax * DT * 1.0001 + 1e-6,
+                        "axis {i} acceleration jump {da} after {cmd:?}"
+                    );
                 }
                 prev[i] = s;
             }
@@ -186,12 +219,18 @@ fn check(seq: &[(usize, usize, Command)], scurve_only: bool) {
 
 /// Fixed seed so every run checks the same sequences; `GANTRY_FUZZ_SEED` explores others.
 fn fuzz_seed() -> u64 {
-    std::env::var("GANTRY_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x6a6e7472)
+    std::env::var("GANTRY_FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0x6a6e7472)
 }
 
 /// Number of sequences per property (`GANTRY_FUZZ_CASES` to run more).
 fn fuzz_cases() -> u32 {
-    std::env::var("GANTRY_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(64)
+    std::env::var("GANTRY_FUZZ_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(64)
 }
 
 proptest! {

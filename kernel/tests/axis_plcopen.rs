@@ -27,7 +27,9 @@ fn buffered_moves_leave_no_standstill_cycle() {
         RampType::LinearSine,
     ] {
         let mut k = kernel(vec![linear("x")]);
-        let first = k.command(0, Command::MovePtp(ptp(10.0).ramp(ramp))).unwrap();
+        let first = k
+            .command(0, Command::MovePtp(ptp(10.0).ramp(ramp)))
+            .unwrap();
         let mut handles = vec![first];
         for t in [20.0, 5.0, 30.0] {
             let h = k
@@ -47,7 +49,10 @@ fn buffered_moves_leave_no_standstill_cycle() {
         // The axis never stands still in between: state stays DiscreteMotion and at most
         // one cycle (the junction itself, when it falls on a cycle) has zero velocity.
         let body = &trace[..trace.len() - 1];
-        assert!(body.iter().all(|s| s.state == AxisState::DiscreteMotion), "{ramp:?}");
+        assert!(
+            body.iter().all(|s| s.state == AxisState::DiscreteMotion),
+            "{ramp:?}"
+        );
         let mut run_len = 0;
         for s in &body[1..] {
             if s.set.v.abs() < 1e-12 {
@@ -66,8 +71,17 @@ fn buffered_moves_leave_no_standstill_cycle() {
 /// the set velocity when the position passes 10.
 fn junction_speed(mode: BufferMode, ramp: RampType) -> f64 {
     let mut k = kernel(vec![linear("x")]);
-    k.command(0, Command::MovePtp(ptp(10.0).speed(10.0).ramp(ramp).accel(100.0, 100.0).jerk(10_000.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MovePtp(
+            ptp(10.0)
+                .speed(10.0)
+                .ramp(ramp)
+                .accel(100.0, 100.0)
+                .jerk(10_000.0),
+        ),
+    )
+    .unwrap();
     let h = k
         .command(
             0,
@@ -127,7 +141,10 @@ fn in_target_window_is_set_only_near_the_target() {
     let h = k.command(0, Command::MovePtp(m)).unwrap();
     let trace = run_until_final(&mut k, 0, h, 100_000);
     for s in &trace {
-        assert_eq!(s.bits.in_target_window, (s.actual_position - 10.0).abs() <= 0.5);
+        assert_eq!(
+            s.bits.in_target_window,
+            (s.actual_position - 10.0).abs() <= 0.5
+        );
     }
     assert!(trace.last().unwrap().bits.in_target_window);
     assert!(!trace[0].bits.in_target_window);
@@ -138,10 +155,23 @@ fn stop_locks_the_axis_until_released() {
     let mut k = kernel(vec![linear("x")]);
     let mv = k.command(0, Command::MovePtp(ptp(100.0))).unwrap();
     run(&mut k, 0, 1500);
-    let stop = k.command(0, Command::Stop { deceleration: Some(50.0) }).unwrap();
+    let stop = k
+        .command(
+            0,
+            Command::Stop {
+                deceleration: Some(50.0),
+            },
+        )
+        .unwrap();
     assert_eq!(k.command_status(mv), CommandStatus::Aborted);
     let e = k.command(0, Command::MovePtp(ptp(0.0))).unwrap_err();
-    assert!(matches!(e, CommandError::NotAllowedInState { state: AxisState::Stopping, .. }));
+    assert!(matches!(
+        e,
+        CommandError::NotAllowedInState {
+            state: AxisState::Stopping,
+            ..
+        }
+    ));
     let trace = run_until_final(&mut k, 0, stop, 100_000);
     assert!(trace.iter().all(|s| s.bits.stopping));
     run(&mut k, 0, 10);
@@ -154,10 +184,20 @@ fn stop_locks_the_axis_until_released() {
 #[test]
 fn release_during_the_stop_ramp_takes_effect_when_stopped() {
     let mut k = kernel(vec![linear("x")]);
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 1500);
-    let stop = k.command(0, Command::Stop { deceleration: Some(5.0) }).unwrap();
+    let stop = k
+        .command(
+            0,
+            Command::Stop {
+                deceleration: Some(5.0),
+            },
+        )
+        .unwrap();
     run(&mut k, 0, 100);
     k.command(0, Command::Release).unwrap();
     assert_eq!(k.axis_status(0).unwrap().state, AxisState::Stopping);
@@ -170,10 +210,19 @@ fn error_stop_refuses_motion_until_reset() {
     let mut cfg = linear("x");
     cfg.mechanics.software_limits = Some((-50.0, 50.0));
     let mut k = kernel(vec![cfg]);
-    k.command(0, Command::SetPosition { position: 0.0, relative: false })
-        .unwrap();
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+    )
+    .unwrap();
     let v = k
-        .command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
+        .command(
+            0,
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+        )
         .unwrap();
     let trace = run(&mut k, 0, 8000);
     // The velocity move brakes to stop exactly at the limit and the axis is in ErrorStop.
@@ -199,20 +248,40 @@ fn homed_flag_semantics() {
     cfg.initial_position = 12.5;
     let mut k = kernel(vec![cfg]);
     let s = *k.axis_status(0).unwrap();
-    assert!((s.set.p - 12.5).abs() < 1e-12, "position restored at power-up");
+    assert!(
+        (s.set.p - 12.5).abs() < 1e-12,
+        "position restored at power-up"
+    );
     assert!(!s.bits.homed, "restored but not homed");
     let e = k.command(0, Command::MovePtp(ptp(0.0))).unwrap_err();
     assert!(matches!(e, CommandError::NotHomed { .. }), "{e}");
     // Relative moves need no reference.
     let h = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::RelActual, 1.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::RelActual, 1.0)),
+        )
         .unwrap();
     run_until_final(&mut k, 0, h, 100_000);
     // A relative SetPosition does not home; an absolute one does.
-    k.command(0, Command::SetPosition { position: 1.0, relative: true }).unwrap();
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 1.0,
+            relative: true,
+        },
+    )
+    .unwrap();
     assert!(!k.axis_status(0).unwrap().bits.homed);
     assert!((k.axis_status(0).unwrap().set.p - 14.5).abs() < 1e-12);
-    k.command(0, Command::SetPosition { position: 0.0, relative: false }).unwrap();
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+    )
+    .unwrap();
     assert!(k.axis_status(0).unwrap().bits.homed);
     assert_eq!(k.axis_status(0).unwrap().set.p, 0.0);
     k.command(0, Command::MovePtp(ptp(3.0))).unwrap();
@@ -229,10 +298,23 @@ fn bad_operands_name_the_operand_and_leave_the_move_running() {
     let mut cfg = linear("x");
     cfg.mechanics.software_limits = Some((-100.0, 100.0));
     let mut k = kernel(vec![cfg.clone()]);
-    k.command(0, Command::SetPosition { position: 0.0, relative: false }).unwrap();
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+    )
+    .unwrap();
     let mut reference = kernel(vec![cfg]);
     reference
-        .command(0, Command::SetPosition { position: 0.0, relative: false })
+        .command(
+            0,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        )
         .unwrap();
     let good = ptp(80.0);
     let h = k.command(0, Command::MovePtp(good)).unwrap();
@@ -243,8 +325,14 @@ fn bad_operands_name_the_operand_and_leave_the_move_running() {
         (Command::MovePtp(ptp(10.0).speed(0.0)), "speed"),
         (Command::MovePtp(ptp(10.0).speed(-3.0)), "speed"),
         (Command::MovePtp(ptp(10.0).speed(1e9)), "speed"),
-        (Command::MovePtp(ptp(10.0).accel(f64::NAN, 1.0)), "acceleration"),
-        (Command::MovePtp(ptp(10.0).accel(1.0, f64::INFINITY)), "deceleration"),
+        (
+            Command::MovePtp(ptp(10.0).accel(f64::NAN, 1.0)),
+            "acceleration",
+        ),
+        (
+            Command::MovePtp(ptp(10.0).accel(1.0, f64::INFINITY)),
+            "deceleration",
+        ),
         (Command::MovePtp(ptp(10.0).jerk(-1.0)), "jerk"),
         (Command::MovePtp(ptp(f64::NAN)), "target"),
         (Command::MovePtp(ptp(150.0)), "software limits"),
@@ -270,21 +358,36 @@ fn direction_restrictions_are_enforced() {
     cfg.mechanics.direction = Direction::PositiveOnly;
     let mut k = kernel(vec![cfg]);
     let e = k
-        .command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Negative, 5.0)))
+        .command(
+            0,
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Negative, 5.0)),
+        )
         .unwrap_err();
     assert!(matches!(e, CommandError::DirectionNotAllowed { .. }), "{e}");
     assert!(k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloNeg, 10.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloNeg, 10.0))
+        )
         .is_err());
     assert!(k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::RelActual, -10.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::RelActual, -10.0))
+        )
         .is_err());
     // Auto on a positive-only axis goes the positive way round.
-    k.command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, 50.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, 50.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 5000);
     let h = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, 40.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, 40.0)),
+        )
         .unwrap();
     let trace = run_until_final(&mut k, 0, h, 100_000);
     assert!(trace.iter().all(|s| s.set.v >= -1e-12));
@@ -304,13 +407,19 @@ fn external_and_shadow_axes_are_never_commanded() {
     .unwrap();
     for axis in [1, 2] {
         let e = k
-            .command(axis, Command::Power(gantry_kernel::axis::command::PowerCommand::Enable))
+            .command(
+                axis,
+                Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+            )
             .unwrap_err();
         assert!(matches!(e, CommandError::NotCommandable { .. }), "{e}");
     }
     // The shadow axis mirrors its source.
-    k.command(0, Command::Power(gantry_kernel::axis::command::PowerCommand::Enable))
-        .unwrap();
+    k.command(
+        0,
+        Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+    )
+    .unwrap();
     k.command(0, Command::MovePtp(ptp(3.0))).unwrap();
     for _ in 0..500 {
         k.step(&[]);
@@ -338,9 +447,16 @@ fn modulo_actual_is_reported_on_the_same_side_as_set() {
     cfg.kind = AxisKind::Real;
     let mut k = Kernel::new(DT, vec![cfg]).unwrap();
     let h = k
-        .command(0, Command::Power(gantry_kernel::axis::command::PowerCommand::Enable))
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+        )
         .unwrap();
-    assert_eq!(k.command_status(h), CommandStatus::Busy, "waits for the drive");
+    assert_eq!(
+        k.command_status(h),
+        CommandStatus::Busy,
+        "waits for the drive"
+    );
     let fb = |p| {
         [gantry_kernel::axis::AxisFeedback {
             position: p,
@@ -372,13 +488,21 @@ fn jog(dir: MoveDirection, speed: f64) -> Jog {
 #[test]
 fn jog_runs_until_halted_and_sets_the_jogging_bit() {
     let mut k = kernel(vec![linear("x")]);
-    let h = k.command(0, Command::Jog(jog(MoveDirection::Negative, 5.0))).unwrap();
+    let h = k
+        .command(0, Command::Jog(jog(MoveDirection::Negative, 5.0)))
+        .unwrap();
     let t = run(&mut k, 0, 3000);
     assert!(t.iter().all(|s| s.bits.jogging));
     assert!((t.last().unwrap().set.v + 5.0).abs() < 1e-12);
     assert_eq!(t.last().unwrap().state, AxisState::ContinuousMotion);
     let halt = k
-        .command(0, Command::Halt { mode: HaltMode::Normal, deceleration: None })
+        .command(
+            0,
+            Command::Halt {
+                mode: HaltMode::Normal,
+                deceleration: None,
+            },
+        )
         .unwrap();
     assert_eq!(k.command_status(h), CommandStatus::Aborted);
     run_until_final(&mut k, 0, halt, 10_000);
@@ -404,7 +528,12 @@ fn jog_speed_in_percent_of_max() {
 #[test]
 fn jog_merge_current_keeps_the_speed_of_the_running_move() {
     let mut k = kernel(vec![linear("x")]);
-    let mv = k.command(0, Command::MovePtp(ptp(1000.0).speed(30.0).accel(100.0, 100.0))).unwrap();
+    let mv = k
+        .command(
+            0,
+            Command::MovePtp(ptp(1000.0).speed(30.0).accel(100.0, 100.0)),
+        )
+        .unwrap();
     run(&mut k, 0, 1000);
     let mut j = jog(MoveDirection::Positive, 5.0);
     j.merge = true;
@@ -425,10 +554,15 @@ fn jog_merge_current_keeps_the_speed_of_the_running_move() {
 fn jog_without_merge_is_superimposed_on_the_running_move() {
     let mut k = kernel(vec![linear("x")]);
     let mv = k
-        .command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
+        .command(
+            0,
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+        )
         .unwrap();
     run(&mut k, 0, 2000);
-    let j = k.command(0, Command::Jog(jog(MoveDirection::Positive, 3.0))).unwrap();
+    let j = k
+        .command(0, Command::Jog(jog(MoveDirection::Positive, 3.0)))
+        .unwrap();
     assert_eq!(k.command_status(mv), CommandStatus::Active, "not aborted");
     let t = run(&mut k, 0, 2000);
     assert!((t.last().unwrap().set.v - 13.0).abs() < 1e-9);
@@ -440,7 +574,11 @@ fn jog_without_merge_is_superimposed_on_the_running_move() {
     let t = run_until_final(&mut k, 0, stop, 10_000);
     // Continuous across the fold of the jog into the axis' own values.
     let first = t.first().unwrap();
-    assert!(first.set.v <= 13.0 + 1e-9 && first.set.v >= 12.0 - 1e-9, "{}", first.set.v);
+    assert!(
+        first.set.v <= 13.0 + 1e-9 && first.set.v >= 12.0 - 1e-9,
+        "{}",
+        first.set.v
+    );
 }
 
 #[test]
@@ -456,7 +594,10 @@ fn jog_s_curve_percent_of_time_is_triangular_at_100_percent() {
     // Triangular acceleration to 20 units/s² over a change of 10 units/s: 1 s, peak at 0.5 s.
     let peak = t.iter().map(|s| s.set.a).fold(0.0, f64::max);
     assert!((peak - 20.0).abs() < 0.1, "peak {peak}");
-    let reached = t.iter().position(|s| (s.set.v - 10.0).abs() < 1e-9).unwrap();
+    let reached = t
+        .iter()
+        .position(|s| (s.set.v - 10.0).abs() < 1e-9)
+        .unwrap();
     assert!((reached as f64 * DT - 1.0).abs() < 0.003, "{reached}");
 }
 
@@ -465,7 +606,10 @@ fn lowering_deceleration_near_the_target_does_not_overshoot() {
     for ramp in [RampType::Trapezoid, RampType::SCurve] {
         let mut k = kernel(vec![linear("x")]);
         let h = k
-            .command(0, Command::MovePtp(ptp(20.0).ramp(ramp).accel(50.0, 50.0).jerk(1000.0)))
+            .command(
+                0,
+                Command::MovePtp(ptp(20.0).ramp(ramp).accel(50.0, 50.0).jerk(1000.0)),
+            )
             .unwrap();
         // Run into the deceleration ramp, then ask for a much lower deceleration.
         loop {
@@ -478,9 +622,13 @@ fn lowering_deceleration_near_the_target_does_not_overshoot() {
         run(&mut k, 0, 20);
         k.command(0, Command::Change(DynamicsChange::Deceleration, 1.0))
             .unwrap();
-        k.command(0, Command::Change(DynamicsChange::Jerk, 1.0)).unwrap();
+        k.command(0, Command::Change(DynamicsChange::Jerk, 1.0))
+            .unwrap();
         let t = run_until_final(&mut k, 0, h, 100_000);
-        assert!(t.iter().all(|s| s.set.p <= 20.0 + 1e-9), "{ramp:?} overshoot");
+        assert!(
+            t.iter().all(|s| s.set.p <= 20.0 + 1e-9),
+            "{ramp:?} overshoot"
+        );
         assert!(t.iter().all(|s| s.set.v >= -1e-12), "{ramp:?} reversal");
         assert!((t.last().unwrap().set.p - 20.0).abs() < 1e-9);
     }
@@ -497,7 +645,8 @@ fn lowering_jog_jerk_while_ramping_does_not_overshoot_the_speed() {
     j.accel = 50.0;
     k.command(0, Command::Jog(j)).unwrap();
     run(&mut k, 0, 300);
-    k.command(0, Command::Change(DynamicsChange::Jerk, 1.0)).unwrap();
+    k.command(0, Command::Change(DynamicsChange::Jerk, 1.0))
+        .unwrap();
     let t = run(&mut k, 0, 5000);
     assert!(t.iter().all(|s| s.set.v <= 10.0 + 1e-9), "speed overshoot");
     assert!((t.last().unwrap().set.v - 10.0).abs() < 1e-9);

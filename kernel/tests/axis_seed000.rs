@@ -19,7 +19,10 @@ use gantry_kernel::profile::RampType;
 fn modulo_travel(from: f64, to: f64, mode: PositioningMode) -> f64 {
     let mut k = kernel(vec![rotary("r")]);
     let h = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, from)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsModuloAuto, from)),
+        )
         .unwrap();
     run_until_final(&mut k, 0, h, 100_000);
     let start = unwrapped(k.axis_status(0).unwrap(), 360.0);
@@ -78,19 +81,40 @@ fn keep_direction_after_moving_40_to_50_goes_plus_330_to_20() {
 #[test]
 fn rel_target_zero_finishes_an_interrupted_move() {
     let mut k = kernel(vec![linear("x")]);
-    k.command(0, Command::SetPosition { position: 0.0, relative: false })
-        .unwrap();
-    k.command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 100.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+    )
+    .unwrap();
+    k.command(
+        0,
+        Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 100.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 3000);
     let h = k
-        .command(0, Command::Halt { mode: HaltMode::Normal, deceleration: None })
+        .command(
+            0,
+            Command::Halt {
+                mode: HaltMode::Normal,
+                deceleration: None,
+            },
+        )
         .unwrap();
     run_until_final(&mut k, 0, h, 100_000);
     let stopped = k.axis_status(0).unwrap().set.p;
-    assert!(stopped < 100.0 - 1.0, "halted short of the target at {stopped}");
+    assert!(
+        stopped < 100.0 - 1.0,
+        "halted short of the target at {stopped}"
+    );
     let h = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::RelTarget, 0.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::RelTarget, 0.0)),
+        )
         .unwrap();
     run_until_final(&mut k, 0, h, 100_000);
     assert!((k.axis_status(0).unwrap().set.p - 100.0).abs() < 1e-9);
@@ -101,7 +125,10 @@ fn rel_actual_moves_from_the_actual_position() {
     let mut k = kernel(vec![linear("x")]);
     move_abs(&mut k, 0, 7.0);
     let h = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::RelActual, -2.5)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::RelActual, -2.5)),
+        )
         .unwrap();
     run_until_final(&mut k, 0, h, 100_000);
     assert!((k.axis_status(0).unwrap().set.p - 4.5).abs() < 1e-12);
@@ -114,17 +141,18 @@ fn ramp_break(mode: RampBreakMode, second: f64, decel2: f64) -> Vec<(f64, f64)> 
     let mut cfg = linear("x");
     cfg.ramp_break = mode;
     let mut k = kernel(vec![cfg]);
-    k.command(0, Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 100.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 100.0)),
+    )
+    .unwrap();
     // Accelerate 1 s (5 units), cruise to 95 at t = 10 s, decelerate 10 s → 11 s.
     let trace = run(&mut k, 0, 10_200);
     assert_eq!(trace.last().unwrap().slope, SlopeState::Decelerating);
     let h = k
         .command(
             0,
-            Command::MovePtp(
-                MovePtp::new(PositioningMode::AbsNormal, second).accel(10.0, decel2),
-            ),
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, second).accel(10.0, decel2)),
         )
         .unwrap();
     let out = run_until_final(&mut k, 0, h, 1_000_000);
@@ -189,11 +217,22 @@ fn halt_at_actual_position_returns_to_where_it_was_given() {
         let trace = run_until_final(&mut k, 0, h, 100_000);
         let end = trace.last().unwrap();
         assert_eq!(k.command_status(h), CommandStatus::Done, "{ramp:?}");
-        assert!((end.set.p - at).abs() < 1e-9, "{ramp:?}: {} vs {at}", end.set.p);
-        assert!(trace.iter().any(|s| s.set.p > at + 1.0), "it overran, then came back");
+        assert!(
+            (end.set.p - at).abs() < 1e-9,
+            "{ramp:?}: {} vs {at}",
+            end.set.p
+        );
+        assert!(
+            trace.iter().any(|s| s.set.p > at + 1.0),
+            "it overran, then came back"
+        );
         // Slope: decelerating, then accelerating and decelerating back (seed figure).
-        let first_dec = trace.iter().position(|s| s.slope == SlopeState::Decelerating);
-        let back_acc = trace.iter().position(|s| s.slope == SlopeState::Accelerating && s.set.v < 0.0);
+        let first_dec = trace
+            .iter()
+            .position(|s| s.slope == SlopeState::Decelerating);
+        let back_acc = trace
+            .iter()
+            .position(|s| s.slope == SlopeState::Accelerating && s.set.v < 0.0);
         assert!(first_dec.is_some() && back_acc.is_some() && first_dec < back_acc);
         assert_eq!(end.slope, SlopeState::Stopped);
         assert_eq!(k.axis_status(0).unwrap().state, AxisState::Standstill);
@@ -203,14 +242,23 @@ fn halt_at_actual_position_returns_to_where_it_was_given() {
 #[test]
 fn halt_normal_decelerates_to_a_stop_and_reports_slope_states() {
     let mut k = kernel(vec![linear("x")]);
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
     let ramp = run(&mut k, 0, 2000);
     assert_eq!(ramp[10].slope, SlopeState::Accelerating);
     assert_eq!(ramp[1999].slope, SlopeState::ConstantSpeed);
     assert_eq!(ramp[1999].state, AxisState::ContinuousMotion);
     let h = k
-        .command(0, Command::Halt { mode: HaltMode::Normal, deceleration: Some(85.0) })
+        .command(
+            0,
+            Command::Halt {
+                mode: HaltMode::Normal,
+                deceleration: Some(85.0),
+            },
+        )
         .unwrap();
     let trace = run_until_final(&mut k, 0, h, 100_000);
     assert!(trace[..trace.len() - 1]
@@ -219,21 +267,31 @@ fn halt_normal_decelerates_to_a_stop_and_reports_slope_states() {
     assert_eq!(trace.last().unwrap().slope, SlopeState::Stopped);
     // 10 units/s at 85 units/s² stops in 10/85 s.
     let expected = (10.0_f64 / 85.0 / DT).ceil() as usize;
-    assert!((trace.len() as i64 - expected as i64).abs() <= 1, "{} vs {expected}", trace.len());
+    assert!(
+        (trace.len() as i64 - expected as i64).abs() <= 1,
+        "{} vs {expected}",
+        trace.len()
+    );
 }
 
 #[test]
 fn velocity_reverse_runs_the_other_way_at_the_same_speed() {
     let mut k = kernel(vec![linear("x")]);
     let h = k
-        .command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
+        .command(
+            0,
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+        )
         .unwrap();
     run(&mut k, 0, 1500);
     k.command(0, Command::Reverse).unwrap();
     let trace = run(&mut k, 0, 3000);
     assert!((trace.last().unwrap().set.v + 10.0).abs() < 1e-9);
     // Reversal uses the move's acceleration (10): 20 units/s of change takes 2 s.
-    let reached = trace.iter().position(|s| (s.set.v + 10.0).abs() < 1e-9).unwrap();
+    let reached = trace
+        .iter()
+        .position(|s| (s.set.v + 10.0).abs() < 1e-9)
+        .unwrap();
     assert!((reached as f64 * DT - 2.0).abs() < 0.002, "{reached}");
     assert_eq!(k.command_status(h), CommandStatus::Active);
 }
@@ -241,8 +299,11 @@ fn velocity_reverse_runs_the_other_way_at_the_same_speed() {
 #[test]
 fn velocity_new_speed_changes_speed_not_direction() {
     let mut k = kernel(vec![linear("x")]);
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Negative, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Negative, 10.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 1500);
     k.command(
         0,
@@ -276,8 +337,11 @@ fn power_commands_follow_the_note() {
     let mut k = kernel(vec![linear("x")]);
     assert_eq!(k.axis_status(0).unwrap().state, AxisState::Standstill);
     // Disable (normal) while moving: brake, then disabled.
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 2000);
     let h = k.command(0, Command::Power(PowerCommand::Disable)).unwrap();
     let trace = run_until_final(&mut k, 0, h, 100_000);
@@ -286,25 +350,38 @@ fn power_commands_follow_the_note() {
     assert_eq!(k.axis_status(0).unwrap().set.v, 0.0);
     // Motion is refused while disabled.
     let e = k
-        .command(0, Command::MovePtp(MovePtp::new(PositioningMode::RelActual, 1.0)))
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::RelActual, 1.0)),
+        )
         .unwrap_err();
     assert!(e.to_string().contains("Disabled"), "{e}");
     // QuickStop: stop with the quick-stop deceleration, then disabled.
     k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 2000);
     let h = k.command(0, Command::QuickStop).unwrap();
     let trace = run_until_final(&mut k, 0, h, 100_000);
     let n = trace.len();
-    assert!((9..=12).contains(&n), "quick stop at 1000 units/s² from 10 units/s: {n} cycles");
+    assert!(
+        (9..=12).contains(&n),
+        "quick stop at 1000 units/s² from 10 units/s: {n} cycles"
+    );
     assert_eq!(k.axis_status(0).unwrap().state, AxisState::Disabled);
     // Forced disable: at once.
     k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
-    k.command(0, Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)))
-        .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
     run(&mut k, 0, 500);
-    k.command(0, Command::Power(PowerCommand::DisableForced)).unwrap();
+    k.command(0, Command::Power(PowerCommand::DisableForced))
+        .unwrap();
     let s = run(&mut k, 0, 1)[0];
     assert_eq!(s.state, AxisState::Disabled);
     assert_eq!(s.set.v, 0.0);

@@ -49,7 +49,11 @@ static ALLOC: Counting = Counting;
 fn step_and_commands_do_not_allocate() {
     let axes = (0..8)
         .map(|i| {
-            let mut c = if i % 2 == 0 { linear(&format!("a{i}")) } else { rotary(&format!("a{i}")) };
+            let mut c = if i % 2 == 0 {
+                linear(&format!("a{i}"))
+            } else {
+                rotary(&format!("a{i}"))
+            };
             c.defaults.ramp = RampType::SCurve;
             c
         })
@@ -69,14 +73,24 @@ fn step_and_commands_do_not_allocate() {
             let _ = k.submit(
                 axis,
                 Command::MovePtp(
-                    MovePtp::new(PositioningMode::RelTarget, 5.0).buffered(BufferMode::BlendingNext),
+                    MovePtp::new(PositioningMode::RelTarget, 5.0)
+                        .buffered(BufferMode::BlendingNext),
                 ),
             );
             if round % 5 == 3 {
-                let _ = k.submit(axis, Command::Jog(Jog::new(MoveDirection::Positive, 3.0, 50.0, 50.0)));
+                let _ = k.submit(
+                    axis,
+                    Command::Jog(Jog::new(MoveDirection::Positive, 3.0, 50.0, 50.0)),
+                );
             }
             if round % 7 == 6 {
-                let _ = k.submit(axis, Command::Halt { mode: HaltMode::AtActualPosition, deceleration: None });
+                let _ = k.submit(
+                    axis,
+                    Command::Halt {
+                        mode: HaltMode::AtActualPosition,
+                        deceleration: None,
+                    },
+                );
             }
         }
         for _ in 0..500 {

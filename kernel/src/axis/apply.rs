@@ -6,9 +6,9 @@
 //! acceleration for S-curves).
 
 use super::command::{
-    non_negative, percent, position, positive, rate, RangeProblem, BufferMode, Command, CommandError,
+    non_negative, percent, position, positive, rate, BufferMode, Command, CommandError,
     DynamicsChange, HaltMode, JerkUnits, Jog, JogProfile, MergeSpeed, MoveDirection, MovePtp,
-    MoveVelocity, Operand, PositioningMode, PowerCommand, RampBreakMode,
+    MoveVelocity, Operand, PositioningMode, PowerCommand, RampBreakMode, RangeProblem,
 };
 use super::handle::{CommandStatus, HandleId, HandleTable};
 use super::motion::{Epoch, Motion, MotionKind, MoveParams, Queued};
@@ -241,7 +241,14 @@ impl Axis {
         if mode == PositioningMode::AbsModuloNeg && !self.direction_allowed(-1.0)
             || mode == PositioningMode::AbsModuloPos && !self.direction_allowed(1.0)
         {
-            return Err(self.direction_error(name, if mode == PositioningMode::AbsModuloPos { 1.0 } else { -1.0 }));
+            return Err(self.direction_error(
+                name,
+                if mode == PositioningMode::AbsModuloPos {
+                    1.0
+                } else {
+                    -1.0
+                },
+            ));
         }
         Ok(())
     }
@@ -357,7 +364,9 @@ impl Axis {
         let (params, window, used) = self.ptp_operands(&m)?;
         self.check_mode(m.mode)?;
         let running = self.motion.is_some() || !self.queue.is_empty();
-        let decelerating_ptp = self.motion.is_some_and(|mo| matches!(mo.kind, MotionKind::Ptp { .. }))
+        let decelerating_ptp = self
+            .motion
+            .is_some_and(|mo| matches!(mo.kind, MotionKind::Ptp { .. }))
             && SlopeState::of(&self.main, 1e-12, 1e-12) == SlopeState::Decelerating;
 
         if m.buffer.is_queued() && running {
@@ -405,7 +414,14 @@ impl Axis {
         }
         self.queue
             .drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
-        self.install_ptp(target, window, planned, params, h, Epoch::at(self.last_tick));
+        self.install_ptp(
+            target,
+            window,
+            planned,
+            params,
+            h,
+            Epoch::at(self.last_tick),
+        );
         Ok(CommandStatus::Active)
     }
 
@@ -413,7 +429,8 @@ impl Axis {
     fn validate_queued_ptp(&self, m: &MovePtp, params: &MoveParams) -> Result<(), CommandError> {
         let (start_p, prev_target) = self.predicted_start();
         let start = KinematicState::at_rest(start_p);
-        self.resolve_target(m, &start, prev_target, params).map(|_| ())
+        self.resolve_target(m, &start, prev_target, params)
+            .map(|_| ())
     }
 
     /// Where the last queued (or running) move ends, and its target.
@@ -572,7 +589,12 @@ impl Axis {
                 params,
                 handle,
             } => {
-                let profile = self.plan_vel(start, cmd.direction.sign() * params.limits.vmax, &params, params.limits.jmax)?;
+                let profile = self.plan_vel(
+                    start,
+                    cmd.direction.sign() * params.limits.vmax,
+                    &params,
+                    params.limits.jmax,
+                )?;
                 self.install_velocity(cmd.direction, profile, params, handle, epoch);
                 handles.set(handle, CommandStatus::Active);
             }
@@ -680,7 +702,12 @@ impl Axis {
                 handle: h,
             });
         }
-        let profile = self.plan_vel(self.main, v.direction.sign() * params.limits.vmax, &params, params.limits.jmax)?;
+        let profile = self.plan_vel(
+            self.main,
+            v.direction.sign() * params.limits.vmax,
+            &params,
+            params.limits.jmax,
+        )?;
         self.vel_dynamics = used;
         if let Some(old) = self.motion.take() {
             handles.set(old.handle, CommandStatus::Aborted);
@@ -706,13 +733,22 @@ impl Axis {
         if !self.direction_allowed(dir.sign()) {
             return Err(self.direction_error("MoveVelocity.Reverse", dir.sign()));
         }
-        let profile = self.plan_vel(self.main, dir.sign() * m.params.limits.vmax, &m.params, m.decel_jerk)?;
+        let profile = self.plan_vel(
+            self.main,
+            dir.sign() * m.params.limits.vmax,
+            &m.params,
+            m.decel_jerk,
+        )?;
         self.install_velocity(dir, profile, m.params, m.handle, Epoch::at(self.last_tick));
         Ok(CommandStatus::Done)
     }
 
     /// A jog's operands in units/s^n (Logix MAJ units resolved).
-    fn jog_params(&self, j: &Jog, current_speed: f64) -> Result<(f64, MoveParams, f64), CommandError> {
+    fn jog_params(
+        &self,
+        j: &Jog,
+        current_speed: f64,
+    ) -> Result<(f64, MoveParams, f64), CommandError> {
         let name = "Jog";
         let max = self.cfg.max;
         let programmed = rate(name, Operand::Speed, j.speed, j.speed_units, max.vmax)?;
@@ -721,14 +757,31 @@ impl Axis {
         } else {
             programmed
         };
-        let acc = rate(name, Operand::Acceleration, j.accel, j.accel_units, max.amax)?;
-        let dec = rate(name, Operand::Deceleration, j.decel, j.decel_units, max.dmax)?;
-        let dv_accel = (speed - current_speed).abs().max(1e-9 * max.vmax).max(f64::MIN_POSITIVE);
+        let acc = rate(
+            name,
+            Operand::Acceleration,
+            j.accel,
+            j.accel_units,
+            max.amax,
+        )?;
+        let dec = rate(
+            name,
+            Operand::Deceleration,
+            j.decel,
+            j.decel_units,
+            max.dmax,
+        )?;
+        let dv_accel = (speed - current_speed)
+            .abs()
+            .max(1e-9 * max.vmax)
+            .max(f64::MIN_POSITIVE);
         let dv_decel = speed.max(1e-9 * max.vmax).max(f64::MIN_POSITIVE);
         let jerk_of = |operand, value, a: f64, dv: f64| -> Result<f64, CommandError> {
             match j.jerk_units {
                 JerkUnits::PerSecond3 => positive(name, operand, value, max.jmax),
-                JerkUnits::PercentOfMax => percent(name, operand, value).map(|p| p / 100.0 * max.jmax),
+                JerkUnits::PercentOfMax => {
+                    percent(name, operand, value).map(|p| p / 100.0 * max.jmax)
+                }
                 JerkUnits::PercentOfTime => percent(name, operand, value).map(|p| {
                     // Jerk phases take fraction f of the ramp time T = Δv / (a (1 − f/2)),
                     // so j = 2a / (f T) = 2a² (1 − f/2) / (f Δv).
@@ -773,7 +826,11 @@ impl Axis {
             Some(m) => matches!(m.kind, MotionKind::Jog),
         };
         if j.merge || own_motion {
-            let current = if j.merge { total_v.abs() } else { self.main.v.abs() };
+            let current = if j.merge {
+                total_v.abs()
+            } else {
+                self.main.v.abs()
+            };
             let (speed, params, decel_jerk) = self.jog_params(j, current)?;
             let mut start = self.main;
             if j.merge {
@@ -781,7 +838,8 @@ impl Axis {
                 start.v += self.overlay_set.v;
                 start.a += self.overlay_set.a;
             }
-            let profile = self.plan_vel_no_overshoot(start, j.direction.sign() * speed, &params, decel_jerk)?;
+            let profile =
+                self.plan_vel_no_overshoot(start, j.direction.sign() * speed, &params, decel_jerk)?;
             if j.merge {
                 self.fold_overlay(handles);
             }
@@ -942,14 +1000,18 @@ impl Axis {
         let max = self.cfg.max;
         let mut params = m.params;
         match what {
-            DynamicsChange::Speed => params.limits.vmax = positive(name, Operand::Speed, value, max.vmax)?,
+            DynamicsChange::Speed => {
+                params.limits.vmax = positive(name, Operand::Speed, value, max.vmax)?
+            }
             DynamicsChange::Acceleration => {
                 params.limits.amax = positive(name, Operand::Acceleration, value, max.amax)?
             }
             DynamicsChange::Deceleration => {
                 params.limits.dmax = positive(name, Operand::Deceleration, value, max.dmax)?
             }
-            DynamicsChange::Jerk => params.limits.jmax = positive(name, Operand::Jerk, value, max.jmax)?,
+            DynamicsChange::Jerk => {
+                params.limits.jmax = positive(name, Operand::Jerk, value, max.jmax)?
+            }
         }
         let (profile, params, decel_jerk) = match m.kind {
             MotionKind::Ptp { target, .. } => {
@@ -965,7 +1027,12 @@ impl Axis {
                 (p, used, used.limits.jmax)
             }
             MotionKind::Velocity { direction } => {
-                let p = self.plan_vel_no_overshoot(self.main, direction.sign() * params.limits.vmax, &params, params.limits.jmax)?;
+                let p = self.plan_vel_no_overshoot(
+                    self.main,
+                    direction.sign() * params.limits.vmax,
+                    &params,
+                    params.limits.jmax,
+                )?;
                 self.vel_dynamics = Dynamics {
                     speed: params.limits.vmax,
                     acceleration: params.limits.amax,
@@ -976,9 +1043,18 @@ impl Axis {
                 (p, params, params.limits.jmax)
             }
             MotionKind::Jog => {
-                let dir = if self.last_direction >= 0.0 { 1.0 } else { -1.0 };
-                let dj = if what == DynamicsChange::Jerk { params.limits.jmax } else { m.decel_jerk };
-                let p = self.plan_vel_no_overshoot(self.main, dir * params.limits.vmax, &params, dj)?;
+                let dir = if self.last_direction >= 0.0 {
+                    1.0
+                } else {
+                    -1.0
+                };
+                let dj = if what == DynamicsChange::Jerk {
+                    params.limits.jmax
+                } else {
+                    m.decel_jerk
+                };
+                let p =
+                    self.plan_vel_no_overshoot(self.main, dir * params.limits.vmax, &params, dj)?;
                 (p, params, dj)
             }
             _ => return Err(CommandError::NothingToChange { command: name }),
@@ -1024,21 +1100,33 @@ impl Axis {
         let params = MoveParams {
             limits: Limits {
                 dmax: dec,
-                vmax: running.limits.vmax.max(start.v.abs()).min(self.cfg.max.vmax),
+                vmax: running
+                    .limits
+                    .vmax
+                    .max(start.v.abs())
+                    .min(self.cfg.max.vmax),
                 ..running.limits
             },
             ramp: running.ramp,
         };
         let (profile, target) = match mode {
             HaltMode::Normal => {
-                let p = plan_velocity(params.ramp, start, 0.0, &params.limits)
-                    .map_err(|error| CommandError::Plan { command: name, error })?;
+                let p =
+                    plan_velocity(params.ramp, start, 0.0, &params.limits).map_err(|error| {
+                        CommandError::Plan {
+                            command: name,
+                            error,
+                        }
+                    })?;
                 let t = p.end_state().p;
                 (p, t)
             }
             HaltMode::AtActualPosition => {
                 let p = plan_position(params.ramp, start, halt_position, 0.0, &params.limits)
-                    .map_err(|error| CommandError::Plan { command: name, error })?;
+                    .map_err(|error| CommandError::Plan {
+                        command: name,
+                        error,
+                    })?;
                 (p, halt_position)
             }
         };
@@ -1100,7 +1188,10 @@ impl Axis {
     ) -> Result<(), CommandError> {
         let ramp = match kind {
             MotionKind::QuickStop => RampType::Trapezoid,
-            _ => self.motion.map(|m| m.params.ramp).unwrap_or(self.ptp_dynamics.ramp),
+            _ => self
+                .motion
+                .map(|m| m.params.ramp)
+                .unwrap_or(self.ptp_dynamics.ramp),
         };
         let max = self.cfg.max;
         let limits = Limits {

@@ -566,7 +566,9 @@ pub enum CommandError {
         state: AxisState,
     },
     /// The command needs a homed axis.
-    #[error("{command}: the axis is not homed (home it, set an absolute position or mark it homed)")]
+    #[error(
+        "{command}: the axis is not homed (home it, set an absolute position or mark it homed)"
+    )]
     NotHomed {
         /// Command name.
         command: &'static str,

@@ -437,7 +437,9 @@ impl Axis {
         }
         self.refresh_status();
         let drive_position = match self.cfg.mechanics.modulo {
-            Some(m) if self.position_offset != 0.0 => m.wrap(self.status.set.p - self.position_offset),
+            Some(m) if self.position_offset != 0.0 => {
+                m.wrap(self.status.set.p - self.position_offset)
+            }
             _ => self.status.set.p - self.position_offset,
         };
         AxisSetpoint {
@@ -567,7 +569,8 @@ impl Axis {
             }
         }
         if self.state == AxisState::ErrorStop {
-            self.queue.drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
+            self.queue
+                .drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
         }
     }
 
@@ -641,7 +644,8 @@ impl Axis {
         if !self.homed || self.period().is_some() {
             return;
         }
-        let continuous = self.motion.is_some_and(|m| m.kind.is_continuous()) || self.overlay.is_some();
+        let continuous =
+            self.motion.is_some_and(|m| m.kind.is_continuous()) || self.overlay.is_some();
         if !continuous {
             return;
         }
@@ -651,7 +655,11 @@ impl Axis {
         s.a += self.overlay_set.a;
         let limit = if s.v > 0.0 { max } else { min };
         let stop = self.stopping_point(s);
-        let beyond = if s.v > 0.0 { stop >= limit } else { stop <= limit };
+        let beyond = if s.v > 0.0 {
+            stop >= limit
+        } else {
+            stop <= limit
+        };
         if beyond && s.v != 0.0 {
             self.fault(AxisFault::SoftwareLimit { limit }, handles);
             // Replace the plain stop by one that ends exactly at the limit when possible.
@@ -659,7 +667,9 @@ impl Axis {
                 limits: self.cfg.max,
                 ramp: self.ptp_dynamics.ramp,
             };
-            if let Ok(p) = crate::profile::plan_position(params.ramp, self.main, limit, 0.0, &params.limits) {
+            if let Ok(p) =
+                crate::profile::plan_position(params.ramp, self.main, limit, 0.0, &params.limits)
+            {
                 if let Some(m) = self.motion.as_mut() {
                     m.profile = p;
                     m.kind = MotionKind::Halt { target: limit };
@@ -716,11 +726,16 @@ impl Axis {
             };
             d.abs() <= self.last_window
         });
-        let continuous_jog = self.motion.is_some_and(|m| matches!(m.kind, MotionKind::Jog));
+        let continuous_jog = self
+            .motion
+            .is_some_and(|m| matches!(m.kind, MotionKind::Jog));
         self.status = AxisStatus {
             state: self.state,
             slope,
-            set: KinematicState { p: p_wrapped, ..set },
+            set: KinematicState {
+                p: p_wrapped,
+                ..set
+            },
             actual_position: actual,
             actual_velocity: self.actual_v,
             turns,
@@ -733,9 +748,9 @@ impl Axis {
                 camming: false,
                 homing: self.state == AxisState::Homing,
                 stopping: self.state == AxisState::Stopping
-                    || self
-                        .motion
-                        .is_some_and(|m| matches!(m.kind, MotionKind::Stop | MotionKind::QuickStop)),
+                    || self.motion.is_some_and(|m| {
+                        matches!(m.kind, MotionKind::Stop | MotionKind::QuickStop)
+                    }),
                 homed: self.homed,
                 in_target_window: in_window,
                 max_speed_exceeded: set.v.abs() > self.cfg.max.vmax * (1.0 + 1e-9),

@@ -20,7 +20,10 @@ pub struct Epoch {
 impl Epoch {
     /// An epoch exactly at a cycle.
     pub const fn at(tick: u64) -> Self {
-        Self { tick, offset_s: 0.0 }
+        Self {
+            tick,
+            offset_s: 0.0,
+        }
     }
 
     /// Seconds from this epoch to cycle `now`.
@@ -183,6 +186,10 @@ impl Queued {
 /// How many moves may wait behind the running one.
 pub const QUEUE_CAPACITY: usize = 8;
 
+/// The queue had no room.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QueueFull;
+
 /// A fixed-capacity FIFO of queued moves (no allocation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Queue {
@@ -200,15 +207,15 @@ impl Default for Queue {
 }
 
 impl Queue {
-    /// Appends; gives the item back when full.
-    pub fn push(&mut self, q: Queued) -> Result<(), Queued> {
+    /// Appends; `Err(())` when full (the caller still holds the item).
+    pub fn push(&mut self, q: Queued) -> Result<(), QueueFull> {
         match self.items.get_mut(self.len) {
             Some(slot) => {
                 *slot = Some(q);
                 self.len += 1;
                 Ok(())
             }
-            None => Err(q),
+            None => Err(QueueFull),
         }
     }
 

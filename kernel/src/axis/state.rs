@@ -101,10 +101,7 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
         (S::Standstill, Command::Release) => true,
         (_, Command::Release) => false,
         (S::Standstill, Command::Change(..) | Command::Reverse) => false,
-        (
-            S::Homing | S::SynchronizedMotion,
-            Command::Change(..) | Command::Reverse,
-        ) => false,
+        (S::Homing | S::SynchronizedMotion, Command::Change(..) | Command::Reverse) => false,
         (
             S::Standstill
             | S::Homing

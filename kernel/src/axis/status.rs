@@ -141,7 +141,18 @@ mod tests {
 
     #[test]
     fn slope_state_follows_sign_of_a_times_v() {
-        let s = |v, a| SlopeState::of(&KinematicState { p: 0.0, v, a, j: 0.0 }, 1e-9, 1e-9);
+        let s = |v, a| {
+            SlopeState::of(
+                &KinematicState {
+                    p: 0.0,
+                    v,
+                    a,
+                    j: 0.0,
+                },
+                1e-9,
+                1e-9,
+            )
+        };
         assert_eq!(s(0.0, 0.0), SlopeState::Stopped);
         assert_eq!(s(0.0, 1.0), SlopeState::Accelerating);
         assert_eq!(s(1.0, 1.0), SlopeState::Accelerating);
