@@ -101,6 +101,9 @@ pub enum Shape {
     /// Constant jerk `j` (units/s³) from the segment's start state; `Jerk(0.0)` is a
     /// constant-acceleration (or cruise) segment.
     Jerk(f64),
+    /// Constant acceleration `a` (units/s²) whatever the previous segment ended with:
+    /// trapezoid ramps jump in acceleration.
+    Accel(f64),
     /// Velocity changes by `dv` along a half cosine: `a(τ) = (π·dv / 2T)·sin(π τ / T)`.
     /// Acceleration starts and ends at zero. Start acceleration of the segment is ignored.
     Sine {
@@ -142,6 +145,12 @@ impl Segment {
                 v: s.v + tau * (s.a + tau * j / 2.0),
                 a: s.a + tau * j,
                 j,
+            },
+            Shape::Accel(a) => KinematicState {
+                p: s.p + tau * (s.v + tau * a / 2.0),
+                v: s.v + tau * a,
+                a,
+                j: 0.0,
             },
             Shape::Sine { dv } => {
                 if self.duration <= 0.0 {
@@ -251,7 +260,7 @@ impl Profile {
     /// Appends a segment that starts where the previous one ended. Zero-length segments
     /// are skipped.
     pub fn push(&mut self, duration: f64, shape: Shape) -> Result<(), PlanError> {
-        if !(duration > 0.0) {
+        if duration.is_nan() || duration <= 0.0 {
             return Ok(());
         }
         let start = match self.len {
@@ -358,6 +367,7 @@ impl Profile {
                         }
                     }
                 }
+                Shape::Accel(_) => {}
                 Shape::Sine { .. } => note(seg.sample(seg.duration / 2.0)),
                 Shape::SineSquared { .. } => {
                     note(seg.sample(seg.duration / 2.0));
