@@ -380,8 +380,14 @@ impl Axis {
             });
         }
 
-        let target = self.resolve_target(&m, &self.main.clone(), self.last_target, &params)?;
-        let planned = self.plan_ptp(self.main, target, 0.0, &params)?;
+        let start = self.start_for(params.ramp);
+        let target = self.resolve_target(&m, &start, self.last_target, &params)?;
+        let goal = Goal::Position {
+            target,
+            v_end: 0.0,
+            no_reverse: false,
+        };
+        let (planned, _, _) = self.plan_guarded(start, goal, &params)?;
 
         if decelerating_ptp {
             // Seed 000 §6.1.2: with None, and with Immediate when the distance does not
@@ -702,12 +708,11 @@ impl Axis {
                 handle: h,
             });
         }
-        let profile = self.plan_vel(
-            self.main,
-            v.direction.sign() * params.limits.vmax,
-            &params,
-            params.limits.jmax,
-        )?;
+        let goal = Goal::Velocity {
+            v: v.direction.sign() * params.limits.vmax,
+            decel_jerk: params.limits.jmax,
+        };
+        let (profile, _, _) = self.plan_guarded(self.start_for(params.ramp), goal, &params)?;
         self.vel_dynamics = used;
         if let Some(old) = self.motion.take() {
             handles.set(old.handle, CommandStatus::Aborted);
@@ -733,12 +738,11 @@ impl Axis {
         if !self.direction_allowed(dir.sign()) {
             return Err(self.direction_error("MoveVelocity.Reverse", dir.sign()));
         }
-        let profile = self.plan_vel(
-            self.main,
-            dir.sign() * m.params.limits.vmax,
-            &m.params,
-            m.decel_jerk,
-        )?;
+        let goal = Goal::Velocity {
+            v: dir.sign() * m.params.limits.vmax,
+            decel_jerk: m.decel_jerk,
+        };
+        let (profile, _, _) = self.plan_guarded(self.main, goal, &m.params)?;
         self.install_velocity(dir, profile, m.params, m.handle, Epoch::at(self.last_tick));
         Ok(CommandStatus::Done)
     }
@@ -832,14 +836,17 @@ impl Axis {
                 self.main.v.abs()
             };
             let (speed, params, decel_jerk) = self.jog_params(j, current)?;
-            let mut start = self.main;
+            let mut start = self.start_for(params.ramp);
             if j.merge {
                 start.p += self.overlay_set.p;
                 start.v += self.overlay_set.v;
                 start.a += self.overlay_set.a;
             }
-            let profile =
-                self.plan_vel_no_overshoot(start, j.direction.sign() * speed, &params, decel_jerk)?;
+            let goal = Goal::Velocity {
+                v: j.direction.sign() * speed,
+                decel_jerk,
+            };
+            let (profile, _, _) = self.plan_guarded(start, goal, &params)?;
             if j.merge {
                 self.fold_overlay(handles);
             }
@@ -862,12 +869,11 @@ impl Axis {
         } else {
             // Merge disabled while another move runs: the jog is superimposed on it.
             let (speed, params, decel_jerk) = self.jog_params(j, self.overlay_set.v.abs())?;
-            let profile = self.plan_vel_no_overshoot(
-                self.overlay_set,
-                j.direction.sign() * speed,
-                &params,
+            let goal = Goal::Velocity {
+                v: j.direction.sign() * speed,
                 decel_jerk,
-            )?;
+            };
+            let (profile, _, _) = self.plan_guarded(self.overlay_set, goal, &params)?;
             if let Some(old) = self.overlay.take() {
                 handles.set(old.handle, CommandStatus::Aborted);
             }
@@ -892,104 +898,102 @@ impl Axis {
         }
     }
 
-    /// Velocity plan that does not overshoot the target velocity (Logix warns that
-    /// lowering jerk or deceleration while ramping can overshoot; we raise them just enough,
-    /// up to the axis maximum, instead).
-    fn plan_vel_no_overshoot(
-        &self,
-        start: KinematicState,
-        v: f64,
-        params: &MoveParams,
-        decel_jerk: f64,
-    ) -> Result<Profile, CommandError> {
-        let first = self.plan_vel(start, v, params, decel_jerk)?;
-        if !overshoots_velocity(&first, start.v, v) {
-            return Ok(first);
+    /// The state a new move plans from: the last set values, except that an S-curve
+    /// following a ramp without jerk limit starts from zero acceleration (those ramps jump
+    /// in acceleration anyway; inheriting their acceleration would make the new jerk limit
+    /// drag it down slowly and overshoot).
+    fn start_for(&self, ramp: RampType) -> KinematicState {
+        let mut s = self.main;
+        let prev = self.motion.map(|m| m.params.ramp);
+        if ramp == RampType::SCurve && prev.is_some_and(|r| r != RampType::SCurve) {
+            s.a = 0.0;
         }
-        let max = self.cfg.max;
-        let scaled = |s: f64| MoveParams {
-            limits: Limits {
-                amax: (params.limits.amax * s).min(max.amax),
-                dmax: (params.limits.dmax * s).min(max.dmax),
-                jmax: (params.limits.jmax * s).min(max.jmax),
-                ..params.limits
-            },
-            ..*params
-        };
-        let top = (max.jmax / params.limits.jmax)
-            .max(max.dmax / params.limits.dmax)
-            .max(max.amax / params.limits.amax)
-            .max(1.0);
-        let best = self.plan_vel(start, v, &scaled(top), (decel_jerk * top).min(max.jmax))?;
-        if overshoots_velocity(&best, start.v, v) {
-            return Ok(first);
-        }
-        let (mut lo, mut hi) = (1.0, top);
-        let mut found = best;
-        for _ in 0..NO_OVERSHOOT_STEPS {
-            let mid = 0.5 * (lo + hi);
-            match self.plan_vel(start, v, &scaled(mid), (decel_jerk * mid).min(max.jmax)) {
-                Ok(p) if !overshoots_velocity(&p, start.v, v) => {
-                    hi = mid;
-                    found = p;
-                }
-                _ => lo = mid,
-            }
-        }
-        Ok(found)
+        s
     }
 
-    /// Position plan that does not pass the target and come back: when new dynamics
-    /// (e.g. a lower deceleration during the deceleration ramp) cannot stop in time, the
-    /// deceleration and jerk are raised just enough, up to the axis maximum.
-    fn plan_ptp_no_overshoot(
+    fn plan_goal(
         &self,
         start: KinematicState,
-        target: f64,
-        v_end: f64,
+        goal: Goal,
         params: &MoveParams,
-    ) -> Result<(Profile, MoveParams), CommandError> {
-        let first = self.plan_ptp(start, target, v_end, params)?;
-        if !reverses(&first, start.v) {
-            return Ok((first, *params));
+    ) -> Result<Profile, CommandError> {
+        match goal {
+            Goal::Velocity { v, decel_jerk } => self.plan_vel(start, v, params, decel_jerk),
+            Goal::Position { target, v_end, .. } => self.plan_ptp(start, target, v_end, params),
+        }
+    }
+
+    /// Whether a plan keeps within the axis maximum speed (unless the start is already
+    /// beyond it) and, for the goal, neither overshoots the target velocity nor passes the
+    /// target position and comes back.
+    fn acceptable(&self, p: &Profile, start: &KinematicState, goal: Goal) -> bool {
+        let (lo, hi) = velocity_range(p);
+        let vlim = self.cfg.max.vmax.max(start.v.abs()) * (1.0 + 1e-9);
+        if lo < -vlim || hi > vlim {
+            return false;
+        }
+        match goal {
+            Goal::Velocity { v, .. } => !overshoots_velocity(p, start.v, v),
+            Goal::Position { no_reverse, .. } => !(no_reverse && reverses(p, start.v)),
+        }
+    }
+
+    /// Plans `goal`; when the plan is not [`Axis::acceptable`] (Logix warns that lowering
+    /// jerk or deceleration while ramping overshoots), raises acceleration, deceleration
+    /// and jerk just enough, up to the axis maximum. Returns the plan, the parameters it
+    /// used, and whether it is acceptable (false: not even the axis maximum suffices).
+    fn plan_guarded(
+        &self,
+        start: KinematicState,
+        goal: Goal,
+        params: &MoveParams,
+    ) -> Result<(Profile, MoveParams, bool), CommandError> {
+        let first = self.plan_goal(start, goal, params)?;
+        if self.acceptable(&first, &start, goal) {
+            return Ok((first, *params, true));
         }
         let max = self.cfg.max;
-        let scaled = |s: f64| MoveParams {
-            limits: Limits {
-                dmax: (params.limits.dmax * s).min(max.dmax),
-                jmax: (params.limits.jmax * s).min(max.jmax),
-                ..params.limits
-            },
-            ..*params
-        };
-        let top = (max.dmax / params.limits.dmax)
-            .max(max.jmax / params.limits.jmax)
-            .max(1.0);
-        let best = self.plan_ptp(start, target, v_end, &scaled(top))?;
-        if reverses(&best, start.v) {
-            return Err(CommandError::Plan {
-                command: "MovePtp",
-                error: PlanError::NoSolution {
-                    p: start.p,
-                    v: start.v,
-                    a: start.a,
-                    target,
+        let scaled = |s: f64| {
+            let mut g = goal;
+            if let Goal::Velocity { decel_jerk, .. } = &mut g {
+                *decel_jerk = (*decel_jerk * s).min(max.jmax).max(*decel_jerk);
+            }
+            let l = params.limits;
+            let p = MoveParams {
+                limits: Limits {
+                    amax: (l.amax * s).min(max.amax).max(l.amax),
+                    dmax: (l.dmax * s).min(max.dmax).max(l.dmax),
+                    jmax: (l.jmax * s).min(max.jmax).max(l.jmax),
+                    ..l
                 },
-            });
-        }
+                ..*params
+            };
+            (g, p)
+        };
+        let l = params.limits;
+        let top = (max.jmax / l.jmax)
+            .max(max.dmax / l.dmax)
+            .max(max.amax / l.amax)
+            .max(1.0);
+        let (g_top, p_top) = scaled(top);
+        let best = match self.plan_goal(start, g_top, &p_top) {
+            Ok(b) if self.acceptable(&b, &start, goal) => b,
+            _ => return Ok((first, *params, false)),
+        };
         let (mut lo, mut hi) = (1.0, top);
-        let mut found = (best, scaled(top));
+        let mut found = (best, p_top);
         for _ in 0..NO_OVERSHOOT_STEPS {
             let mid = 0.5 * (lo + hi);
-            match self.plan_ptp(start, target, v_end, &scaled(mid)) {
-                Ok(p) if !reverses(&p, start.v) => {
+            let (g, p) = scaled(mid);
+            match self.plan_goal(start, g, &p) {
+                Ok(pl) if self.acceptable(&pl, &start, goal) => {
                     hi = mid;
-                    found = (p, scaled(mid));
+                    found = (pl, p);
                 }
                 _ => lo = mid,
             }
         }
-        Ok(found)
+        Ok((found.0, found.1, true))
     }
 
     fn change(&mut self, what: DynamicsChange, value: f64) -> Result<CommandStatus, CommandError> {
@@ -1016,7 +1020,24 @@ impl Axis {
         let (profile, params, decel_jerk) = match m.kind {
             MotionKind::Ptp { target, .. } => {
                 let v_end = self.blend_velocity(target, params.limits.vmax);
-                let (p, used) = self.plan_ptp_no_overshoot(self.main, target, v_end, &params)?;
+                let goal = Goal::Position {
+                    target,
+                    v_end,
+                    no_reverse: true,
+                };
+                let (p, used, ok) = self.plan_guarded(self.main, goal, &params)?;
+                if !ok {
+                    // Not even the axis maximum stops in time: keep the running profile.
+                    return Err(CommandError::Plan {
+                        command: name,
+                        error: PlanError::NoSolution {
+                            p: self.main.p,
+                            v: self.main.v,
+                            a: self.main.a,
+                            target,
+                        },
+                    });
+                }
                 self.ptp_dynamics = Dynamics {
                     speed: params.limits.vmax,
                     acceleration: params.limits.amax,
@@ -1027,12 +1048,11 @@ impl Axis {
                 (p, used, used.limits.jmax)
             }
             MotionKind::Velocity { direction } => {
-                let p = self.plan_vel_no_overshoot(
-                    self.main,
-                    direction.sign() * params.limits.vmax,
-                    &params,
-                    params.limits.jmax,
-                )?;
+                let goal = Goal::Velocity {
+                    v: direction.sign() * params.limits.vmax,
+                    decel_jerk: params.limits.jmax,
+                };
+                let (p, _, _) = self.plan_guarded(self.main, goal, &params)?;
                 self.vel_dynamics = Dynamics {
                     speed: params.limits.vmax,
                     acceleration: params.limits.amax,
@@ -1053,8 +1073,11 @@ impl Axis {
                 } else {
                     m.decel_jerk
                 };
-                let p =
-                    self.plan_vel_no_overshoot(self.main, dir * params.limits.vmax, &params, dj)?;
+                let goal = Goal::Velocity {
+                    v: dir * params.limits.vmax,
+                    decel_jerk: dj,
+                };
+                let (p, _, _) = self.plan_guarded(self.main, goal, &params)?;
                 (p, params, dj)
             }
             _ => return Err(CommandError::NothingToChange { command: name }),
@@ -1217,6 +1240,19 @@ impl Axis {
         });
         Ok(())
     }
+}
+
+/// What a plan is for, and what it must not do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Goal {
+    /// Reach velocity `v` (slowing down with `decel_jerk`) without overshooting it.
+    Velocity { v: f64, decel_jerk: f64 },
+    /// Reach `target` at `v_end`; with `no_reverse`, without passing it and coming back.
+    Position {
+        target: f64,
+        v_end: f64,
+        no_reverse: bool,
+    },
 }
 
 /// Whether a profile starting at velocity `v0` ever moves against its initial direction
