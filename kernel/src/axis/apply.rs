@@ -757,7 +757,18 @@ impl Axis {
         let max = self.cfg.max;
         let programmed = rate(name, Operand::Speed, j.speed, j.speed_units, max.vmax)?;
         let speed = if j.merge && j.merge_speed == MergeSpeed::Current {
-            current_speed.min(max.vmax)
+            // Merging at the current speed of an axis at rest would jog at zero speed.
+            let v = current_speed.min(max.vmax);
+            if v < 1e-9 * max.vmax {
+                return Err(CommandError::OperandOutOfRange {
+                    command: name,
+                    operand: Operand::Speed,
+                    value: v,
+                    problem: RangeProblem::NotPositive,
+                    limit: max.vmax,
+                });
+            }
+            v
         } else {
             programmed
         };
@@ -807,7 +818,7 @@ impl Axis {
             speed,
             MoveParams {
                 limits: Limits {
-                    vmax: speed.max(f64::MIN_POSITIVE),
+                    vmax: speed,
                     amax: acc,
                     dmax: dec,
                     jmax: accel_jerk,
@@ -953,34 +964,40 @@ impl Axis {
             return Ok((first, *params, true));
         }
         let max = self.cfg.max;
-        let scaled = |s: f64| {
+        // λ = 0: the command's limits; λ = 1: every limit at the axis maximum (geometric
+        // in between, so each limit rises in proportion to its own headroom).
+        let raise = |v: f64, top: f64, lambda: f64| {
+            if top > v {
+                v * (top / v).powf(lambda)
+            } else {
+                v
+            }
+        };
+        let scaled = |lambda: f64| {
             let mut g = goal;
             if let Goal::Velocity { decel_jerk, .. } = &mut g {
-                *decel_jerk = (*decel_jerk * s).min(max.jmax).max(*decel_jerk);
+                *decel_jerk = raise(*decel_jerk, max.jmax, lambda);
             }
             let l = params.limits;
             let p = MoveParams {
                 limits: Limits {
-                    amax: (l.amax * s).min(max.amax).max(l.amax),
-                    dmax: (l.dmax * s).min(max.dmax).max(l.dmax),
-                    jmax: (l.jmax * s).min(max.jmax).max(l.jmax),
+                    amax: raise(l.amax, max.amax, lambda),
+                    dmax: raise(l.dmax, max.dmax, lambda),
+                    jmax: raise(l.jmax, max.jmax, lambda),
                     ..l
                 },
                 ..*params
             };
             (g, p)
         };
-        let l = params.limits;
-        let top = (max.jmax / l.jmax)
-            .max(max.dmax / l.dmax)
-            .max(max.amax / l.amax)
-            .max(1.0);
-        let (g_top, p_top) = scaled(top);
+        let (g_top, p_top) = scaled(1.0);
         let best = match self.plan_goal(start, g_top, &p_top) {
             Ok(b) if self.acceptable(&b, &start, goal) => b,
-            _ => return Ok((first, *params, false)),
+            // Not even the axis maximum avoids it: the maximum comes closest.
+            Ok(b) => return Ok((b, p_top, false)),
+            Err(_) => return Ok((first, *params, false)),
         };
-        let (mut lo, mut hi) = (1.0, top);
+        let (mut lo, mut hi) = (0.0, 1.0);
         let mut found = (best, p_top);
         for _ in 0..NO_OVERSHOOT_STEPS {
             let mid = 0.5 * (lo + hi);

@@ -191,6 +191,9 @@ impl Segment {
     }
 }
 
+/// Shortest segment a profile keeps (s).
+pub const MIN_SEGMENT_S: f64 = 1e-12;
+
 /// Most segments any planner emits (S-curve: 7 phases + a brake pre-profile).
 pub const MAX_SEGMENTS: usize = 12;
 
@@ -260,7 +263,9 @@ impl Profile {
     /// Appends a segment that starts where the previous one ended. Zero-length segments
     /// are skipped.
     pub fn push(&mut self, duration: f64, shape: Shape) -> Result<(), PlanError> {
-        if duration.is_nan() || duration <= 0.0 {
+        // Sub-picosecond segments change nothing measurable and would make the sine
+        // shapes divide by (almost) zero.
+        if duration.is_nan() || duration < MIN_SEGMENT_S {
             return Ok(());
         }
         let start = match self.len {

@@ -114,12 +114,15 @@ struct Shape7 {
 }
 
 fn through(start: &KinematicState, vp: f64, v_end: f64, lim: &Limits) -> Shape7 {
-    let first = VelChange::new(start.v, start.a, vp, accel_bound(start.v, vp, lim), lim.jmax);
+    let first = VelChange::new(
+        start.v,
+        start.a,
+        vp,
+        accel_bound(start.v, vp, lim),
+        lim.jmax,
+    );
     let second = VelChange::new(vp, 0.0, v_end, accel_bound(vp, v_end, lim), lim.jmax);
-    let origin = KinematicState {
-        p: 0.0,
-        ..*start
-    };
+    let origin = KinematicState { p: 0.0, ..*start };
     let mid = first.integrate(origin);
     let end = second.integrate(KinematicState {
         p: mid.p,
@@ -135,7 +138,14 @@ fn through(start: &KinematicState, vp: f64, v_end: f64, lim: &Limits) -> Shape7 
 }
 
 /// Solves `f(x) = 0` on `[lo, hi]` where `f(lo) < 0 < f(hi)` (Illinois regula falsi).
-fn solve(mut lo: f64, mut hi: f64, mut flo: f64, mut fhi: f64, tol: f64, f: impl Fn(f64) -> f64) -> f64 {
+fn solve(
+    mut lo: f64,
+    mut hi: f64,
+    mut flo: f64,
+    mut fhi: f64,
+    tol: f64,
+    f: impl Fn(f64) -> f64,
+) -> f64 {
     let mut side = 0i8;
     let mut x = lo;
     for _ in 0..MAX_ITERATIONS {
@@ -171,12 +181,7 @@ fn solve(mut lo: f64, mut hi: f64, mut flo: f64, mut fhi: f64, tol: f64, f: impl
 }
 
 /// Builds the profile of a planned move (in the mirrored frame: `m` is ±1).
-fn build(
-    start: KinematicState,
-    shape: &Shape7,
-    cruise: f64,
-    m: f64,
-) -> Result<Profile, PlanError> {
+fn build(start: KinematicState, shape: &Shape7, cruise: f64, m: f64) -> Result<Profile, PlanError> {
     let mut p = Profile::new(KinematicState { j: 0.0, ..start });
     for ph in &shape.first.phases {
         p.push(ph.t, Shape::Jerk(m * ph.j))?;
@@ -227,7 +232,9 @@ pub fn plan_position(
     } else {
         0.0
     };
-    let scale = dist.max(start.v.abs() * start.v.abs() / lim.dmax).max(1e-12);
+    let scale = dist
+        .max(start.v.abs() * start.v.abs() / lim.dmax)
+        .max(1e-12);
     let tol = 1e-13 * scale.max(1.0);
     // The end velocity must be reachable: ending at `ve` without a second change must not
     // overshoot; otherwise end at the fastest speed that still fits.
@@ -269,7 +276,10 @@ pub fn plan_position(
     let end = profile.end_state();
     let ptol = 1e-9 * target.abs().max(start.p.abs()).max(1.0);
     let vtol = 1e-9 * vmax.max(start.v.abs()).max(1.0);
-    if (end.p - target).abs() > ptol || (end.v - m * ve).abs() > vtol || end.a.abs() > 1e-6 * lim.amax.max(lim.dmax) {
+    if (end.p - target).abs() > ptol
+        || (end.v - m * ve).abs() > vtol
+        || end.a.abs() > 1e-6 * lim.amax.max(lim.dmax)
+    {
         return Err(no_solution(&start, target));
     }
     profile.set_end(KinematicState {
@@ -290,7 +300,13 @@ pub fn plan_velocity(
     check_limits(lim, true)?;
     check_inputs(&start, v_target)?;
     let vt = v_target.clamp(-lim.vmax, lim.vmax);
-    let change = VelChange::new(start.v, start.a, vt, accel_bound(start.v, vt, lim), lim.jmax);
+    let change = VelChange::new(
+        start.v,
+        start.a,
+        vt,
+        accel_bound(start.v, vt, lim),
+        lim.jmax,
+    );
     let mut p = Profile::new(KinematicState { j: 0.0, ..start });
     for ph in &change.phases {
         p.push(ph.t, Shape::Jerk(ph.j))?;
@@ -322,21 +338,45 @@ mod tests {
 
     #[test]
     fn rest_to_rest_unit_limits_takes_2_pow_5_3() {
-        let p = plan_position(KinematicState::at_rest(0.0), 1.0, 0.0, &lim(1.0, 1.0, 1.0, 1.0)).unwrap();
-        assert!((p.duration() - 2f64.powf(5.0 / 3.0)).abs() < 1e-9, "{}", p.duration());
+        let p = plan_position(
+            KinematicState::at_rest(0.0),
+            1.0,
+            0.0,
+            &lim(1.0, 1.0, 1.0, 1.0),
+        )
+        .unwrap();
+        assert!(
+            (p.duration() - 2f64.powf(5.0 / 3.0)).abs() < 1e-9,
+            "{}",
+            p.duration()
+        );
         assert!((p.duration() - 3.1748).abs() < 1e-4);
     }
 
     #[test]
     fn rest_to_rest_reaching_all_limits() {
         // vmax 1, amax 1, jerk 10: ramp 1.1 s covering 0.55; d = 10 → 2.2 + 8.9 = 11.1 s.
-        let p = plan_position(KinematicState::at_rest(0.0), 10.0, 0.0, &lim(1.0, 1.0, 1.0, 10.0)).unwrap();
+        let p = plan_position(
+            KinematicState::at_rest(0.0),
+            10.0,
+            0.0,
+            &lim(1.0, 1.0, 1.0, 10.0),
+        )
+        .unwrap();
         assert!((p.duration() - 11.1).abs() < 1e-9, "{}", p.duration());
         // Asymmetric: deceleration 2 → ramp down 0.7 s covering 0.35: 1.1 + 0.7 + 9.1.
-        let p = plan_position(KinematicState::at_rest(0.0), 10.0, 0.0, &lim(1.0, 1.0, 2.0, 10.0)).unwrap();
+        let p = plan_position(
+            KinematicState::at_rest(0.0),
+            10.0,
+            0.0,
+            &lim(1.0, 1.0, 2.0, 10.0),
+        )
+        .unwrap();
         assert!((p.duration() - 10.9).abs() < 1e-9, "{}", p.duration());
         let pk = p.peaks();
-        assert!((pk.v - 1.0).abs() < 1e-12 && (pk.a - 2.0).abs() < 1e-12 && (pk.j - 10.0).abs() < 1e-12);
+        assert!(
+            (pk.v - 1.0).abs() < 1e-12 && (pk.a - 2.0).abs() < 1e-12 && (pk.j - 10.0).abs() < 1e-12
+        );
     }
 
     #[test]
@@ -349,7 +389,12 @@ mod tests {
 
     #[test]
     fn target_behind_comes_back_without_error() {
-        let start = KinematicState { p: 0.0, v: 2.0, a: 1.0, j: 0.0 };
+        let start = KinematicState {
+            p: 0.0,
+            v: 2.0,
+            a: 1.0,
+            j: 0.0,
+        };
         let p = plan_position(start, -1.0, 0.0, &lim(2.0, 1.0, 1.0, 2.0)).unwrap();
         assert_eq!(p.end_state().p, -1.0);
         assert!((p.sample(p.duration()).p + 1.0).abs() < 1e-9);
