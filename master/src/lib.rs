@@ -1,1 +1,11 @@
-//! gantry, the motion master: CLI commands, demo, trace output.
+//! gantry, the motion master: the CLI's commands, the demo, trace and plot output.
+//!
+//! The buses, the real-time runtime and the configuration file come in later issues; today
+//! the master runs the motion kernel on simulated axes.
+#![deny(missing_docs)]
+
+pub mod cli;
+pub mod demo;
+pub mod plot;
+pub mod status_table;
+pub mod trace;

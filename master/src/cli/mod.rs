@@ -1,0 +1,3 @@
+//! The `gantry` subcommands.
+
+pub mod profile;

@@ -1,0 +1,126 @@
+//! The `gantry` binary end to end: `profile` (single and batch) and `demo`.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn gantry() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gantry"))
+}
+
+fn json(out: &[u8]) -> serde_json::Value {
+    serde_json::from_slice(out).expect("JSON output")
+}
+
+#[test]
+fn profile_prints_known_optima() {
+    let out = gantry()
+        .args([
+            "profile", "--to-pos", "1", "--vmax", "1", "--amax", "1", "--dmax", "1", "--jmax", "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&out.stdout);
+    assert!((v["duration_s"].as_f64().unwrap() - 3.1748).abs() < 1e-4);
+    assert_eq!(v["phases"].as_array().unwrap().len(), 4);
+    let out = gantry()
+        .args([
+            "profile",
+            "--to-pos",
+            "10",
+            "--vmax",
+            "2",
+            "--amax",
+            "1",
+            "--ramp",
+            "trapezoid",
+        ])
+        .output()
+        .unwrap();
+    assert!((json(&out.stdout)["duration_s"].as_f64().unwrap() - 7.0).abs() < 1e-9);
+    let out = gantry()
+        .args([
+            "profile",
+            "--from-vel",
+            "-3",
+            "--to-pos",
+            "-2",
+            "--vmax",
+            "2",
+            "--amax",
+            "1",
+            "--jmax",
+            "5",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "negative operands parse");
+}
+
+#[test]
+fn profile_rejects_bad_input_with_a_clear_message() {
+    let out = gantry()
+        .args([
+            "profile", "--to-pos", "1", "--vmax", "-1", "--amax", "1", "--jmax", "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("vmax = -1 must be > 0"), "{err}");
+    let out = gantry()
+        .args(["profile", "--to-pos", "1", "--vmax", "1", "--amax", "1"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("jmax is required"));
+}
+
+#[test]
+fn profile_batch_answers_every_line() {
+    let mut child = gantry()
+        .args(["profile", "--batch"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(b"{\"from_pos\":0,\"from_vel\":0,\"from_acc\":0,\"to_pos\":1,\"vmax\":1,\"amax\":1,\"dmax\":1,\"jmax\":1,\"ramp\":\"scurve\"}\n{\"to_pos\":\"x\"}\n{\"to_pos\":5,\"vmax\":1,\"amax\":2,\"dmax\":2,\"ramp\":\"sine\"}\n")
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 3);
+    assert!(lines[0]["plan_ns"].as_u64().is_some());
+    assert!(lines[1]["error"].as_str().unwrap().starts_with("line 2:"));
+    assert!(lines[2]["peak_a"].as_f64().unwrap() <= 2.0 + 1e-12);
+}
+
+#[test]
+fn demo_runs_and_prints_where_its_files_are() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-demo-{}", std::process::id()));
+    let out = gantry()
+        .args(["demo", "--speed", "0", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("demo done"));
+    assert!(dir.join("trace.csv").exists() && dir.join("plot.svg").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
