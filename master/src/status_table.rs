@@ -24,8 +24,8 @@ pub fn render(time_s: f64, rows: &[Row]) -> String {
     let _ = writeln!(s, "t = {time_s:7.3} s");
     let _ = writeln!(
         s,
-        "{:<5} {:<18} {:<14} {:>11} {:>10} {:>10} {:<6} {:<15} {}",
-        "axis", "state", "slope", "position", "velocity", "accel", "homed", "command", "error"
+        "{:<5} {:<18} {:<14} {:>11} {:>10} {:>10} {:<6} {:<15} error",
+        "axis", "state", "slope", "position", "velocity", "accel", "homed", "command"
     );
     for r in rows {
         let st = &r.status;
