@@ -93,6 +93,20 @@ impl VelChange {
     }
 }
 
+/// Velocity reached by bringing the start acceleration to zero at once: where a velocity
+/// change really starts from, so it decides whether the change speeds up or slows down.
+fn v_stop(s: &KinematicState, lim: &Limits) -> f64 {
+    s.v + s.a * s.a.abs() / (2.0 * lim.jmax)
+}
+
+/// Bound of the first velocity change, from (v0, a0) to `vt`: judged from where it
+/// starts, from `v_stop` and from where it ends, so that a change during which the
+/// velocity crosses zero (even only while the start acceleration is brought down) holds
+/// `min(amax, dmax)`.
+fn first_bound(s: &KinematicState, vt: f64, lim: &Limits) -> f64 {
+    accel_bound(s.v, vt, lim).min(accel_bound(v_stop(s, lim), vt, lim))
+}
+
 /// Acceleration bound of a velocity change from `va` to `vb`.
 fn accel_bound(va: f64, vb: f64, lim: &Limits) -> f64 {
     if va * vb < 0.0 {
@@ -114,13 +128,7 @@ struct Shape7 {
 }
 
 fn through(start: &KinematicState, vp: f64, v_end: f64, lim: &Limits) -> Shape7 {
-    let first = VelChange::new(
-        start.v,
-        start.a,
-        vp,
-        accel_bound(start.v, vp, lim),
-        lim.jmax,
-    );
+    let first = VelChange::new(start.v, start.a, vp, first_bound(start, vp, lim), lim.jmax);
     let second = VelChange::new(vp, 0.0, v_end, accel_bound(vp, v_end, lim), lim.jmax);
     let origin = KinematicState { p: 0.0, ..*start };
     let mid = first.integrate(origin);
@@ -180,6 +188,37 @@ fn solve(
     x
 }
 
+/// The largest peak velocity `vp` in `(-vmax, vmax)` with `f(vp) = 0` (the fastest move).
+///
+/// `D(vp)` is not monotone: a peak between zero and `v_stop` means slowing down, pausing
+/// the deceleration, and slowing down again — it covers more distance than braking at
+/// once, so such "dip" peaks can be roots too, but slower ones. `D` grows on
+/// `[v_stop, vmax]` and on `[-vmax, 0]`, so the brackets are tried from the top.
+fn largest_root(
+    s: &KinematicState,
+    lim: &Limits,
+    f_lo: f64,
+    f_hi: f64,
+    tol: f64,
+    f: impl Fn(f64) -> f64,
+) -> f64 {
+    let vmax = lim.vmax;
+    let top = v_stop(s, lim).clamp(-vmax, vmax);
+    let f_top = f(top);
+    if f_top <= 0.0 {
+        return solve(top, vmax, f_top, f_hi, tol, f);
+    }
+    let mid = top.min(0.0);
+    let f_mid = if mid == top { f_top } else { f(mid) };
+    if mid < top && f_mid <= 0.0 {
+        return solve(mid, top, f_mid, f_top, tol, f);
+    }
+    if f_mid >= 0.0 {
+        return solve(-vmax, mid, f_lo, f_mid, tol, f);
+    }
+    solve(-vmax, vmax, f_lo, f_hi, tol, f)
+}
+
 /// Builds the profile of a planned move (in the mirrored frame: `m` is ±1).
 fn build(start: KinematicState, shape: &Shape7, cruise: f64, m: f64) -> Result<Profile, PlanError> {
     let mut p = Profile::new(KinematicState { j: 0.0, ..start });
@@ -232,8 +271,13 @@ pub fn plan_position(
     } else {
         0.0
     };
+    // Size of the distances involved, for the root tolerance: the move, the braking
+    // distance, and what the start acceleration alone carries the axis.
     let scale = dist
-        .max(start.v.abs() * start.v.abs() / lim.dmax)
+        .max(start.v * start.v / lim.amax.min(lim.dmax))
+        .max(start.a.abs().powi(3) / (lim.jmax * lim.jmax))
+        .max(start.v.abs() * start.a.abs() / lim.jmax)
+        .max(v_stop(&s, lim).powi(2) / lim.amax.min(lim.dmax))
         .max(1e-12);
     let tol = 1e-13 * scale.max(1.0);
     // The end velocity must be reachable: ending at `ve` without a second change must not
@@ -242,11 +286,13 @@ pub fn plan_position(
         let g = |w: f64| through(&s, w, w, lim).distance - dist;
         let g_ve = g(ve);
         if g_ve > 0.0 {
-            let g0 = g(0.0);
-            ve = if g0 >= 0.0 {
-                0.0
+            // Largest reachable end speed: search above v_stop first (g grows there).
+            let lo = v_stop(&s, lim).clamp(0.0, ve);
+            let g_lo = g(lo);
+            ve = if g_lo < 0.0 {
+                solve(lo, ve, g_lo, g_ve, tol, g)
             } else {
-                solve(0.0, ve, g0, g_ve, tol, g)
+                0.0
             };
         }
     }
@@ -260,7 +306,7 @@ pub fn plan_position(
         if f_lo >= 0.0 {
             (-vmax, f_lo / vmax)
         } else {
-            (solve(-vmax, vmax, f_lo, f_hi, tol, f), 0.0)
+            (largest_root(&s, lim, f_lo, f_hi, tol, f), 0.0)
         }
     };
     let shape = through(&s, vp, ve, lim);
@@ -274,7 +320,7 @@ pub fn plan_position(
     };
     let mut profile = build(start, &shape, cruise, m)?;
     let end = profile.end_state();
-    let ptol = 1e-9 * target.abs().max(start.p.abs()).max(1.0);
+    let ptol = 1e-9 * target.abs().max(start.p.abs()).max(scale).max(1.0);
     let vtol = 1e-9 * vmax.max(start.v.abs()).max(1.0);
     if (end.p - target).abs() > ptol
         || (end.v - m * ve).abs() > vtol
@@ -300,13 +346,7 @@ pub fn plan_velocity(
     check_limits(lim, true)?;
     check_inputs(&start, v_target)?;
     let vt = v_target.clamp(-lim.vmax, lim.vmax);
-    let change = VelChange::new(
-        start.v,
-        start.a,
-        vt,
-        accel_bound(start.v, vt, lim),
-        lim.jmax,
-    );
+    let change = VelChange::new(start.v, start.a, vt, first_bound(&start, vt, lim), lim.jmax);
     let mut p = Profile::new(KinematicState { j: 0.0, ..start });
     for ph in &change.phases {
         p.push(ph.t, Shape::Jerk(ph.j))?;
