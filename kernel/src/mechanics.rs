@@ -327,8 +327,10 @@ mod tests {
 
     #[test]
     fn mechanics_validation_names_the_problem() {
-        let mut m = Mechanics::default();
-        m.software_limits = Some((5.0, -5.0));
+        let mut m = Mechanics {
+            software_limits: Some((5.0, -5.0)),
+            ..Mechanics::default()
+        };
         assert_eq!(
             m.validate(),
             Err(MechanicsError::LimitsNotOrdered {

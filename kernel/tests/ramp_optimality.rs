@@ -29,8 +29,8 @@ fn feasible(t: f64, u: f64, ve: f64, dist: f64, l: &Limits) -> bool {
         })
         .collect();
     for w in v.windows(2) {
-        lp.add_constraint(&[(w[1], 1.0), (w[0], -1.0)], ComparisonOp::Le, l.amax * dt);
-        lp.add_constraint(&[(w[0], 1.0), (w[1], -1.0)], ComparisonOp::Le, l.dmax * dt);
+        lp.add_constraint([(w[1], 1.0), (w[0], -1.0)], ComparisonOp::Le, l.amax * dt);
+        lp.add_constraint([(w[0], 1.0), (w[1], -1.0)], ComparisonOp::Le, l.dmax * dt);
     }
     let coeffs: Vec<_> = v
         .iter()
