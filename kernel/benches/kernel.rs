@@ -9,13 +9,80 @@ use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 
 fn main() {
     divan::main();
+    planning_distribution();
+}
+
+/// A small fixed-seed generator so every run plans the same states.
+struct XorShift(u64);
+
+impl XorShift {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+/// A random start state, target and limits (start inside the limits).
+fn random_case(r: &mut XorShift) -> (KinematicState, f64, Limits) {
+    let lim = Limits {
+        vmax: r.range(0.5, 10.0),
+        amax: r.range(0.5, 50.0),
+        dmax: r.range(0.5, 50.0),
+        jmax: r.range(5.0, 500.0),
+    };
+    let start = KinematicState {
+        p: r.range(-100.0, 100.0),
+        v: r.range(-1.0, 1.0) * lim.vmax,
+        a: r.range(-1.0, 1.0) * lim.amax.min(lim.dmax),
+        j: 0.0,
+    };
+    (start, r.range(-100.0, 100.0), lim)
+}
+
+/// S-curve planning time from 10 000 random states: the distribution (median, p99, max),
+/// with trapezoid planning of the same moves as the baseline of the same run.
+fn planning_distribution() {
+    let mut r = XorShift(0x9e37_79b9_7f4a_7c15);
+    let cases: Vec<_> = (0..10_000).map(|_| random_case(&mut r)).collect();
+    let measure = |ramp: RampType| {
+        let mut ns: Vec<u64> = cases
+            .iter()
+            .map(|(s, t, l)| {
+                let t0 = std::time::Instant::now();
+                let p = plan_position(ramp, *s, *t, 0.0, l);
+                let dt = t0.elapsed().as_nanos() as u64;
+                divan::black_box(p).ok();
+                dt
+            })
+            .collect();
+        ns.sort_unstable();
+        let q = |f: f64| ns[((ns.len() - 1) as f64 * f) as usize];
+        (q(0.5), q(0.99), ns[ns.len() - 1])
+    };
+    // Warm up, then measure.
+    let _ = measure(RampType::SCurve);
+    let s = measure(RampType::SCurve);
+    let t = measure(RampType::Trapezoid);
+    println!("planning over 10000 random states (ns): median / p99 / max");
+    println!("  scurve     {:>7} / {:>7} / {:>7}", s.0, s.1, s.2);
+    println!("  trapezoid  {:>7} / {:>7} / {:>7}", t.0, t.1, t.2);
+    println!(
+        "  ratio scurve/trapezoid at the median: {:.1}",
+        s.0 as f64 / t.0.max(1) as f64
+    );
 }
 
 const DT: f64 = 0.001;
 
 fn limits(i: usize) -> Limits {
     Limits {
-        vmax: 50.0 + i as f64,
+        vmax: 50.0 + (i % 40) as f64,
         amax: 5.0 + (i % 7) as f64,
         dmax: 4.0 + (i % 5) as f64,
         jmax: 20.0 + (i % 3) as f64,
