@@ -173,40 +173,35 @@ impl Axis {
         Ok(CommandStatus::Done)
     }
 
-    /// Operands of a PTP move resolved against the last-used values, validated.
-    fn ptp_operands(&self, m: &MovePtp) -> Result<(MoveParams, f64, Dynamics), CommandError> {
-        let name = "MovePtp";
-        let d = self.ptp_dynamics;
+    /// Speed, acceleration, deceleration, jerk and ramp of a move, each given or taken
+    /// from the last-used values `d`, validated against the axis maxima.
+    #[allow(clippy::too_many_arguments)]
+    fn dynamics_operands(
+        &self,
+        name: &'static str,
+        d: Dynamics,
+        speed: Option<f64>,
+        acceleration: Option<f64>,
+        deceleration: Option<f64>,
+        jerk: Option<f64>,
+        ramp: Option<RampType>,
+    ) -> Result<(MoveParams, Dynamics), CommandError> {
         let max = self.cfg.max;
-        let speed = positive(name, Operand::Speed, m.speed.unwrap_or(d.speed), max.vmax)?;
+        let speed = positive(name, Operand::Speed, speed.unwrap_or(d.speed), max.vmax)?;
         let acc = positive(
             name,
             Operand::Acceleration,
-            m.acceleration.unwrap_or(d.acceleration),
+            acceleration.unwrap_or(d.acceleration),
             max.amax,
         )?;
         let dec = positive(
             name,
             Operand::Deceleration,
-            m.deceleration.unwrap_or(d.deceleration),
+            deceleration.unwrap_or(d.deceleration),
             max.dmax,
         )?;
-        let jerk = positive(name, Operand::Jerk, m.jerk.unwrap_or(d.jerk), max.jmax)?;
-        let window = non_negative(
-            name,
-            Operand::TargetWindow,
-            m.target_window.unwrap_or(d.target_window),
-        )?;
-        position(name, Operand::Target, m.target)?;
-        let ramp = m.ramp.unwrap_or(d.ramp);
-        let used = Dynamics {
-            speed,
-            acceleration: acc,
-            deceleration: dec,
-            jerk,
-            ramp,
-            target_window: window,
-        };
+        let jerk = positive(name, Operand::Jerk, jerk.unwrap_or(d.jerk), max.jmax)?;
+        let ramp = ramp.unwrap_or(d.ramp);
         Ok((
             MoveParams {
                 limits: Limits {
@@ -217,9 +212,38 @@ impl Axis {
                 },
                 ramp,
             },
-            window,
-            used,
+            Dynamics {
+                speed,
+                acceleration: acc,
+                deceleration: dec,
+                jerk,
+                ramp,
+                target_window: d.target_window,
+            },
         ))
+    }
+
+    /// Operands of a PTP move resolved against the last-used values, validated.
+    fn ptp_operands(&self, m: &MovePtp) -> Result<(MoveParams, f64, Dynamics), CommandError> {
+        let name = "MovePtp";
+        let d = self.ptp_dynamics;
+        let (params, mut used) = self.dynamics_operands(
+            name,
+            d,
+            m.speed,
+            m.acceleration,
+            m.deceleration,
+            m.jerk,
+            m.ramp,
+        )?;
+        let window = non_negative(
+            name,
+            Operand::TargetWindow,
+            m.target_window.unwrap_or(d.target_window),
+        )?;
+        position(name, Operand::Target, m.target)?;
+        used.target_window = window;
+        Ok((params, window, used))
     }
 
     /// Checks that the mode fits the axis and that absolute moves have a reference.
@@ -610,45 +634,19 @@ impl Axis {
 
     fn velocity_operands(&self, v: &MoveVelocity) -> Result<(MoveParams, Dynamics), CommandError> {
         let name = "MoveVelocity";
-        let d = self.vel_dynamics;
-        let max = self.cfg.max;
-        let speed = positive(name, Operand::Speed, v.speed.unwrap_or(d.speed), max.vmax)?;
-        let acc = positive(
+        let used = self.dynamics_operands(
             name,
-            Operand::Acceleration,
-            v.acceleration.unwrap_or(d.acceleration),
-            max.amax,
+            self.vel_dynamics,
+            v.speed,
+            v.acceleration,
+            v.deceleration,
+            v.jerk,
+            v.ramp,
         )?;
-        let dec = positive(
-            name,
-            Operand::Deceleration,
-            v.deceleration.unwrap_or(d.deceleration),
-            max.dmax,
-        )?;
-        let jerk = positive(name, Operand::Jerk, v.jerk.unwrap_or(d.jerk), max.jmax)?;
-        let ramp = v.ramp.unwrap_or(d.ramp);
         if !self.direction_allowed(v.direction.sign()) {
             return Err(self.direction_error(name, v.direction.sign()));
         }
-        Ok((
-            MoveParams {
-                limits: Limits {
-                    vmax: speed,
-                    amax: acc,
-                    dmax: dec,
-                    jmax: jerk,
-                },
-                ramp,
-            },
-            Dynamics {
-                speed,
-                acceleration: acc,
-                deceleration: dec,
-                jerk,
-                ramp,
-                target_window: d.target_window,
-            },
-        ))
+        Ok(used)
     }
 
     fn plan_vel(
