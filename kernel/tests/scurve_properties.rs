@@ -218,16 +218,10 @@ fn lp_case() -> impl Strategy<Value = (KinematicState, f64, Limits)> {
         )
 }
 
-/// Whether `target` lies in the "dip" window of a moving start: beyond the shortest
-/// stopping point but short of where the axis stops when it first brings its acceleration
-/// to zero. There the planner's profile (slow down, ease off, slow down again) is exact and
-/// within limits but not time-optimal: the optimum's acceleration turns back before
-/// reaching zero, a shape the peak-velocity parametrisation does not cover.
-fn in_dip_window(start: &KinematicState, target: f64, lim: &Limits) -> bool {
-    dip_window(start, lim).is_some_and(|(lo, hi)| target > lo - 1e-9 && target < hi + 1e-9)
-}
-
-/// The dip window of [`in_dip_window`], if the start moves.
+/// The "dip window" of a moving start: beyond the shortest stopping point but short of
+/// where the axis stops when it first eases its braking to zero. The optimum there eases
+/// the braking only part way — a profile shape of its own, so these cases get a test of
+/// their own.
 fn dip_window(start: &KinematicState, lim: &Limits) -> Option<(f64, f64)> {
     if start.v == 0.0 {
         return None;
@@ -264,7 +258,6 @@ proptest! {
 
     #[test]
     fn no_grid_trajectory_is_3_percent_faster((start, target, lim) in lp_case()) {
-        prop_assume!(!in_dip_window(&start, target, &lim));
         let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
         let t = p.duration();
         prop_assume!(t > 0.05);
@@ -274,20 +267,12 @@ proptest! {
     }
 
     #[test]
-    fn dip_window_profiles_are_within_1_43_times_the_optimum((start, target, lim) in dip_case()) {
-        // Known limitation (README): how far from optimal the dip cases are. The optimum
-        // lies between the largest infeasible and the smallest feasible grid horizon.
+    fn no_grid_trajectory_is_3_percent_faster_in_the_dip_window((start, target, lim) in dip_case()) {
         let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
         let t = p.duration();
         prop_assume!(t > 0.05);
-        let (mut lo, mut hi) = (0.3, 1.0);
-        prop_assert!(!feasible(&start, target, &lim, lo * t, 120));
-        for _ in 0..8 {
-            let mid = 0.5 * (lo + hi);
-            if feasible(&start, target, &lim, mid * t, 120) { hi = mid } else { lo = mid }
-        }
-        eprintln!("dip case: planner {t:.4} s, optimum >= {:.4} s (ratio {:.3})", lo * t, 1.0 / lo);
-        prop_assert!(lo >= 0.7, "more than 1.43 × the optimum: {t} s vs >= {} s", lo * t);
+        prop_assert!(!feasible(&start, target, &lim, 0.97 * t, 120), "LP beat the planner: {t} s");
+        prop_assert!(feasible(&start, target, &lim, 1.10 * t, 120), "LP finds nothing at 110 % of {t} s");
     }
 }
 

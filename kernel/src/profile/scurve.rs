@@ -296,6 +296,16 @@ pub fn plan_position(
             };
         }
     }
+    if ve == 0.0 {
+        if let Some((ease, change)) = dip(&s, dist, lim, tol) {
+            let mut profile = Profile::new(KinematicState { j: 0.0, ..start });
+            profile.push(ease.t, Shape::Jerk(m * ease.j))?;
+            for ph in &change.phases {
+                profile.push(ph.t, Shape::Jerk(m * ph.j))?;
+            }
+            return pin_end(profile, &start, target, 0.0, scale, lim);
+        }
+    }
     let f = |vp: f64| through(&s, vp, ve, lim).distance - dist;
     let vmax = lim.vmax;
     let f_hi = f(vmax);
@@ -318,23 +328,73 @@ pub fn plan_position(
     } else {
         cruise
     };
-    let mut profile = build(start, &shape, cruise, m)?;
+    let profile = build(start, &shape, cruise, m)?;
+    pin_end(profile, &start, target, m * ve, scale, lim)
+}
+
+/// Verifies that `profile` lands on `target` at `v_end` with zero acceleration, then pins
+/// the exact end state (so rounding never reaches the end position).
+fn pin_end(
+    mut profile: Profile,
+    start: &KinematicState,
+    target: f64,
+    v_end: f64,
+    scale: f64,
+    lim: &Limits,
+) -> Result<Profile, PlanError> {
     let end = profile.end_state();
     let ptol = 1e-9 * target.abs().max(start.p.abs()).max(scale).max(1.0);
-    let vtol = 1e-9 * vmax.max(start.v.abs()).max(1.0);
+    let vtol = 1e-9 * lim.vmax.max(start.v.abs()).max(1.0);
     if (end.p - target).abs() > ptol
-        || (end.v - m * ve).abs() > vtol
+        || (end.v - v_end).abs() > vtol
         || end.a.abs() > 1e-6 * lim.amax.max(lim.dmax)
     {
-        return Err(no_solution(&start, target));
+        return Err(no_solution(start, target));
     }
     profile.set_end(KinematicState {
         p: target,
-        v: m * ve,
+        v: v_end,
         a: 0.0,
         j: 0.0,
     });
     Ok(profile)
+}
+
+/// The "dip window": moving towards the target while already braking (a0 < 0 in the
+/// frame where the target is ahead), with the target beyond the shortest stopping point
+/// but short of where the axis stops after easing its braking to zero first. The
+/// time-optimal move eases the braking only part way — acceleration turns back at `a1`
+/// between `a0` and 0 — then brakes to rest on the target. `a1` is found by a bracketed
+/// root search (distance grows from the shortest stop at `a1 = a0` to the eased stop at
+/// `a1 = 0`). Returns the easing phase and the braking change, or `None` outside the
+/// window.
+fn dip(s: &KinematicState, dist: f64, lim: &Limits, tol: f64) -> Option<(Phase, VelChange)> {
+    let vs = v_stop(s, lim);
+    if !(s.a < 0.0 && s.v > 0.0 && vs > 0.0) {
+        return None;
+    }
+    let brake = through(s, 0.0, 0.0, lim).distance;
+    let eased = through(s, vs, 0.0, lim).distance;
+    if !(dist > brake && dist < eased) {
+        return None;
+    }
+    let j = lim.jmax;
+    let plan = |a1: f64| {
+        let t1 = (a1 - s.a) / j;
+        let ease = Phase { t: t1, j };
+        let after = KinematicState {
+            p: t1 * (s.v + t1 * (s.a / 2.0 + t1 * j / 6.0)),
+            v: s.v + t1 * (s.a + t1 * j / 2.0),
+            a: a1,
+            j: 0.0,
+        };
+        let change = VelChange::new(after.v, a1, 0.0, first_bound(&after, 0.0, lim), j);
+        (ease, change, change.integrate(after).p)
+    };
+    let g = |a1: f64| plan(a1).2 - dist;
+    let a1 = solve(s.a, 0.0, brake - dist, eased - dist, tol, g);
+    let (ease, change, _) = plan(a1);
+    Some((ease, change))
 }
 
 /// Plans a velocity change; see [`super::plan_velocity`].
