@@ -1562,12 +1562,12 @@ mod tests {
             ] {
                 prop_assert!(d >= lo && d <= hi, "{d} outside [{lo}, {hi}]");
                 let err = (m.wrap(here + d) - to).abs();
-                prop_assert!(err < 1e-9 || err > 360.0 - 1e-9, "{here} + {d} ≠ {to}");
+                prop_assert!(!(1e-9..=360.0 - 1e-9).contains(&err), "{here} + {d} ≠ {to}");
             }
             let f = m.follow(from, to);
             prop_assert!((f - from).abs() <= 180.0 + 1e-9);
             let err = (m.wrap(f) - to).abs();
-            prop_assert!(err < 1e-6 || err > 360.0 - 1e-6);
+            prop_assert!(!(1e-6..=360.0 - 1e-6).contains(&err));
         }
 
         #[test]
