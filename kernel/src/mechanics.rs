@@ -1506,6 +1506,21 @@ mod tests {
         }
 
         #[test]
+        fn units_to_counts_rounds_to_the_nearest_count(
+            p in prop_oneof![-1e6..1e6f64, -1.0..1.0f64],
+            cpr in 1u32..(1 << 24), mr in 1u32..100, lr in 1u32..100,
+            feed in prop_oneof![0.01..1000.0f64, Just(360.0), Just(0.1)],
+            invert: bool,
+        ) {
+            // Against the f64 product: the exact count is within ½ of p · counts/unit, and the
+            // f64 product is within a few ulp of that.
+            let s = scaling(cpr, mr, lr, feed, invert);
+            let c = s.units_to_counts(p) as f64;
+            let x = s.velocity_to_counts(p);
+            prop_assert!((c - x).abs() <= 0.5 + 1e-15 * x.abs().max(1.0), "{p}: {c} vs {x}");
+        }
+
+        #[test]
         fn modulo_counts_match_integer_math(
             n in prop_oneof![-1_000_000_000_000i64..1_000_000_000_000, -1000i64..1000],
             w in 0u32..360,

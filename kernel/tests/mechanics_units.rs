@@ -72,8 +72,8 @@ fn one_way_axes_refuse_the_other_direction_with_a_clear_error() {
 fn ball_screw_long_travel_is_exact() {
     // 5 mm lead, 10000 counts per motor rev, gear 7:3: 4666⅔ counts per mm.
     let s = scaling(10_000, 7, 3, 5.0, false);
-    // A back-and-forth cycle of 1 mm steps as absolute positions: after 10^5 cycles out
-    // to 1000 mm and back, the count at every position is the exact rounded rational.
+    // Every half millimetre out to 1000 mm, as absolute positions: the count is the exact
+    // rounded rational p · 14000/3.
     for k in 0..=2000i64 {
         let p = k as f64 * 0.5;
         let exact = (2 * k * 70_000 + 30).div_euclid(2 * 30);

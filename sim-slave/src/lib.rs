@@ -1,6 +1,18 @@
 //! The simulated slave network: emulated EtherCAT slave controllers, CANopen nodes and
 //! plant models (servo drive, encoder module, switch cams).
 //!
-//! Not written yet (issue 3). This crate is an empty skeleton so the workspace has its
-//! final shape; nothing here works.
+//! Written so far (issue 3, first part): the EtherCAT wire formats the emulated slave
+//! controllers parse ([`esc::frame`], [`esc::datagram`]). Not yet: the register file, SII,
+//! SyncManagers/FMMUs, AL state machine, DC, mailbox/CoE, devices, transports.
 #![deny(missing_docs)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::indexing_slicing,
+        clippy::panic
+    )
+)]
+
+pub mod esc;

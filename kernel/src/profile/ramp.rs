@@ -172,7 +172,7 @@ const ROOM_SLACK: f64 = 1e-12;
 /// Cases, with `dir` the direction of the target (along the current velocity for a
 /// zero-length move) and `u` the speed towards it:
 /// 1. `u >= 0` and the axis can come down to the wanted end speed before the target:
-///    approach directly ([`approach`]): slow down to `vmax` first if beyond it, speed up
+///    approach directly (`approach`): slow down to `vmax` first if beyond it, speed up
 ///    to the highest peak the distance allows (at most `vmax`), cruise, slow down.
 /// 2. Otherwise (moving away, or too fast to stop in time): slow down to rest, which is
 ///    unavoidable, then approach the target from rest as in 1.
