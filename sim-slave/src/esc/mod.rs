@@ -1,4 +1,9 @@
-//! The emulated EtherCAT slave controller (ESC). So far: its wire formats.
+//! The emulated EtherCAT slave controller (ESC): a register file and its rules.
+//! So far: wire formats, the register table, memory with access rights, and the
+//! physical-addressing commands with their working-counter rules.
 
+pub mod command;
 pub mod datagram;
 pub mod frame;
+pub mod memory;
+pub mod registers;

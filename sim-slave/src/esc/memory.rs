@@ -1,0 +1,144 @@
+//! An ESC's memory: registers below 0x1000 (with the access rights of
+//! [`super::registers::TABLE`]) and process RAM above. The EtherCAT side goes through
+//! [`Memory::ecat_read`]/[`Memory::ecat_write`]; the device application (PDI side) may
+//! write read-only registers such as AL status.
+
+use super::registers::{self, Access, PROCESS_RAM};
+
+/// Bytes of process RAM (8 KiB, like an ET1100).
+pub const RAM_BYTES: usize = 8 * 1024;
+
+/// Registers plus process RAM.
+#[derive(Clone, Debug)]
+pub struct Memory {
+    bytes: Box<[u8]>,
+}
+
+impl Default for Memory {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Memory {
+    /// Memory with every register at its reset value.
+    pub fn new() -> Self {
+        let mut bytes = vec![0u8; PROCESS_RAM as usize + RAM_BYTES].into_boxed_slice();
+        for r in &registers::TABLE {
+            let reset = r.reset.to_le_bytes();
+            let n = (r.width as usize).min(8);
+            let at = r.address as usize;
+            if let (Some(dst), Some(src)) = (bytes.get_mut(at..at + n), reset.get(..n)) {
+                dst.copy_from_slice(src);
+            }
+        }
+        Self { bytes }
+    }
+
+    /// Whether every byte of `[address, address + len)` is a register or RAM.
+    fn mapped(address: u16, len: usize) -> bool {
+        (0..len).all(|i| {
+            let a = address as usize + i;
+            a >= PROCESS_RAM as usize && a < PROCESS_RAM as usize + RAM_BYTES
+                || u16::try_from(a).ok().and_then(registers::find).is_some()
+        })
+    }
+
+    /// EtherCAT read into `out` (OR-ed in when `or`); false when nothing there is mapped.
+    pub fn ecat_read(&self, address: u16, out: &mut [u8], or: bool) -> bool {
+        if !Self::mapped(address, out.len()) {
+            return false;
+        }
+        let at = address as usize;
+        match self.bytes.get(at..at + out.len()) {
+            Some(src) => {
+                for (o, s) in out.iter_mut().zip(src) {
+                    *o = if or { *o | *s } else { *s };
+                }
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// EtherCAT write; bytes of read-only registers keep their value. False when nothing
+    /// there is mapped.
+    pub fn ecat_write(&mut self, address: u16, data: &[u8]) -> bool {
+        if !Self::mapped(address, data.len()) {
+            return false;
+        }
+        for (i, b) in data.iter().enumerate() {
+            let a = address as usize + i;
+            let writable = a >= PROCESS_RAM as usize
+                || u16::try_from(a)
+                    .ok()
+                    .and_then(registers::find)
+                    .is_some_and(|r| r.access == Access::ReadWrite);
+            if writable {
+                if let Some(dst) = self.bytes.get_mut(a) {
+                    *dst = *b;
+                }
+            }
+        }
+        true
+    }
+
+    /// PDI-side write (the device application): any mapped byte.
+    pub fn pdi_write(&mut self, address: u16, data: &[u8]) {
+        let at = address as usize;
+        if let Some(dst) = self.bytes.get_mut(at..at + data.len()) {
+            dst.copy_from_slice(data);
+        }
+    }
+
+    /// Reads a little-endian u16.
+    pub fn read_u16(&self, address: u16) -> u16 {
+        let mut b = [0; 2];
+        let at = address as usize;
+        if let Some(s) = self.bytes.get(at..at + 2) {
+            b.copy_from_slice(s);
+        }
+        u16::from_le_bytes(b)
+    }
+
+    /// Reads a little-endian u32.
+    pub fn read_u32(&self, address: u16) -> u32 {
+        let mut b = [0; 4];
+        let at = address as usize;
+        if let Some(s) = self.bytes.get(at..at + 4) {
+            b.copy_from_slice(s);
+        }
+        u32::from_le_bytes(b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::esc::registers::{AL_STATUS, FEATURES, STATION_ADDRESS, TYPE};
+
+    #[test]
+    fn reset_values_and_access_rights() {
+        let mut m = Memory::new();
+        let mut b = [0u8; 1];
+        assert!(m.ecat_read(TYPE, &mut b, false));
+        assert_eq!(b[0], 0x11);
+        assert_eq!(m.read_u16(FEATURES), 0x000C);
+        assert!(m.ecat_write(STATION_ADDRESS, &[1, 2]));
+        assert_eq!(m.read_u16(STATION_ADDRESS), 0x0201);
+        assert!(m.ecat_write(AL_STATUS, &[8, 0]));
+        assert_eq!(m.read_u16(AL_STATUS), 1, "read-only from the EtherCAT side");
+        m.pdi_write(AL_STATUS, &[2, 0]);
+        assert_eq!(m.read_u16(AL_STATUS), 2, "the device application sets it");
+    }
+
+    #[test]
+    fn unmapped_addresses_are_not_accessed() {
+        let mut m = Memory::new();
+        let mut b = [0u8; 2];
+        assert!(!m.ecat_read(0x0050, &mut b, false));
+        assert!(!m.ecat_write(0x0050, &[1]));
+        assert!(m.ecat_write(PROCESS_RAM, &[1, 2, 3]));
+        assert!(!m.ecat_read(PROCESS_RAM + RAM_BYTES as u16, &mut b, false));
+    }
+}
