@@ -83,8 +83,8 @@ pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
 }
 
 fn copy_prefix(data: &[u8]) -> [u8; 2048] {
-    let mut out = [0; 64];
-    let n = data.len().min(64);
+    let mut out = [0; 2048];
+    let n = data.len().min(2048);
     if let (Some(o), Some(i)) = (out.get_mut(..n), data.get(..n)) {
         o.copy_from_slice(i);
     }
