@@ -2,6 +2,7 @@
 //! So far: wire formats, the register table, memory with access rights, and the
 //! physical-addressing commands with their working-counter rules.
 
+pub mod al;
 pub mod command;
 pub mod datagram;
 pub mod frame;

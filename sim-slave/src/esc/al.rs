@@ -1,0 +1,267 @@
+//! The application-layer (AL) state machine of a slave (ETG.1000.6 §6.4.1): one function
+//! from (AL status, AL control) to the new AL status, with the error indicator latched
+//! until the master acknowledges it.
+
+/// AL states (register 0x0120/0x0130 bits 0–3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AlState {
+    /// 1: Init.
+    Init,
+    /// 2: Pre-operational.
+    PreOp,
+    /// 3: Bootstrap.
+    Boot,
+    /// 4: Safe-operational.
+    SafeOp,
+    /// 8: Operational.
+    Op,
+    /// Any other value (an invalid request).
+    Unknown(u8),
+}
+
+impl AlState {
+    /// Register value.
+    pub const fn raw(self) -> u8 {
+        match self {
+            AlState::Init => 1,
+            AlState::PreOp => 2,
+            AlState::Boot => 3,
+            AlState::SafeOp => 4,
+            AlState::Op => 8,
+            AlState::Unknown(v) => v,
+        }
+    }
+
+    /// From bits 0–3 of AL control or status.
+    pub const fn from_bits(v: u16) -> Self {
+        match v & 0x0F {
+            1 => AlState::Init,
+            2 => AlState::PreOp,
+            3 => AlState::Boot,
+            4 => AlState::SafeOp,
+            8 => AlState::Op,
+            v => AlState::Unknown(v as u8),
+        }
+    }
+}
+
+/// AL status codes (ETG.1000.6 Table 11, the ones the emulation raises; decoding is total).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AlStatusCode {
+    /// 0x0000 no error.
+    NoError,
+    /// 0x0011 invalid requested state change.
+    InvalidStateChange,
+    /// 0x0012 unknown requested state.
+    UnknownState,
+    /// 0x0013 bootstrap not supported.
+    BootstrapNotSupported,
+    /// 0x0016 invalid mailbox configuration (PreOp).
+    InvalidMailboxConfigPreOp,
+    /// 0x0017 invalid sync manager configuration.
+    InvalidSyncManagerConfig,
+    /// 0x001B sync manager watchdog.
+    SyncManagerWatchdog,
+    /// 0x001D invalid output configuration.
+    InvalidOutputConfig,
+    /// 0x001E invalid input configuration.
+    InvalidInputConfig,
+    /// 0x0030 invalid DC SYNC configuration.
+    InvalidDcSyncConfig,
+    /// Anything else.
+    Other(u16),
+}
+
+impl AlStatusCode {
+    /// Register value (0x0134).
+    pub const fn raw(self) -> u16 {
+        match self {
+            Self::NoError => 0x0000,
+            Self::InvalidStateChange => 0x0011,
+            Self::UnknownState => 0x0012,
+            Self::BootstrapNotSupported => 0x0013,
+            Self::InvalidMailboxConfigPreOp => 0x0016,
+            Self::InvalidSyncManagerConfig => 0x0017,
+            Self::SyncManagerWatchdog => 0x001B,
+            Self::InvalidOutputConfig => 0x001D,
+            Self::InvalidInputConfig => 0x001E,
+            Self::InvalidDcSyncConfig => 0x0030,
+            Self::Other(v) => v,
+        }
+    }
+
+    /// From the register value.
+    pub const fn from_raw(v: u16) -> Self {
+        match v {
+            0x0000 => Self::NoError,
+            0x0011 => Self::InvalidStateChange,
+            0x0012 => Self::UnknownState,
+            0x0013 => Self::BootstrapNotSupported,
+            0x0016 => Self::InvalidMailboxConfigPreOp,
+            0x0017 => Self::InvalidSyncManagerConfig,
+            0x001B => Self::SyncManagerWatchdog,
+            0x001D => Self::InvalidOutputConfig,
+            0x001E => Self::InvalidInputConfig,
+            0x0030 => Self::InvalidDcSyncConfig,
+            v => Self::Other(v),
+        }
+    }
+
+    /// Text for users.
+    pub const fn text(self) -> &'static str {
+        match self {
+            Self::NoError => "no error",
+            Self::InvalidStateChange => "invalid requested state change",
+            Self::UnknownState => "unknown requested state",
+            Self::BootstrapNotSupported => "bootstrap not supported",
+            Self::InvalidMailboxConfigPreOp => "invalid mailbox configuration (PreOp)",
+            Self::InvalidSyncManagerConfig => "invalid sync manager configuration",
+            Self::SyncManagerWatchdog => "sync manager watchdog",
+            Self::InvalidOutputConfig => "invalid output configuration",
+            Self::InvalidInputConfig => "invalid input configuration",
+            Self::InvalidDcSyncConfig => "invalid DC SYNC configuration",
+            Self::Other(_) => "unknown AL status code",
+        }
+    }
+}
+
+/// Bit 4 of AL status: error indicator; of AL control: error acknowledge.
+pub const ERROR_BIT: u16 = 0x10;
+
+/// What the AL state machine decided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AlOutcome {
+    /// New AL status register value.
+    pub status: u16,
+    /// New AL status code.
+    pub code: AlStatusCode,
+}
+
+/// Whether the standard allows going from `from` to `to` directly.
+pub const fn allowed(from: AlState, to: AlState) -> bool {
+    use AlState::*;
+    matches!(
+        (from, to),
+        (Init, Init | PreOp | Boot)
+            | (PreOp, Init | PreOp | SafeOp)
+            | (SafeOp, Init | PreOp | SafeOp | Op)
+            | (Op, Init | PreOp | SafeOp | Op)
+            | (Boot, Init | Boot)
+    )
+}
+
+/// Applies an AL control write. `check(from, to)` is the device's own check of an upward
+/// transition (SyncManager and PDO configuration); `supports_boot` whether bootstrap is.
+///
+/// While the error indicator is set, only a request with the acknowledge bit clears it;
+/// requests without it leave status and code unchanged. A refused transition keeps the
+/// current state and sets the error indicator and code.
+pub fn on_control(
+    status: u16,
+    code: AlStatusCode,
+    control: u16,
+    supports_boot: bool,
+    check: impl Fn(AlState, AlState) -> Result<(), AlStatusCode>,
+) -> AlOutcome {
+    let current = AlState::from_bits(status);
+    let requested = AlState::from_bits(control);
+    let error = status & ERROR_BIT != 0;
+    let ack = control & ERROR_BIT != 0;
+    if error && !ack {
+        // Latched until acknowledged; downward requests are still obeyed (to Init).
+        if requested == AlState::Init {
+            return AlOutcome {
+                status: u16::from(AlState::Init.raw()) | ERROR_BIT,
+                code,
+            };
+        }
+        return AlOutcome { status, code };
+    }
+    let refuse = |code: AlStatusCode| AlOutcome {
+        status: u16::from(current.raw()) | ERROR_BIT,
+        code,
+    };
+    if let AlState::Unknown(_) = requested {
+        return refuse(AlStatusCode::UnknownState);
+    }
+    if requested == AlState::Boot && !supports_boot {
+        return refuse(AlStatusCode::BootstrapNotSupported);
+    }
+    if !allowed(current, requested) {
+        return refuse(AlStatusCode::InvalidStateChange);
+    }
+    if let Err(c) = check(current, requested) {
+        return refuse(c);
+    }
+    AlOutcome {
+        status: u16::from(requested.raw()),
+        code: AlStatusCode::NoError,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use AlState::*;
+
+    fn ok(_: AlState, _: AlState) -> Result<(), AlStatusCode> {
+        Ok(())
+    }
+
+    fn go(status: u16, control: u16) -> AlOutcome {
+        on_control(status, AlStatusCode::NoError, control, false, ok)
+    }
+
+    #[test]
+    fn ip_ps_so_and_back() {
+        assert_eq!(go(1, 2).status, 2);
+        assert_eq!(go(2, 4).status, 4);
+        assert_eq!(go(4, 8).status, 8);
+        assert_eq!(go(8, 4).status, 4);
+        assert_eq!(go(8, 1).status, 1);
+    }
+
+    #[test]
+    fn skipping_states_upwards_is_an_invalid_state_change() {
+        for (from, to) in [(1u16, 4u16), (1, 8), (2, 8)] {
+            let o = go(from, to);
+            assert_eq!(o.status, from | ERROR_BIT, "{from}->{to}");
+            assert_eq!(o.code, AlStatusCode::InvalidStateChange);
+        }
+        assert_eq!(go(1, 5).code, AlStatusCode::UnknownState);
+        assert_eq!(go(1, 3).code, AlStatusCode::BootstrapNotSupported);
+    }
+
+    #[test]
+    fn device_checks_refuse_with_their_code_and_the_error_latches() {
+        let bad_outputs = |from: AlState, to: AlState| {
+            if (from, to) == (PreOp, SafeOp) {
+                Err(AlStatusCode::InvalidOutputConfig)
+            } else {
+                Ok(())
+            }
+        };
+        let o = on_control(2, AlStatusCode::NoError, 4, false, bad_outputs);
+        assert_eq!(
+            (o.status, o.code),
+            (2 | ERROR_BIT, AlStatusCode::InvalidOutputConfig)
+        );
+        // Without acknowledge nothing changes, even a valid request.
+        let o2 = on_control(o.status, o.code, 2, false, ok);
+        assert_eq!(o2, o);
+        // Acknowledge + request clears it.
+        let o3 = on_control(o.status, o.code, 2 | ERROR_BIT, false, ok);
+        assert_eq!((o3.status, o3.code), (2, AlStatusCode::NoError));
+    }
+
+    #[test]
+    fn codes_round_trip_and_have_text() {
+        for v in 0..=0x40u16 {
+            assert_eq!(AlStatusCode::from_raw(v).raw(), v);
+        }
+        assert_eq!(
+            AlStatusCode::from_raw(0x1D).text(),
+            "invalid output configuration"
+        );
+    }
+}
