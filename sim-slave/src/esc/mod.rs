@@ -8,3 +8,4 @@ pub mod datagram;
 pub mod frame;
 pub mod memory;
 pub mod registers;
+pub mod sii;

@@ -1,0 +1,378 @@
+//! The SII EEPROM (ETG.1000.6 §5.4, ETG.2010): an image generated from a device
+//! description, and the EEPROM interface registers 0x0500–0x050F through which the master
+//! reads it.
+//!
+//! Image layout (in 16-bit words): 0x00–0x07 ESC configuration area (PDI control, PDI
+//! configuration, sync impulse length, configured station alias, checksum at 0x07),
+//! 0x08 vendor id, 0x0A product code, 0x0C revision, 0x0E serial number, 0x18/0x1A
+//! standard receive/send mailbox offset and size, 0x1C mailbox protocols, 0x3E EEPROM size,
+//! 0x3F version; categories from 0x40: type, size in words, data; 0xFFFF ends the list.
+
+use super::memory::Memory;
+use super::registers::SII;
+
+/// Category types used here (ETG.2010 Table 3).
+pub mod category {
+    /// Strings.
+    pub const STRINGS: u16 = 10;
+    /// General.
+    pub const GENERAL: u16 = 30;
+    /// FMMU usage.
+    pub const FMMU: u16 = 40;
+    /// SyncManagers.
+    pub const SYNC_MANAGER: u16 = 41;
+    /// TxPDO (inputs).
+    pub const TXPDO: u16 = 50;
+    /// RxPDO (outputs).
+    pub const RXPDO: u16 = 51;
+    /// Distributed clocks.
+    pub const DC: u16 = 60;
+    /// End of the list.
+    pub const END: u16 = 0xFFFF;
+}
+
+/// A SyncManager as the EEPROM describes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SmDescription {
+    /// Physical start address.
+    pub start: u16,
+    /// Default length.
+    pub length: u16,
+    /// Control register value.
+    pub control: u8,
+    /// Enable (bit 0) of the activate register.
+    pub enable: bool,
+    /// Type: 1 mailbox out, 2 mailbox in, 3 process data out, 4 process data in.
+    pub kind: u8,
+}
+
+/// What a slave says about itself.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceDescription {
+    /// Vendor id.
+    pub vendor_id: u32,
+    /// Product code.
+    pub product_code: u32,
+    /// Revision.
+    pub revision: u32,
+    /// Serial number.
+    pub serial: u32,
+    /// Device name (string 1).
+    pub name: String,
+    /// Mailbox (receive offset, receive size, send offset, send size), if any.
+    pub mailbox: Option<(u16, u16, u16, u16)>,
+    /// Mailbox protocols (bit 2: CoE).
+    pub mailbox_protocols: u16,
+    /// SyncManagers.
+    pub sync_managers: Vec<SmDescription>,
+    /// FMMU usage per FMMU (1 outputs, 2 inputs, 3 mailbox state).
+    pub fmmus: Vec<u8>,
+    /// Whether the device has distributed clocks.
+    pub dc: bool,
+}
+
+/// Sets word `at` (the image is sized before it is filled).
+fn set(words: &mut [u16], at: usize, v: u16) {
+    if let Some(x) = words.get_mut(at) {
+        *x = v;
+    }
+}
+
+/// Sets byte `at`.
+fn set8(bytes: &mut [u8], at: usize, v: u8) {
+    if let Some(x) = bytes.get_mut(at) {
+        *x = v;
+    }
+}
+
+/// Writes one category into `words`.
+fn push_category(words: &mut Vec<u16>, kind: u16, data: &[u8]) {
+    let mut bytes = data.to_vec();
+    if bytes.len() % 2 == 1 {
+        bytes.push(0);
+    }
+    words.push(kind);
+    words.push((bytes.len() / 2) as u16);
+    words.extend(bytes.chunks(2).map(|c| {
+        u16::from_le_bytes([
+            c.first().copied().unwrap_or(0),
+            c.get(1).copied().unwrap_or(0),
+        ])
+    }));
+}
+
+/// CRC-8 of the configuration area (polynomial 0x07, initial 0xFF), as ETG.2010 §2.2.
+pub fn config_checksum(words: &[u16]) -> u8 {
+    let mut crc: u8 = 0xFF;
+    for w in words.iter().take(7) {
+        for b in w.to_le_bytes() {
+            crc ^= b;
+            for _ in 0..8 {
+                crc = if crc & 0x80 != 0 {
+                    (crc << 1) ^ 0x07
+                } else {
+                    crc << 1
+                };
+            }
+        }
+    }
+    crc
+}
+
+impl DeviceDescription {
+    /// The EEPROM image (words).
+    pub fn image(&self) -> Vec<u16> {
+        let mut w = vec![0u16; 0x40];
+        // Word 0 is loaded into PDI control (0x0140) at power-up: the value the register
+        // table resets to.
+        let cks = config_checksum(&w);
+        set(&mut w, 7, u16::from(cks));
+        let put32 = |w: &mut Vec<u16>, at: usize, v: u32| {
+            set(w, at, v as u16);
+            set(w, at + 1, (v >> 16) as u16);
+        };
+        put32(&mut w, 0x08, self.vendor_id);
+        put32(&mut w, 0x0A, self.product_code);
+        put32(&mut w, 0x0C, self.revision);
+        put32(&mut w, 0x0E, self.serial);
+        if let Some((ro, rs, so, ss)) = self.mailbox {
+            set(&mut w, 0x18, ro);
+            set(&mut w, 0x19, rs);
+            set(&mut w, 0x1A, so);
+            set(&mut w, 0x1B, ss);
+        }
+        set(&mut w, 0x1C, self.mailbox_protocols);
+        // EEPROM size in KiBit minus one: 16 KiBit.
+        set(&mut w, 0x3E, 0x000F);
+        set(&mut w, 0x3F, 0x0001);
+        // Strings: count, then length-prefixed strings.
+        let mut strings = vec![1u8, self.name.len().min(255) as u8];
+        strings.extend(self.name.bytes().take(255));
+        push_category(&mut w, category::STRINGS, &strings);
+        // General: group idx, image idx, order idx, name idx (1), physical layer, CoE details…
+        let mut general = vec![0u8; 32];
+        set8(&mut general, 3, 1); // name string index
+        set8(
+            &mut general,
+            5,
+            if self.mailbox_protocols & 0x04 != 0 {
+                0x01
+            } else {
+                0
+            },
+        ); // CoE: SDO
+        push_category(&mut w, category::GENERAL, &general);
+        if !self.fmmus.is_empty() {
+            push_category(&mut w, category::FMMU, &self.fmmus);
+        }
+        let mut sms = Vec::new();
+        for sm in &self.sync_managers {
+            sms.extend(sm.start.to_le_bytes());
+            sms.extend(sm.length.to_le_bytes());
+            sms.push(sm.control);
+            sms.push(0); // status
+            sms.push(u8::from(sm.enable));
+            sms.push(sm.kind);
+        }
+        if !sms.is_empty() {
+            push_category(&mut w, category::SYNC_MANAGER, &sms);
+        }
+        if self.dc {
+            push_category(&mut w, category::DC, &[0u8; 24]);
+        }
+        w.push(category::END);
+        w.push(0);
+        w
+    }
+}
+
+/// Register offsets inside the SII block.
+mod reg {
+    pub const CONTROL: u16 = 0x0502;
+    pub const ADDRESS: u16 = 0x0504;
+    pub const DATA: u16 = 0x0508;
+}
+
+/// Control/status bits of 0x0502.
+pub mod control {
+    /// Read 8 bytes per read command (64-bit read support).
+    pub const READ_8_BYTES: u16 = 1 << 6;
+    /// Read command.
+    pub const READ: u16 = 1 << 8;
+    /// Write command.
+    pub const WRITE: u16 = 1 << 9;
+    /// Reload command.
+    pub const RELOAD: u16 = 1 << 10;
+    /// Error: command error (unknown or several commands at once).
+    pub const COMMAND_ERROR: u16 = 1 << 13;
+    /// Busy.
+    pub const BUSY: u16 = 1 << 15;
+}
+
+/// The EEPROM and its interface state.
+#[derive(Clone, Debug)]
+pub struct Sii {
+    words: Vec<u16>,
+}
+
+impl Sii {
+    /// An EEPROM holding `words`.
+    pub fn new(words: Vec<u16>) -> Self {
+        Self { words }
+    }
+
+    /// The word at `addr` (0xFFFF past the end, as an erased EEPROM reads).
+    pub fn word(&self, addr: usize) -> u16 {
+        self.words.get(addr).copied().unwrap_or(0xFFFF)
+    }
+
+    /// Sets the read-8-bytes capability bit after reset.
+    pub fn reset(&self, mem: &mut Memory) {
+        mem.pdi_write(reg::CONTROL, &control::READ_8_BYTES.to_le_bytes());
+    }
+
+    /// Acts on a master's write to the control register (a command in bits 8–10): reads
+    /// fill the data register with 4 words from the address register. The command
+    /// completes at once (the busy bit is never seen set). Writes and reloads are
+    /// refused with the command-error bit, as a write-protected EEPROM does.
+    pub fn on_control_write(&self, mem: &mut Memory) {
+        let ctrl = mem.read_u16(reg::CONTROL);
+        let cmd = ctrl & (control::READ | control::WRITE | control::RELOAD);
+        let mut status = control::READ_8_BYTES;
+        match cmd {
+            0 => {}
+            control::READ => {
+                let addr = mem.read_u32(reg::ADDRESS) as usize;
+                let mut data = [0u8; 8];
+                for (i, chunk) in data.chunks_mut(2).enumerate() {
+                    chunk.copy_from_slice(&self.word(addr + i).to_le_bytes());
+                }
+                mem.pdi_write(reg::DATA, &data);
+            }
+            _ => status |= control::COMMAND_ERROR,
+        }
+        mem.pdi_write(reg::CONTROL, &status.to_le_bytes());
+    }
+}
+
+/// Whether an ECAT write touched the SII control register.
+pub fn touches_control(address: u16, len: usize) -> bool {
+    let end = address as usize + len;
+    (address as usize) <= reg::CONTROL as usize + 1 && end > reg::CONTROL as usize && address >= SII
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drive() -> DeviceDescription {
+        DeviceDescription {
+            vendor_id: 0x0000_0A5A,
+            product_code: 0x0000_0402,
+            revision: 1,
+            serial: 42,
+            name: "gantry servo".into(),
+            mailbox: Some((0x1000, 128, 0x1080, 128)),
+            mailbox_protocols: 0x0004,
+            sync_managers: vec![
+                SmDescription {
+                    start: 0x1000,
+                    length: 128,
+                    control: 0x26,
+                    enable: true,
+                    kind: 1,
+                },
+                SmDescription {
+                    start: 0x1080,
+                    length: 128,
+                    control: 0x22,
+                    enable: true,
+                    kind: 2,
+                },
+                SmDescription {
+                    start: 0x1100,
+                    length: 0,
+                    control: 0x64,
+                    enable: true,
+                    kind: 3,
+                },
+                SmDescription {
+                    start: 0x1400,
+                    length: 0,
+                    control: 0x20,
+                    enable: true,
+                    kind: 4,
+                },
+            ],
+            fmmus: vec![1, 2, 3],
+            dc: true,
+        }
+    }
+
+    /// Finds a category's data in an image.
+    fn find(words: &[u16], kind: u16) -> Option<&[u16]> {
+        let mut at = 0x40;
+        while at + 1 < words.len() {
+            let (k, n) = (words[at], words[at + 1] as usize);
+            if k == category::END {
+                return None;
+            }
+            if k == kind {
+                return words.get(at + 2..at + 2 + n);
+            }
+            at += 2 + n;
+        }
+        None
+    }
+
+    #[test]
+    fn image_carries_identity_mailbox_and_categories() {
+        let w = drive().image();
+        assert_eq!(u32::from(w[0x08]) | u32::from(w[0x09]) << 16, 0x0A5A);
+        assert_eq!(u32::from(w[0x0A]) | u32::from(w[0x0B]) << 16, 0x0402);
+        assert_eq!(w[0x18..0x1C], [0x1000, 128, 0x1080, 128]);
+        assert_eq!(w[0x07] as u8, config_checksum(&w));
+        let strings = find(&w, category::STRINGS).unwrap();
+        let bytes: Vec<u8> = strings.iter().flat_map(|x| x.to_le_bytes()).collect();
+        assert_eq!(bytes[0], 1);
+        assert_eq!(&bytes[2..2 + bytes[1] as usize], b"gantry servo");
+        let sm = find(&w, category::SYNC_MANAGER).unwrap();
+        assert_eq!(sm.len(), 4 * 4, "4 SyncManagers of 8 bytes");
+        assert_eq!(sm[0], 0x1000);
+        assert!(find(&w, category::DC).is_some());
+        assert!(find(&w, category::FMMU).is_some());
+        assert!(find(&w, category::TXPDO).is_none());
+    }
+
+    #[test]
+    fn reads_through_the_interface_return_four_words() {
+        let sii = Sii::new(drive().image());
+        let mut mem = Memory::new();
+        sii.reset(&mut mem);
+        assert_eq!(
+            mem.read_u16(reg::CONTROL) & control::READ_8_BYTES,
+            control::READ_8_BYTES
+        );
+        assert!(mem.ecat_write(reg::ADDRESS, &0x08u32.to_le_bytes()));
+        assert!(mem.ecat_write(reg::CONTROL, &control::READ.to_le_bytes()));
+        assert!(touches_control(reg::CONTROL, 2));
+        sii.on_control_write(&mut mem);
+        let mut data = [0u8; 8];
+        assert!(mem.ecat_read(reg::DATA, &mut data, false));
+        assert_eq!(u32::from_le_bytes(data[0..4].try_into().unwrap()), 0x0A5A);
+        assert_eq!(u32::from_le_bytes(data[4..8].try_into().unwrap()), 0x0402);
+        assert_eq!(mem.read_u16(reg::CONTROL) & control::BUSY, 0);
+        // Past the end an erased EEPROM reads 0xFFFF.
+        assert_eq!(sii.word(100_000), 0xFFFF);
+    }
+
+    #[test]
+    fn write_commands_are_refused_with_the_error_bit() {
+        let sii = Sii::new(drive().image());
+        let mut mem = Memory::new();
+        mem.ecat_write(reg::CONTROL, &control::WRITE.to_le_bytes());
+        sii.on_control_write(&mut mem);
+        assert_ne!(mem.read_u16(reg::CONTROL) & control::COMMAND_ERROR, 0);
+        assert!(!touches_control(0x0508, 8));
+    }
+}
