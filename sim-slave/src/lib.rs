@@ -15,4 +15,6 @@
     )
 )]
 
+pub mod chain;
 pub mod esc;
+pub mod slave;

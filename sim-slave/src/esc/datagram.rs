@@ -314,6 +314,28 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Datagram<T> {
     }
 }
 
+/// Checks every datagram of a frame payload without touching it; returns how many there
+/// are. Lets a slave refuse a frame that is malformed half-way before serving any of it.
+pub fn validate(payload: &[u8]) -> Result<usize, DatagramError> {
+    let mut offset = 0;
+    let mut n = 0;
+    loop {
+        let rest = payload.get(offset..).unwrap_or(&[]);
+        let d = Datagram::new_checked(rest, offset)?;
+        n += 1;
+        let len = d.total_len();
+        offset += len;
+        if !d.more() {
+            return Ok(n);
+        }
+        if offset >= payload.len() {
+            return Err(DatagramError::MissingNext {
+                offset: offset - len,
+            });
+        }
+    }
+}
+
 /// Walks the datagrams of a frame payload, handing each to `f` mutably (a slave reads
 /// and writes them in place). Stops at the first malformed one; returns how many it
 /// handled.
@@ -414,6 +436,7 @@ mod tests {
         })
         .unwrap();
         assert_eq!(n, 2);
+        assert_eq!(validate(&TWO), Ok(2));
         assert_eq!(seen, vec![Command::Fprd, Command::Lrw]);
         assert_eq!(buf[12], 2);
         assert_eq!(buf[28], 4);

@@ -1,0 +1,166 @@
+//! The network: frames pass the slaves in order, each serving every datagram, as on a
+//! line topology (ports 0→1). The first slave marks the frame as forwarded (the
+//! locally-administered bit of the source address), as real ESCs do.
+
+use thiserror::Error;
+
+use crate::esc::datagram::{self, DatagramError};
+use crate::esc::frame::{Frame, FrameError};
+use crate::slave::Slave;
+
+/// Why a frame was not processed (it is then dropped, as a real network would).
+#[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
+pub enum ChainError {
+    /// The frame is malformed.
+    #[error("malformed frame: {0}")]
+    Frame(#[from] FrameError),
+    /// A datagram is malformed.
+    #[error("malformed datagram: {0}")]
+    Datagram(#[from] DatagramError),
+}
+
+/// A line of slaves.
+#[derive(Clone, Debug, Default)]
+pub struct SlaveChain {
+    slaves: Vec<Slave>,
+}
+
+impl SlaveChain {
+    /// A chain of these slaves, in wiring order.
+    pub fn new(slaves: Vec<Slave>) -> Self {
+        Self { slaves }
+    }
+
+    /// The slaves.
+    pub fn slaves(&self) -> &[Slave] {
+        &self.slaves
+    }
+
+    /// Passes `frame` (a whole Ethernet frame) through every slave in place.
+    pub fn process(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
+        // Check the whole frame before any slave touches it: a frame that is malformed
+        // half-way must not be half processed.
+        datagram::validate(Frame::new_checked(&*frame)?.payload())?;
+        let mut f = Frame::new_unchecked(&mut *frame);
+        for slave in &mut self.slaves {
+            datagram::for_each_mut(f.payload_mut(), |mut d| {
+                slave.serve(&mut d);
+            })?;
+        }
+        if !self.slaves.is_empty() {
+            f.mark_forwarded();
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::esc::datagram::{Command, Datagram};
+    use crate::esc::frame::ETHERTYPE;
+    use crate::esc::registers::{AL_CONTROL, AL_STATUS, STATION_ADDRESS, TYPE};
+    use crate::esc::sii::{control, DeviceDescription};
+
+    fn description(product: u32) -> DeviceDescription {
+        DeviceDescription {
+            vendor_id: 0x0A5A,
+            product_code: product,
+            revision: 1,
+            serial: product,
+            name: format!("device {product}"),
+            mailbox: None,
+            mailbox_protocols: 0,
+            sync_managers: vec![],
+            fmmus: vec![],
+            dc: false,
+        }
+    }
+
+    fn chain(n: u32) -> SlaveChain {
+        SlaveChain::new((0..n).map(|i| Slave::new(description(i))).collect())
+    }
+
+    /// A frame with one datagram.
+    fn frame(cmd: Command, adp: u16, ado: u16, data: &[u8]) -> Vec<u8> {
+        let dlen = 12 + data.len();
+        let mut buf = vec![0u8; 16 + dlen];
+        let mut f = Frame::new_unchecked(&mut buf[..]);
+        f.set_dst([0xff; 6]);
+        f.set_src([0x10; 6]);
+        f.set_ethertype(ETHERTYPE);
+        f.set_ecat_header(dlen);
+        let mut d = Datagram::new_unchecked(f.payload_mut());
+        d.set_command(cmd);
+        d.set_adp(adp);
+        d.set_ado(ado);
+        d.set_len(data.len(), false, false);
+        d.data_mut().copy_from_slice(data);
+        buf
+    }
+
+    fn reply(buf: &[u8]) -> (Vec<u8>, u16) {
+        let f = Frame::new_checked(buf).unwrap();
+        let d = Datagram::new_checked(f.payload(), 0).unwrap();
+        (d.data().to_vec(), d.wkc())
+    }
+
+    #[test]
+    fn a_scan_counts_slaves_sets_addresses_and_reads_identity() {
+        let mut c = chain(3);
+        // Count: BRD 0x0000.
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 3);
+        assert_eq!(f[6], 0x12, "forwarded frames carry the local bit");
+        // Station addresses by position.
+        for pos in 0..3u16 {
+            let mut f = frame(
+                Command::Apwr,
+                0u16.wrapping_sub(pos),
+                STATION_ADDRESS,
+                &(0x1000 + pos).to_le_bytes(),
+            );
+            c.process(&mut f).unwrap();
+            assert_eq!(reply(&f).1, 1);
+        }
+        // SII: product code (word 0x0A) of station 0x1002 through the EEPROM interface.
+        let mut f = frame(Command::Fpwr, 0x1002, 0x0504, &0x0Au32.to_le_bytes());
+        c.process(&mut f).unwrap();
+        let mut f = frame(Command::Fpwr, 0x1002, 0x0502, &control::READ.to_le_bytes());
+        c.process(&mut f).unwrap();
+        let mut f = frame(Command::Fprd, 0x1002, 0x0508, &[0; 8]);
+        c.process(&mut f).unwrap();
+        let (data, wkc) = reply(&f);
+        assert_eq!(wkc, 1);
+        assert_eq!(u32::from_le_bytes(data[0..4].try_into().unwrap()), 2);
+    }
+
+    #[test]
+    fn al_control_writes_change_state_and_refusals_latch() {
+        let mut c = chain(2);
+        let mut f = frame(Command::Bwr, 0, AL_CONTROL, &[2, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 2);
+        let mut f = frame(Command::Brd, 0, AL_STATUS, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0, vec![2, 0], "both in PreOp");
+        // PreOp → Op directly is refused with the error bit and code 0x0011.
+        let mut f = frame(Command::Bwr, 0, AL_CONTROL, &[8, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(c.slaves()[0].al_status(), 0x12);
+        assert_eq!(c.slaves()[1].al_status_code().raw(), 0x0011);
+    }
+
+    #[test]
+    fn malformed_frames_are_dropped_untouched() {
+        let mut c = chain(2);
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        f.truncate(f.len() - 3);
+        let before = f.clone();
+        assert!(c.process(&mut f).is_err());
+        assert_eq!(f, before);
+        let mut junk = vec![0u8; 5];
+        assert!(matches!(c.process(&mut junk), Err(ChainError::Frame(_))));
+    }
+}

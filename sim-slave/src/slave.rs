@@ -1,0 +1,84 @@
+//! One emulated slave: its ESC memory, EEPROM and AL state, serving the datagrams that
+//! pass through it, plus the side effects a real ESC has when a register is written (AL
+//! control starts a state change, SII control starts an EEPROM access).
+
+use crate::esc::al::{self, AlStatusCode};
+use crate::esc::command::{self, Served};
+use crate::esc::datagram::{Command, Datagram};
+use crate::esc::memory::Memory;
+use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE};
+use crate::esc::sii::{self, DeviceDescription, Sii};
+
+/// An emulated slave.
+#[derive(Clone, Debug)]
+pub struct Slave {
+    memory: Memory,
+    sii: Sii,
+    description: DeviceDescription,
+}
+
+impl Slave {
+    /// A slave in Init with its EEPROM generated from `description`.
+    pub fn new(description: DeviceDescription) -> Self {
+        let sii = Sii::new(description.image());
+        let mut memory = Memory::new();
+        sii.reset(&mut memory);
+        Self {
+            memory,
+            sii,
+            description,
+        }
+    }
+
+    /// The device description.
+    pub fn description(&self) -> &DeviceDescription {
+        &self.description
+    }
+
+    /// ESC memory (for inspection in tests and by device models).
+    pub fn memory(&self) -> &Memory {
+        &self.memory
+    }
+
+    /// Current AL status register.
+    pub fn al_status(&self) -> u16 {
+        self.memory.read_u16(AL_STATUS)
+    }
+
+    /// Current AL status code.
+    pub fn al_status_code(&self) -> AlStatusCode {
+        AlStatusCode::from_raw(self.memory.read_u16(AL_STATUS_CODE))
+    }
+
+    /// Serves one datagram and applies the side effects of what it wrote.
+    pub fn serve(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
+        let ado = d.ado();
+        let len = d.data_len();
+        let served = command::serve(&mut self.memory, d);
+        let wrote = matches!(served, Served::Written | Served::ReadWritten)
+            && !matches!(d.command(), Command::Lrd | Command::Lwr | Command::Lrw);
+        if wrote {
+            let touched = |reg: u16, w: usize| {
+                (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize
+            };
+            if touched(AL_CONTROL, 2) {
+                self.on_al_control();
+            }
+            if sii::touches_control(ado, len) {
+                self.sii.on_control_write(&mut self.memory);
+            }
+        }
+        served
+    }
+
+    fn on_al_control(&mut self) {
+        let control = self.memory.read_u16(AL_CONTROL);
+        let status = self.memory.read_u16(AL_STATUS);
+        let code = AlStatusCode::from_raw(self.memory.read_u16(AL_STATUS_CODE));
+        // Device checks of SyncManager/PDO configuration come with the SyncManager model.
+        let out = al::on_control(status, code, control, false, |_, _| Ok(()));
+        self.memory.pdi_write(AL_STATUS, &out.status.to_le_bytes());
+        self.memory
+            .pdi_write(AL_STATUS_CODE, &out.code.raw().to_le_bytes());
+    }
+}
