@@ -26,8 +26,13 @@ pub struct SlaveChain {
 }
 
 impl SlaveChain {
-    /// A chain of these slaves, in wiring order.
-    pub fn new(slaves: Vec<Slave>) -> Self {
+    /// A chain of these slaves, in wiring order: each is wired on port 0 (towards the
+    /// master) and, except the last, on port 1 (towards the next).
+    pub fn new(mut slaves: Vec<Slave>) -> Self {
+        let n = slaves.len();
+        for (i, s) in slaves.iter_mut().enumerate() {
+            s.set_ports([true, i + 1 < n, false, false]);
+        }
         Self { slaves }
     }
 
@@ -68,6 +73,7 @@ mod tests {
             product_code: product,
             revision: 1,
             serial: product,
+            order_code: format!("SIM-{product}"),
             name: format!("device {product}"),
             mailbox: None,
             mailbox_protocols: 0,
@@ -150,6 +156,20 @@ mod tests {
         c.process(&mut f).unwrap();
         assert_eq!(c.slaves()[0].al_status(), 0x12);
         assert_eq!(c.slaves()[1].al_status_code().raw(), 0x0011);
+    }
+
+    #[test]
+    fn dl_status_shows_the_line_topology() {
+        use crate::esc::registers::DL_STATUS;
+        let c = chain(2);
+        let first = c.slaves()[0].memory().read_u16(DL_STATUS);
+        let last = c.slaves()[1].memory().read_u16(DL_STATUS);
+        assert_eq!(
+            first & 0x0F30,
+            0x0A30,
+            "ports 0 and 1: link and communication"
+        );
+        assert_eq!(last & 0x0F30, 0x0610, "port 0 open, port 1 loop closed");
     }
 
     #[test]

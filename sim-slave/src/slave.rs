@@ -6,7 +6,7 @@ use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
 use crate::esc::datagram::{Command, Datagram};
 use crate::esc::memory::Memory;
-use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE};
+use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS};
 use crate::esc::sii::{self, DeviceDescription, Sii};
 
 /// An emulated slave.
@@ -48,6 +48,21 @@ impl Slave {
     /// Current AL status code.
     pub fn al_status_code(&self) -> AlStatusCode {
         AlStatusCode::from_raw(self.memory.read_u16(AL_STATUS_CODE))
+    }
+
+    /// Sets DL status (0x0110) for the ports that are wired: link and communication on a
+    /// wired port, loop closed on an open one; PDI operational (the EEPROM was loaded).
+    pub fn set_ports(&mut self, wired: [bool; 4]) {
+        let mut v: u16 = 1; // PDI operational
+        for (port, &on) in wired.iter().enumerate() {
+            if on {
+                v |= 1 << (4 + port); // physical link
+                v |= 1 << (9 + 2 * port); // communication established
+            } else {
+                v |= 1 << (8 + 2 * port); // loop closed
+            }
+        }
+        self.memory.pdi_write(DL_STATUS, &v.to_le_bytes());
     }
 
     /// Serves one datagram and applies the side effects of what it wrote.

@@ -57,7 +57,9 @@ pub struct DeviceDescription {
     pub revision: u32,
     /// Serial number.
     pub serial: u32,
-    /// Device name (string 1).
+    /// Order code, the short name masters show (ETG.2010 General "OrderIdx"; string 1).
+    pub order_code: String,
+    /// Device name, the long description (General "NameIdx"; string 2).
     pub name: String,
     /// Mailbox (receive offset, receive size, send offset, send size), if any.
     pub mailbox: Option<(u16, u16, u16, u16)>,
@@ -145,13 +147,17 @@ impl DeviceDescription {
         // EEPROM size in KiBit minus one: 16 KiBit.
         set(&mut w, 0x3E, 0x000F);
         set(&mut w, 0x3F, 0x0001);
-        // Strings: count, then length-prefixed strings.
-        let mut strings = vec![1u8, self.name.len().min(255) as u8];
-        strings.extend(self.name.bytes().take(255));
+        // Strings: count, then length-prefixed strings (1: order code, 2: name).
+        let mut strings = vec![2u8];
+        for text in [&self.order_code, &self.name] {
+            strings.push(text.len().min(255) as u8);
+            strings.extend(text.bytes().take(255));
+        }
         push_category(&mut w, category::STRINGS, &strings);
         // General: group idx, image idx, order idx, name idx (1), physical layer, CoE details…
         let mut general = vec![0u8; 32];
-        set8(&mut general, 3, 1); // name string index
+        set8(&mut general, 2, 1); // order code string index
+        set8(&mut general, 3, 2); // name string index
         set8(
             &mut general,
             5,
@@ -271,6 +277,7 @@ mod tests {
             product_code: 0x0000_0402,
             revision: 1,
             serial: 42,
+            order_code: "GS-402".into(),
             name: "gantry servo".into(),
             mailbox: Some((0x1000, 128, 0x1080, 128)),
             mailbox_protocols: 0x0004,
@@ -334,8 +341,10 @@ mod tests {
         assert_eq!(w[0x07] as u8, config_checksum(&w));
         let strings = find(&w, category::STRINGS).unwrap();
         let bytes: Vec<u8> = strings.iter().flat_map(|x| x.to_le_bytes()).collect();
-        assert_eq!(bytes[0], 1);
-        assert_eq!(&bytes[2..2 + bytes[1] as usize], b"gantry servo");
+        assert_eq!(bytes[0], 2);
+        assert_eq!(&bytes[2..2 + bytes[1] as usize], b"GS-402");
+        let at = 2 + bytes[1] as usize;
+        assert_eq!(&bytes[at + 1..at + 1 + bytes[at] as usize], b"gantry servo");
         let sm = find(&w, category::SYNC_MANAGER).unwrap();
         assert_eq!(sm.len(), 4 * 4, "4 SyncManagers of 8 bytes");
         assert_eq!(sm[0], 0x1000);
