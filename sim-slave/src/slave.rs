@@ -4,7 +4,7 @@
 
 use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
-use crate::esc::datagram::{Command, Datagram};
+use crate::esc::datagram::Datagram;
 use crate::esc::memory::Memory;
 use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS};
 use crate::esc::sii::{self, DeviceDescription, Sii};
@@ -70,8 +70,8 @@ impl Slave {
         let ado = d.ado();
         let len = d.data_len();
         let served = command::serve(&mut self.memory, d);
-        let wrote = matches!(served, Served::Written | Served::ReadWritten)
-            && !matches!(d.command(), Command::Lrd | Command::Lwr | Command::Lrw);
+        let wrote =
+            matches!(served, Served::Written | Served::ReadWritten) && !d.command().is_logical();
         if wrote {
             let touched = |reg: u16, w: usize| {
                 (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize

@@ -2,8 +2,8 @@
 //! working-counter rules): addressing by position (auto-increment), by configured address
 //! or alias, or broadcast; reads copy (or OR, for broadcasts) into the frame, writes copy
 //! out of it; the working counter grows by 1 for a read, 2 for a write and 3 for a
-//! read-write that did both. Logical commands (LRD/LWR/LRW) go through FMMUs and are not
-//! served yet: they pass through untouched.
+//! read-write that did both. Logical commands (LRD/LWR/LRW) go through the FMMUs
+//! ([`super::fmmu`]).
 
 use super::datagram::{Command, Datagram};
 use super::memory::Memory;
@@ -251,7 +251,7 @@ mod tests {
     }
 
     #[test]
-    fn logical_commands_pass_untouched_for_now() {
+    fn logical_commands_without_fmmus_pass_untouched() {
         let mut c = chain(2);
         let mut buf = dg(Command::Lrw, 0, 0, &[1, 2, 3]);
         let before = buf.clone();

@@ -1,0 +1,169 @@
+//! FMMUs (ETG.1000.4 §6.6): map ranges of the logical address space onto physical memory,
+//! which is how LRD/LWR/LRW reach process data. Byte-granular mappings are served; a
+//! mapping that starts or ends inside a byte (bit-wise FMMUs) is not yet.
+
+use super::command::Served;
+use super::datagram::{Command, Datagram};
+use super::memory::Memory;
+use super::registers::FMMU0;
+
+/// FMMUs of an ESC.
+pub const COUNT: u16 = 8;
+/// Bytes of one FMMU's registers.
+pub const SIZE: u16 = 16;
+
+/// One FMMU's configuration, read from its registers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Fmmu {
+    /// Logical start address.
+    pub logical_start: u32,
+    /// Length in bytes.
+    pub length: u16,
+    /// Physical start address.
+    pub physical_start: u16,
+    /// Maps for reading (inputs: physical → frame).
+    pub read: bool,
+    /// Maps for writing (outputs: frame → physical).
+    pub write: bool,
+    /// Enabled.
+    pub active: bool,
+}
+
+impl Fmmu {
+    /// FMMU `n` as configured in `mem`.
+    pub fn read_from(mem: &Memory, n: u16) -> Self {
+        let base = FMMU0 + n * SIZE;
+        let mut b = [0u8; 16];
+        mem.ecat_read(base, &mut b, false);
+        Fmmu {
+            logical_start: u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            length: u16::from_le_bytes([b[4], b[5]]),
+            physical_start: u16::from_le_bytes([b[8], b[9]]),
+            read: b[11] & 0x01 != 0,
+            write: b[11] & 0x02 != 0,
+            active: b[12] & 0x01 != 0,
+        }
+    }
+
+    /// The overlap of this FMMU with logical `[addr, addr + len)`: (offset in the
+    /// datagram, physical address, length).
+    fn overlap(&self, addr: u32, len: usize) -> Option<(usize, u16, usize)> {
+        let start = u64::from(self.logical_start.max(addr));
+        let end = (u64::from(self.logical_start) + u64::from(self.length))
+            .min(u64::from(addr) + len as u64);
+        if start >= end {
+            return None;
+        }
+        let in_frame = (start - u64::from(addr)) as usize;
+        let phys = u64::from(self.physical_start) + (start - u64::from(self.logical_start));
+        Some((in_frame, u16::try_from(phys).ok()?, (end - start) as usize))
+    }
+}
+
+/// Serves a logical datagram (LRD/LWR/LRW) through the active FMMUs.
+pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
+    let cmd = d.command();
+    if !cmd.is_logical() {
+        return Served::Passed;
+    }
+    let addr = d.logical_address();
+    let len = d.data_len();
+    let (mut did_read, mut did_write) = (false, false);
+    for n in 0..COUNT {
+        let f = Fmmu::read_from(mem, n);
+        if !f.active {
+            continue;
+        }
+        let Some((at, phys, count)) = f.overlap(addr, len) else {
+            continue;
+        };
+        if f.write && matches!(cmd, Command::Lwr | Command::Lrw) {
+            if let Some(src) = d.data().get(at..at + count) {
+                let mut tmp = [0u8; 2048];
+                if let Some(t) = tmp.get_mut(..count) {
+                    t.copy_from_slice(src);
+                    did_write |= mem.ecat_write(phys, t);
+                }
+            }
+        }
+        if f.read && matches!(cmd, Command::Lrd | Command::Lrw) {
+            if let Some(dst) = d.data_mut().get_mut(at..at + count) {
+                did_read |= mem.ecat_read(phys, dst, false);
+            }
+        }
+    }
+    let add = u16::from(did_read) + 2 * u16::from(did_write);
+    if add > 0 {
+        let w = d.wkc();
+        d.set_wkc(w.wrapping_add(add));
+    }
+    match (did_read, did_write) {
+        (true, true) => Served::ReadWritten,
+        (true, false) => Served::Read,
+        (false, true) => Served::Written,
+        (false, false) => Served::Passed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::esc::registers::PROCESS_RAM;
+
+    fn configure(mem: &mut Memory, n: u16, logical: u32, len: u16, phys: u16, kind: u8) {
+        let mut b = [0u8; 16];
+        b[0..4].copy_from_slice(&logical.to_le_bytes());
+        b[4..6].copy_from_slice(&len.to_le_bytes());
+        b[7] = 7;
+        b[8..10].copy_from_slice(&phys.to_le_bytes());
+        b[11] = kind;
+        b[12] = 1;
+        assert!(mem.ecat_write(FMMU0 + n * SIZE, &b));
+    }
+
+    fn lrw(addr: u32, data: &[u8]) -> Vec<u8> {
+        let mut buf = vec![0u8; 12 + data.len()];
+        let mut d = Datagram::new_unchecked(&mut buf[..]);
+        d.set_command(Command::Lrw);
+        d.set_adp(addr as u16);
+        d.set_ado((addr >> 16) as u16);
+        d.set_len(data.len(), false, false);
+        d.data_mut().copy_from_slice(data);
+        buf
+    }
+
+    #[test]
+    fn lrw_writes_outputs_reads_inputs_and_counts_three() {
+        let mut mem = Memory::new();
+        configure(&mut mem, 0, 0x0001_0000, 4, PROCESS_RAM, 2); // outputs
+        configure(&mut mem, 1, 0x0001_0004, 2, PROCESS_RAM + 0x400, 1); // inputs
+        mem.pdi_write(PROCESS_RAM + 0x400, &[0xAB, 0xCD]);
+        let mut buf = lrw(0x0001_0000, &[1, 2, 3, 4, 0, 0]);
+        let served = serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..]));
+        assert_eq!(served, Served::ReadWritten);
+        let d = Datagram::new_unchecked(&buf[..]);
+        assert_eq!(d.wkc(), 3);
+        assert_eq!(d.data(), &[1, 2, 3, 4, 0xAB, 0xCD]);
+        let mut out = [0u8; 4];
+        mem.ecat_read(PROCESS_RAM, &mut out, false);
+        assert_eq!(out, [1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn partial_overlaps_and_misses() {
+        let mut mem = Memory::new();
+        configure(&mut mem, 0, 100, 4, PROCESS_RAM, 1);
+        mem.pdi_write(PROCESS_RAM, &[9, 8, 7, 6]);
+        // Datagram covers logical 102..106: bytes 2 and 3 of the FMMU.
+        let mut buf = lrw(102, &[0, 0, 0, 0]);
+        serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..]));
+        let d = Datagram::new_unchecked(&buf[..]);
+        assert_eq!(d.data(), &[7, 6, 0, 0]);
+        assert_eq!(d.wkc(), 1);
+        let mut buf = lrw(200, &[0, 0]);
+        assert_eq!(
+            serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..])),
+            Served::Passed
+        );
+    }
+}
