@@ -41,6 +41,11 @@ impl SlaveChain {
         &self.slaves
     }
 
+    /// Slave `i`, mutable (device models and tests set its inputs).
+    pub fn slave_mut(&mut self, i: usize) -> Option<&mut Slave> {
+        self.slaves.get_mut(i)
+    }
+
     /// Passes `frame` (a whole Ethernet frame) through every slave in place.
     pub fn process(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
         // Check the whole frame before any slave touches it: a frame that is malformed
@@ -80,6 +85,8 @@ mod tests {
             sync_managers: vec![],
             fmmus: vec![],
             dc: false,
+            tx_pdos: vec![],
+            rx_pdos: vec![],
         }
     }
 

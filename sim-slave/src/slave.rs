@@ -40,6 +40,11 @@ impl Slave {
         &self.memory
     }
 
+    /// Writes process RAM from the device side (inputs a device model produces).
+    pub fn write_process_ram(&mut self, address: u16, data: &[u8]) {
+        self.memory.pdi_write(address, data);
+    }
+
     /// Current AL status register.
     pub fn al_status(&self) -> u16 {
         self.memory.read_u16(AL_STATUS)

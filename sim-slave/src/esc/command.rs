@@ -75,9 +75,8 @@ pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
                 r
             }
         }
-        Command::Nop | Command::Lrd | Command::Lwr | Command::Lrw | Command::Unknown(_) => {
-            Served::Passed
-        }
+        Command::Lrd | Command::Lwr | Command::Lrw => super::fmmu::serve(mem, d),
+        Command::Nop | Command::Unknown(_) => Served::Passed,
     };
     served
 }

@@ -46,6 +46,48 @@ pub struct SmDescription {
     pub kind: u8,
 }
 
+/// One mapped object of a PDO.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PdoEntry {
+    /// Object index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Length in bits.
+    pub bits: u8,
+}
+
+/// A PDO as the EEPROM describes it (fixed mapping, for slaves without CoE).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PdoDescription {
+    /// PDO index (0x1600… outputs, 0x1A00… inputs).
+    pub index: u16,
+    /// SyncManager it is assigned to.
+    pub sync_manager: u8,
+    /// Mapped objects.
+    pub entries: Vec<PdoEntry>,
+}
+
+/// The bytes of a TxPDO/RxPDO category (ETG.2010 Table 14).
+fn pdo_category(pdos: &[PdoDescription]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for p in pdos {
+        out.extend(p.index.to_le_bytes());
+        out.push(p.entries.len().min(255) as u8);
+        out.push(p.sync_manager);
+        out.extend([0, 0, 0, 0]); // synchronization, name index, flags
+        for e in &p.entries {
+            out.extend(e.index.to_le_bytes());
+            out.push(e.sub);
+            out.push(0); // name index
+            out.push(0); // data type (not needed by masters that sum bit lengths)
+            out.push(e.bits);
+            out.extend([0, 0]); // flags
+        }
+    }
+    out
+}
+
 /// What a slave says about itself.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DeviceDescription {
@@ -71,6 +113,10 @@ pub struct DeviceDescription {
     pub fmmus: Vec<u8>,
     /// Whether the device has distributed clocks.
     pub dc: bool,
+    /// Fixed TxPDOs (inputs), for slaves without CoE.
+    pub tx_pdos: Vec<PdoDescription>,
+    /// Fixed RxPDOs (outputs), for slaves without CoE.
+    pub rx_pdos: Vec<PdoDescription>,
 }
 
 /// Sets word `at` (the image is sized before it is filled).
@@ -182,6 +228,12 @@ impl DeviceDescription {
         }
         if !sms.is_empty() {
             push_category(&mut w, category::SYNC_MANAGER, &sms);
+        }
+        if !self.tx_pdos.is_empty() {
+            push_category(&mut w, category::TXPDO, &pdo_category(&self.tx_pdos));
+        }
+        if !self.rx_pdos.is_empty() {
+            push_category(&mut w, category::RXPDO, &pdo_category(&self.rx_pdos));
         }
         if self.dc {
             push_category(&mut w, category::DC, &[0u8; 24]);
@@ -313,6 +365,16 @@ mod tests {
             ],
             fmmus: vec![1, 2, 3],
             dc: true,
+            tx_pdos: vec![],
+            rx_pdos: vec![PdoDescription {
+                index: 0x1600,
+                sync_manager: 2,
+                entries: vec![PdoEntry {
+                    index: 0x6040,
+                    sub: 0,
+                    bits: 16,
+                }],
+            }],
         }
     }
 
@@ -351,6 +413,11 @@ mod tests {
         assert!(find(&w, category::DC).is_some());
         assert!(find(&w, category::FMMU).is_some());
         assert!(find(&w, category::TXPDO).is_none());
+        let rx = find(&w, category::RXPDO).unwrap();
+        assert_eq!(rx.len(), 8, "one PDO header and one entry, 8 bytes each");
+        assert_eq!(rx[0], 0x1600);
+        assert_eq!(rx[4], 0x6040);
+        assert_eq!(rx[6] >> 8, 16, "bit length");
     }
 
     #[test]
