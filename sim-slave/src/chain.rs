@@ -41,6 +41,13 @@ impl SlaveChain {
         &self.slaves
     }
 
+    /// Runs `dt_s` seconds of every slave's application.
+    pub fn tick(&mut self, dt_s: f64) {
+        for s in &mut self.slaves {
+            s.tick(dt_s);
+        }
+    }
+
     /// Slave `i`, mutable (device models and tests set its inputs).
     pub fn slave_mut(&mut self, i: usize) -> Option<&mut Slave> {
         self.slaves.get_mut(i)

@@ -17,4 +17,5 @@
 
 pub mod chain;
 pub mod esc;
+pub mod plant;
 pub mod slave;

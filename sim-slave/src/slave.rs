@@ -8,6 +8,7 @@ use crate::esc::datagram::Datagram;
 use crate::esc::memory::Memory;
 use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS};
 use crate::esc::sii::{self, DeviceDescription, Sii};
+use crate::plant::DeviceModel;
 
 /// An emulated slave.
 #[derive(Clone, Debug)]
@@ -15,6 +16,7 @@ pub struct Slave {
     memory: Memory,
     sii: Sii,
     description: DeviceDescription,
+    device: DeviceModel,
 }
 
 impl Slave {
@@ -27,7 +29,24 @@ impl Slave {
             memory,
             sii,
             description,
+            device: DeviceModel::None,
         }
+    }
+
+    /// The same slave with an application behind its ESC.
+    pub fn with_device(mut self, device: DeviceModel) -> Self {
+        self.device = device;
+        self
+    }
+
+    /// The application.
+    pub fn device(&self) -> &DeviceModel {
+        &self.device
+    }
+
+    /// Runs `dt_s` seconds of the application (device models read outputs and write inputs).
+    pub fn tick(&mut self, dt_s: f64) {
+        self.device.step(&mut self.memory, dt_s);
     }
 
     /// The device description.

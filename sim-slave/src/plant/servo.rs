@@ -1,0 +1,120 @@
+//! A CiA-402 servo drive in cyclic synchronous position (CSP) mode: the device side of
+//! the power state machine from `gantry-drives` (the same table the master uses), and a
+//! motor + load that follows the commanded position with a finite bandwidth, so the master
+//! sees a following error.
+//!
+//! Process data (fixed mapping for now; mapping through CoE comes with the mailbox):
+//! outputs `0x6040 controlword: u16, 0x607A target position: i32`;
+//! inputs `0x6041 statusword: u16, 0x6064 position actual value: i32`.
+
+use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
+
+use crate::esc::memory::Memory;
+
+/// Bytes of the output process data.
+pub const OUTPUT_BYTES: usize = 6;
+/// Bytes of the input process data.
+pub const INPUT_BYTES: usize = 6;
+
+/// A servo drive model.
+#[derive(Clone, Debug)]
+pub struct ServoDrive {
+    /// Where the output process data lies in the ESC's RAM (SM2).
+    pub outputs_at: u16,
+    /// Where the input process data lies (SM3).
+    pub inputs_at: u16,
+    /// Position loop bandwidth (Hz): the load follows the set position as a first-order lag.
+    pub bandwidth_hz: f64,
+    state: DeviceStateMachine,
+    /// Load position (counts, fractional).
+    position: f64,
+}
+
+impl ServoDrive {
+    /// A drive at position `start_counts` (the absolute encoder's value at power-up).
+    pub fn new(outputs_at: u16, inputs_at: u16, start_counts: i32) -> Self {
+        Self {
+            outputs_at,
+            inputs_at,
+            bandwidth_hz: 200.0,
+            state: DeviceStateMachine::ready(),
+            position: f64::from(start_counts),
+        }
+    }
+
+    /// Power state.
+    pub fn state(&self) -> State {
+        self.state.state()
+    }
+
+    /// Load position (counts).
+    pub fn position(&self) -> f64 {
+        self.position
+    }
+
+    /// One cycle: read outputs, step the state machine and the plant, write inputs.
+    pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
+        let mut out = [0u8; OUTPUT_BYTES];
+        mem.ecat_read(self.outputs_at, &mut out, false);
+        let cw = Controlword(u16::from_le_bytes([out[0], out[1]]));
+        let target = i32::from_le_bytes([out[2], out[3], out[4], out[5]]);
+        self.state.control(cw);
+        if self.state.state() == State::OperationEnabled {
+            let k = 1.0 - (-2.0 * core::f64::consts::PI * self.bandwidth_hz * dt_s.max(0.0)).exp();
+            self.position += (f64::from(target) - self.position) * k;
+        }
+        let actual = self
+            .position
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+        let sw = self.state.statusword().0 | gantry_drives::cia402::statusword::REMOTE;
+        let mut inp = [0u8; INPUT_BYTES];
+        inp[0..2].copy_from_slice(&sw.to_le_bytes());
+        inp[2..6].copy_from_slice(&actual.to_le_bytes());
+        mem.pdi_write(self.inputs_at, &inp);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::esc::registers::PROCESS_RAM;
+
+    fn outputs(mem: &mut Memory, cw: u16, target: i32) {
+        let mut b = [0u8; 6];
+        b[0..2].copy_from_slice(&cw.to_le_bytes());
+        b[2..6].copy_from_slice(&target.to_le_bytes());
+        mem.pdi_write(PROCESS_RAM, &b);
+    }
+
+    #[test]
+    fn enables_through_the_state_machine_and_follows_with_lag() {
+        let mut mem = Memory::new();
+        let mut d = ServoDrive::new(PROCESS_RAM, PROCESS_RAM + 0x100, 1000);
+        for cw in [0x06, 0x07] {
+            outputs(&mut mem, cw, 5000);
+            d.step(&mut mem, 0.001);
+            assert_eq!(
+                d.position(),
+                1000.0,
+                "does not move before Operation enabled"
+            );
+        }
+        outputs(&mut mem, 0x0F, 1000);
+        d.step(&mut mem, 0.001);
+        assert_eq!(d.state(), State::OperationEnabled);
+        outputs(&mut mem, 0x0F, 2000);
+        d.step(&mut mem, 0.001);
+        let p = d.position();
+        assert!(p > 1000.0 && p < 2000.0, "first-order lag: {p}");
+        for _ in 0..100 {
+            d.step(&mut mem, 0.001);
+        }
+        assert!((d.position() - 2000.0).abs() < 1.0);
+        let mut inp = [0u8; 6];
+        mem.ecat_read(PROCESS_RAM + 0x100, &mut inp, false);
+        let sw = gantry_drives::cia402::Statusword(u16::from_le_bytes([inp[0], inp[1]]));
+        assert_eq!(sw.state(), Some(State::OperationEnabled));
+        assert_eq!(i32::from_le_bytes([inp[2], inp[3], inp[4], inp[5]]), 2000);
+    }
+}
