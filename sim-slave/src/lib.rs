@@ -16,6 +16,7 @@
 )]
 
 pub mod chain;
+pub mod coe;
 pub mod esc;
 pub mod plant;
 pub mod slave;

@@ -2,13 +2,27 @@
 //! pass through it, plus the side effects a real ESC has when a register is written (AL
 //! control starts a state change, SII control starts an EEPROM access).
 
+use crate::coe::{self, od::ObjectDictionary};
 use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
 use crate::esc::datagram::Datagram;
 use crate::esc::memory::Memory;
-use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS};
+use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS, SM0};
 use crate::esc::sii::{self, DeviceDescription, Sii};
 use crate::plant::DeviceModel;
+
+/// SyncManager status bit 3: mailbox full.
+const MAILBOX_FULL: u8 = 0x08;
+
+/// Register address of SyncManager `n`.
+fn sm_base(n: u16) -> u16 {
+    SM0 + 8 * n
+}
+
+/// Whether `[ado, ado + len)` contains `byte`.
+fn covers(ado: u16, len: usize, byte: u16) -> bool {
+    (ado as usize) <= byte as usize && (byte as usize) < ado as usize + len
+}
 
 /// An emulated slave.
 #[derive(Clone, Debug)]
@@ -17,6 +31,8 @@ pub struct Slave {
     sii: Sii,
     description: DeviceDescription,
     device: DeviceModel,
+    /// Object dictionary of the CoE mailbox (slaves without CoE have none).
+    od: Option<ObjectDictionary>,
 }
 
 impl Slave {
@@ -30,7 +46,19 @@ impl Slave {
             sii,
             description,
             device: DeviceModel::None,
+            od: None,
         }
+    }
+
+    /// The same slave with a CoE object dictionary behind its mailbox (SM0 in, SM1 out).
+    pub fn with_coe(mut self, od: ObjectDictionary) -> Self {
+        self.od = Some(od);
+        self
+    }
+
+    /// The object dictionary, if the slave has CoE.
+    pub fn object_dictionary(&self) -> Option<&ObjectDictionary> {
+        self.od.as_ref()
     }
 
     /// The same slave with an application behind its ESC.
@@ -106,8 +134,58 @@ impl Slave {
             if sii::touches_control(ado, len) {
                 self.sii.on_control_write(&mut self.memory);
             }
+            let (start, length, active) = self.sync_manager(0);
+            if active && length > 0 && covers(ado, len, start + length - 1) {
+                self.on_mailbox_write(start, length);
+            }
+        }
+        if matches!(served, Served::Read | Served::ReadWritten) {
+            let (start, length, active) = self.sync_manager(1);
+            if active && length > 0 && covers(ado, len, start + length - 1) {
+                // The master read the last byte: the mailbox is empty again.
+                let status = self.memory.read_u16(sm_base(1) + 4) & !(u16::from(MAILBOX_FULL) << 8);
+                self.memory.pdi_write(sm_base(1) + 4, &status.to_le_bytes());
+            }
         }
         served
+    }
+
+    /// SyncManager `n` as the master configured it: (start, length, enabled).
+    fn sync_manager(&self, n: u16) -> (u16, u16, bool) {
+        let base = sm_base(n);
+        let start = self.memory.read_u16(base);
+        let length = self.memory.read_u16(base + 2);
+        let active = self.memory.read_u16(base + 6) & 0x01 != 0;
+        (start, length, active)
+    }
+
+    /// A request arrived in the write mailbox (SM0): serve it, put the answer in the read
+    /// mailbox (SM1) and mark that full.
+    fn on_mailbox_write(&mut self, start: u16, length: u16) {
+        let Some(od) = self.od.as_mut() else { return };
+        let mut request = vec![0u8; length as usize];
+        self.memory.ecat_read(start, &mut request, false);
+        let Some(response) = coe::serve(od, &request) else {
+            return;
+        };
+        let (out_start, out_len, out_active) = {
+            let base = sm_base(1);
+            (
+                self.memory.read_u16(base),
+                self.memory.read_u16(base + 2),
+                self.memory.read_u16(base + 6) & 0x01 != 0,
+            )
+        };
+        if !out_active || response.len() > out_len as usize {
+            return;
+        }
+        let mut area = vec![0u8; out_len as usize];
+        if let Some(dst) = area.get_mut(..response.len()) {
+            dst.copy_from_slice(&response);
+        }
+        self.memory.pdi_write(out_start, &area);
+        let status = self.memory.read_u16(sm_base(1) + 4) | (u16::from(MAILBOX_FULL) << 8);
+        self.memory.pdi_write(sm_base(1) + 4, &status.to_le_bytes());
     }
 
     fn on_al_control(&mut self) {

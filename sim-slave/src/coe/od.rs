@@ -1,0 +1,133 @@
+//! An object dictionary (CiA 301 §7.4): entries addressed by index and sub-index, with a
+//! writability flag. The simulator's dictionaries are small, built once at start.
+
+/// One entry.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Entry {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Value, little-endian, sized by the data type.
+    pub value: Vec<u8>,
+    /// Whether SDO downloads may write it.
+    pub writable: bool,
+}
+
+/// An object dictionary.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ObjectDictionary {
+    entries: Vec<Entry>,
+}
+
+/// Why an access failed (maps to SDO abort codes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OdError {
+    /// No object with that index (abort 0x06020000).
+    NoObject,
+    /// The object exists, the sub-index does not (abort 0x06090011).
+    NoSubIndex,
+    /// Read-only (abort 0x06010002).
+    ReadOnly,
+    /// The written length does not match the entry (abort 0x06070010).
+    LengthMismatch,
+}
+
+impl ObjectDictionary {
+    /// Adds or replaces an entry.
+    pub fn insert(&mut self, index: u16, sub: u8, value: &[u8], writable: bool) {
+        match self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            Some(e) => {
+                e.value = value.to_vec();
+                e.writable = writable;
+            }
+            None => self.entries.push(Entry {
+                index,
+                sub,
+                value: value.to_vec(),
+                writable,
+            }),
+        }
+    }
+
+    /// Reads an entry.
+    pub fn read(&self, index: u16, sub: u8) -> Result<&[u8], OdError> {
+        match self
+            .entries
+            .iter()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            Some(e) => Ok(&e.value),
+            None if self.entries.iter().any(|e| e.index == index) => Err(OdError::NoSubIndex),
+            None => Err(OdError::NoObject),
+        }
+    }
+
+    /// Writes an entry (same length as it has).
+    pub fn write(&mut self, index: u16, sub: u8, value: &[u8]) -> Result<(), OdError> {
+        let exists = self.entries.iter().any(|e| e.index == index);
+        let e = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+            .ok_or(if exists {
+                OdError::NoSubIndex
+            } else {
+                OdError::NoObject
+            })?;
+        if !e.writable {
+            return Err(OdError::ReadOnly);
+        }
+        if e.value.len() != value.len() {
+            return Err(OdError::LengthMismatch);
+        }
+        e.value.copy_from_slice(value);
+        Ok(())
+    }
+
+    /// The dictionary of a CiA-402 servo with the given identity and the PDO mapping of
+    /// [`crate::plant::servo`]: RxPDO 0x1600 = controlword + target position on SM2,
+    /// TxPDO 0x1A00 = statusword + position actual on SM3.
+    pub fn cia402_servo(vendor: u32, product: u32, revision: u32, serial: u32) -> Self {
+        let mut od = Self::default();
+        od.insert(0x1000, 0, &0x0002_0192u32.to_le_bytes(), false);
+        od.insert(0x1018, 0, &[4], false);
+        for (sub, v) in [(1u8, vendor), (2, product), (3, revision), (4, serial)] {
+            od.insert(0x1018, sub, &v.to_le_bytes(), false);
+        }
+        od.insert(0x1C12, 0, &[1], true);
+        od.insert(0x1C12, 1, &0x1600u16.to_le_bytes(), true);
+        od.insert(0x1C13, 0, &[1], true);
+        od.insert(0x1C13, 1, &0x1A00u16.to_le_bytes(), true);
+        od.insert(0x1600, 0, &[2], true);
+        od.insert(0x1600, 1, &0x6040_0010u32.to_le_bytes(), true);
+        od.insert(0x1600, 2, &0x607A_0020u32.to_le_bytes(), true);
+        od.insert(0x1A00, 0, &[2], true);
+        od.insert(0x1A00, 1, &0x6041_0010u32.to_le_bytes(), true);
+        od.insert(0x1A00, 2, &0x6064_0020u32.to_le_bytes(), true);
+        od.insert(0x6060, 0, &[8], true);
+        od.insert(0x6061, 0, &[8], false);
+        od
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_writes_and_errors() {
+        let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+        assert_eq!(od.read(0x1018, 2), Ok(&2u32.to_le_bytes()[..]));
+        assert_eq!(od.read(0x1018, 9), Err(OdError::NoSubIndex));
+        assert_eq!(od.read(0x2000, 0), Err(OdError::NoObject));
+        assert_eq!(od.write(0x1000, 0, &[0, 0, 0, 0]), Err(OdError::ReadOnly));
+        assert_eq!(od.write(0x6060, 0, &[9, 9]), Err(OdError::LengthMismatch));
+        od.write(0x6060, 0, &[9]).unwrap();
+        assert_eq!(od.read(0x6060, 0), Ok(&[9u8][..]));
+    }
+}

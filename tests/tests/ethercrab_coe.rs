@@ -1,0 +1,101 @@
+//! CoE through the simulated mailbox: ethercrab finds the servo's PDO mapping by SDO
+//! uploads of 0x1C12/0x1C13 and the mapping objects (the EEPROM lists no PDOs), sizes the
+//! process image from them, and reads and writes objects with SDOs; aborts reach it as
+//! errors.
+
+use ethercrab::std::ethercat_now;
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use gantry_sim::chain::SlaveChain;
+use gantry_sim::coe::od::ObjectDictionary;
+use gantry_sim::esc::sii::{DeviceDescription, SmDescription};
+use gantry_sim::slave::Slave;
+use gantry_tests::EmbeddedBus;
+
+const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
+static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+
+fn coe_servo() -> DeviceDescription {
+    DeviceDescription {
+        vendor_id: 0x0A5A,
+        product_code: 0x0402,
+        revision: 2,
+        serial: 99,
+        order_code: "SIM-SERVO-COE".into(),
+        name: "simulated CiA-402 servo (CoE)".into(),
+        mailbox: Some((0x1000, 128, 0x1080, 128)),
+        mailbox_protocols: 0x0004,
+        sync_managers: vec![
+            SmDescription {
+                start: 0x1000,
+                length: 128,
+                control: 0x26,
+                enable: true,
+                kind: 1,
+            },
+            SmDescription {
+                start: 0x1080,
+                length: 128,
+                control: 0x22,
+                enable: true,
+                kind: 2,
+            },
+            SmDescription {
+                start: 0x1100,
+                length: 0,
+                control: 0x64,
+                enable: true,
+                kind: 3,
+            },
+            SmDescription {
+                start: 0x1400,
+                length: 0,
+                control: 0x20,
+                enable: true,
+                kind: 4,
+            },
+        ],
+        fmmus: vec![1, 2, 3],
+        dc: false,
+        tx_pdos: vec![],
+        rx_pdos: vec![],
+    }
+}
+
+#[test]
+fn ethercrab_maps_pdos_and_uses_sdos_through_the_simulated_mailbox() {
+    let od = ObjectDictionary::cia402_servo(0x0A5A, 0x0402, 2, 99);
+    let chain = SlaveChain::new(vec![Slave::new(coe_servo()).with_coe(od)]);
+    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
+    let bus = EmbeddedBus::start(tx, rx, chain);
+    let chain = bus.chain.clone();
+    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let result = futures_lite::future::block_on(async {
+        let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
+        let sd = group.subdevice(&maindevice, 0)?;
+        let product: u32 = sd.sdo_read(0x1018, 2).await?;
+        let mode: i8 = sd.sdo_read(0x6060, 0).await?;
+        sd.sdo_write(0x6060, 0, 9i8).await?;
+        let mode_after: i8 = sd.sdo_read(0x6060, 0).await?;
+        let missing = sd.sdo_read::<u32>(0x2000, 0).await.is_err();
+        let read_only = sd.sdo_write(0x1000, 0, 0u32).await.is_err();
+        let group = group.into_op(&maindevice).await?;
+        let sd = group.subdevice(&maindevice, 0)?;
+        let sizes = (sd.inputs_raw().len(), sd.outputs_raw().len());
+        Ok::<_, ethercrab::error::Error>((product, mode, mode_after, missing, read_only, sizes))
+    });
+    bus.stop();
+    let (product, mode, mode_after, missing, read_only, sizes) =
+        result.expect("CoE works through the simulated mailbox");
+    assert_eq!(product, 0x0402);
+    assert_eq!((mode, mode_after), (8, 9));
+    assert!(missing, "a missing object aborts");
+    assert!(read_only, "writing a read-only object aborts");
+    assert_eq!(
+        sizes,
+        (6, 6),
+        "process image sized from the PDO mapping read by SDO"
+    );
+    let c = chain.lock().unwrap();
+    let od = c.slaves()[0].object_dictionary().unwrap();
+    assert_eq!(od.read(0x6060, 0), Ok(&[9u8][..]));
+}
