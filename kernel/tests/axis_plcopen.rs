@@ -651,3 +651,31 @@ fn lowering_jog_jerk_while_ramping_does_not_overshoot_the_speed() {
     assert!(t.iter().all(|s| s.set.v <= 10.0 + 1e-9), "speed overshoot");
     assert!((t.last().unwrap().set.v - 10.0).abs() < 1e-9);
 }
+
+#[test]
+fn a_real_axis_takes_over_where_the_drive_stands_when_it_is_enabled() {
+    let mut cfg = linear("x");
+    cfg.kind = AxisKind::Real;
+    let mut k = Kernel::new(DT, vec![cfg]).unwrap();
+    // Commanded before any feedback arrived; the drive then reports 12.5 and, later, enabled.
+    let h = k
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+        )
+        .unwrap();
+    let fb = |p, on| {
+        [gantry_kernel::axis::AxisFeedback {
+            position: p,
+            velocity: 0.0,
+            operation_enabled: on,
+            fault: None,
+        }]
+    };
+    k.step(&fb(12.5, false));
+    assert_eq!(k.command_status(h), CommandStatus::Busy);
+    k.step(&fb(12.5, true));
+    assert_eq!(k.command_status(h), CommandStatus::Done);
+    assert_eq!(k.axis_status(0).unwrap().set.p, 12.5, "no jump on enable");
+    assert_eq!(k.step(&fb(12.5, true))[0].position, 12.5);
+}

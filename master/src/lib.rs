@@ -6,6 +6,7 @@
 
 pub mod cli;
 pub mod demo;
+pub mod ethercat;
 pub mod plot;
 pub mod status_table;
 pub mod trace;

@@ -26,6 +26,10 @@ enum Cmd {
         /// Simulated seconds per wall-clock second (0: as fast as possible).
         #[arg(long, default_value_t = 4.0)]
         speed: f64,
+        /// `sim`: kernel-simulated axes; `ethercat`: simulated CiA-402 drives on an
+        /// in-process EtherCAT network, brought up and driven by the master.
+        #[arg(long, default_value = "sim", value_parser = ["sim", "ethercat"])]
+        bus: String,
     },
     /// Print the planned profile of one move as JSON.
     Profile {
@@ -65,7 +69,7 @@ enum Cmd {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Cmd::Demo { out, speed } => {
+        Cmd::Demo { out, speed, bus } => {
             anyhow::ensure!(
                 speed.is_finite() && speed >= 0.0,
                 "--speed {speed} must be >= 0"
@@ -76,7 +80,11 @@ fn main() -> anyhow::Result<()> {
                 ..DemoArgs::default()
             };
             let mut stdout = std::io::stdout();
-            let report = demo::run(&args, &mut stdout)?;
+            let report = if bus == "ethercat" {
+                demo::ethercat::run(&args, &mut stdout)?
+            } else {
+                demo::run(&args, &mut stdout)?
+            };
             writeln!(
                 stdout,
                 "\ndemo done: {:.2} s simulated in {} cycles of {} ms\ntrace: {}\nplot:  {}",

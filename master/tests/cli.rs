@@ -124,3 +124,35 @@ fn demo_runs_and_prints_where_its_files_are() {
     assert!(dir.join("trace.csv").exists() && dir.join("plot.svg").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn ethercat_demo_moves_simulated_drives_over_the_in_process_network() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-ecat-{}", std::process::id()));
+    let out = gantry()
+        .args(["demo", "--bus", "ethercat", "--speed", "0", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        text,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("found 2 EtherCAT slaves"), "{text}");
+    assert!(text.contains("moves done"), "{text}");
+    // The trace: both axes end where they started (0 mm), set and actual.
+    let csv = std::fs::read_to_string(dir.join("ethercat-trace.csv")).unwrap();
+    let last: Vec<f64> = csv
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    for v in &last[1..] {
+        assert!(v.abs() < 0.01, "ends at home: {last:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -478,6 +478,9 @@ impl Axis {
                 if self.state == AxisState::Disabled {
                     self.state = AxisState::Standstill;
                 }
+                // Take over where the drive stands now: the first set value the enabled
+                // drive receives must be its actual position, or it would jump.
+                self.main = KinematicState::at_rest(self.actual_p);
             }
         }
     }

@@ -22,6 +22,8 @@ use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use thiserror::Error;
 
+pub mod ethercat;
+
 use crate::plot::{self, Panel};
 use crate::status_table::{self, Live, Row};
 use crate::trace::{Trace, TraceError};
@@ -87,6 +89,9 @@ pub enum DemoError {
     /// Writing the output failed.
     #[error(transparent)]
     Trace(#[from] TraceError),
+    /// The EtherCAT network failed.
+    #[error("EtherCAT: {0}")]
+    Bus(String),
     /// Creating the output folder or writing the plot failed.
     #[error("cannot write {path}: {source}")]
     Io {

@@ -1,0 +1,6 @@
+//! gantry's EtherCAT master on ethercrab: the embedded bus (frames to a simulated chain in
+//! this process) and the cyclic exchange that joins the kernel, the CiA-402 layer and the
+//! process data.
+
+pub mod cyclic;
+pub mod embedded;
