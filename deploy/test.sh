@@ -24,8 +24,22 @@ need_components() {
   done
 }
 
+need_packages() {
+  # Debian packages the tests call: tshark checks our pcap files with Wireshark's dissector.
+  local missing=()
+  command -v tshark >/dev/null 2>&1 || missing+=(tshark)
+  if [ ${#missing[@]} -gt 0 ]; then
+    local sudo=""
+    [ "$(id -u)" = 0 ] || sudo="sudo"
+    echo "wireshark-common wireshark-common/install-setuid boolean false" | $sudo debconf-set-selections
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"
+  fi
+}
+
 step "toolchain components" need_components
+step "packages" need_packages
 step "fmt" cargo fmt --all -- --check
 step "clippy" cargo clippy --workspace --all-targets --release -- -D warnings
-step "tests" cargo test --workspace --release
+step "tests" cargo test --workspace --release -- --include-ignored
 step "benches compile" cargo bench --workspace --no-run

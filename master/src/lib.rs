@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod demo;
 pub mod ethercat;
+pub mod pcap;
 pub mod plot;
 pub mod status_table;
 pub mod trace;

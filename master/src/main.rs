@@ -30,6 +30,9 @@ enum Cmd {
         /// in-process EtherCAT network, brought up and driven by the master.
         #[arg(long, default_value = "sim", value_parser = ["sim", "ethercat"])]
         bus: String,
+        /// With `--bus ethercat`: write every frame sent and received to this pcap file.
+        #[arg(long)]
+        pcap: Option<PathBuf>,
     },
     /// Print the planned profile of one move as JSON.
     Profile {
@@ -69,7 +72,16 @@ enum Cmd {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Cmd::Demo { out, speed, bus } => {
+        Cmd::Demo {
+            out,
+            speed,
+            bus,
+            pcap,
+        } => {
+            anyhow::ensure!(
+                pcap.is_none() || bus == "ethercat",
+                "--pcap needs --bus ethercat (the simulated-axes demo has no bus)"
+            );
             anyhow::ensure!(
                 speed.is_finite() && speed >= 0.0,
                 "--speed {speed} must be >= 0"
@@ -77,6 +89,7 @@ fn main() -> anyhow::Result<()> {
             let args = DemoArgs {
                 out,
                 speed,
+                pcap,
                 ..DemoArgs::default()
             };
             let mut stdout = std::io::stdout();

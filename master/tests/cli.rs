@@ -7,6 +7,23 @@ fn gantry() -> Command {
     Command::new(env!("CARGO_BIN_EXE_gantry"))
 }
 
+/// Runs `gantry demo --speed 0 --out DIR EXTRA…` and returns its stdout; fails on an error exit.
+fn demo(dir: &std::path::Path, extra: &[&str]) -> String {
+    let out = gantry()
+        .args(["demo", "--speed", "0", "--out"])
+        .arg(dir)
+        .args(extra)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text
+}
+
 fn json(out: &[u8]) -> serde_json::Value {
     serde_json::from_slice(out).expect("JSON output")
 }
@@ -109,17 +126,7 @@ fn profile_batch_answers_every_line() {
 #[test]
 fn demo_runs_and_prints_where_its_files_are() {
     let dir = std::env::temp_dir().join(format!("gantry-cli-demo-{}", std::process::id()));
-    let out = gantry()
-        .args(["demo", "--speed", "0", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = demo(&dir, &[]);
     assert!(text.contains("demo done"));
     assert!(dir.join("trace.csv").exists() && dir.join("plot.svg").exists());
     std::fs::remove_dir_all(&dir).unwrap();
@@ -128,18 +135,7 @@ fn demo_runs_and_prints_where_its_files_are() {
 #[test]
 fn ethercat_demo_moves_simulated_drives_over_the_in_process_network() {
     let dir = std::env::temp_dir().join(format!("gantry-cli-ecat-{}", std::process::id()));
-    let out = gantry()
-        .args(["demo", "--bus", "ethercat", "--speed", "0", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}\n{}",
-        text,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = demo(&dir, &["--bus", "ethercat"]);
     assert!(text.contains("found 2 EtherCAT slaves"), "{text}");
     assert!(text.contains("moves done"), "{text}");
     // The trace: both axes end where they started (0 mm), set and actual.
@@ -154,5 +150,49 @@ fn ethercat_demo_moves_simulated_drives_over_the_in_process_network() {
     for v in &last[1..] {
         assert!(v.abs() < 0.01, "ends at home: {last:?}");
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The capture must be readable by Wireshark's EtherCAT dissector: every frame dissected,
+/// none malformed, no expert warning. Needs `tshark`, which `deploy/test.sh` installs.
+#[test]
+#[ignore = "needs tshark; deploy/test.sh installs it and runs ignored tests"]
+fn pcap_of_the_ethercat_demo_dissects_clean_in_tshark() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-pcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let pcap = dir.join("run.pcap");
+    let out = gantry()
+        .args(["demo", "--bus", "ethercat", "--speed", "0", "--out"])
+        .arg(&dir)
+        .arg("--pcap")
+        .arg(&pcap)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tshark = |filter: &str| -> usize {
+        let out = Command::new("tshark")
+            .args(["-n", "-r"])
+            .arg(&pcap)
+            .args(["-Y", filter])
+            .output()
+            .expect("tshark is installed (deploy/test.sh installs it)");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).lines().count()
+    };
+    let all = tshark("frame");
+    let ecat = tshark("ecat");
+    let bad = tshark("_ws.malformed || _ws.expert.severity >= warning");
+    eprintln!("pcap: {all} frames, {ecat} dissected as EtherCAT, {bad} malformed or warned");
+    assert!(all > 1000, "a whole demo run is captured: {all} frames");
+    assert_eq!(ecat, all, "every frame is EtherCAT");
+    assert_eq!(bad, 0, "no malformed frame, no expert warning");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -24,6 +24,7 @@ use gantry_sim::slave::Slave;
 use super::{DemoArgs, DemoError, DemoReport};
 use crate::ethercat::cyclic::{encode_outputs, CspChannel, CspInputs};
 use crate::ethercat::embedded::EmbeddedBus;
+use crate::pcap::PcapWriter;
 use crate::plot::{self, Panel};
 use crate::status_table::{self, Live, Row};
 use crate::trace::Trace;
@@ -129,7 +130,20 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     let (tx, rx, pdu_loop) = PDU_STORAGE
         .try_split()
         .map_err(|_| DemoError::Bus("the EtherCAT demo runs once per process".into()))?;
-    let bus = EmbeddedBus::start(tx, rx, chain);
+    let capture = match &args.pcap {
+        Some(path) => {
+            let file = std::fs::File::create(path).map_err(|source| DemoError::Io {
+                path: path.display().to_string(),
+                source,
+            })?;
+            Some(
+                PcapWriter::new(std::io::BufWriter::new(file))
+                    .map_err(|e| DemoError::Bus(e.to_string()))?,
+            )
+        }
+        None => None,
+    };
+    let bus = EmbeddedBus::start_with_capture(tx, rx, chain, capture);
     let chain = bus.chain.clone();
     let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
     let dt = args.cycle_s;

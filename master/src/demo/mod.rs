@@ -37,6 +37,8 @@ pub struct DemoArgs {
     pub speed: f64,
     /// Cycle time (s).
     pub cycle_s: f64,
+    /// Write every EtherCAT frame here (the `--bus ethercat` demo).
+    pub pcap: Option<PathBuf>,
 }
 
 impl Default for DemoArgs {
@@ -45,6 +47,7 @@ impl Default for DemoArgs {
             out: PathBuf::from("out/demo"),
             speed: 4.0,
             cycle_s: 0.001,
+            pcap: None,
         }
     }
 }
@@ -571,6 +574,7 @@ mod tests {
             out: dir.clone(),
             speed: 0.0,
             cycle_s: 0.001,
+            pcap: None,
         };
         let mut log = Vec::new();
         let report = run(&args, &mut log).unwrap();

@@ -10,6 +10,8 @@ use std::time::Duration;
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
 
+use crate::pcap::PcapWriter;
+
 struct Unpark(Thread);
 
 impl Wake for Unpark {
@@ -30,7 +32,18 @@ pub struct EmbeddedBus {
 
 impl EmbeddedBus {
     /// Starts the exchange thread.
-    pub fn start(mut tx: PduTx<'static>, mut rx: PduRx<'static>, chain: SlaveChain) -> Self {
+    pub fn start(tx: PduTx<'static>, rx: PduRx<'static>, chain: SlaveChain) -> Self {
+        Self::start_with_capture(tx, rx, chain, None)
+    }
+
+    /// Starts the exchange thread, writing every frame sent and every reply to `capture`.
+    pub fn start_with_capture(
+        mut tx: PduTx<'static>,
+        mut rx: PduRx<'static>,
+        chain: SlaveChain,
+        mut capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
+    ) -> Self {
+        let started = std::time::Instant::now();
         let chain = Arc::new(Mutex::new(chain));
         let stop = Arc::new(AtomicBool::new(false));
         let (stop_io, chain_io) = (stop.clone(), chain.clone());
@@ -49,11 +62,18 @@ impl EmbeddedBus {
                     if ok.is_err() {
                         continue;
                     }
+                    let t = started.elapsed().as_micros() as u64;
+                    if let Some(c) = capture.as_mut() {
+                        let _ = c.frame(t, &wire);
+                    }
                     let processed = chain_io
                         .lock()
                         .map(|mut c| c.process(&mut wire).is_ok())
                         .unwrap_or(false);
                     if processed {
+                        if let Some(c) = capture.as_mut() {
+                            let _ = c.frame(t, &wire);
+                        }
                         let _ = rx.receive_frame(&wire);
                         frames += 1;
                     }
@@ -62,6 +82,9 @@ impl EmbeddedBus {
                 if !sent {
                     std::thread::park_timeout(Duration::from_millis(1));
                 }
+            }
+            if let Some(c) = capture {
+                let _ = c.finish();
             }
             frames
         });
