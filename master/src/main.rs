@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::cli::profile::{self, Request};
+use gantry::cli::scan;
 use gantry::demo::{self, DemoArgs};
 
 /// gantry: a Linux motion master for CiA-402 drives.
@@ -33,6 +34,18 @@ enum Cmd {
         /// With `--bus ethercat`: write every frame sent and received to this pcap file.
         #[arg(long)]
         pcap: Option<PathBuf>,
+    },
+    /// List the EtherCAT slaves on a network interface (needs CAP_NET_RAW).
+    Scan {
+        /// Network interface wired to the slaves.
+        #[arg(long)]
+        interface: String,
+        /// Print JSON (one array) instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Write every frame sent and received to this pcap file.
+        #[arg(long)]
+        pcap: Option<String>,
     },
     /// Print the planned profile of one move as JSON.
     Profile {
@@ -107,6 +120,20 @@ fn main() -> anyhow::Result<()> {
                 report.csv.display(),
                 report.svg.display()
             )?;
+        }
+        Cmd::Scan {
+            interface,
+            json,
+            pcap,
+        } => {
+            let rows = scan::scan(&interface, pcap.as_deref())?;
+            let mut stdout = std::io::stdout();
+            if json {
+                serde_json::to_writer_pretty(&mut stdout, &rows)?;
+                writeln!(stdout)?;
+            } else {
+                scan::print_table(&rows, &mut stdout)?;
+            }
         }
         Cmd::Profile {
             from_pos,

@@ -15,8 +15,11 @@
     )
 )]
 
+pub mod catalog;
 pub mod chain;
 pub mod coe;
+pub mod config;
 pub mod esc;
 pub mod plant;
 pub mod slave;
+pub mod transport;

@@ -1,3 +1,4 @@
 //! The `gantry` subcommands.
 
 pub mod profile;
+pub mod scan;

@@ -10,19 +10,15 @@ use std::time::Duration;
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
-use gantry_kernel::axis::AxisFeedback;
 use gantry_kernel::mechanics::{Scaling, ScalingConfig};
 use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
+use gantry_sim::catalog::{self, ServoOptions};
 use gantry_sim::chain::SlaveChain;
-use gantry_sim::coe::od::ObjectDictionary;
-use gantry_sim::esc::sii::{DeviceDescription, SmDescription};
-use gantry_sim::plant::servo::ServoDrive;
-use gantry_sim::plant::DeviceModel;
-use gantry_sim::slave::Slave;
 
 use super::{DemoArgs, DemoError, DemoReport};
-use crate::ethercat::cyclic::{encode_outputs, CspChannel, CspInputs};
+use crate::ethercat::cycle::CspCycle;
+use crate::ethercat::cyclic::CspChannel;
 use crate::ethercat::embedded::EmbeddedBus;
 use crate::pcap::PcapWriter;
 use crate::plot::{self, Panel};
@@ -31,56 +27,6 @@ use crate::trace::Trace;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
-
-const OUTPUTS_AT: u16 = 0x1100;
-const INPUTS_AT: u16 = 0x1400;
-
-fn servo(serial: u32) -> DeviceDescription {
-    DeviceDescription {
-        vendor_id: 0x0A5A,
-        product_code: 0x0402,
-        revision: 1,
-        serial,
-        order_code: "SIM-SERVO".into(),
-        name: "gantry simulated CiA-402 servo".into(),
-        mailbox: Some((0x1000, 128, 0x1080, 128)),
-        mailbox_protocols: 0x0004,
-        sync_managers: vec![
-            SmDescription {
-                start: 0x1000,
-                length: 128,
-                control: 0x26,
-                enable: true,
-                kind: 1,
-            },
-            SmDescription {
-                start: 0x1080,
-                length: 128,
-                control: 0x22,
-                enable: true,
-                kind: 2,
-            },
-            SmDescription {
-                start: OUTPUTS_AT,
-                length: 0,
-                control: 0x64,
-                enable: true,
-                kind: 3,
-            },
-            SmDescription {
-                start: INPUTS_AT,
-                length: 0,
-                control: 0x20,
-                enable: true,
-                kind: 4,
-            },
-        ],
-        fmmus: vec![1, 2, 3],
-        dc: false,
-        tx_pdos: vec![],
-        rx_pdos: vec![],
-    }
-}
 
 /// 5 mm ball screws on 2^17-count motors.
 fn scaling() -> Result<Scaling, DemoError> {
@@ -117,13 +63,12 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     let chain = SlaveChain::new(
         (0..names.len() as u32)
             .map(|i| {
-                Slave::new(servo(i + 1))
-                    .with_coe(ObjectDictionary::cia402_servo(0x0A5A, 0x0402, 1, i + 1))
-                    .with_device(DeviceModel::Servo(ServoDrive::new(
-                        OUTPUTS_AT,
-                        INPUTS_AT,
-                        (i as i32) * 300_000,
-                    )))
+                catalog::servo(ServoOptions {
+                    serial: i + 1,
+                    // Absolute encoders: the drives power up away from zero.
+                    start_counts: (i as i32) * 300_000,
+                    ..ServoOptions::default()
+                })
             })
             .collect(),
     );
@@ -147,8 +92,8 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     let chain = bus.chain.clone();
     let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
     let dt = args.cycle_s;
-    let mut kernel = Kernel::new(dt, names.iter().map(|n| axis(n)).collect())?;
-    let mut channels = vec![CspChannel::new(scaling()?); names.len()];
+    let kernel = Kernel::new(dt, names.iter().map(|n| axis(n)).collect())?;
+    let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(scaling()?); names.len()]);
     let mut trace = Trace::new(
         names
             .iter()
@@ -178,66 +123,66 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             .map_err(|e| DemoError::Bus(format!("to OP: {e}")))?;
         let _ = writeln!(out, ">> all slaves in OP; enabling drives (CiA-402)");
         for (i, name) in names.iter().enumerate() {
-            kernel
+            cycle
+                .kernel
                 .command(i, Command::Power(PowerCommand::Enable))
                 .map_err(|error| step_error("enable", name, error))?;
         }
         let mut phase = 0;
         let mut handles = Vec::new();
-        let mut feedback = vec![AxisFeedback::default(); names.len()];
         let mut max_following = [0.0f64; 2];
-        for cycle in 0..60_000u64 {
-            for (i, fb) in feedback.iter_mut().enumerate() {
+        for n in 0..60_000u64 {
+            for i in 0..names.len() {
                 let sd = group
                     .subdevice(&maindevice, i)
                     .map_err(|e| DemoError::Bus(format!("{e}")))?;
-                let inputs = CspInputs::decode(&sd.inputs_raw())
-                    .ok_or_else(|| DemoError::Bus("short inputs".into()))?;
-                *fb = channels[i].feedback(&inputs);
+                cycle
+                    .read_inputs(i, &sd.inputs_raw())
+                    .map_err(|e| DemoError::Bus(e.to_string()))?;
             }
-            let sps = kernel.step(&feedback).to_vec();
+            cycle.step();
             let mut sample = Vec::with_capacity(4);
-            for (i, sp) in sps.iter().enumerate() {
+            for (i, following) in max_following.iter_mut().enumerate() {
                 let sd = group
                     .subdevice(&maindevice, i)
                     .map_err(|e| DemoError::Bus(format!("{e}")))?;
-                let inputs = CspInputs::decode(&sd.inputs_raw())
-                    .ok_or_else(|| DemoError::Bus("short inputs".into()))?;
-                let (cw, target) = channels[i].outputs(sp, &inputs);
-                encode_outputs(sd.io_raw_mut().outputs(), cw, target);
-                let status = kernel.axis_status(i).copied().unwrap_or_default();
+                cycle
+                    .write_outputs(i, sd.io_raw_mut().outputs())
+                    .map_err(|e| DemoError::Bus(e.to_string()))?;
+                let status = cycle.kernel.axis_status(i).copied().unwrap_or_default();
                 sample.push(status.set.p);
                 sample.push(status.actual_position);
                 if phase >= 2 {
-                    max_following[i] =
-                        max_following[i].max((status.set.p - status.actual_position).abs());
+                    *following = following.max((status.set.p - status.actual_position).abs());
                 }
             }
-            trace.push(kernel.time(), &sample)?;
+            trace.push(cycle.kernel.time(), &sample)?;
             group
                 .tx_rx(&maindevice)
                 .await
-                .map_err(|e| DemoError::Bus(format!("cycle {cycle}: {e}")))?;
+                .map_err(|e| DemoError::Bus(format!("cycle {n}: {e}")))?;
             if let Ok(mut c) = chain.lock() {
                 c.tick(dt);
             }
             // The script: enable, home, move, come back.
             let enabled = (0..names.len()).all(|i| {
-                kernel
+                cycle
+                    .kernel
                     .axis_status(i)
                     .is_some_and(|s| s.state == gantry_kernel::axis::state::AxisState::Standstill)
             });
             if phase == 0 && enabled {
                 let _ = writeln!(
                     out,
-                    ">> drives enabled after {cycle} cycles; homing by SetPosition 0"
+                    ">> drives enabled after {n} cycles; homing by SetPosition 0"
                 );
                 for (i, name) in names.iter().enumerate() {
                     let home = Command::SetPosition {
                         position: 0.0,
                         relative: false,
                     };
-                    kernel
+                    cycle
+                        .kernel
                         .command(i, home)
                         .map_err(|error| step_error("home", name, error))?;
                 }
@@ -255,7 +200,8 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                     (1, 0.0, BufferMode::Buffered),
                 ];
                 for (axis, to, buffer) in moves {
-                    let h = kernel
+                    let h = cycle
+                        .kernel
                         .command(
                             axis,
                             Command::MovePtp(
@@ -266,18 +212,22 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                     handles.push(h);
                 }
                 phase = 2;
-            } else if phase == 2 && handles.iter().all(|h| kernel.command_status(*h).is_final()) {
+            } else if phase == 2
+                && handles
+                    .iter()
+                    .all(|h| cycle.kernel.command_status(*h).is_final())
+            {
                 phase = 3;
-                let _ = writeln!(out, ">> moves done after {cycle} cycles");
+                let _ = writeln!(out, ">> moves done after {n} cycles");
             } else if phase == 3 {
                 break;
             }
-            if cycle % 250 == 0 {
+            if n % 250 == 0 {
                 let rows: Vec<Row> = names
                     .iter()
                     .enumerate()
                     .map(|(i, n)| {
-                        let status = kernel.axis_status(i).copied().unwrap_or_default();
+                        let status = cycle.kernel.axis_status(i).copied().unwrap_or_default();
                         Row {
                             axis: (*n).into(),
                             status,
@@ -287,7 +237,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                     })
                     .collect();
                 let _ = out.write_all(
-                    live.frame(&status_table::render(kernel.time(), &rows))
+                    live.frame(&status_table::render(cycle.kernel.time(), &rows))
                         .as_bytes(),
                 );
                 if args.speed > 0.0 {
@@ -297,7 +247,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         }
         for h in &handles {
             if let gantry_kernel::axis::handle::CommandStatus::Error(error) =
-                kernel.command_status(*h)
+                cycle.kernel.command_status(*h)
             {
                 return Err(step_error("move", "x/y", error));
             }
@@ -339,8 +289,8 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     Ok(DemoReport {
         csv,
         svg,
-        simulated_s: kernel.time(),
-        cycles: kernel.tick(),
+        simulated_s: cycle.kernel.time(),
+        cycles: cycle.kernel.tick(),
     })
 }
 

@@ -20,7 +20,7 @@ pub const OUTPUT_BYTES: usize = 6;
 pub const INPUT_BYTES: usize = 6;
 
 /// Decoded inputs of a CSP drive.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CspInputs {
     /// Statusword.
     pub statusword: Statusword,

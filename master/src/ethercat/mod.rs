@@ -2,5 +2,8 @@
 //! this process) and the cyclic exchange that joins the kernel, the CiA-402 layer and the
 //! process data.
 
+pub mod cycle;
 pub mod cyclic;
 pub mod embedded;
+pub mod pump;
+pub mod raw;

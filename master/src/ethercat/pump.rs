@@ -1,0 +1,212 @@
+//! The frame pump: one thread that takes the frames ethercrab queues (`PduTx`), puts them
+//! on a link, and hands the replies back (`PduRx`). The link is a simulated chain in this
+//! process or a raw socket on an interface; the pump is the same, so both paths capture
+//! to pcap the same way. We run our own pump rather than ethercrab's `tx_rx_task` to get
+//! that capture and a plain blocking thread whose priority we set.
+
+use std::collections::VecDeque;
+use std::io;
+use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::task::{Wake, Waker};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use ethercrab::{PduRx, PduTx};
+use gantry_sim::chain::SlaveChain;
+use gantry_sim::transport::raw_socket::RawSocket;
+use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+use nix::sys::eventfd::{EfdFlags, EventFd};
+
+use crate::pcap::PcapWriter;
+
+/// Where the pump's frames go.
+pub enum Link {
+    /// A simulated chain in this process: each frame passes it at once.
+    Embedded {
+        /// The chain (lock it to inspect or change slaves between exchanges).
+        chain: Arc<Mutex<SlaveChain>>,
+        /// Replies waiting to be handed back.
+        replies: VecDeque<Vec<u8>>,
+    },
+    /// A raw socket on a network interface.
+    Raw(RawSocket),
+}
+
+impl Link {
+    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
+        match self {
+            Link::Embedded { chain, replies } => {
+                let mut wire = frame.to_vec();
+                let processed = chain
+                    .lock()
+                    .map(|mut c| c.process(&mut wire).is_ok())
+                    .unwrap_or(false);
+                // A frame the chain cannot parse is lost, as on a wire.
+                if processed {
+                    replies.push_back(wire);
+                }
+                Ok(())
+            }
+            Link::Raw(socket) => socket.send(frame),
+        }
+    }
+
+    /// The next reply, if one is waiting (never blocks).
+    fn recv(&mut self, buf: &mut Vec<u8>) -> io::Result<bool> {
+        match self {
+            Link::Embedded { replies, .. } => Ok(replies.pop_front().map(|r| *buf = r).is_some()),
+            Link::Raw(socket) => {
+                buf.resize(RECV_BYTES, 0);
+                match socket.recv(buf, Some(std::time::Duration::ZERO))? {
+                    Some(n) => {
+                        buf.truncate(n);
+                        Ok(true)
+                    }
+                    None => Ok(false),
+                }
+            }
+        }
+    }
+
+    fn fd(&self) -> Option<BorrowedFd<'_>> {
+        match self {
+            Link::Embedded { .. } => None,
+            // SAFETY: the socket outlives the borrow (both live in the pump thread).
+            Link::Raw(socket) => Some(unsafe { BorrowedFd::borrow_raw(socket.as_raw_fd()) }),
+        }
+    }
+}
+
+/// Largest frame we receive (jumbo frames included).
+const RECV_BYTES: usize = 9100;
+
+/// Wakes the pump when ethercrab has queued a frame.
+struct Doorbell(EventFd);
+
+impl Wake for Doorbell {
+    fn wake(self: Arc<Self>) {
+        self.wake_by_ref();
+    }
+    fn wake_by_ref(self: &Arc<Self>) {
+        let _ = self.0.write(1);
+    }
+}
+
+/// What the pump counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PumpStats {
+    /// Frames sent on the link.
+    pub sent: u64,
+    /// Replies handed back to ethercrab.
+    pub received: u64,
+    /// Link errors (send or receive failed).
+    pub errors: u64,
+}
+
+/// A running pump thread.
+pub struct FramePump {
+    stop: Arc<AtomicBool>,
+    doorbell: Arc<Doorbell>,
+    thread: Option<JoinHandle<PumpStats>>,
+}
+
+impl FramePump {
+    /// Starts the pump on `link`, writing every frame sent and received to `capture`.
+    pub fn start(
+        mut tx: PduTx<'static>,
+        mut rx: PduRx<'static>,
+        mut link: Link,
+        mut capture: Option<PcapWriter<io::BufWriter<std::fs::File>>>,
+    ) -> io::Result<Self> {
+        let doorbell = Arc::new(Doorbell(EventFd::from_flags(
+            EfdFlags::EFD_NONBLOCK | EfdFlags::EFD_CLOEXEC,
+        )?));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (stop_io, bell) = (stop.clone(), doorbell.clone());
+        let thread = std::thread::Builder::new()
+            .name("ethercat-pump".into())
+            .spawn(move || {
+                let waker = Waker::from(bell.clone());
+                let started = Instant::now();
+                let mut stats = PumpStats::default();
+                let mut buf = Vec::with_capacity(RECV_BYTES);
+                let record = |capture: &mut Option<PcapWriter<_>>, frame: &[u8]| {
+                    if let Some(c) = capture.as_mut() {
+                        let _ = c.frame(started.elapsed().as_micros() as u64, frame);
+                    }
+                };
+                while !stop_io.load(Ordering::Relaxed) {
+                    tx.replace_waker(&waker);
+                    while let Some(frame) = tx.next_sendable_frame() {
+                        let sent = frame.send_blocking(|bytes| {
+                            record(&mut capture, bytes);
+                            link.send(bytes)
+                                .map(|()| bytes.len())
+                                .map_err(|_| ethercrab::error::Error::SendFrame)
+                        });
+                        match sent {
+                            Ok(_) => stats.sent += 1,
+                            Err(_) => stats.errors += 1,
+                        }
+                    }
+                    loop {
+                        match link.recv(&mut buf) {
+                            Ok(true) => {
+                                record(&mut capture, &buf);
+                                if rx.receive_frame(&buf).is_ok() {
+                                    stats.received += 1;
+                                }
+                            }
+                            Ok(false) => break,
+                            Err(_) => {
+                                stats.errors += 1;
+                                break;
+                            }
+                        }
+                    }
+                    wait(&bell.0, link.fd());
+                }
+                if let Some(c) = capture {
+                    let _ = c.finish();
+                }
+                stats
+            })?;
+        Ok(Self {
+            stop,
+            doorbell,
+            thread: Some(thread),
+        })
+    }
+
+    /// Stops the thread; returns what it counted.
+    pub fn stop(mut self) -> PumpStats {
+        self.stop.store(true, Ordering::Relaxed);
+        self.doorbell.wake_by_ref();
+        self.thread
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for FramePump {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.doorbell.wake_by_ref();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Sleeps until the doorbell rings, the link has a frame, or 1 ms passes.
+fn wait(bell: &EventFd, link: Option<BorrowedFd<'_>>) {
+    let mut fds = [
+        PollFd::new(bell.as_fd(), PollFlags::POLLIN),
+        PollFd::new(link.unwrap_or(bell.as_fd()), PollFlags::POLLIN),
+    ];
+    let _ = poll(&mut fds, PollTimeout::from(1u8));
+    let _ = bell.read();
+}

@@ -1,0 +1,3 @@
+//! How frames reach the simulated chain from outside the process.
+
+pub mod raw_socket;

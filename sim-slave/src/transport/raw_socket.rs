@@ -1,0 +1,188 @@
+//! An `AF_PACKET` raw socket bound to one interface for the EtherCAT EtherType: what the
+//! simulator listens on (one end of a veth pair), and what gantry's master sends on.
+//! Needs `CAP_NET_RAW`, not root.
+
+use std::ffi::CString;
+use std::io;
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::esc::frame::ETHERTYPE;
+
+/// `PACKET_IGNORE_OUTGOING` (Linux ≥ 4.20): do not hand our own frames back to us.
+const PACKET_IGNORE_OUTGOING: libc::c_int = 23;
+
+/// Why the socket could not be opened.
+#[derive(Debug, Error)]
+pub enum RawSocketError {
+    /// No interface of that name.
+    #[error("no network interface named {0:?}")]
+    NoInterface(String),
+    /// The process lacks `CAP_NET_RAW`.
+    #[error(
+        "opening a raw socket on {0} needs CAP_NET_RAW: run as root or grant it \
+         (setcap cap_net_raw,cap_net_admin+ep on the binary)"
+    )]
+    Permission(String),
+    /// Any other failure.
+    #[error("raw socket on {interface}: {what}: {source}")]
+    Io {
+        /// The interface.
+        interface: String,
+        /// The call that failed.
+        what: &'static str,
+        /// Why.
+        source: io::Error,
+    },
+}
+
+/// A raw socket for EtherCAT frames on one interface.
+#[derive(Debug)]
+pub struct RawSocket {
+    fd: OwnedFd,
+}
+
+impl RawSocket {
+    /// Opens and binds the socket on `interface`.
+    pub fn open(interface: &str) -> Result<Self, RawSocketError> {
+        let io = |what| {
+            let source = io::Error::last_os_error();
+            if source.kind() == io::ErrorKind::PermissionDenied {
+                RawSocketError::Permission(interface.into())
+            } else {
+                RawSocketError::Io {
+                    interface: interface.into(),
+                    what,
+                    source,
+                }
+            }
+        };
+        let name =
+            CString::new(interface).map_err(|_| RawSocketError::NoInterface(interface.into()))?;
+        // SAFETY: `name` is a valid NUL-terminated string.
+        let ifindex = unsafe { libc::if_nametoindex(name.as_ptr()) };
+        if ifindex == 0 {
+            return Err(RawSocketError::NoInterface(interface.into()));
+        }
+        let protocol = ETHERTYPE.to_be();
+        // SAFETY: plain syscall; the descriptor is owned right after.
+        let raw = unsafe {
+            libc::socket(
+                libc::AF_PACKET,
+                libc::SOCK_RAW | libc::SOCK_CLOEXEC,
+                libc::c_int::from(protocol),
+            )
+        };
+        if raw < 0 {
+            return Err(io("socket"));
+        }
+        // SAFETY: `raw` is a fresh descriptor nobody else owns.
+        let fd = unsafe { OwnedFd::from_raw_fd(raw) };
+        let address = libc::sockaddr_ll {
+            sll_family: libc::AF_PACKET as u16,
+            sll_protocol: protocol,
+            sll_ifindex: ifindex as i32,
+            sll_hatype: 0,
+            sll_pkttype: 0,
+            sll_halen: 0,
+            sll_addr: [0; 8],
+        };
+        // SAFETY: `address` is a valid sockaddr_ll of the size given.
+        let bound = unsafe {
+            libc::bind(
+                fd.as_raw_fd(),
+                (&address as *const libc::sockaddr_ll).cast(),
+                std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t,
+            )
+        };
+        if bound < 0 {
+            return Err(io("bind"));
+        }
+        let one: libc::c_int = 1;
+        // SAFETY: option value is a c_int of the size given. Old kernels lack the option;
+        // then our own frames come back and are filtered by the caller.
+        unsafe {
+            libc::setsockopt(
+                fd.as_raw_fd(),
+                libc::SOL_PACKET,
+                PACKET_IGNORE_OUTGOING,
+                (&one as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            );
+        }
+        Ok(Self { fd })
+    }
+
+    /// Sends one whole Ethernet frame.
+    pub fn send(&self, frame: &[u8]) -> io::Result<()> {
+        // SAFETY: `frame` is valid for reads of its length.
+        let n = unsafe { libc::send(self.fd.as_raw_fd(), frame.as_ptr().cast(), frame.len(), 0) };
+        match n {
+            n if n < 0 => Err(io::Error::last_os_error()),
+            n if n as usize != frame.len() => Err(io::Error::new(
+                io::ErrorKind::WriteZero,
+                format!("sent {n} of {} bytes", frame.len()),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Waits up to `timeout` (`None`: forever) for a frame and receives it into `buf`;
+    /// `Ok(None)` when none came. A frame longer than `buf` is truncated to it.
+    pub fn recv(&self, buf: &mut [u8], timeout: Option<Duration>) -> io::Result<Option<usize>> {
+        if !self.wait_readable(timeout)? {
+            return Ok(None);
+        }
+        // SAFETY: `buf` is valid for writes of its length.
+        let n = unsafe {
+            libc::recv(
+                self.fd.as_raw_fd(),
+                buf.as_mut_ptr().cast(),
+                buf.len(),
+                libc::MSG_DONTWAIT,
+            )
+        };
+        if n < 0 {
+            let e = io::Error::last_os_error();
+            return match e.kind() {
+                io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted => Ok(None),
+                _ => Err(e),
+            };
+        }
+        Ok(Some(n as usize))
+    }
+
+    fn wait_readable(&self, timeout: Option<Duration>) -> io::Result<bool> {
+        let mut pfd = libc::pollfd {
+            fd: self.fd.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ts = timeout.map(|t| libc::timespec {
+            tv_sec: t.as_secs() as libc::time_t,
+            tv_nsec: t.subsec_nanos() as libc::c_long,
+        });
+        let ts_ptr = ts
+            .as_ref()
+            .map_or(std::ptr::null(), |t| t as *const libc::timespec);
+        // SAFETY: one valid pollfd; ts_ptr is null or points to a live timespec.
+        let n = unsafe { libc::ppoll(&mut pfd, 1, ts_ptr, std::ptr::null()) };
+        if n < 0 {
+            let e = io::Error::last_os_error();
+            return if e.kind() == io::ErrorKind::Interrupted {
+                Ok(false)
+            } else {
+                Err(e)
+            };
+        }
+        Ok(n > 0 && pfd.revents & libc::POLLIN != 0)
+    }
+}
+
+impl AsRawFd for RawSocket {
+    fn as_raw_fd(&self) -> RawFd {
+        self.fd.as_raw_fd()
+    }
+}
