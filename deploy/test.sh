@@ -25,9 +25,11 @@ need_components() {
 }
 
 need_packages() {
-  # Debian packages the tests call: tshark checks our pcap files with Wireshark's dissector.
+  # Debian packages the tests call: tshark checks our pcap files with Wireshark's dissector;
+  # ip (iproute2) makes the network namespaces and veth pairs of the real-time tests.
   local missing=()
   command -v tshark >/dev/null 2>&1 || missing+=(tshark)
+  command -v ip >/dev/null 2>&1 || missing+=(iproute2)
   if [ ${#missing[@]} -gt 0 ]; then
     local sudo=""
     [ "$(id -u)" = 0 ] || sudo="sudo"
@@ -41,5 +43,6 @@ step "toolchain components" need_components
 step "packages" need_packages
 step "fmt" cargo fmt --all -- --check
 step "clippy" cargo clippy --workspace --all-targets --release -- -D warnings
+step "binaries" cargo build --workspace --release --bins
 step "tests" cargo test --workspace --release -- --include-ignored
 step "benches compile" cargo bench --workspace --no-run

@@ -9,5 +9,6 @@ pub mod demo;
 pub mod ethercat;
 pub mod pcap;
 pub mod plot;
+pub mod runtime;
 pub mod status_table;
 pub mod trace;

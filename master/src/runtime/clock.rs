@@ -1,0 +1,76 @@
+//! The cycle clock: absolute deadlines on CLOCK_MONOTONIC, so a late wake-up does not
+//! shift every later cycle (relative sleeps drift by the sum of all latencies).
+
+use nix::sys::time::TimeSpec;
+use nix::time::{clock_gettime, clock_nanosleep, ClockId, ClockNanosleepFlags};
+
+/// Nanoseconds on CLOCK_MONOTONIC.
+pub fn now_ns() -> u64 {
+    clock_gettime(ClockId::CLOCK_MONOTONIC)
+        .map(|t| t.tv_sec() as u64 * 1_000_000_000 + t.tv_nsec() as u64)
+        .unwrap_or(0)
+}
+
+/// Deadlines every `period_ns` from a start time.
+#[derive(Clone, Copy, Debug)]
+pub struct CycleClock {
+    period_ns: u64,
+    next_ns: u64,
+}
+
+/// What one wait for the next deadline saw.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Wake {
+    /// The deadline.
+    pub deadline_ns: u64,
+    /// How late the thread woke (0 if the deadline had already passed before sleeping:
+    /// that is an overrun, not latency).
+    pub latency_ns: u64,
+    /// The previous cycle's work ran past this deadline.
+    pub overrun: bool,
+}
+
+impl CycleClock {
+    /// The first deadline is one period from now.
+    pub fn start(period_ns: u64) -> Self {
+        Self {
+            period_ns,
+            next_ns: now_ns() + period_ns,
+        }
+    }
+
+    /// Sleeps until the next deadline. After an overrun the missed deadlines are skipped
+    /// (the cycle keeps its phase) rather than run back to back.
+    pub fn wait(&mut self) -> Wake {
+        let deadline_ns = self.next_ns;
+        let before = now_ns();
+        let overrun = before > deadline_ns;
+        if !overrun {
+            let ts = TimeSpec::new(
+                (deadline_ns / 1_000_000_000) as i64,
+                (deadline_ns % 1_000_000_000) as i64,
+            );
+            // EINTR: we wake early and measure it as such; the next wait corrects.
+            let _ = clock_nanosleep(
+                ClockId::CLOCK_MONOTONIC,
+                ClockNanosleepFlags::TIMER_ABSTIME,
+                &ts,
+            );
+        }
+        let woke = now_ns();
+        self.next_ns += self.period_ns;
+        if woke >= self.next_ns {
+            let missed = (woke - self.next_ns) / self.period_ns + 1;
+            self.next_ns += missed * self.period_ns;
+        }
+        Wake {
+            deadline_ns,
+            latency_ns: if overrun {
+                0
+            } else {
+                woke.saturating_sub(deadline_ns)
+            },
+            overrun,
+        }
+    }
+}

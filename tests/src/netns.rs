@@ -1,0 +1,107 @@
+//! A veth pair whose two ends live in two fresh network namespaces, for the tests that
+//! run master and simulator as separate processes over a real (virtual) wire. Needs
+//! root (or CAP_NET_ADMIN + CAP_SYS_ADMIN); removed again on drop.
+
+use std::process::Command;
+
+/// Two namespaces joined by a veth pair.
+pub struct VethPair {
+    /// Namespace of the master end.
+    pub master_ns: String,
+    /// Namespace of the simulator end.
+    pub sim_ns: String,
+    /// Interface name of the master end (inside `master_ns`).
+    pub master_if: String,
+    /// Interface name of the simulator end (inside `sim_ns`).
+    pub sim_if: String,
+}
+
+fn ip(args: &[&str]) -> Result<(), String> {
+    let out = Command::new("ip")
+        .args(args)
+        .output()
+        .map_err(|e| format!("ip {}: {e} (is iproute2 installed?)", args.join(" ")))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "ip {}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ))
+    }
+}
+
+impl VethPair {
+    /// Creates the namespaces and the pair; names carry `tag` and the process ID so
+    /// parallel runs do not collide.
+    pub fn create(tag: &str) -> Result<Self, String> {
+        let id = std::process::id();
+        let pair = Self {
+            master_ns: format!("gm-{tag}-{id}"),
+            sim_ns: format!("gs-{tag}-{id}"),
+            master_if: "ecat-m".into(),
+            sim_if: "ecat-s".into(),
+        };
+        for ns in [&pair.master_ns, &pair.sim_ns] {
+            ip(&["netns", "add", ns])?;
+        }
+        ip(&[
+            "-n",
+            &pair.master_ns,
+            "link",
+            "add",
+            &pair.master_if,
+            "type",
+            "veth",
+            "peer",
+            "name",
+            &pair.sim_if,
+            "netns",
+            &pair.sim_ns,
+        ])?;
+        for (ns, link) in [
+            (&pair.master_ns, &pair.master_if),
+            (&pair.sim_ns, &pair.sim_if),
+        ] {
+            ip(&["-n", ns, "link", "set", link, "up"])?;
+        }
+        Ok(pair)
+    }
+
+    /// Moves the calling thread into the master's namespace (sockets it opens afterwards
+    /// live there; other threads are not affected).
+    pub fn enter_master_ns(&self) -> Result<(), String> {
+        let path = format!("/run/netns/{}", self.master_ns);
+        let file = std::fs::File::open(&path).map_err(|e| format!("{path}: {e}"))?;
+        nix::sched::setns(file, nix::sched::CloneFlags::CLONE_NEWNET)
+            .map_err(|e| format!("setns {path}: {e}"))
+    }
+}
+
+impl Drop for VethPair {
+    fn drop(&mut self) {
+        // Deleting a namespace deletes the veth end in it, and with it the peer.
+        for ns in [&self.master_ns, &self.sim_ns] {
+            let _ = ip(&["netns", "del", ns]);
+        }
+    }
+}
+
+/// The `gantry-sim` binary built beside the running test (target/<profile>/gantry-sim).
+pub fn gantry_sim_binary() -> Result<std::path::PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    let dir = exe
+        .parent()
+        .and_then(|deps| deps.parent())
+        .ok_or("test binary has no target directory")?;
+    let bin = dir.join("gantry-sim");
+    if bin.exists() {
+        Ok(bin)
+    } else {
+        Err(format!(
+            "{} is missing: build it first (cargo build --release -p gantry-sim; deploy/test.sh does)",
+            bin.display()
+        ))
+    }
+}
