@@ -21,9 +21,9 @@ use gantry_kernel::axis::command::{
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::mechanics::{Scaling, ScalingConfig};
 use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
+use gantry_tests::ball_screw_5mm;
 use gantry_tests::netns::{gantry_sim_binary, VethPair};
 
 const DRIVES: usize = 4;
@@ -61,17 +61,6 @@ fn axis(i: usize) -> AxisConfig {
     c.defaults.jerk = 40_000.0;
     c.defaults.ramp = RampType::SCurve;
     c
-}
-
-fn scaling() -> Scaling {
-    Scaling::new(ScalingConfig {
-        counts_per_motor_rev: 1 << 17,
-        motor_revs: 1,
-        load_revs: 1,
-        units_per_load_rev: 5.0,
-        invert: false,
-    })
-    .unwrap()
 }
 
 #[derive(Debug, Default)]
@@ -126,7 +115,7 @@ fn run_master(pair: &VethPair) -> Result<Report, String> {
             .map_err(|e| format!("to OP: {e}"))?;
         let kernel =
             Kernel::new(1e-3, (0..DRIVES).map(axis).collect()).map_err(|e| e.to_string())?;
-        let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(scaling()); DRIVES]);
+        let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
         for i in 0..DRIVES {
             cycle
                 .kernel

@@ -32,9 +32,10 @@ pub struct Fmmu {
 impl Fmmu {
     /// FMMU `n` as configured in `mem`.
     pub fn read_from(mem: &Memory, n: u16) -> Self {
-        let base = FMMU0 + n * SIZE;
-        let mut b = [0u8; 16];
-        mem.ecat_read(base, &mut b, false);
+        let mut b = [0u8; SIZE as usize];
+        if let Some(regs) = mem.raw(FMMU0 + n * SIZE, SIZE as usize) {
+            b.copy_from_slice(regs);
+        }
         Fmmu {
             logical_start: u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
             length: u16::from_le_bytes([b[4], b[5]]),
@@ -70,20 +71,20 @@ pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
     let len = d.data_len();
     let (mut did_read, mut did_write) = (false, false);
     for n in 0..COUNT {
-        let f = Fmmu::read_from(mem, n);
-        if !f.active {
+        // Most FMMUs are off: look at the activate register before decoding the rest.
+        let active = mem
+            .raw(FMMU0 + n * SIZE + 12, 1)
+            .is_some_and(|a| a.first().is_some_and(|b| b & 0x01 != 0));
+        if !active {
             continue;
         }
+        let f = Fmmu::read_from(mem, n);
         let Some((at, phys, count)) = f.overlap(addr, len) else {
             continue;
         };
         if f.write && matches!(cmd, Command::Lwr | Command::Lrw) {
             if let Some(src) = d.data().get(at..at + count) {
-                let mut tmp = [0u8; 2048];
-                if let Some(t) = tmp.get_mut(..count) {
-                    t.copy_from_slice(src);
-                    did_write |= mem.ecat_write(phys, t);
-                }
+                did_write |= mem.ecat_write(phys, src);
             }
         }
         if f.read && matches!(cmd, Command::Lrd | Command::Lrw) {

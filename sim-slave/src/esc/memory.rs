@@ -3,10 +3,37 @@
 //! [`Memory::ecat_read`]/[`Memory::ecat_write`]; the device application (PDI side) may
 //! write read-only registers such as AL status.
 
+use std::sync::OnceLock;
+
 use super::registers::{self, Access, PROCESS_RAM};
 
 /// Bytes of process RAM (8 KiB, like an ET1100).
 pub const RAM_BYTES: usize = 8 * 1024;
+
+const UNMAPPED: u8 = 0;
+const READ_ONLY: u8 = 1;
+const READ_WRITE: u8 = 2;
+
+/// Access of every register byte below process RAM, from the register table: looked up
+/// per byte on every access, so it is a flat map rather than a search of the table.
+fn access_map() -> &'static [u8] {
+    static MAP: OnceLock<Box<[u8]>> = OnceLock::new();
+    MAP.get_or_init(|| {
+        let mut map = vec![UNMAPPED; PROCESS_RAM as usize].into_boxed_slice();
+        for r in &registers::TABLE {
+            let at = r.address as usize;
+            let access = if r.access == Access::ReadWrite {
+                READ_WRITE
+            } else {
+                READ_ONLY
+            };
+            if let Some(bytes) = map.get_mut(at..at + r.width as usize) {
+                bytes.fill(access);
+            }
+        }
+        map
+    })
+}
 
 /// Registers plus process RAM.
 #[derive(Clone, Debug)]
@@ -37,11 +64,13 @@ impl Memory {
 
     /// Whether every byte of `[address, address + len)` is a register or RAM.
     fn mapped(address: u16, len: usize) -> bool {
-        (0..len).all(|i| {
-            let a = address as usize + i;
-            a >= PROCESS_RAM as usize && a < PROCESS_RAM as usize + RAM_BYTES
-                || u16::try_from(a).ok().and_then(registers::find).is_some()
-        })
+        let (start, end) = (address as usize, address as usize + len);
+        let ram = PROCESS_RAM as usize..PROCESS_RAM as usize + RAM_BYTES;
+        if ram.contains(&start) && end <= ram.end {
+            return true;
+        }
+        let map = access_map();
+        (start..end).all(|a| ram.contains(&a) || map.get(a).is_some_and(|&m| m != UNMAPPED))
     }
 
     /// EtherCAT read into `out` (OR-ed in when `or`); false when nothing there is mapped.
@@ -67,13 +96,18 @@ impl Memory {
         if !Self::mapped(address, data.len()) {
             return false;
         }
+        let at = address as usize;
+        if at >= PROCESS_RAM as usize {
+            // Process RAM: all writable (and `mapped` checked the range).
+            if let Some(dst) = self.bytes.get_mut(at..at + data.len()) {
+                dst.copy_from_slice(data);
+            }
+            return true;
+        }
+        let map = access_map();
         for (i, b) in data.iter().enumerate() {
-            let a = address as usize + i;
-            let writable = a >= PROCESS_RAM as usize
-                || u16::try_from(a)
-                    .ok()
-                    .and_then(registers::find)
-                    .is_some_and(|r| r.access == Access::ReadWrite);
+            let a = at + i;
+            let writable = a >= PROCESS_RAM as usize || map.get(a) == Some(&READ_WRITE);
             if writable {
                 if let Some(dst) = self.bytes.get_mut(a) {
                     *dst = *b;
@@ -89,6 +123,11 @@ impl Memory {
         if let Some(dst) = self.bytes.get_mut(at..at + data.len()) {
             dst.copy_from_slice(data);
         }
+    }
+
+    /// PDI-side read of `len` bytes (the ESC's own logic reading its registers).
+    pub fn raw(&self, address: u16, len: usize) -> Option<&[u8]> {
+        self.bytes.get(address as usize..address as usize + len)
     }
 
     /// Reads a little-endian u16.

@@ -1,0 +1,63 @@
+//! ethercrab driven in one thread, no pump thread: poll the master's future, pass every
+//! frame it queued through the simulated chain, hand the replies back, poll again. Used
+//! where thread hand-offs would blur a measurement (the benchmarks).
+
+use std::future::Future;
+use std::pin::pin;
+use std::task::{Context, Poll, Waker};
+
+use ethercrab::{PduRx, PduTx};
+use gantry_sim::chain::SlaveChain;
+
+/// A master's PDU queues joined to a chain in the calling thread.
+pub struct Lockstep {
+    tx: PduTx<'static>,
+    rx: PduRx<'static>,
+    /// The chain.
+    pub chain: SlaveChain,
+    frame: Vec<u8>,
+    /// The last frame sent, as sent (before the chain processed it).
+    pub last_sent: Vec<u8>,
+}
+
+impl Lockstep {
+    /// Joins ethercrab's queues to `chain`.
+    pub fn new(tx: PduTx<'static>, rx: PduRx<'static>, chain: SlaveChain) -> Self {
+        Self {
+            tx,
+            rx,
+            chain,
+            frame: Vec::with_capacity(1600),
+            last_sent: Vec::with_capacity(1600),
+        }
+    }
+
+    /// Passes every queued frame through the chain and hands the replies back.
+    pub fn pump(&mut self) {
+        while let Some(frame) = self.tx.next_sendable_frame() {
+            let (buf, sent) = (&mut self.frame, &mut self.last_sent);
+            let ok = frame.send_blocking(|bytes| {
+                buf.clear();
+                buf.extend_from_slice(bytes);
+                sent.clear();
+                sent.extend_from_slice(bytes);
+                Ok(bytes.len())
+            });
+            if ok.is_ok() && self.chain.process(&mut self.frame).is_ok() {
+                let _ = self.rx.receive_frame(&self.frame);
+            }
+        }
+    }
+
+    /// Runs `fut` to completion, pumping frames between polls.
+    pub fn block_on<F: Future>(&mut self, fut: F) -> F::Output {
+        let mut fut = pin!(fut);
+        let mut cx = Context::from_waker(Waker::noop());
+        loop {
+            if let Poll::Ready(out) = fut.as_mut().poll(&mut cx) {
+                return out;
+            }
+            self.pump();
+        }
+    }
+}
