@@ -679,3 +679,50 @@ fn a_real_axis_takes_over_where_the_drive_stands_when_it_is_enabled() {
     assert_eq!(k.axis_status(0).unwrap().set.p, 12.5, "no jump on enable");
     assert_eq!(k.step(&fb(12.5, true))[0].position, 12.5);
 }
+
+#[test]
+fn reset_of_a_drive_fault_asks_the_drive_and_waits_for_it() {
+    use gantry_kernel::axis::command::PowerCommand;
+    use gantry_kernel::axis::{AxisFeedback, DRIVE_RESET_TICKS};
+    let mut cfg = linear("x");
+    cfg.kind = AxisKind::Real;
+    let mut k = Kernel::new(DT, vec![cfg]).unwrap();
+    let fb = |on, fault| {
+        [AxisFeedback {
+            position: 1.0,
+            velocity: 0.0,
+            operation_enabled: on,
+            fault,
+        }]
+    };
+    k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
+    k.step(&fb(true, None));
+    k.step(&fb(false, Some(0x8700)));
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
+    // Reset while the drive still has its fault: the set values ask for a fault reset,
+    // and the Reset stays Busy until the drive clears it.
+    let h = k.command(0, Command::Reset).unwrap();
+    assert_eq!(k.command_status(h), CommandStatus::Busy);
+    assert!(k.step(&fb(false, Some(0x8700)))[0].reset_fault);
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
+    let sp = k.step(&fb(false, None))[0];
+    assert_eq!(k.command_status(h), CommandStatus::Done);
+    assert!(!sp.reset_fault && !sp.enable, "no more reset, power off");
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::Disabled);
+    assert_eq!(k.axis_status(0).unwrap().error, None);
+
+    // A drive that keeps its fault: the Reset fails with its code after the timeout.
+    k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
+    k.step(&fb(true, None));
+    k.step(&fb(false, Some(0x2310)));
+    let h = k.command(0, Command::Reset).unwrap();
+    for _ in 0..=DRIVE_RESET_TICKS + 1 {
+        k.step(&fb(false, Some(0x2310)));
+    }
+    assert_eq!(
+        k.command_status(h),
+        CommandStatus::Error(CommandError::DriveResetFailed { code: 0x2310 })
+    );
+    assert!(!k.step(&fb(false, Some(0x2310)))[0].reset_fault);
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
+}

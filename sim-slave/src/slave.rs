@@ -3,12 +3,14 @@
 //! control starts a state change, SII control starts an EEPROM access).
 
 use crate::coe::{self, od::ObjectDictionary};
+use crate::esc::al::AlState;
 use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
 use crate::esc::datagram::Datagram;
-use crate::esc::memory::Memory;
-use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS, SM0};
+use crate::esc::memory::{Memory, RAM_BYTES};
+use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS, PROCESS_RAM, SM0};
 use crate::esc::sii::{self, DeviceDescription, Sii};
+use crate::esc::watchdog::ProcessDataWatchdog;
 use crate::plant::DeviceModel;
 
 /// SyncManager status bit 3: mailbox full.
@@ -33,6 +35,7 @@ pub struct Slave {
     device: DeviceModel,
     /// Object dictionary of the CoE mailbox (slaves without CoE have none).
     od: Option<ObjectDictionary>,
+    watchdog: ProcessDataWatchdog,
 }
 
 impl Slave {
@@ -47,6 +50,7 @@ impl Slave {
             description,
             device: DeviceModel::None,
             od: None,
+            watchdog: ProcessDataWatchdog::default(),
         }
     }
 
@@ -74,6 +78,18 @@ impl Slave {
 
     /// Runs `dt_s` seconds of the application (device models read outputs and write inputs).
     pub fn tick(&mut self, dt_s: f64) {
+        let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
+        if !in_op {
+            self.watchdog.disarm(&mut self.memory);
+        } else if self.watchdog.tick(&mut self.memory, dt_s) {
+            // The master stopped sending: leave Op with the error flagged, and let the
+            // application react (a drive stops its motor and faults).
+            let status = u16::from(AlState::SafeOp.raw()) | al::ERROR_BIT;
+            self.memory.pdi_write(AL_STATUS, &status.to_le_bytes());
+            let code = AlStatusCode::SyncManagerWatchdog.raw();
+            self.memory.pdi_write(AL_STATUS_CODE, &code.to_le_bytes());
+            self.device.on_watchdog();
+        }
         self.device.step(&mut self.memory, dt_s);
     }
 
@@ -122,8 +138,18 @@ impl Slave {
         let ado = d.ado();
         let len = d.data_len();
         let served = command::serve(&mut self.memory, d);
-        let wrote =
-            matches!(served, Served::Written | Served::ReadWritten) && !d.command().is_logical();
+        let written = matches!(served, Served::Written | Served::ReadWritten);
+        // Process data written: a logical write lands in the SyncManager areas the
+        // FMMUs map; a physical one where it says.
+        let (wd_at, wd_len) = if d.command().is_logical() {
+            (PROCESS_RAM, RAM_BYTES)
+        } else {
+            (ado, len)
+        };
+        if written && ProcessDataWatchdog::triggered_by(&self.memory, wd_at, wd_len) {
+            self.watchdog.trigger(&mut self.memory);
+        }
+        let wrote = written && !d.command().is_logical();
         if wrote {
             let touched = |reg: u16, w: usize| {
                 (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize

@@ -47,7 +47,7 @@ impl Axis {
         }
         match *cmd {
             Command::Power(p) => self.power(p, h, handles),
-            Command::Reset => self.reset(),
+            Command::Reset => self.reset(h),
             Command::MovePtp(m) => self.move_ptp(m, h, handles),
             Command::MoveVelocity(v) => self.move_velocity(v, h, handles),
             Command::Reverse => self.reverse(handles),
@@ -152,9 +152,14 @@ impl Axis {
         }
     }
 
-    fn reset(&mut self) -> Result<CommandStatus, CommandError> {
+    fn reset(&mut self, h: HandleId) -> Result<CommandStatus, CommandError> {
         if self.state != AxisState::ErrorStop {
             return Ok(CommandStatus::Done);
+        }
+        if self.drive_fault {
+            // The drive must clear its fault first (fault reset on the bus).
+            self.reset_pending = Some((h, self.last_tick));
+            return Ok(CommandStatus::Busy);
         }
         if self.motion.is_some() {
             // Still braking after the error: reset once it stands.

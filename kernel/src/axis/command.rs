@@ -507,6 +507,12 @@ impl core::fmt::Display for RangeProblem {
 /// Why a command was refused or ended in error. `Copy`, so it can live in the RT status.
 #[derive(Clone, Copy, Debug, Error, PartialEq)]
 pub enum CommandError {
+    /// Reset: the drive kept its fault through the fault reset.
+    #[error("Reset: the drive still reports fault {code:#06x} after the fault reset")]
+    DriveResetFailed {
+        /// The drive's error code.
+        code: u16,
+    },
     /// An operand is out of range.
     #[error("{command}: operand {operand} = {value} {problem} (limit {limit})")]
     OperandOutOfRange {

@@ -276,6 +276,9 @@ pub struct AxisFeedback {
     pub fault: Option<u16>,
 }
 
+/// Cycles a Reset waits for the drive to clear its fault before it reports failure.
+pub const DRIVE_RESET_TICKS: u64 = 1000;
+
 /// Set values of one axis for the drive layer.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AxisSetpoint {
@@ -289,6 +292,8 @@ pub struct AxisSetpoint {
     pub acceleration: f64,
     /// Whether the drive should be enabled.
     pub enable: bool,
+    /// A Reset asks the drive to clear its fault (the drive layer sends the fault reset).
+    pub reset_fault: bool,
 }
 
 /// One axis.
@@ -322,6 +327,10 @@ pub struct Axis {
     release_pending: bool,
     /// Handle of a pending Power.Enable on a real axis (waits for the drive).
     enable_handle: Option<handle::HandleId>,
+    /// A Reset waiting for the drive to clear its fault: handle and the tick it began.
+    reset_pending: Option<(handle::HandleId, u64)>,
+    /// The drive reported a fault in the last feedback.
+    drive_fault: bool,
     /// Axis position minus drive position (SetPosition on a real axis moves no motor).
     position_offset: f64,
     actual_p: f64,
@@ -352,6 +361,8 @@ impl Axis {
             vel_dynamics: cfg.defaults,
             release_pending: false,
             enable_handle: None,
+            reset_pending: None,
+            drive_fault: false,
             position_offset: 0.0,
             actual_p: p0,
             actual_v: 0.0,
@@ -448,6 +459,7 @@ impl Axis {
             velocity: self.status.set.v,
             acceleration: self.status.set.a,
             enable: self.powered,
+            reset_fault: self.reset_pending.is_some(),
         }
     }
 
@@ -462,6 +474,26 @@ impl Axis {
             self.main = KinematicState::at_rest(self.actual_p);
             self.main.v = fb.velocity;
             return;
+        }
+        self.drive_fault = fb.fault.is_some();
+        if let Some((h, since)) = self.reset_pending {
+            if fb.fault.is_none() {
+                // The drive cleared its fault and dropped power: the axis is Disabled
+                // until enabled again.
+                self.reset_pending = None;
+                self.powered = false;
+                self.state = AxisState::Disabled;
+                self.status.error = None;
+                handles.set(h, CommandStatus::Done);
+            } else if self.last_tick.saturating_sub(since) > DRIVE_RESET_TICKS {
+                self.reset_pending = None;
+                handles.set(
+                    h,
+                    CommandStatus::Error(CommandError::DriveResetFailed {
+                        code: fb.fault.unwrap_or(0),
+                    }),
+                );
+            }
         }
         if let Some(code) = fb.fault {
             if self.state != AxisState::ErrorStop {

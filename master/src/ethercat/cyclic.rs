@@ -53,8 +53,6 @@ pub struct CspChannel {
     /// Units ⇄ counts of the axis on this drive.
     pub scaling: Scaling,
     last_cw: Controlword,
-    /// Fault resets are sent only when asked (the axis' Reset).
-    pub reset_requested: bool,
 }
 
 impl CspChannel {
@@ -63,7 +61,6 @@ impl CspChannel {
         Self {
             scaling,
             last_cw: Controlword(0),
-            reset_requested: false,
         }
     }
 
@@ -92,7 +89,8 @@ impl CspChannel {
         } else {
             Target::Disabled
         };
-        let cmd = next_command(state, target, self.reset_requested, self.last_cw);
+        // Fault resets are sent only when the axis asks (its Reset).
+        let cmd = next_command(state, target, sp.reset_fault, self.last_cw);
         self.last_cw = Controlword::of(cmd);
         let position = if state == State::OperationEnabled && sp.enable {
             i32::try_from(self.scaling.units_to_counts(sp.position)).unwrap_or(inputs.position)

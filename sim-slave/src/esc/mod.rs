@@ -10,3 +10,4 @@ pub mod frame;
 pub mod memory;
 pub mod registers;
 pub mod sii;
+pub mod watchdog;

@@ -78,6 +78,10 @@ pub const WATCHDOG_DIVIDER: u16 = 0x0400;
 pub const WATCHDOG_TIME_PDI: u16 = 0x0410;
 /// 0x0420 Watchdog time process data.
 pub const WATCHDOG_TIME_PD: u16 = 0x0420;
+/// 0x0440 Watchdog status process data (bit 0: 1 = running or off, 0 = expired).
+pub const WATCHDOG_STATUS_PD: u16 = 0x0440;
+/// 0x0442 Watchdog counter process data (expirations; cleared by a write).
+pub const WATCHDOG_COUNTER_PD: u16 = 0x0442;
 /// 0x0500 SII EEPROM configuration/control/address/data block.
 pub const SII: u16 = 0x0500;
 /// 0x0600 FMMU 0 (16 bytes each).
@@ -90,7 +94,7 @@ pub const DC: u16 = 0x0900;
 pub const PROCESS_RAM: u16 = 0x1000;
 
 /// The register table (ET1100-like ESC with 8 FMMUs and 8 SyncManagers).
-pub const TABLE: [Register; 24] = [
+pub const TABLE: [Register; 26] = [
     reg(TYPE, 1, R, 0x11, "Type"),
     reg(REVISION, 1, R, 0x00, "Revision"),
     reg(BUILD, 2, R, 0x0001, "Build"),
@@ -117,6 +121,20 @@ pub const TABLE: [Register; 24] = [
         RW,
         0x03E8,
         "Watchdog time process data",
+    ),
+    reg(
+        WATCHDOG_STATUS_PD,
+        2,
+        R,
+        0x0001,
+        "Watchdog status process data",
+    ),
+    reg(
+        WATCHDOG_COUNTER_PD,
+        1,
+        RW,
+        0,
+        "Watchdog counter process data",
     ),
     reg(SII, 16, RW, 0, "SII EEPROM interface"),
     reg(FMMU0, 8 * 16, RW, 0, "FMMUs"),

@@ -16,6 +16,14 @@ pub enum DeviceModel {
 }
 
 impl DeviceModel {
+    /// The process-data watchdog expired: the master is gone.
+    pub fn on_watchdog(&mut self) {
+        match self {
+            DeviceModel::None => {}
+            DeviceModel::Servo(s) => s.on_watchdog(),
+        }
+    }
+
     /// Runs `dt_s` seconds of the application against the slave's memory.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
         match self {

@@ -16,6 +16,10 @@ pub const OUTPUT_BYTES: usize = 6;
 /// Bytes of the input process data.
 pub const INPUT_BYTES: usize = 6;
 
+/// Error code (0x603F) of a fault by process-data watchdog: CiA 301 0x8700 "sync
+/// controller" family, which EtherCAT drives use for a lost SyncManager watchdog.
+pub const ERROR_SYNC_WATCHDOG: u16 = 0x8700;
+
 /// A servo drive model.
 #[derive(Clone, Debug)]
 pub struct ServoDrive {
@@ -26,6 +30,7 @@ pub struct ServoDrive {
     /// Position loop bandwidth (Hz): the load follows the set position as a first-order lag.
     pub bandwidth_hz: f64,
     state: DeviceStateMachine,
+    error_code: u16,
     /// Load position (counts, fractional).
     position: f64,
 }
@@ -38,6 +43,7 @@ impl ServoDrive {
             inputs_at,
             bandwidth_hz: 200.0,
             state: DeviceStateMachine::ready(),
+            error_code: 0,
             position: f64::from(start_counts),
         }
     }
@@ -52,13 +58,36 @@ impl ServoDrive {
         self.position
     }
 
+    /// The master stopped sending process data: a drive with power on faults (fault
+    /// reaction: it stops on its own; this model's load stops where it is).
+    pub fn on_watchdog(&mut self) {
+        if matches!(
+            self.state.state(),
+            State::OperationEnabled | State::SwitchedOn | State::QuickStopActive
+        ) {
+            self.state.fault();
+            self.error_code = ERROR_SYNC_WATCHDOG;
+        }
+    }
+
+    /// Last fault's error code (0x603F), 0 when none.
+    pub fn error_code(&self) -> u16 {
+        self.error_code
+    }
+
     /// One cycle: read outputs, step the state machine and the plant, write inputs.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
         let mut out = [0u8; OUTPUT_BYTES];
         mem.ecat_read(self.outputs_at, &mut out, false);
         let cw = Controlword(u16::from_le_bytes([out[0], out[1]]));
         let target = i32::from_le_bytes([out[2], out[3], out[4], out[5]]);
+        if self.state.state() == State::FaultReactionActive {
+            self.state.fault_reaction_done();
+        }
         self.state.control(cw);
+        if self.state.state() != State::Fault {
+            self.error_code = 0;
+        }
         if self.state.state() == State::OperationEnabled {
             let k = 1.0 - (-2.0 * core::f64::consts::PI * self.bandwidth_hz * dt_s.max(0.0)).exp();
             self.position += (f64::from(target) - self.position) * k;

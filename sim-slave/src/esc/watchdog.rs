@@ -1,0 +1,124 @@
+//! The process-data watchdog (ESC datasheet, registers 0x0400/0x0420/0x0440/0x0442): every
+//! write into a SyncManager whose watchdog trigger is on restarts it; when the master stops
+//! sending, it expires, and the application must leave Op (AL status code 0x001B) and,
+//! for a drive, stop the motor.
+
+use super::memory::Memory;
+use super::registers::{
+    SM0, WATCHDOG_COUNTER_PD, WATCHDOG_DIVIDER, WATCHDOG_STATUS_PD, WATCHDOG_TIME_PD,
+};
+
+/// SyncManager control bit 6: a write to this SyncManager triggers the watchdog.
+const SM_WATCHDOG_TRIGGER: u8 = 0x40;
+/// ESC clock period the divider counts (40 ns, 25 MHz).
+const BASE_TICK_S: f64 = 40e-9;
+
+/// The watchdog's running time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProcessDataWatchdog {
+    since_trigger_s: f64,
+    expired: bool,
+}
+
+impl ProcessDataWatchdog {
+    /// The configured timeout, `None` when off (time 0).
+    pub fn timeout_s(mem: &Memory) -> Option<f64> {
+        let divider = f64::from(mem.read_u16(WATCHDOG_DIVIDER)) + 2.0;
+        let time = mem.read_u16(WATCHDOG_TIME_PD);
+        (time != 0).then(|| divider * BASE_TICK_S * f64::from(time))
+    }
+
+    /// Whether any enabled SyncManager covering `[address, address + len)` triggers it.
+    pub fn triggered_by(mem: &Memory, address: u16, len: usize) -> bool {
+        (0..8u16).any(|n| {
+            let mut sm = [0u8; 8];
+            if let Some(regs) = mem.raw(SM0 + 8 * n, 8) {
+                sm.copy_from_slice(regs);
+            }
+            let (start, length) = (
+                u16::from_le_bytes([sm[0], sm[1]]) as usize,
+                u16::from_le_bytes([sm[2], sm[3]]) as usize,
+            );
+            let (control, enabled) = (sm[4], sm[6] & 0x01 != 0);
+            enabled
+                && control & SM_WATCHDOG_TRIGGER != 0
+                && length > 0
+                && (address as usize) < start + length
+                && address as usize + len > start
+        })
+    }
+
+    /// A triggering write arrived: restart.
+    pub fn trigger(&mut self, mem: &mut Memory) {
+        self.since_trigger_s = 0.0;
+        self.expired = false;
+        mem.pdi_write(WATCHDOG_STATUS_PD, &1u16.to_le_bytes());
+    }
+
+    /// Stops it (the application left Op: nothing to watch).
+    pub fn disarm(&mut self, mem: &mut Memory) {
+        self.trigger(mem);
+    }
+
+    /// Runs `dt_s`; true exactly when it expires now.
+    pub fn tick(&mut self, mem: &mut Memory, dt_s: f64) -> bool {
+        let Some(timeout) = Self::timeout_s(mem) else {
+            return false;
+        };
+        if self.expired {
+            return false;
+        }
+        self.since_trigger_s += dt_s.max(0.0);
+        if self.since_trigger_s < timeout {
+            return false;
+        }
+        self.expired = true;
+        mem.pdi_write(WATCHDOG_STATUS_PD, &0u16.to_le_bytes());
+        let count = mem
+            .raw(WATCHDOG_COUNTER_PD, 1)
+            .and_then(|b| b.first().copied());
+        mem.pdi_write(WATCHDOG_COUNTER_PD, &[count.unwrap_or(0).saturating_add(1)]);
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_timeout_is_100_ms_and_zero_turns_it_off() {
+        let mut mem = Memory::new();
+        let t = ProcessDataWatchdog::timeout_s(&mem).unwrap();
+        assert!((t - 0.1).abs() < 1e-9, "{t}");
+        mem.ecat_write(WATCHDOG_TIME_PD, &[0, 0]);
+        assert_eq!(ProcessDataWatchdog::timeout_s(&mem), None);
+    }
+
+    #[test]
+    fn expires_once_without_triggers_and_counts() {
+        let mut mem = Memory::new();
+        let mut wd = ProcessDataWatchdog::default();
+        wd.trigger(&mut mem);
+        let fired: Vec<bool> = (0..150).map(|_| wd.tick(&mut mem, 0.001)).collect();
+        assert_eq!(fired.iter().filter(|f| **f).count(), 1);
+        assert!(fired[98..101].contains(&true), "expires at 100 ms");
+        assert_eq!(mem.read_u16(WATCHDOG_STATUS_PD) & 1, 0);
+        assert_eq!(mem.raw(WATCHDOG_COUNTER_PD, 1), Some(&[1u8][..]));
+        wd.trigger(&mut mem);
+        assert_eq!(mem.read_u16(WATCHDOG_STATUS_PD) & 1, 1);
+    }
+
+    #[test]
+    fn only_syncmanagers_with_the_trigger_bit_trigger() {
+        let mut mem = Memory::new();
+        // SM2 at 0x1100, 6 bytes, control 0x64 (watchdog trigger), enabled.
+        mem.ecat_write(SM0 + 16, &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
+        // SM3 at 0x1400, 6 bytes, control 0x20 (no trigger), enabled.
+        mem.ecat_write(SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
+        assert!(ProcessDataWatchdog::triggered_by(&mem, 0x1100, 6));
+        assert!(ProcessDataWatchdog::triggered_by(&mem, 0x1105, 1));
+        assert!(!ProcessDataWatchdog::triggered_by(&mem, 0x1106, 4));
+        assert!(!ProcessDataWatchdog::triggered_by(&mem, 0x1400, 6));
+    }
+}
