@@ -6,6 +6,7 @@ use thiserror::Error;
 
 use crate::esc::datagram::{self, DatagramError};
 use crate::esc::frame::{Frame, FrameError};
+use crate::fault::Faults;
 use crate::slave::Slave;
 
 /// Why a frame was not processed (it is then dropped, as a real network would).
@@ -17,12 +18,16 @@ pub enum ChainError {
     /// A datagram is malformed.
     #[error("malformed datagram: {0}")]
     Datagram(#[from] DatagramError),
+    /// An injected fault lost the frame.
+    #[error("frame lost (injected fault)")]
+    Lost,
 }
 
 /// A line of slaves.
 #[derive(Clone, Debug, Default)]
 pub struct SlaveChain {
     slaves: Vec<Slave>,
+    faults: Faults,
 }
 
 impl SlaveChain {
@@ -33,7 +38,31 @@ impl SlaveChain {
         for (i, s) in slaves.iter_mut().enumerate() {
             s.set_ports([true, i + 1 < n, false, false]);
         }
-        Self { slaves }
+        Self {
+            slaves,
+            faults: Faults::default(),
+        }
+    }
+
+    /// Loses the next `n` frames (no reply at all, as with a broken cable or CRC error).
+    pub fn drop_frames(&mut self, n: u32) {
+        self.faults.drop_frames = n;
+    }
+
+    /// Pulls the cable in front of slave `k`: it and the slaves after it stop answering;
+    /// slave `k - 1` closes its port 1. `None` plugs it back in (the slaves kept their
+    /// configuration, as they kept their power).
+    pub fn cut_before(&mut self, k: Option<usize>) {
+        self.faults.cut_before = k;
+        let reachable = self.faults.reachable(self.slaves.len());
+        for (i, s) in self.slaves.iter_mut().enumerate() {
+            s.set_ports([i < reachable, i + 1 < reachable, false, false]);
+        }
+    }
+
+    /// The faults in force.
+    pub fn faults(&self) -> Faults {
+        self.faults
     }
 
     /// The slaves.
@@ -58,13 +87,21 @@ impl SlaveChain {
         // Check the whole frame before any slave touches it: a frame that is malformed
         // half-way must not be half processed.
         datagram::validate(Frame::new_checked(&*frame)?.payload())?;
+        if self.faults.lose_frame() {
+            return Err(ChainError::Lost);
+        }
+        let reachable = self.faults.reachable(self.slaves.len());
+        if reachable == 0 && self.faults.cut_before.is_some() {
+            // The cable at the master is pulled: nothing comes back.
+            return Err(ChainError::Lost);
+        }
         let mut f = Frame::new_unchecked(&mut *frame);
-        for slave in &mut self.slaves {
+        for slave in self.slaves.iter_mut().take(reachable) {
             datagram::for_each_mut(f.payload_mut(), |mut d| {
                 slave.serve(&mut d);
             })?;
         }
-        if !self.slaves.is_empty() {
+        if reachable > 0 {
             f.mark_forwarded();
         }
         Ok(())
@@ -196,5 +233,33 @@ mod tests {
         assert_eq!(f, before);
         let mut junk = vec![0u8; 5];
         assert!(matches!(c.process(&mut junk), Err(ChainError::Frame(_))));
+    }
+
+    #[test]
+    fn injected_faults_lose_frames_and_cut_the_line() {
+        use crate::esc::registers::DL_STATUS;
+        let mut c = chain(3);
+        c.drop_frames(2);
+        for _ in 0..2 {
+            let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+            assert_eq!(c.process(&mut f), Err(ChainError::Lost));
+        }
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 3, "the third frame passes again");
+        // Cable pulled in front of slave 1: only slave 0 answers, and closes port 1.
+        c.cut_before(Some(1));
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 1);
+        assert_eq!(c.slaves()[0].memory().read_u16(DL_STATUS) & 0x0F30, 0x0610);
+        c.cut_before(None);
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 3, "plugged back in");
+        // The cable at the master pulled: nothing comes back.
+        c.cut_before(Some(0));
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        assert_eq!(c.process(&mut f), Err(ChainError::Lost));
     }
 }

@@ -20,6 +20,7 @@ pub mod chain;
 pub mod coe;
 pub mod config;
 pub mod esc;
+pub mod fault;
 pub mod plant;
 pub mod slave;
 pub mod transport;

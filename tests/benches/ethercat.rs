@@ -14,10 +14,9 @@ use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_sim::catalog::{self, ServoOptions};
-use gantry_sim::chain::SlaveChain;
 use gantry_tests::ball_screw_5mm;
 use gantry_tests::lockstep::Lockstep;
+use gantry_tests::servo_chain;
 
 const DRIVES: usize = 16;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
@@ -46,16 +45,7 @@ fn kernel() -> Kernel {
 /// 16 servos in OP, enabled and moving (long moves, so they stay in motion).
 fn setup() -> Bench {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
-    let chain = SlaveChain::new(
-        (0..DRIVES as u32)
-            .map(|i| {
-                catalog::servo(ServoOptions {
-                    serial: i + 1,
-                    ..ServoOptions::default()
-                })
-            })
-            .collect(),
-    );
+    let chain = servo_chain(DRIVES as u32);
     let mut net = Lockstep::new(tx, rx, chain);
     let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
     let group = net

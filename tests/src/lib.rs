@@ -19,3 +19,18 @@ pub fn ball_screw_5mm() -> Scaling {
     })
     .expect("a valid scaling")
 }
+
+/// A chain of `n` catalog servos with serial numbers 1…n.
+pub fn servo_chain(n: u32) -> gantry_sim::chain::SlaveChain {
+    use gantry_sim::catalog::{self, ServoOptions};
+    gantry_sim::chain::SlaveChain::new(
+        (1..=n)
+            .map(|serial| {
+                catalog::servo(ServoOptions {
+                    serial,
+                    ..ServoOptions::default()
+                })
+            })
+            .collect(),
+    )
+}

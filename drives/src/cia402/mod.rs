@@ -1,6 +1,7 @@
 //! CiA 402 (IEC 61800-7-201) device profile for drives and motion control.
 
 pub mod controlword;
+pub mod error_code;
 pub mod mode;
 pub mod objects;
 pub mod state;

@@ -232,7 +232,10 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                             axis: (*n).into(),
                             status,
                             command: String::new(),
-                            error: status.error.map(|e| e.to_string()).unwrap_or_default(),
+                            error: status
+                                .error
+                                .map(|e| gantry_drives::cia402::error_code::describe_fault(&e))
+                                .unwrap_or_default(),
                         }
                     })
                     .collect();

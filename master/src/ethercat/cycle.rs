@@ -7,6 +7,7 @@ use gantry_kernel::Kernel;
 use thiserror::Error;
 
 use super::cyclic::{encode_outputs, CspChannel, CspInputs, INPUT_BYTES, OUTPUT_BYTES};
+use super::health::COMMUNICATION_FAULT;
 
 /// A drive's process data does not fit the CSP layout.
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
@@ -89,6 +90,15 @@ impl CspCycle {
         );
         *inputs = decoded;
         *feedback = channel.feedback(&decoded);
+        Ok(())
+    }
+
+    /// Drive `i` cannot be reached this cycle (see `health`): its axis gets a
+    /// communication fault at its last known position instead of stale inputs.
+    pub fn comm_fault(&mut self, i: usize) -> Result<(), CycleError> {
+        let feedback = self.feedback.get_mut(i).ok_or(CycleError::NoDrive(i))?;
+        feedback.operation_enabled = false;
+        feedback.fault = Some(COMMUNICATION_FAULT);
         Ok(())
     }
 
