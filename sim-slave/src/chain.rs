@@ -262,4 +262,33 @@ mod tests {
         let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
         assert_eq!(c.process(&mut f), Err(ChainError::Lost));
     }
+
+    #[test]
+    fn safeop_is_refused_when_the_syncmanagers_do_not_match_the_mapping() {
+        use crate::catalog::{self, ServoOptions};
+        use crate::esc::registers::SM0;
+        let mut c = SlaveChain::new(vec![catalog::servo(ServoOptions::default())]);
+        let send = |c: &mut SlaveChain, ado: u16, data: &[u8]| {
+            let mut f = frame(Command::Apwr, 0, ado, data);
+            c.process(&mut f).unwrap();
+        };
+        send(&mut c, AL_CONTROL, &[2, 0]);
+        // SM2 one byte short of the mapped 6 output bytes; SM3 right.
+        send(&mut c, SM0 + 16, &[0x00, 0x11, 5, 0, 0x64, 0, 1, 0]);
+        send(&mut c, SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
+        send(&mut c, AL_CONTROL, &[4, 0]);
+        assert_eq!(c.slaves()[0].al_status(), 0x12);
+        assert_eq!(c.slaves()[0].al_status_code().raw(), 0x001D);
+        send(&mut c, SM0 + 16, &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
+        send(&mut c, SM0 + 24, &[0x00, 0x14, 4, 0, 0x20, 0, 1, 0]);
+        send(&mut c, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(
+            c.slaves()[0].al_status_code().raw(),
+            0x001E,
+            "now the inputs"
+        );
+        send(&mut c, SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
+        send(&mut c, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(c.slaves()[0].al_status(), 0x04, "SafeOp");
+    }
 }

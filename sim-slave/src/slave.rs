@@ -2,7 +2,7 @@
 //! pass through it, plus the side effects a real ESC has when a register is written (AL
 //! control starts a state change, SII control starts an EEPROM access).
 
-use crate::coe::{self, od::ObjectDictionary};
+use crate::coe::{self, od::ObjectDictionary, pdo};
 use crate::esc::al::AlState;
 use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
@@ -218,8 +218,38 @@ impl Slave {
         let control = self.memory.read_u16(AL_CONTROL);
         let status = self.memory.read_u16(AL_STATUS);
         let code = AlStatusCode::from_raw(self.memory.read_u16(AL_STATUS_CODE));
-        // Device checks of SyncManager/PDO configuration come with the SyncManager model.
-        let out = al::on_control(status, code, control, false, |_, _| Ok(()));
+        // PreOp → SafeOp: the process data the master set up must be what the mapped
+        // PDOs say (SM2 outputs, SM3 inputs), as a real device checks.
+        let layout = self
+            .od
+            .as_ref()
+            .and_then(|od| od.pdo_rules().map(|rules| pdo::layout(od, rules)));
+        let (sm2, sm3) = (self.sync_manager(2), self.sync_manager(3));
+        let out = al::on_control(status, code, control, false, |from, to| {
+            match (&layout, from, to) {
+                (Some(layout), AlState::PreOp, AlState::SafeOp) => {
+                    let layout = layout
+                        .as_ref()
+                        .map_err(|_| AlStatusCode::InvalidOutputConfig)?;
+                    if usize::from(sm2.1) != layout.output_bytes() || !sm2.2 {
+                        return Err(AlStatusCode::InvalidOutputConfig);
+                    }
+                    if usize::from(sm3.1) != layout.input_bytes() || !sm3.2 {
+                        return Err(AlStatusCode::InvalidInputConfig);
+                    }
+                    Ok(())
+                }
+                _ => Ok(()),
+            }
+        });
+        let before = AlState::from_bits(status);
+        let after = AlState::from_bits(out.status);
+        if let (AlState::PreOp, AlState::SafeOp, Some(Ok(layout))) = (before, after, layout) {
+            self.device.configure_pdo(layout);
+        }
+        if let Some(od) = self.od.as_mut() {
+            od.set_pre_op(after == AlState::PreOp);
+        }
         self.memory.pdi_write(AL_STATUS, &out.status.to_le_bytes());
         self.memory
             .pdi_write(AL_STATUS_CODE, &out.code.raw().to_le_bytes());

@@ -4,6 +4,7 @@ pub mod controlword;
 pub mod error_code;
 pub mod mode;
 pub mod objects;
+pub mod pdo;
 pub mod state;
 pub mod statusword;
 

@@ -20,10 +20,12 @@ use super::{DemoArgs, DemoError, DemoReport};
 use crate::ethercat::cycle::CspCycle;
 use crate::ethercat::cyclic::CspChannel;
 use crate::ethercat::embedded::EmbeddedBus;
+use crate::ethercat::mapping::map_pdos;
 use crate::pcap::PcapWriter;
 use crate::plot::{self, Panel};
 use crate::status_table::{self, Live, Row};
 use crate::trace::Trace;
+use gantry_drives::cia402::pdo::PdoLayout;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
@@ -93,7 +95,11 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
     let dt = args.cycle_s;
     let kernel = Kernel::new(dt, names.iter().map(|n| axis(n)).collect())?;
-    let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(scaling()?); names.len()]);
+    // The process data every drive is mapped to in PreOp (by SDO, from this layout).
+    let layout = PdoLayout::csp();
+    let channel =
+        CspChannel::with_layout(scaling()?, &layout).map_err(|e| DemoError::Bus(e.to_string()))?;
+    let mut cycle = CspCycle::new(kernel, vec![channel; names.len()]);
     let mut trace = Trace::new(
         names
             .iter()
@@ -117,6 +123,17 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                 sd.identity()
             );
         }
+        for sd in group.iter(&maindevice) {
+            map_pdos(&sd, &layout)
+                .await
+                .map_err(|e| DemoError::Bus(e.to_string()))?;
+        }
+        let _ = writeln!(
+            out,
+            ">> PDOs mapped by SDO: outputs {} B (controlword, target position, mode), inputs {} B (statusword, position, velocity, torque, error code, mode display)",
+            layout.output_bytes(),
+            layout.input_bytes()
+        );
         let group = group
             .into_op(&maindevice)
             .await

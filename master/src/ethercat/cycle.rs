@@ -6,27 +6,31 @@ use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
 use gantry_kernel::Kernel;
 use thiserror::Error;
 
-use super::cyclic::{encode_outputs, CspChannel, CspInputs, INPUT_BYTES, OUTPUT_BYTES};
+use super::cyclic::{encode_outputs, CspChannel, CspInputs};
 use super::health::COMMUNICATION_FAULT;
 
 /// A drive's process data does not fit the CSP layout.
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
 pub enum CycleError {
     /// Fewer input bytes than the layout needs.
-    #[error("drive {drive}: {got} input bytes, CSP needs {INPUT_BYTES}")]
+    #[error("drive {drive}: {got} input bytes, its PDO layout has {need}")]
     ShortInputs {
         /// Drive index.
         drive: usize,
         /// Bytes present.
         got: usize,
+        /// Bytes the layout has.
+        need: usize,
     },
     /// Fewer output bytes than the layout needs.
-    #[error("drive {drive}: {got} output bytes, CSP needs {OUTPUT_BYTES}")]
+    #[error("drive {drive}: {got} output bytes, its PDO layout has {need}")]
     ShortOutputs {
         /// Drive index.
         drive: usize,
         /// Bytes present.
         got: usize,
+        /// Bytes the layout has.
+        need: usize,
     },
     /// No such drive.
     #[error("drive {0} is not in the cycle")]
@@ -79,12 +83,13 @@ impl CspCycle {
 
     /// Takes drive `i`'s inputs from the process image.
     pub fn read_inputs(&mut self, i: usize, bytes: &[u8]) -> Result<(), CycleError> {
-        let decoded = CspInputs::decode(bytes).ok_or(CycleError::ShortInputs {
+        let channel = self.channels.get(i).ok_or(CycleError::NoDrive(i))?;
+        let decoded = channel.decode(bytes).ok_or(CycleError::ShortInputs {
             drive: i,
             got: bytes.len(),
+            need: channel.offsets.input_bytes,
         })?;
-        let (channel, inputs, feedback) = (
-            self.channels.get(i).ok_or(CycleError::NoDrive(i))?,
+        let (inputs, feedback) = (
             self.inputs.get_mut(i).ok_or(CycleError::NoDrive(i))?,
             self.feedback.get_mut(i).ok_or(CycleError::NoDrive(i))?,
         );
@@ -112,10 +117,17 @@ impl CspCycle {
 
     /// Writes drive `i`'s outputs into the process image.
     pub fn write_outputs(&mut self, i: usize, bytes: &mut [u8]) -> Result<(), CycleError> {
-        if bytes.len() < OUTPUT_BYTES {
+        let need = self
+            .channels
+            .get(i)
+            .ok_or(CycleError::NoDrive(i))?
+            .offsets
+            .output_bytes;
+        if bytes.len() < need {
             return Err(CycleError::ShortOutputs {
                 drive: i,
                 got: bytes.len(),
+                need,
             });
         }
         let (channel, sp, inputs) = (
@@ -124,7 +136,7 @@ impl CspCycle {
             self.inputs.get(i).ok_or(CycleError::NoDrive(i))?,
         );
         let (cw, target) = channel.outputs(sp, inputs);
-        encode_outputs(bytes, cw, target);
+        encode_outputs(&channel.offsets, bytes, cw, target);
         Ok(())
     }
 }

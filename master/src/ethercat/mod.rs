@@ -6,6 +6,7 @@ pub mod cycle;
 pub mod cyclic;
 pub mod embedded;
 pub mod health;
+pub mod mapping;
 pub mod pump;
 pub mod raw;
 pub mod recovery;

@@ -4,6 +4,7 @@
 //! abort, so masters fall back to sub-index access.
 
 pub mod od;
+pub mod pdo;
 
 use od::{ObjectDictionary, OdError};
 
@@ -30,6 +31,12 @@ pub mod abort {
     pub const LENGTH: u32 = 0x0607_0010;
     /// Sub-index does not exist.
     pub const NO_SUB_INDEX: u32 = 0x0609_0011;
+    /// Object cannot be mapped to the PDO.
+    pub const NOT_MAPPABLE: u32 = 0x0604_0041;
+    /// The number and length of the objects to be mapped would exceed the PDO length.
+    pub const PDO_TOO_LONG: u32 = 0x0604_0042;
+    /// Data cannot be transferred or stored because of the present device state.
+    pub const DEVICE_STATE: u32 = 0x0800_0022;
 }
 
 fn abort_code(e: OdError) -> u32 {
@@ -38,6 +45,9 @@ fn abort_code(e: OdError) -> u32 {
         OdError::NoSubIndex => abort::NO_SUB_INDEX,
         OdError::ReadOnly => abort::READ_ONLY,
         OdError::LengthMismatch => abort::LENGTH,
+        OdError::WrongState => abort::DEVICE_STATE,
+        OdError::NotMappable => abort::NOT_MAPPABLE,
+        OdError::PdoTooLong => abort::PDO_TOO_LONG,
     }
 }
 

@@ -1,6 +1,34 @@
 //! An object dictionary (CiA 301 §7.4): entries addressed by index and sub-index, with a
 //! writability flag. The simulator's dictionaries are small, built once at start.
 
+use gantry_drives::cia402::objects;
+use gantry_drives::cia402::pdo::PdoLayout;
+
+use super::pdo::{self, PdoRules};
+
+/// What the simulated servo lets the master map (and understands in its process data).
+pub fn servo_pdo_rules() -> PdoRules {
+    PdoRules {
+        outputs: vec![
+            objects::CONTROLWORD,
+            objects::TARGET_POSITION,
+            objects::TARGET_VELOCITY,
+            objects::TARGET_TORQUE,
+            objects::MODES_OF_OPERATION,
+        ],
+        inputs: vec![
+            objects::STATUSWORD,
+            objects::POSITION_ACTUAL_VALUE,
+            objects::VELOCITY_ACTUAL_VALUE,
+            objects::TORQUE_ACTUAL_VALUE,
+            objects::ERROR_CODE,
+            objects::MODES_OF_OPERATION_DISPLAY,
+            objects::FOLLOWING_ERROR_ACTUAL_VALUE,
+        ],
+        max_entries: 8,
+    }
+}
+
 /// One entry.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Entry {
@@ -18,6 +46,10 @@ pub struct Entry {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ObjectDictionary {
     entries: Vec<Entry>,
+    /// The device's PDO rules; `None`: PDO objects are plain entries.
+    pdo_rules: Option<PdoRules>,
+    /// The device is in PreOp (PDO objects may change).
+    pre_op: bool,
 }
 
 /// Why an access failed (maps to SDO abort codes).
@@ -31,6 +63,13 @@ pub enum OdError {
     ReadOnly,
     /// The written length does not match the entry (abort 0x06070010).
     LengthMismatch,
+    /// Not allowed in the device's present state (abort 0x08000022): PDO objects
+    /// outside PreOp, mapping entries while the mapping is enabled.
+    WrongState,
+    /// The object cannot be mapped into this PDO (abort 0x06040041).
+    NotMappable,
+    /// More entries than the PDO holds (abort 0x06040042).
+    PdoTooLong,
 }
 
 impl ObjectDictionary {
@@ -67,8 +106,31 @@ impl ObjectDictionary {
         }
     }
 
+    /// Turns on the PDO rules for the mapping and assignment objects.
+    pub fn set_pdo_rules(&mut self, rules: PdoRules) {
+        self.pdo_rules = Some(rules);
+    }
+
+    /// The PDO rules, if any.
+    pub fn pdo_rules(&self) -> Option<&PdoRules> {
+        self.pdo_rules.as_ref()
+    }
+
+    /// Tells the dictionary whether the device is in PreOp.
+    pub fn set_pre_op(&mut self, pre_op: bool) {
+        self.pre_op = pre_op;
+    }
+
     /// Writes an entry (same length as it has).
     pub fn write(&mut self, index: u16, sub: u8, value: &[u8]) -> Result<(), OdError> {
+        if let (Some(rules), true) = (&self.pdo_rules, pdo::is_pdo_object(index)) {
+            // Existence and length first, then the PDO rules.
+            let e = self.read(index, sub)?;
+            if e.len() != value.len() {
+                return Err(OdError::LengthMismatch);
+            }
+            pdo::check(self, rules, self.pre_op, index, sub, value)?;
+        }
         let exists = self.entries.iter().any(|e| e.index == index);
         let e = self
             .entries
@@ -99,18 +161,25 @@ impl ObjectDictionary {
         for (sub, v) in [(1u8, vendor), (2, product), (3, revision), (4, serial)] {
             od.insert(0x1018, sub, &v.to_le_bytes(), false);
         }
-        od.insert(0x1C12, 0, &[1], true);
-        od.insert(0x1C12, 1, &0x1600u16.to_le_bytes(), true);
-        od.insert(0x1C13, 0, &[1], true);
-        od.insert(0x1C13, 1, &0x1A00u16.to_le_bytes(), true);
-        od.insert(0x1600, 0, &[2], true);
-        od.insert(0x1600, 1, &0x6040_0010u32.to_le_bytes(), true);
-        od.insert(0x1600, 2, &0x607A_0020u32.to_le_bytes(), true);
-        od.insert(0x1A00, 0, &[2], true);
-        od.insert(0x1A00, 1, &0x6041_0010u32.to_le_bytes(), true);
-        od.insert(0x1A00, 2, &0x6064_0020u32.to_le_bytes(), true);
+        let rules = servo_pdo_rules();
+        pdo::install(&mut od, &rules, &PdoLayout::csp_minimal());
+        od.set_pdo_rules(rules);
         od.insert(0x6060, 0, &[8], true);
         od.insert(0x6061, 0, &[8], false);
+        for o in [
+            objects::CONTROLWORD,
+            objects::TARGET_POSITION,
+            objects::TARGET_VELOCITY,
+            objects::TARGET_TORQUE,
+            objects::STATUSWORD,
+            objects::POSITION_ACTUAL_VALUE,
+            objects::VELOCITY_ACTUAL_VALUE,
+            objects::TORQUE_ACTUAL_VALUE,
+            objects::ERROR_CODE,
+            objects::FOLLOWING_ERROR_ACTUAL_VALUE,
+        ] {
+            od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
+        }
         od
     }
 }

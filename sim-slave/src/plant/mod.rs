@@ -16,6 +16,14 @@ pub enum DeviceModel {
 }
 
 impl DeviceModel {
+    /// The master mapped this process data layout (PreOp → SafeOp).
+    pub fn configure_pdo(&mut self, layout: gantry_drives::cia402::pdo::PdoLayout) {
+        match self {
+            DeviceModel::None => {}
+            DeviceModel::Servo(s) => s.configure(layout),
+        }
+    }
+
     /// The process-data watchdog expired: the master is gone.
     pub fn on_watchdog(&mut self) {
         match self {

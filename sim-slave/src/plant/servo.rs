@@ -3,22 +3,25 @@
 //! motor + load that follows the commanded position with a finite bandwidth, so the master
 //! sees a following error.
 //!
-//! Process data (fixed mapping for now; mapping through CoE comes with the mailbox):
-//! outputs `0x6040 controlword: u16, 0x607A target position: i32`;
+//! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
+//! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
 //! inputs `0x6041 statusword: u16, 0x6064 position actual value: i32`.
 
+use gantry_drives::cia402::objects::{self, ObjectId};
+use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
 
 use crate::esc::memory::Memory;
 
-/// Bytes of the output process data.
-pub const OUTPUT_BYTES: usize = 6;
-/// Bytes of the input process data.
-pub const INPUT_BYTES: usize = 6;
+/// Most process data bytes per direction the model handles.
+const MAX_PDO_BYTES: usize = 64;
 
 /// Error code (0x603F) of a fault by process-data watchdog: CiA 301 0x8700 "sync
 /// controller" family, which EtherCAT drives use for a lost SyncManager watchdog.
 pub const ERROR_SYNC_WATCHDOG: u16 = 0x8700;
+
+/// Modes of operation value of cyclic synchronous position.
+const CSP: i8 = 8;
 
 /// A servo drive model.
 #[derive(Clone, Debug)]
@@ -33,6 +36,12 @@ pub struct ServoDrive {
     error_code: u16,
     /// Load position (counts, fractional).
     position: f64,
+    /// Load velocity (counts/s) of the last step.
+    velocity: f64,
+    /// Last target position received.
+    target: i32,
+    mode: i8,
+    layout: PdoLayout,
 }
 
 impl ServoDrive {
@@ -45,7 +54,21 @@ impl ServoDrive {
             state: DeviceStateMachine::ready(),
             error_code: 0,
             position: f64::from(start_counts),
+            velocity: 0.0,
+            target: start_counts,
+            mode: CSP,
+            layout: PdoLayout::csp_minimal(),
         }
+    }
+
+    /// Uses the layout the master mapped (at PreOp → SafeOp).
+    pub fn configure(&mut self, layout: PdoLayout) {
+        self.layout = layout;
+    }
+
+    /// The process data layout in use.
+    pub fn layout(&self) -> &PdoLayout {
+        &self.layout
     }
 
     /// Power state.
@@ -77,10 +100,23 @@ impl ServoDrive {
 
     /// One cycle: read outputs, step the state machine and the plant, write inputs.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
-        let mut out = [0u8; OUTPUT_BYTES];
-        mem.ecat_read(self.outputs_at, &mut out, false);
-        let cw = Controlword(u16::from_le_bytes([out[0], out[1]]));
-        let target = i32::from_le_bytes([out[2], out[3], out[4], out[5]]);
+        let mut out = [0u8; MAX_PDO_BYTES];
+        let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
+        if let Some(o) = out.get_mut(..n_out) {
+            mem.ecat_read(self.outputs_at, o, false);
+        }
+        let mut cw = Controlword(0);
+        let mut at = 0;
+        for o in &self.layout.outputs {
+            let v = field(&out, at, o.kind.size());
+            match o.index {
+                0x6040 => cw = Controlword(v as u16),
+                0x607A => self.target = v as i32,
+                0x6060 => self.mode = v as i8,
+                _ => {}
+            }
+            at += o.kind.size();
+        }
         if self.state.state() == State::FaultReactionActive {
             self.state.fault_reaction_done();
         }
@@ -88,19 +124,60 @@ impl ServoDrive {
         if self.state.state() != State::Fault {
             self.error_code = 0;
         }
+        let before = self.position;
         if self.state.state() == State::OperationEnabled {
             let k = 1.0 - (-2.0 * core::f64::consts::PI * self.bandwidth_hz * dt_s.max(0.0)).exp();
-            self.position += (f64::from(target) - self.position) * k;
+            self.position += (f64::from(self.target) - self.position) * k;
         }
-        let actual = self
-            .position
-            .round()
-            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
-        let sw = self.state.statusword().0 | gantry_drives::cia402::statusword::REMOTE;
-        let mut inp = [0u8; INPUT_BYTES];
-        inp[0..2].copy_from_slice(&sw.to_le_bytes());
-        inp[2..6].copy_from_slice(&actual.to_le_bytes());
-        mem.pdi_write(self.inputs_at, &inp);
+        self.velocity = if dt_s > 0.0 {
+            (self.position - before) / dt_s
+        } else {
+            0.0
+        };
+        let mut inp = [0u8; MAX_PDO_BYTES];
+        let mut at = 0;
+        for o in &self.layout.inputs {
+            let v = self.input_value(o);
+            put(&mut inp, at, o.kind.size(), v);
+            at += o.kind.size();
+        }
+        if let Some(i) = inp.get(..at.min(MAX_PDO_BYTES)) {
+            mem.pdi_write(self.inputs_at, i);
+        }
+    }
+
+    fn input_value(&self, o: &ObjectId) -> i64 {
+        let counts = |x: f64| x.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i64;
+        match *o {
+            objects::STATUSWORD => {
+                i64::from(self.state.statusword().0 | gantry_drives::cia402::statusword::REMOTE)
+            }
+            objects::POSITION_ACTUAL_VALUE => counts(self.position),
+            objects::VELOCITY_ACTUAL_VALUE => counts(self.velocity),
+            // Torque follows acceleration; the model has no load inertia, so report 0.
+            objects::TORQUE_ACTUAL_VALUE => 0,
+            objects::ERROR_CODE => i64::from(self.error_code),
+            objects::MODES_OF_OPERATION_DISPLAY => i64::from(self.mode),
+            objects::FOLLOWING_ERROR_ACTUAL_VALUE => counts(f64::from(self.target) - self.position),
+            _ => 0,
+        }
+    }
+}
+
+/// A little-endian field of `size` bytes at `at`, sign-extended.
+fn field(buf: &[u8], at: usize, size: usize) -> i64 {
+    let mut b = [0u8; 8];
+    if let (Some(dst), Some(src)) = (b.get_mut(..size), buf.get(at..at + size)) {
+        dst.copy_from_slice(src);
+    }
+    let shift = 64 - 8 * size.clamp(1, 8) as u32;
+    (i64::from_le_bytes(b) << shift) >> shift
+}
+
+/// Writes the low `size` bytes of `v` at `at`.
+fn put(buf: &mut [u8], at: usize, size: usize, v: i64) {
+    if let (Some(dst), Some(src)) = (buf.get_mut(at..at + size), v.to_le_bytes().get(..size)) {
+        dst.copy_from_slice(src);
     }
 }
 
