@@ -71,7 +71,7 @@ fn the_master_maps_pdos_in_preop_and_the_drives_exchange_them() {
             .command(i, Command::Power(PowerCommand::Enable))
             .unwrap();
     }
-    let mut cycle = |net: &mut Lockstep, c: &mut CspCycle| {
+    let cycle = |net: &mut Lockstep, c: &mut CspCycle| {
         for i in 0..2 {
             let sd = group.subdevice(&md, i).unwrap();
             c.read_inputs(i, &sd.inputs_raw()).unwrap();
