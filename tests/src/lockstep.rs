@@ -18,6 +18,8 @@ pub struct Lockstep {
     frame: Vec<u8>,
     /// The last frame sent, as sent (before the chain processed it).
     pub last_sent: Vec<u8>,
+    /// Applied to every reply before the master sees it (to garble frames in tests).
+    pub mangle: Option<Box<dyn FnMut(&mut Vec<u8>)>>,
 }
 
 impl Lockstep {
@@ -29,6 +31,7 @@ impl Lockstep {
             chain,
             frame: Vec::with_capacity(1600),
             last_sent: Vec::with_capacity(1600),
+            mangle: None,
         }
     }
 
@@ -44,6 +47,9 @@ impl Lockstep {
                 Ok(bytes.len())
             });
             if ok.is_ok() && self.chain.process(&mut self.frame).is_ok() {
+                if let Some(mangle) = self.mangle.as_mut() {
+                    mangle(&mut self.frame);
+                }
                 let _ = self.rx.receive_frame(&self.frame);
             }
         }
