@@ -9,6 +9,9 @@ use std::task::{Context, Poll, Waker};
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
 
+/// Rewrites a reply frame in place.
+pub type Mangler = Box<dyn FnMut(&mut Vec<u8>)>;
+
 /// A master's PDU queues joined to a chain in the calling thread.
 pub struct Lockstep {
     tx: PduTx<'static>,
@@ -19,7 +22,7 @@ pub struct Lockstep {
     /// The last frame sent, as sent (before the chain processed it).
     pub last_sent: Vec<u8>,
     /// Applied to every reply before the master sees it (to garble frames in tests).
-    pub mangle: Option<Box<dyn FnMut(&mut Vec<u8>)>>,
+    pub mangle: Option<Mangler>,
 }
 
 impl Lockstep {
