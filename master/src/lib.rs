@@ -5,6 +5,7 @@
 #![deny(missing_docs)]
 
 pub mod cli;
+pub mod config;
 pub mod demo;
 pub mod ethercat;
 pub mod pcap;

@@ -1,0 +1,228 @@
+//! `[[axis]]`: one axis — which drive, its mechanics and units, its limits and defaults.
+
+use gantry_drives::cia402::pdo::PdoLayout;
+use gantry_kernel::mechanics::{Direction, Mechanics, Modulo, MotionKind, Scaling, ScalingConfig};
+use gantry_kernel::profile::{Limits, RampType};
+use gantry_kernel::{AxisConfig, AxisKind};
+use serde::Deserialize;
+
+/// `[[axis]]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AxisSection {
+    /// Name used by commands (`gantry move x …`).
+    pub name: String,
+    /// Position of its drive in the chain (0 = next to the master).
+    pub drive: usize,
+    /// `"linear"` or `"rotary"`.
+    #[serde(default = "linear")]
+    pub kind: String,
+    /// Unit label for displays (`"mm"`, `"deg"`).
+    #[serde(default = "mm")]
+    pub units: String,
+    /// Modulo period (rotary axes that wrap, e.g. 360).
+    #[serde(default)]
+    pub modulo: Option<f64>,
+    /// `"both"`, `"positive"` or `"negative"`.
+    #[serde(default = "both")]
+    pub direction: String,
+    /// `[min, max]` in units, active once homed.
+    #[serde(default)]
+    pub software_limits: Option<[f64; 2]>,
+    /// Units ⇄ encoder counts.
+    pub scaling: ScalingSection,
+    /// What the axis may ever be commanded.
+    pub max: MaxSection,
+    /// Dynamics of commands that leave them out (default: the maxima).
+    #[serde(default)]
+    pub defaults: DefaultsSection,
+    /// Deceleration of a quick stop (default: max.deceleration).
+    #[serde(default)]
+    pub quick_stop_deceleration: Option<f64>,
+    /// Absolute moves need a homed axis.
+    #[serde(default = "yes")]
+    pub homing_required: bool,
+    /// Process data layout the drive is mapped to: `"csp"` (with velocity, torque, error
+    /// code) or `"csp-minimal"` (controlword/target, statusword/actual).
+    #[serde(default = "csp")]
+    pub pdo: String,
+}
+
+fn linear() -> String {
+    "linear".into()
+}
+fn mm() -> String {
+    "mm".into()
+}
+fn both() -> String {
+    "both".into()
+}
+fn csp() -> String {
+    "csp".into()
+}
+fn yes() -> bool {
+    true
+}
+
+/// `[axis.scaling]`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ScalingSection {
+    /// Encoder counts per motor revolution.
+    pub counts_per_motor_rev: u32,
+    /// Gear: motor revolutions …
+    #[serde(default = "one")]
+    pub motor_revs: u32,
+    /// … per load revolutions.
+    #[serde(default = "one")]
+    pub load_revs: u32,
+    /// Units per load revolution (5 for a 5 mm ball screw, 360 for degrees).
+    pub units_per_load_rev: f64,
+    /// The motor turns the other way round.
+    #[serde(default)]
+    pub invert: bool,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// `[axis.max]`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MaxSection {
+    /// Units/s.
+    pub speed: f64,
+    /// Units/s².
+    pub acceleration: f64,
+    /// Units/s² (default: acceleration).
+    #[serde(default)]
+    pub deceleration: Option<f64>,
+    /// Units/s³.
+    pub jerk: f64,
+}
+
+/// `[axis.defaults]`.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DefaultsSection {
+    /// Units/s.
+    pub speed: Option<f64>,
+    /// Units/s².
+    pub acceleration: Option<f64>,
+    /// Units/s².
+    pub deceleration: Option<f64>,
+    /// Units/s³.
+    pub jerk: Option<f64>,
+    /// `"scurve"`, `"trapezoid"`, `"sine"`, `"linear-sine"`.
+    pub ramp: Option<String>,
+    /// In-position window (units).
+    pub target_window: Option<f64>,
+}
+
+impl AxisSection {
+    /// The scaling (checked).
+    pub fn scaling(&self) -> Result<Scaling, (String, String)> {
+        let s = self.scaling;
+        Scaling::new(ScalingConfig {
+            counts_per_motor_rev: s.counts_per_motor_rev,
+            motor_revs: s.motor_revs,
+            load_revs: s.load_revs,
+            units_per_load_rev: s.units_per_load_rev,
+            invert: s.invert,
+        })
+        .map_err(|e| ("scaling".into(), e.to_string()))
+    }
+
+    /// The PDO layout named by `pdo`.
+    pub fn pdo_layout(&self) -> Result<PdoLayout, (String, String)> {
+        match self.pdo.as_str() {
+            "csp" => Ok(PdoLayout::csp()),
+            "csp-minimal" => Ok(PdoLayout::csp_minimal()),
+            other => Err((
+                "pdo".into(),
+                format!("{other:?} is not a layout (\"csp\", \"csp-minimal\")"),
+            )),
+        }
+    }
+
+    /// The kernel's configuration of this axis (checked by the kernel's own rules).
+    pub fn kernel_config(&self) -> Result<AxisConfig, (String, String)> {
+        self.scaling()?;
+        self.pdo_layout()?;
+        let mut c = AxisConfig::new(&self.name, AxisKind::Real);
+        let kind = match self.kind.as_str() {
+            "linear" => MotionKind::Linear,
+            "rotary" => MotionKind::Rotary,
+            other => {
+                return Err((
+                    "kind".into(),
+                    format!("{other:?} is not \"linear\" or \"rotary\""),
+                ))
+            }
+        };
+        let direction = match self.direction.as_str() {
+            "both" => Direction::Both,
+            "positive" => Direction::PositiveOnly,
+            "negative" => Direction::NegativeOnly,
+            other => {
+                return Err((
+                    "direction".into(),
+                    format!("{other:?} is not \"both\", \"positive\" or \"negative\""),
+                ))
+            }
+        };
+        let modulo = self
+            .modulo
+            .map(Modulo::try_new)
+            .transpose()
+            .map_err(|e| ("modulo".to_string(), e.to_string()))?;
+        c.mechanics = Mechanics {
+            kind,
+            modulo,
+            direction,
+            software_limits: self.software_limits.map(|[a, b]| (a, b)),
+        };
+        c.max = Limits {
+            vmax: self.max.speed,
+            amax: self.max.acceleration,
+            dmax: self.max.deceleration.unwrap_or(self.max.acceleration),
+            jmax: self.max.jerk,
+        };
+        let d = &self.defaults;
+        c.defaults.speed = d.speed.unwrap_or(c.max.vmax);
+        c.defaults.acceleration = d.acceleration.unwrap_or(c.max.amax);
+        c.defaults.deceleration = d.deceleration.unwrap_or(c.max.dmax);
+        c.defaults.jerk = d.jerk.unwrap_or(c.max.jmax);
+        if let Some(ramp) = &d.ramp {
+            c.defaults.ramp = RampType::from_name(ramp).ok_or_else(|| {
+                (
+                    "defaults.ramp".to_string(),
+                    format!("{ramp:?} is not scurve, trapezoid, sine or linear-sine"),
+                )
+            })?;
+        }
+        if let Some(w) = d.target_window {
+            c.defaults.target_window = w;
+        }
+        c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
+        c.homing_required = self.homing_required;
+        c.validate().map_err(|e| {
+            use gantry_kernel::axis::ConfigError as K;
+            match &e {
+                K::NotPositive { field, .. } | K::AboveMax { field, .. } => {
+                    (field.to_string(), kernel_reason(&e))
+                }
+                _ => ("mechanics".into(), kernel_reason(&e)),
+            }
+        })?;
+        Ok(c)
+    }
+}
+
+/// The kernel's message without its "axis NAME: " prefix (the key says which axis).
+fn kernel_reason(e: &gantry_kernel::axis::ConfigError) -> String {
+    let text = e.to_string();
+    text.split_once(": ")
+        .map_or(text.clone(), |(_, rest)| rest.to_string())
+}

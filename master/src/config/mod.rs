@@ -1,0 +1,109 @@
+//! The configuration file: one TOML file with the bus, the cycle, the real-time settings
+//! and the axes. Every mistake stops start-up with the file, the line, the key and the
+//! reason (`gantry.toml:14: axis[1].max.speed: must be a finite number > 0`).
+//!
+//! See `deploy/examples/*.toml` for commented examples.
+
+mod axis;
+mod bus;
+mod error;
+
+pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection};
+pub use bus::{BusSection, FaultsSection, RtSection};
+pub use error::ConfigError;
+
+use gantry_kernel::AxisConfig;
+use serde::Deserialize;
+use toml::Spanned;
+
+/// The whole file as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    bus: Spanned<BusSection>,
+    #[serde(default)]
+    rt: RtSection,
+    #[serde(rename = "axis", default)]
+    axes: Vec<Spanned<AxisSection>>,
+}
+
+/// A checked configuration.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// Where it was read from.
+    pub path: String,
+    /// The bus.
+    pub bus: BusSection,
+    /// Real-time settings.
+    pub rt: RtSection,
+    /// The axes, in order.
+    pub axes: Vec<AxisSection>,
+    /// The kernel's view of each axis.
+    pub kernel_axes: Vec<AxisConfig>,
+}
+
+impl Config {
+    /// Reads and checks `path`.
+    pub fn load(path: &str) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
+            path: path.into(),
+            reason: e.to_string(),
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks `text`; `path` names it in errors.
+    pub fn parse(text: &str, path: &str) -> Result<Self, ConfigError> {
+        let file: File =
+            toml::from_str(text).map_err(|e| ConfigError::from_toml(path, text, &e))?;
+        let at = |span: std::ops::Range<usize>, key: String, reason: String| {
+            ConfigError::invalid(path, text, span, key, reason)
+        };
+        let bus_span = file.bus.span();
+        let bus = file.bus.into_inner();
+        bus.check()
+            .map_err(|(key, reason)| at(bus_span.clone(), format!("bus.{key}"), reason))?;
+        file.rt
+            .check()
+            .map_err(|(key, reason)| at(0..0, format!("rt.{key}"), reason))?;
+        if file.axes.is_empty() {
+            return Err(at(0..0, "axis".into(), "no axis is configured".into()));
+        }
+        let mut axes = Vec::with_capacity(file.axes.len());
+        let mut kernel_axes = Vec::with_capacity(file.axes.len());
+        for (i, spanned) in file.axes.into_iter().enumerate() {
+            let span = spanned.span();
+            let a = spanned.into_inner();
+            let key = |k: &str| format!("axis[{i}].{k}");
+            if let Some(other) = axes.iter().position(|b: &AxisSection| b.name == a.name) {
+                return Err(at(
+                    span,
+                    key("name"),
+                    format!("{:?} is also axis[{other}]", a.name),
+                ));
+            }
+            if let Some(other) = axes.iter().position(|b: &AxisSection| b.drive == a.drive) {
+                return Err(at(
+                    span,
+                    key("drive"),
+                    format!("drive {} is also axis[{other}]'s", a.drive),
+                ));
+            }
+            let k = a
+                .kernel_config()
+                .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+            kernel_axes.push(k);
+            axes.push(a);
+        }
+        Ok(Self {
+            path: path.into(),
+            bus,
+            rt: file.rt,
+            axes,
+            kernel_axes,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

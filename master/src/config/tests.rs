@@ -1,0 +1,87 @@
+use super::*;
+
+const EXAMPLE: &str = include_str!("../../../deploy/examples/veth-4-axes.toml");
+
+#[test]
+fn the_shipped_example_is_valid() {
+    let c = Config::parse(EXAMPLE, "veth-4-axes.toml").unwrap();
+    assert_eq!(c.axes.len(), 4);
+    assert_eq!(c.bus.cycle_us, 1000);
+    assert_eq!(c.kernel_axes[0].defaults.speed, 100.0);
+    assert_eq!(
+        c.kernel_axes[1].defaults.speed, 250.0,
+        "defaults are the maxima"
+    );
+    assert!(c.kernel_axes[3].mechanics.modulo.is_some());
+    assert_eq!(c.rt.priority, 80);
+}
+
+/// The example with `old` replaced by `new`, parsed; the error text.
+fn mistake(old: &str, new: &str) -> String {
+    assert!(EXAMPLE.contains(old), "{old}");
+    Config::parse(&EXAMPLE.replacen(old, new, 1), "g.toml")
+        .unwrap_err()
+        .to_string()
+}
+
+fn line_of(needle: &str) -> usize {
+    EXAMPLE.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn every_mistake_names_file_line_key_and_reason() {
+    // Unknown key: its own line.
+    let l = line_of("lock_memory = true");
+    assert_eq!(
+        mistake("lock_memory = true", "lock_memroy = true"),
+        format!("g.toml:{l}: lock_memroy: unknown field `lock_memroy`, expected one of `priority`, `cpu`, `lock_memory`, `overrun_limit`")
+    );
+    // Wrong type.
+    let l = line_of("cycle_us = 1000");
+    let e = mistake("cycle_us = 1000", "cycle_us = \"1ms\"");
+    assert_eq!(
+        e,
+        format!("g.toml:{l}: cycle_us: invalid type: string \"1ms\", expected u32")
+    );
+    // Inconsistent limits: a default above the maximum, at the key's line.
+    let l = line_of("speed = 100.0");
+    assert_eq!(
+        mistake("speed = 100.0", "speed = 300.0"),
+        format!(
+            "g.toml:{l}: axis[0].defaults.speed: defaults.speed = 300 exceeds the axis maximum 250"
+        )
+    );
+    // A value out of range.
+    let l = line_of("cycle_us = 1000");
+    assert_eq!(
+        mistake("cycle_us = 1000", "cycle_us = 100"),
+        format!("g.toml:{l}: bus.cycle_us: 100 µs is outside 250 to 4000 µs")
+    );
+    // Two axes on one drive.
+    let l = line_of("drive = 1");
+    assert_eq!(
+        mistake("drive = 1", "drive = 0"),
+        format!("g.toml:{l}: axis[1].drive: drive 0 is also axis[0]'s")
+    );
+    // A ramp that does not exist.
+    assert!(mistake("ramp = \"scurve\"", "ramp = \"s\"")
+        .ends_with("axis[0].defaults.ramp: \"s\" is not scurve, trapezoid, sine or linear-sine"));
+    // Missing key.
+    let e = mistake("kind = \"ethercat\"\n", "");
+    assert!(e.contains("missing field `kind`"), "{e}");
+    // Scaling that cannot be.
+    let e = mistake(
+        "units_per_load_rev = 5.0      # ball screw lead",
+        "units_per_load_rev = 0.0",
+    );
+    assert!(e.contains("axis[0].scaling:"), "{e}");
+    // Both interface and simulator.
+    let e = mistake(
+        "cycle_us = 1000",
+        "cycle_us = 1000\nsimulator = \"sim.toml\"",
+    );
+    assert!(
+        e.contains("bus.simulator: give either interface or simulator, not both"),
+        "{e}"
+    );
+}
