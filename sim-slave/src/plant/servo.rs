@@ -58,6 +58,14 @@ impl ServoDrive {
         self.position
     }
 
+    /// Position actual value (0x6064): the load position rounded to whole counts, as the
+    /// drive reports it and as switch cams on this axis see it.
+    pub fn actual_counts(&self) -> i32 {
+        self.position
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    }
+
     /// The master stopped sending process data: a drive with power on faults (fault
     /// reaction: it stops on its own; this model's load stops where it is).
     pub fn on_watchdog(&mut self) {
@@ -92,10 +100,7 @@ impl ServoDrive {
             let k = 1.0 - (-2.0 * core::f64::consts::PI * self.bandwidth_hz * dt_s.max(0.0)).exp();
             self.position += (f64::from(target) - self.position) * k;
         }
-        let actual = self
-            .position
-            .round()
-            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+        let actual = self.actual_counts();
         let sw = self.state.statusword().0 | gantry_drives::cia402::statusword::REMOTE;
         let mut inp = [0u8; INPUT_BYTES];
         inp[0..2].copy_from_slice(&sw.to_le_bytes());
