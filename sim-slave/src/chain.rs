@@ -70,10 +70,23 @@ impl SlaveChain {
         &self.slaves
     }
 
-    /// Runs `dt_s` seconds of every slave's application.
+    /// Runs `dt_s` seconds of every slave's application, then the couplings: every
+    /// device that watches another slave's axis (switch cams) gets that slave's position
+    /// as it is *after* this step, so the inputs of both agree in the next frame.
     pub fn tick(&mut self, dt_s: f64) {
         for s in &mut self.slaves {
             s.tick(dt_s);
+        }
+        for i in 0..self.slaves.len() {
+            let position = self
+                .slaves
+                .get(i)
+                .and_then(|s| s.device().coupled_axis())
+                .and_then(|axis| self.slaves.get(axis))
+                .and_then(|s| s.device().axis_position());
+            if let (Some(p), Some(s)) = (position, self.slaves.get_mut(i)) {
+                s.couple(p);
+            }
         }
     }
 
@@ -290,5 +303,42 @@ mod tests {
         send(&mut c, SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
         send(&mut c, AL_CONTROL, &[0x14, 0]);
         assert_eq!(c.slaves()[0].al_status(), 0x04, "SafeOp");
+    }
+
+    #[test]
+    fn switch_cams_see_the_servo_position_after_each_tick() {
+        use crate::catalog::{self, ServoOptions, SwitchesOptions, SWITCHES_INPUTS_AT};
+        use crate::plant::switches::SwitchCam;
+        let cam = SwitchCam {
+            input: 2,
+            from: 1000,
+            to: 1999,
+            normally_closed: false,
+        };
+        let switches = |axis| {
+            catalog::switches(SwitchesOptions {
+                serial: 9,
+                axis,
+                cams: vec![cam],
+            })
+            .unwrap()
+        };
+        let servo = |start_counts| {
+            catalog::servo(ServoOptions {
+                start_counts,
+                ..ServoOptions::default()
+            })
+        };
+        // Inside the cam; then a module pointed at a slave that is not a servo rests.
+        let mut c = SlaveChain::new(vec![servo(1999), switches(0), switches(1), servo(2000)]);
+        c.tick(0.001);
+        let byte = |c: &SlaveChain, i: usize| {
+            c.slaves()[i].memory().raw(SWITCHES_INPUTS_AT, 1).unwrap()[0]
+        };
+        assert_eq!(byte(&c, 1), 0b100);
+        assert_eq!(byte(&c, 2), 0);
+        let mut c = SlaveChain::new(vec![servo(2000), switches(0)]);
+        c.tick(0.001);
+        assert_eq!(byte(&c, 1), 0, "one count past the cam");
     }
 }

@@ -8,13 +8,34 @@
 //! kind = "servo"          # a CiA-402 servo drive (CoE, CSP)
 //! start_position = 0      # absolute encoder value at power-up, counts
 //! bandwidth_hz = 200      # position loop bandwidth
+//!
+//! [[slave]]
+//! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
+//! counts_per_rev = 4096   # counts per shaft revolution
+//! shaft_speed = 0.5       # rev/s the shaft turns by itself (default 0: it stands)
+//!
+//! [[slave]]
+//! kind = "switches"       # 8 digital inputs (like an EL1008) read from switch cams
+//! axis = 0                # chain index of the servo whose position moves the cams
+//!
+//! [[slave.cam]]           # a reference switch: input 0 high from 10000 to 12000 counts
+//! input = 0
+//! from = 10000
+//! to = 12000
+//!
+//! [[slave.cam]]           # a positive limit switch, normally closed: input 1 drops
+//! input = 1               # from 500000 counts on
+//! from = 500000
+//! to = 9223372036854775807
+//! normally_closed = true
 //! ```
 
 use serde::Deserialize;
 use thiserror::Error;
 
-use crate::catalog::{self, ServoOptions};
+use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
+use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
 /// A configuration that cannot be used, with where and why.
 #[derive(Debug, Error)]
@@ -78,7 +99,58 @@ pub enum SlaveConfig {
         #[serde(default = "default_bandwidth_hz")]
         bandwidth_hz: f64,
     },
+    /// An incremental encoder module.
+    Encoder {
+        /// Counts per shaft revolution.
+        #[serde(default = "default_counts_per_rev")]
+        counts_per_rev: u32,
+        /// Speed at which the shaft turns by itself (rev/s).
+        #[serde(default)]
+        shaft_speed: f64,
+    },
+    /// A digital-input module whose inputs are switch cams on a servo's travel.
+    Switches {
+        /// Chain index of the servo.
+        axis: usize,
+        /// The cams (`[[slave.cam]]`).
+        #[serde(rename = "cam", default)]
+        cams: Vec<CamConfig>,
+    },
 }
+
+/// One switch cam of a `switches` slave: the switch on `input` is actuated while the
+/// servo's position actual value is in `from..=to` (counts).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct CamConfig {
+    /// Input bit (0…7).
+    pub input: u8,
+    /// First actuated position (counts).
+    pub from: i64,
+    /// Last actuated position (counts).
+    pub to: i64,
+    /// A normally closed contact (limit switches).
+    #[serde(default)]
+    pub normally_closed: bool,
+}
+
+impl From<CamConfig> for SwitchCam {
+    fn from(c: CamConfig) -> Self {
+        SwitchCam {
+            input: c.input,
+            from: c.from,
+            to: c.to,
+            normally_closed: c.normally_closed,
+        }
+    }
+}
+
+fn default_counts_per_rev() -> u32 {
+    4096
+}
+
+/// Highest shaft speed of an encoder (rev/s).
+const MAX_SHAFT_SPEED: f64 = 1000.0;
 
 fn default_bandwidth_hz() -> f64 {
     200.0
@@ -150,35 +222,105 @@ impl SimConfig {
                         ));
                     }
                 }
+                SlaveConfig::Encoder {
+                    counts_per_rev,
+                    shaft_speed,
+                } => {
+                    if *counts_per_rev == 0 {
+                        return Err(invalid(
+                            format!("slave[{i}].counts_per_rev"),
+                            "must be at least 1",
+                        ));
+                    }
+                    if !(shaft_speed.is_finite() && shaft_speed.abs() <= MAX_SHAFT_SPEED) {
+                        return Err(invalid(
+                            format!("slave[{i}].shaft_speed"),
+                            "must be -1000 to 1000 rev/s",
+                        ));
+                    }
+                }
+                SlaveConfig::Switches { axis, cams } => {
+                    match self.slaves.get(*axis) {
+                        None => {
+                            let n = self.slaves.len();
+                            return Err(invalid(
+                                format!("slave[{i}].axis"),
+                                &format!("there is no slave {axis} (the chain has {n})"),
+                            ));
+                        }
+                        Some(SlaveConfig::Servo { .. }) => {}
+                        Some(_) => {
+                            return Err(invalid(
+                                format!("slave[{i}].axis"),
+                                &format!("slave {axis} is not a servo"),
+                            ));
+                        }
+                    }
+                    let cams: Vec<SwitchCam> = cams.iter().map(|&c| c.into()).collect();
+                    if let Err(e) = check_cams(&cams) {
+                        let (cam, field, reason) = match e {
+                            CamError::NoSuchInput { cam, .. } => {
+                                (cam, "input", "must be 0 to 7".to_string())
+                            }
+                            CamError::EmptyRange { cam, from, to } => {
+                                (cam, "from", format!("{from} is above to = {to}"))
+                            }
+                            CamError::InputTaken { cam, input, first } => (
+                                cam,
+                                "input",
+                                format!("input {input} already has cam {first}"),
+                            ),
+                        };
+                        return Err(invalid(format!("slave[{i}].cam[{cam}].{field}"), &reason));
+                    }
+                }
             }
         }
         Ok(())
     }
 
-    /// The chain this configuration describes.
-    pub fn chain(&self) -> SlaveChain {
-        SlaveChain::new(
-            self.slaves
-                .iter()
-                .enumerate()
-                .map(|(i, s)| match *s {
+    /// The chain this configuration describes. Only a configuration built by hand, not
+    /// one [`SimConfig::parse`] checked, can have cams that cannot be wired.
+    pub fn chain(&self) -> Result<SlaveChain, CamError> {
+        let slaves = self
+            .slaves
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let serial = i as u32 + 1;
+                Ok(match s {
                     SlaveConfig::Servo {
                         start_position,
                         bandwidth_hz,
                     } => catalog::servo(ServoOptions {
-                        serial: i as u32 + 1,
-                        start_counts: start_position,
-                        bandwidth_hz,
+                        serial,
+                        start_counts: *start_position,
+                        bandwidth_hz: *bandwidth_hz,
                     }),
+                    SlaveConfig::Encoder {
+                        counts_per_rev,
+                        shaft_speed,
+                    } => catalog::encoder(EncoderOptions {
+                        serial,
+                        counts_per_rev: *counts_per_rev,
+                        shaft_speed_rev_s: *shaft_speed,
+                    }),
+                    SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
+                        serial,
+                        axis: *axis,
+                        cams: cams.iter().map(|&c| c.into()).collect(),
+                    })?,
                 })
-                .collect(),
-        )
+            })
+            .collect::<Result<Vec<_>, CamError>>()?;
+        Ok(SlaveChain::new(slaves))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plant::DeviceModel;
 
     #[test]
     fn parses_a_chain_with_defaults() {
@@ -195,7 +337,7 @@ mod tests {
                 bandwidth_hz: 200.0
             }
         );
-        assert_eq!(c.chain().slaves().len(), 2);
+        assert_eq!(c.chain().unwrap().slaves().len(), 2);
     }
 
     #[test]
@@ -220,5 +362,130 @@ mod tests {
             e("cycle_us = 1000\n"),
             "sim.toml: slave: the chain has no slave"
         );
+    }
+
+    #[test]
+    fn the_example_in_the_module_doc_parses() {
+        let source = include_str!("config.rs");
+        let example: String = source
+            .lines()
+            .skip_while(|l| !l.starts_with("//! ```toml"))
+            .skip(1)
+            .take_while(|l| !l.starts_with("//! ```"))
+            .map(|l| format!("{}\n", l.trim_start_matches("//!").trim_start_matches(' ')))
+            .collect();
+        let c = SimConfig::parse(&example, "doc").unwrap();
+        assert_eq!(c.slaves.len(), 3);
+        assert_eq!(c.chain().unwrap().slaves().len(), 3);
+    }
+
+    #[test]
+    fn parses_encoder_and_switches_with_cams() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n\
+             [[slave]]\nkind = \"encoder\"\ncounts_per_rev = 1024\nshaft_speed = -2.5\n\
+             [[slave]]\nkind = \"switches\"\naxis = 0\n\
+             [[slave.cam]]\ninput = 3\nfrom = -10\nto = 10\n\
+             [[slave.cam]]\ninput = 4\nfrom = 100\nto = 200\nnormally_closed = true\n\
+             [[slave]]\nkind = \"encoder\"\n",
+            "sim.toml",
+        )
+        .unwrap();
+        assert_eq!(
+            c.slaves[1],
+            SlaveConfig::Encoder {
+                counts_per_rev: 1024,
+                shaft_speed: -2.5
+            }
+        );
+        assert_eq!(
+            c.slaves[3],
+            SlaveConfig::Encoder {
+                counts_per_rev: 4096,
+                shaft_speed: 0.0
+            }
+        );
+        let SlaveConfig::Switches { axis, cams } = &c.slaves[2] else {
+            panic!("{:?}", c.slaves[2]);
+        };
+        assert_eq!(*axis, 0);
+        assert_eq!(
+            cams[1],
+            CamConfig {
+                input: 4,
+                from: 100,
+                to: 200,
+                normally_closed: true
+            }
+        );
+        assert!(!cams[0].normally_closed);
+        let chain = c.chain().unwrap();
+        let d = |i: usize| chain.slaves()[i].device();
+        assert!(
+            matches!(d(1), DeviceModel::Encoder(e) if e.counts_per_rev == 1024 && e.shaft_speed_rev_s == -2.5)
+        );
+        assert!(matches!(d(2), DeviceModel::Switches(s) if s.axis == 0 && s.cams().len() == 2));
+        assert_eq!(
+            chain.slaves()[2].description().product_code,
+            catalog::SWITCHES_PRODUCT
+        );
+    }
+
+    #[test]
+    fn encoder_and_switches_mistakes_name_the_key() {
+        let e = |text: &str| SimConfig::parse(text, "sim.toml").unwrap_err().to_string();
+        let servo = "[[slave]]\nkind = \"servo\"\n";
+        let encoder = "[[slave]]\nkind = \"encoder\"\n";
+        let switches = |axis: usize| format!("[[slave]]\nkind = \"switches\"\naxis = {axis}\n");
+        let cam = |input: u8, from: i64, to: i64| {
+            format!("[[slave.cam]]\ninput = {input}\nfrom = {from}\nto = {to}\n")
+        };
+        assert_eq!(
+            e(&format!("{servo}{encoder}{}", switches(1))),
+            "sim.toml: slave[2].axis: slave 1 is not a servo"
+        );
+        assert_eq!(
+            e(&format!("{servo}{}", switches(5))),
+            "sim.toml: slave[1].axis: there is no slave 5 (the chain has 2)"
+        );
+        assert_eq!(
+            e(&format!("{servo}{}{}", switches(0), cam(8, 0, 1))),
+            "sim.toml: slave[1].cam[0].input: must be 0 to 7"
+        );
+        assert_eq!(
+            e(&format!(
+                "{servo}{}{}{}",
+                switches(0),
+                cam(0, 0, 1),
+                cam(1, 9, 2)
+            )),
+            "sim.toml: slave[1].cam[1].from: 9 is above to = 2"
+        );
+        assert_eq!(
+            e(&format!(
+                "{servo}{}{}{}",
+                switches(0),
+                cam(2, 0, 1),
+                cam(2, 5, 6)
+            )),
+            "sim.toml: slave[1].cam[1].input: input 2 already has cam 0"
+        );
+        assert_eq!(
+            e(&format!("{encoder}counts_per_rev = 0\n")),
+            "sim.toml: slave[0].counts_per_rev: must be at least 1"
+        );
+        assert_eq!(
+            e(&format!("{encoder}shaft_speed = 1e9\n")),
+            "sim.toml: slave[0].shaft_speed: must be -1000 to 1000 rev/s"
+        );
+        // Serde's own checks: a missing axis, an unknown key in a cam (with its line).
+        let missing = e(&format!("{servo}[[slave]]\nkind = \"switches\"\n"));
+        assert!(missing.contains("axis"), "{missing}");
+        let unknown = e(&format!(
+            "{servo}{}[[slave.cam]]\ninput = 0\nfrom = 1\nto = 2\nclosed = true\n",
+            switches(0)
+        ));
+        assert!(unknown.starts_with("sim.toml:10:"), "{unknown}");
+        assert!(unknown.contains("closed"), "{unknown}");
     }
 }

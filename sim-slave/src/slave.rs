@@ -76,6 +76,17 @@ impl Slave {
         &self.device
     }
 
+    /// The application, mutable (a test turns an encoder's shaft).
+    pub fn device_mut(&mut self) -> &mut DeviceModel {
+        &mut self.device
+    }
+
+    /// Tells the application where the axis it watches is (counts); see
+    /// [`crate::chain::SlaveChain::tick`].
+    pub fn couple(&mut self, position: i64) {
+        self.device.on_axis_position(&mut self.memory, position);
+    }
+
     /// Runs `dt_s` seconds of the application (device models read outputs and write inputs).
     pub fn tick(&mut self, dt_s: f64) {
         let in_op = AlState::from_bits(self.al_status()) == AlState::Op;

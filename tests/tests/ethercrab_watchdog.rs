@@ -42,7 +42,7 @@ fn cycle(net: &mut Lockstep, md: &MainDevice<'static>, group: &Group, c: &mut Cs
 fn servo_state(net: &Lockstep) -> (State, u16) {
     match net.chain.slaves()[0].device() {
         DeviceModel::Servo(s) => (s.state(), s.error_code()),
-        DeviceModel::None => unreachable!(),
+        _ => unreachable!(),
     }
 }
 

@@ -43,7 +43,7 @@ fn main() -> ExitCode {
 
 fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let config = SimConfig::load(&args.config)?;
-    let mut chain = config.chain();
+    let mut chain = config.chain()?;
     let socket = RawSocket::open(&args.interface)?;
     if let Some(priority) = args.priority {
         set_fifo(priority)?;

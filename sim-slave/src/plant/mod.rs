@@ -1,7 +1,11 @@
 //! Device models behind the ESCs: what a slave's application does with its process data
-//! each cycle. So far: a CiA-402 servo drive in cyclic synchronous position mode.
+//! each cycle: a CiA-402 servo drive in cyclic synchronous position mode, an incremental
+//! encoder module, and a digital-input module whose inputs are switch cams along a servo's
+//! travel.
 
+pub mod encoder;
 pub mod servo;
+pub mod switches;
 
 use crate::esc::memory::Memory;
 
@@ -13,22 +17,29 @@ pub enum DeviceModel {
     None,
     /// A CiA-402 servo drive.
     Servo(servo::ServoDrive),
+    /// An incremental encoder module counting an external shaft.
+    Encoder(encoder::EncoderModule),
+    /// Digital inputs actuated by cams on another slave's axis.
+    Switches(switches::SwitchesModule),
 }
 
 impl DeviceModel {
     /// The master mapped this process data layout (PreOp → SafeOp).
     pub fn configure_pdo(&mut self, layout: gantry_drives::cia402::pdo::PdoLayout) {
         match self {
-            DeviceModel::None => {}
             DeviceModel::Servo(s) => s.configure(layout),
+            // Fixed PDOs from the EEPROM: nothing to configure.
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => {}
         }
     }
 
     /// The process-data watchdog expired: the master is gone.
     pub fn on_watchdog(&mut self) {
         match self {
-            DeviceModel::None => {}
             DeviceModel::Servo(s) => s.on_watchdog(),
+            // The encoder keeps counting (its outputs only set the counter); inputs have
+            // no outputs to watch.
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => {}
         }
     }
 
@@ -37,6 +48,32 @@ impl DeviceModel {
         match self {
             DeviceModel::None => {}
             DeviceModel::Servo(s) => s.step(mem, dt_s),
+            DeviceModel::Encoder(e) => e.step(mem, dt_s),
+            DeviceModel::Switches(s) => s.step(mem),
+        }
+    }
+
+    /// The position this device reports as its axis' actual position (counts), for
+    /// devices coupled to it: a servo's position actual value.
+    pub fn axis_position(&self) -> Option<i64> {
+        match self {
+            DeviceModel::Servo(s) => Some(i64::from(s.actual_counts())),
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
+        }
+    }
+
+    /// The chain index of the slave whose axis this device watches, if it watches one.
+    pub fn coupled_axis(&self) -> Option<usize> {
+        match self {
+            DeviceModel::Switches(s) => Some(s.axis),
+            DeviceModel::None | DeviceModel::Servo(_) | DeviceModel::Encoder(_) => None,
+        }
+    }
+
+    /// The watched axis is at `position` (counts).
+    pub fn on_axis_position(&mut self, mem: &mut Memory, position: i64) {
+        if let DeviceModel::Switches(s) = self {
+            s.sense(mem, position);
         }
     }
 }

@@ -81,6 +81,14 @@ impl ServoDrive {
         self.position
     }
 
+    /// Position actual value (0x6064): the load position rounded to whole counts, as the
+    /// drive reports it and as switch cams on this axis see it.
+    pub fn actual_counts(&self) -> i32 {
+        self.position
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    }
+
     /// The master stopped sending process data: a drive with power on faults (fault
     /// reaction: it stops on its own; this model's load stops where it is).
     pub fn on_watchdog(&mut self) {
@@ -152,7 +160,7 @@ impl ServoDrive {
             objects::STATUSWORD => {
                 i64::from(self.state.statusword().0 | gantry_drives::cia402::statusword::REMOTE)
             }
-            objects::POSITION_ACTUAL_VALUE => counts(self.position),
+            objects::POSITION_ACTUAL_VALUE => i64::from(self.actual_counts()),
             objects::VELOCITY_ACTUAL_VALUE => counts(self.velocity),
             // Torque follows acceleration; the model has no load inertia, so report 0.
             objects::TORQUE_ACTUAL_VALUE => 0,
