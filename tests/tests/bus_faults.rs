@@ -1,4 +1,4 @@
-//! Bus faults, lockstep (one thread; ethercrab's PDU timeout is 2 ms of wall time): lost
+//! Bus faults, lockstep (one thread; ethercrab's PDU timeout is 20 ms of wall time): lost
 //! frames are ridden through up to the limit, then every axis stops with the reason; a
 //! slave that disappears mid-move stops its own axis while the others finish; plugged back
 //! in, it returns to OP on a reset and its axis moves again. The reasons reach the user as
@@ -41,7 +41,7 @@ impl Machine {
         let chain = servo_chain(DRIVES as u32);
         let mut net = Lockstep::new(tx, rx, chain);
         let timeouts = Timeouts {
-            pdu: Duration::from_millis(2),
+            pdu: Duration::from_millis(20),
             ..Timeouts::default()
         };
         let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
