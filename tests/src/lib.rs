@@ -34,3 +34,25 @@ pub fn servo_chain(n: u32) -> gantry_sim::chain::SlaveChain {
             .collect(),
     )
 }
+
+/// A configuration of `axes` axes on simulated servos in this process (`[bus] simulator`),
+/// at `cycle_us`; the simulator's chain file is written to a temporary folder.
+pub fn sim_config(axes: usize, cycle_us: u32) -> gantry::config::Config {
+    let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let sim = dir.join("sim.toml");
+    let chain: String = (0..axes).map(|_| "[[slave]]\nkind = \"servo\"\n").collect();
+    std::fs::write(&sim, format!("cycle_us = {cycle_us}\n{chain}")).expect("sim.toml");
+    let mut text = format!(
+        "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n",
+        sim.display().to_string()
+    );
+    for i in 0..axes {
+        text += &format!(
+            "[[axis]]\nname = \"a{i}\"\ndrive = {i}\n\
+             scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+             max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n"
+        );
+    }
+    gantry::config::Config::parse(&text, "test.toml").expect("valid test configuration")
+}

@@ -157,7 +157,7 @@ fn lost_frames_and_a_lost_slave_stop_what_they_must_and_recover_on_reset() {
     m.run(50);
     m.net.chain.drop_frames(5);
     m.run(10);
-    let reason = m.health.fault(0).map(ToString::to_string);
+    let reason = m.health.fault(0).map(|f| f.to_string());
     assert_eq!(
         reason.as_deref(),
         Some("EtherCAT: 3 frames lost in a row (limit 3)")
@@ -206,7 +206,7 @@ fn lost_frames_and_a_lost_slave_stop_what_they_must_and_recover_on_reset() {
     m.net.chain.cut_before(Some(2));
     m.run(150);
     assert_eq!(
-        m.health.fault(2).map(ToString::to_string).as_deref(),
+        m.health.fault(2).map(|f| f.to_string()).as_deref(),
         Some("EtherCAT: slave 2 (0x1002) does not answer (cable, power?)")
     );
     assert_eq!(m.state(2), AxisState::ErrorStop);

@@ -107,6 +107,14 @@ impl CspCycle {
         Ok(())
     }
 
+    /// Gives axis `i` a fault with `code` this cycle (the cycle thread's own reasons, e.g.
+    /// overruns), keeping its last position.
+    pub fn force_fault(&mut self, i: usize, code: u16) -> Result<(), CycleError> {
+        let feedback = self.feedback.get_mut(i).ok_or(CycleError::NoDrive(i))?;
+        feedback.fault = Some(code);
+        Ok(())
+    }
+
     /// Runs the kernel on the feedback read so far.
     pub fn step(&mut self) {
         let sps = self.kernel.step(&self.feedback);

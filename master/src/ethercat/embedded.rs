@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
 
-use super::pump::{FramePump, Link};
+use super::pump::{FramePump, Link, Ticker};
 use crate::pcap::PcapWriter;
 
 /// ethercrab's frames passed through a simulated chain in this process by a pump thread.
@@ -33,10 +33,33 @@ impl EmbeddedBus {
         chain: SlaveChain,
         capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
     ) -> Self {
+        Self::start_with(tx, rx, chain, capture, None)
+    }
+
+    /// Starts the exchange thread with the chain's applications running on the wall
+    /// clock every `period` (for real-time runs on the simulator, e.g. `gantry run`).
+    pub fn start_realtime(
+        tx: PduTx<'static>,
+        rx: PduRx<'static>,
+        chain: SlaveChain,
+        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
+        period: std::time::Duration,
+    ) -> Self {
+        Self::start_with(tx, rx, chain, capture, Some(Ticker::new(period)))
+    }
+
+    fn start_with(
+        tx: PduTx<'static>,
+        rx: PduRx<'static>,
+        chain: SlaveChain,
+        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
+        ticker: Option<Ticker>,
+    ) -> Self {
         let chain = Arc::new(Mutex::new(chain));
         let link = Link::Embedded {
             chain: chain.clone(),
             replies: VecDeque::new(),
+            ticker,
         };
         let pump = FramePump::start(tx, rx, link, capture)
             .expect("eventfd and a thread for the embedded bus");

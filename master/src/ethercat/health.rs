@@ -33,8 +33,26 @@ impl Default for HealthConfig {
     }
 }
 
-/// Why axes were stopped.
-#[derive(Clone, Debug, Error, PartialEq, Eq)]
+/// What a slave did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SlaveProblem {
+    /// Its AL status read came back unanswered.
+    NoAnswer,
+    /// It answered from another state.
+    LeftOp(SubDeviceState),
+}
+
+impl std::fmt::Display for SlaveProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SlaveProblem::NoAnswer => f.write_str("does not answer (cable, power?)"),
+            SlaveProblem::LeftOp(state) => write!(f, "left OP: now {state}"),
+        }
+    }
+}
+
+/// Why axes were stopped. `Copy`, so the RT thread records it without allocating.
+#[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
 pub enum BusFault {
     /// Frames did not come back.
     #[error("EtherCAT: {count} frames lost in a row (limit {limit})")]
@@ -59,14 +77,14 @@ pub enum BusFault {
         limit: u32,
     },
     /// A slave is not in OP.
-    #[error("EtherCAT: slave {position} ({address:#06x}) {what}")]
+    #[error("EtherCAT: slave {position} ({address:#06x}) {problem}")]
     Slave {
         /// Position in the chain.
         position: usize,
         /// Station address.
         address: u16,
         /// What it did.
-        what: String,
+        problem: SlaveProblem,
     },
     /// Another slave left OP and the configuration stops every axis with it.
     #[error("EtherCAT: stopped with slave {position} ({address:#06x})")]
@@ -152,7 +170,10 @@ impl BusHealth {
                                 *slot = Some(BusFault::Slave {
                                     position: i,
                                     address: self.addresses.get(i).copied().unwrap_or(0),
-                                    what: describe(*state),
+                                    problem: match state {
+                                        SubDeviceState::None => SlaveProblem::NoAnswer,
+                                        other => SlaveProblem::LeftOp(*other),
+                                    },
                                 });
                             }
                         }
@@ -188,11 +209,13 @@ impl BusHealth {
     }
 
     /// Why slave `i`'s axes must stop, if they must.
-    pub fn fault(&self, i: usize) -> Option<&BusFault> {
-        self.slaves
-            .get(i)
-            .and_then(Option::as_ref)
-            .or(self.bus.as_ref())
+    pub fn fault(&self, i: usize) -> Option<BusFault> {
+        self.slaves.get(i).copied().flatten().or(self.bus)
+    }
+
+    /// Whether any fault is in force.
+    pub fn any_fault(&self) -> bool {
+        self.bus.is_some() || self.slaves.iter().any(Option::is_some)
     }
 
     /// Forgets the faults once the slaves are back (after a reset).
@@ -201,13 +224,6 @@ impl BusHealth {
         self.lost_run = 0;
         self.wkc_run = 0;
         self.slaves.iter_mut().for_each(|s| *s = None);
-    }
-}
-
-fn describe(state: SubDeviceState) -> String {
-    match state {
-        SubDeviceState::None => "does not answer (cable, power?)".into(),
-        other => format!("left OP: now {other}"),
     }
 }
 

@@ -2,6 +2,7 @@
 //! this process) and the cyclic exchange that joins the kernel, the CiA-402 layer and the
 //! process data.
 
+pub mod bus;
 pub mod cycle;
 pub mod cyclic;
 pub mod embedded;

@@ -29,6 +29,9 @@ pub enum Link {
         chain: Arc<Mutex<SlaveChain>>,
         /// Replies waiting to be handed back.
         replies: VecDeque<Vec<u8>>,
+        /// Runs the slaves' applications on the wall clock (`None`: the caller ticks
+        /// the chain, lockstep).
+        ticker: Option<Ticker>,
     },
     /// A raw socket on a network interface.
     Raw(RawSocket),
@@ -37,11 +40,20 @@ pub enum Link {
 impl Link {
     fn send(&mut self, frame: &[u8]) -> io::Result<()> {
         match self {
-            Link::Embedded { chain, replies } => {
+            Link::Embedded {
+                chain,
+                replies,
+                ticker,
+            } => {
                 let mut wire = frame.to_vec();
                 let processed = chain
                     .lock()
-                    .map(|mut c| c.process(&mut wire).is_ok())
+                    .map(|mut c| {
+                        if let Some(t) = ticker.as_mut() {
+                            t.catch_up(&mut c);
+                        }
+                        c.process(&mut wire).is_ok()
+                    })
                     .unwrap_or(false);
                 // A frame the chain cannot parse is lost, as on a wire.
                 if processed {
@@ -75,6 +87,37 @@ impl Link {
             Link::Embedded { .. } => None,
             // SAFETY: the socket outlives the borrow (both live in the pump thread).
             Link::Raw(socket) => Some(unsafe { BorrowedFd::borrow_raw(socket.as_raw_fd()) }),
+        }
+    }
+}
+
+/// Runs a chain's applications in real time: before each frame, every whole period
+/// that has passed on the wall clock (at most a few after a stall).
+#[derive(Clone, Copy, Debug)]
+pub struct Ticker {
+    period: std::time::Duration,
+    next: Instant,
+}
+
+impl Ticker {
+    /// Ticks every `period`, starting now.
+    pub fn new(period: std::time::Duration) -> Self {
+        Self {
+            period,
+            next: Instant::now() + period,
+        }
+    }
+
+    fn catch_up(&mut self, chain: &mut SlaveChain) {
+        let now = Instant::now();
+        let mut n = 0;
+        while now >= self.next && n < 4 {
+            chain.tick(self.period.as_secs_f64());
+            self.next += self.period;
+            n += 1;
+        }
+        if now >= self.next {
+            self.next = now + self.period;
         }
     }
 }

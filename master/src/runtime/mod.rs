@@ -1,5 +1,12 @@
-//! The real-time side: the cycle clock and the figures every cycle records. (The RT
-//! thread itself, with priority, affinity and memory locking, is issue 4.)
+//! The real-time side: the cycle thread (priority, affinity, locked memory), the engine
+//! it runs each cycle, what crosses between it and the application, and the figures it
+//! records.
 
+pub mod bus;
 pub mod clock;
+pub mod controller;
+pub mod engine;
 pub mod histogram;
+pub mod protocol;
+pub mod rt;
+pub mod stats;

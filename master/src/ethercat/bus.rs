@@ -1,0 +1,280 @@
+//! gantry's EtherCAT bus for a configuration: bring-up (discover, check the axes' drives
+//! exist, map their PDOs by SDO in PreOp, go to OP) and the cycle's exchange, over a
+//! network interface or the in-process simulator.
+
+use std::io::Write;
+use std::time::Duration;
+
+use ethercrab::std::ethercat_now;
+use ethercrab::subdevice_group::Op;
+use ethercrab::{
+    MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
+};
+use gantry_kernel::Kernel;
+use gantry_sim::config::SimConfig;
+use thiserror::Error;
+
+use super::cycle::{CspCycle, CycleError};
+use super::cyclic::CspChannel;
+use super::embedded::EmbeddedBus;
+use super::health::{BusHealth, Exchange, HealthConfig};
+use super::mapping::map_pdos;
+use super::raw::RawBus;
+use super::recovery::{recover_slave, Recovered, RecoveryError};
+use crate::config::Config;
+use crate::pcap::PcapWriter;
+use crate::runtime::bus::CycleBus;
+
+/// Most slaves on one bus.
+pub const MAX_SLAVES: usize = 64;
+/// Most process data bytes.
+pub const MAX_PDI: usize = 4096;
+const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
+static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+
+type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op>;
+
+/// Why the bus did not come up.
+#[derive(Debug, Error)]
+pub enum StartError {
+    /// The link (interface or simulator) could not be opened.
+    #[error("{0}")]
+    Link(String),
+    /// A step of the bring-up failed.
+    #[error("EtherCAT {step}: {reason}")]
+    Bus {
+        /// The step.
+        step: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The configuration names a drive that is not there.
+    #[error("{path}: axis {axis:?} is on drive {drive}, but the bus has {slaves} slaves")]
+    MissingDrive {
+        /// The configuration file.
+        path: String,
+        /// The axis.
+        axis: String,
+        /// Its drive position.
+        drive: usize,
+        /// Slaves found.
+        slaves: usize,
+    },
+    /// The layout does not suit CSP, or the kernel refused the axes.
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// What keeps the frames flowing.
+enum Link {
+    Raw(RawBus),
+    Embedded(EmbeddedBus),
+}
+
+/// The EtherCAT bus in OP.
+pub struct EthercatBus {
+    md: MainDevice<'static>,
+    group: Group,
+    drives: Vec<usize>,
+    states: Vec<SubDeviceState>,
+    link: Option<Link>,
+}
+
+impl EthercatBus {
+    /// Brings the bus of `config` up to OP; returns it with the cycle (kernel + CiA-402
+    /// channels) and the health monitor. Prints its steps to `out`.
+    pub fn bring_up(
+        config: &Config,
+        out: &mut dyn Write,
+    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+        let bus_error = |step: &'static str| {
+            move |e: ethercrab::error::Error| StartError::Bus {
+                step,
+                reason: e.to_string(),
+            }
+        };
+        let capture = match &config.bus.pcap {
+            Some(path) => Some(
+                std::fs::File::create(path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|f| {
+                        PcapWriter::new(std::io::BufWriter::new(f)).map_err(|e| e.to_string())
+                    })
+                    .map_err(|e| StartError::Link(format!("pcap {path}: {e}")))?,
+            ),
+            None => None,
+        };
+        let (tx, rx, pdu_loop) = PDU_STORAGE
+            .try_split()
+            .map_err(|_| StartError::Link("the EtherCAT bus can start once per process".into()))?;
+        let link = match (&config.bus.interface, &config.bus.simulator) {
+            (Some(interface), _) => Link::Raw(
+                RawBus::open(interface, tx, rx, capture)
+                    .map_err(|e| StartError::Link(e.to_string()))?,
+            ),
+            (None, Some(sim)) => {
+                let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
+                let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
+                let period = Duration::from_micros(u64::from(sim.cycle_us));
+                Link::Embedded(EmbeddedBus::start_realtime(tx, rx, chain, capture, period))
+            }
+            (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
+        };
+        let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+        let group = futures_lite::future::block_on(
+            md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now),
+        )
+        .map_err(bus_error("discovery"))?;
+        let _ = writeln!(out, "found {} EtherCAT slaves", group.len());
+        for (i, sd) in group.iter(&md).enumerate() {
+            let _ = writeln!(
+                out,
+                "  {i}: {:#06x} {} ({})",
+                sd.configured_address(),
+                sd.name(),
+                sd.identity()
+            );
+        }
+        let mut channels = Vec::with_capacity(config.axes.len());
+        for a in &config.axes {
+            if a.drive >= group.len() {
+                return Err(StartError::MissingDrive {
+                    path: config.path.clone(),
+                    axis: a.name.clone(),
+                    drive: a.drive,
+                    slaves: group.len(),
+                });
+            }
+            let layout = a.pdo_layout().map_err(|(_, r)| StartError::Setup(r))?;
+            let sd = group
+                .subdevice(&md, a.drive)
+                .map_err(bus_error("addressing"))?;
+            futures_lite::future::block_on(map_pdos(&sd, &layout))
+                .map_err(|e| StartError::Setup(e.to_string()))?;
+            let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
+            channels.push(
+                CspChannel::with_layout(scaling, &layout)
+                    .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?,
+            );
+        }
+        let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
+        let group =
+            futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+        let _ = writeln!(out, "all slaves in OP");
+        let addresses: Vec<u16> = group.iter(&md).map(|sd| sd.configured_address()).collect();
+        // LRW: a slave with outputs counts 2, with inputs 1.
+        let expected_wkc = group
+            .iter(&md)
+            .map(|sd| {
+                2 * u16::from(!sd.outputs_raw().is_empty()) + u16::from(!sd.inputs_raw().is_empty())
+            })
+            .sum();
+        let dt = f64::from(config.bus.cycle_us) * 1e-6;
+        let kernel = Kernel::new(dt, config.kernel_axes.clone())
+            .map_err(|e| StartError::Setup(e.to_string()))?;
+        let f = config.bus.faults;
+        let health = BusHealth::new(
+            HealthConfig {
+                lost_frames_limit: f.lost_frames_limit,
+                working_counter_limit: f.working_counter_limit,
+                stop_all_on_slave_loss: f.stop_all_on_slave_loss,
+            },
+            addresses,
+            expected_wkc,
+        );
+        let slaves = group.len();
+        Ok((
+            Self {
+                md,
+                group,
+                drives: config.axes.iter().map(|a| a.drive).collect(),
+                states: Vec::with_capacity(slaves),
+                link: Some(link),
+            },
+            CspCycle::new(kernel, channels),
+            health,
+        ))
+    }
+
+    /// Takes the slaves down to PreOp and stops the link.
+    pub fn shut_down(mut self, out: &mut dyn Write) {
+        let md = &self.md;
+        let result = futures_lite::future::block_on(async {
+            self.group
+                .into_safe_op(md)
+                .await?
+                .into_pre_op(md)
+                .await
+                .map(|_| ())
+        });
+        match result {
+            Ok(()) => {
+                let _ = writeln!(out, "bus: slaves in PreOp");
+            }
+            Err(e) => {
+                let _ = writeln!(out, "bus: could not take the slaves to PreOp: {e}");
+            }
+        }
+        match self.link.take() {
+            Some(Link::Raw(r)) => {
+                r.stop();
+            }
+            Some(Link::Embedded(e)) => {
+                e.stop();
+            }
+            None => {}
+        }
+    }
+}
+
+impl CycleBus for EthercatBus {
+    fn read_inputs(&mut self, cycle: &mut CspCycle, health: &BusHealth) -> Result<(), CycleError> {
+        for (axis, &drive) in self.drives.iter().enumerate() {
+            if health.fault(drive).is_some() {
+                cycle.comm_fault(axis)?;
+                continue;
+            }
+            match self.group.subdevice(&self.md, drive) {
+                Ok(sd) => cycle.read_inputs(axis, &sd.inputs_raw())?,
+                Err(_) => cycle.comm_fault(axis)?,
+            }
+        }
+        Ok(())
+    }
+
+    fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError> {
+        for (axis, &drive) in self.drives.iter().enumerate() {
+            if let Ok(sd) = self.group.subdevice(&self.md, drive) {
+                cycle.write_outputs(axis, sd.io_raw_mut().outputs())?;
+            }
+        }
+        Ok(())
+    }
+
+    fn exchange(&mut self, health: &mut BusHealth) {
+        match futures_lite::future::block_on(self.group.tx_rx(&self.md)) {
+            Ok(r) => {
+                self.states.clear();
+                self.states.extend(r.subdevice_states.iter().copied());
+                health.record(Exchange::Answered {
+                    working_counter: r.working_counter,
+                    states: &self.states,
+                });
+            }
+            Err(_) => health.record(Exchange::Lost),
+        }
+    }
+
+    fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError> {
+        let drive = self.drive_of(axis);
+        let sd = self
+            .group
+            .subdevice(&self.md, drive)
+            .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
+        futures_lite::future::block_on(recover_slave(&sd))
+    }
+
+    fn drive_of(&self, axis: usize) -> usize {
+        self.drives.get(axis).copied().unwrap_or(usize::MAX)
+    }
+}

@@ -1,0 +1,21 @@
+//! What the cycle needs from a bus, so the engine does not care which one it drives.
+
+use crate::ethercat::cycle::{CspCycle, CycleError};
+use crate::ethercat::health::BusHealth;
+use crate::ethercat::recovery::{Recovered, RecoveryError};
+
+/// A bus as the cycle uses it. Every method runs in the cycle thread: no allocation, no
+/// lock that the application could hold.
+pub trait CycleBus {
+    /// Decodes every axis' drive inputs into `cycle`; an axis whose drive the bus cannot
+    /// reach (per `health`) gets a communication fault instead.
+    fn read_inputs(&mut self, cycle: &mut CspCycle, health: &BusHealth) -> Result<(), CycleError>;
+    /// Encodes every axis' outputs.
+    fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError>;
+    /// Sends the outputs and receives the inputs; records the outcome in `health`.
+    fn exchange(&mut self, health: &mut BusHealth);
+    /// Brings the slave of `axis` back to OP if it left (a few round trips).
+    fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError>;
+    /// The chain position of `axis`' drive.
+    fn drive_of(&self, axis: usize) -> usize;
+}

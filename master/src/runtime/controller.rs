@@ -1,0 +1,165 @@
+//! The application's handle on the cycle: usable from any thread and from async code.
+//! Commands go to the cycle thread through the SPSC queue (behind a mutex on *this* side
+//! only: the cycle thread never waits for it); their status comes back in the latest
+//! snapshot, which [`CommandHandle`] reads.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use gantry_kernel::axis::command::Command;
+use gantry_kernel::axis::handle::CommandStatus;
+use thiserror::Error;
+
+use super::engine::AppEnds;
+use super::protocol::{Request, Snapshot, TraceSample};
+
+/// Why a request did not reach the cycle.
+#[derive(Clone, Debug, Error, PartialEq, Eq)]
+pub enum ControlError {
+    /// No axis of that name.
+    #[error("no axis named {0:?}")]
+    NoAxis(String),
+    /// The queue to the cycle thread is full (it is not keeping up, or has ended).
+    #[error("the cycle thread is not taking requests (queue full or ended)")]
+    QueueFull,
+    /// Waiting for a command timed out.
+    #[error("no final status within {0:?}")]
+    Timeout(Duration),
+}
+
+struct Shared {
+    requests: Mutex<rtrb::Producer<Request>>,
+    snapshot: Mutex<triple_buffer::Output<Snapshot>>,
+    trace: Mutex<rtrb::Consumer<TraceSample>>,
+    next_id: AtomicU64,
+    axes: Vec<String>,
+}
+
+/// A handle on the running cycle. Cheap to clone.
+#[derive(Clone)]
+pub struct Controller {
+    shared: Arc<Shared>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic in another app thread must not take the controller down with it.
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl Controller {
+    /// A controller over the application's ends of an engine's channels.
+    pub fn new(ends: AppEnds, axes: Vec<String>) -> Self {
+        Self {
+            shared: Arc::new(Shared {
+                requests: Mutex::new(ends.requests),
+                snapshot: Mutex::new(ends.snapshot),
+                trace: Mutex::new(ends.trace),
+                next_id: AtomicU64::new(1),
+                axes,
+            }),
+        }
+    }
+
+    /// Axis names, in order.
+    pub fn axes(&self) -> &[String] {
+        &self.shared.axes
+    }
+
+    /// The index of axis `name`.
+    pub fn axis(&self, name: &str) -> Result<usize, ControlError> {
+        self.shared
+            .axes
+            .iter()
+            .position(|a| a == name)
+            .ok_or_else(|| ControlError::NoAxis(name.into()))
+    }
+
+    fn send(&self, make: impl FnOnce(u64) -> Request) -> Result<CommandHandle, ControlError> {
+        let id = self.shared.next_id.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.requests)
+            .push(make(id))
+            .map_err(|_| ControlError::QueueFull)?;
+        Ok(CommandHandle {
+            id,
+            controller: self.clone(),
+        })
+    }
+
+    /// Sends `command` to axis `axis`.
+    pub fn command(&self, axis: usize, command: Command) -> Result<CommandHandle, ControlError> {
+        self.send(|id| Request::Axis { id, axis, command })
+    }
+
+    /// Resets axis `axis` (its slave back to OP if needed, then the axis' Reset).
+    pub fn reset(&self, axis: usize) -> Result<CommandHandle, ControlError> {
+        self.send(|id| Request::Reset { id, axis })
+    }
+
+    /// Asks the cycle to quick-stop, disable and end.
+    pub fn shutdown(&self) -> Result<(), ControlError> {
+        lock(&self.shared.requests)
+            .push(Request::Shutdown)
+            .map_err(|_| ControlError::QueueFull)
+    }
+
+    /// The latest snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        lock(&self.shared.snapshot).read().clone()
+    }
+
+    /// Trace samples since the last call.
+    pub fn drain_trace(&self, into: &mut Vec<TraceSample>) {
+        let mut t = lock(&self.shared.trace);
+        while let Ok(s) = t.pop() {
+            into.push(s);
+        }
+    }
+
+    fn status_of(&self, id: u64) -> Option<CommandStatus> {
+        lock(&self.shared.snapshot).read().status_of(id)
+    }
+}
+
+/// A command on its way: its status follows the cycle thread.
+#[derive(Clone)]
+pub struct CommandHandle {
+    id: u64,
+    controller: Controller,
+}
+
+impl CommandHandle {
+    /// Request id.
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Current status; `None` until the cycle thread has taken the request.
+    pub fn status(&self) -> Option<CommandStatus> {
+        self.controller.status_of(self.id)
+    }
+
+    /// Blocks until the status is final (Done, Aborted, Error) or `timeout` passes.
+    pub fn wait(&self, timeout: Duration) -> Result<CommandStatus, ControlError> {
+        let end = Instant::now() + timeout;
+        loop {
+            if let Some(s) = self.status().filter(CommandStatus::is_final) {
+                return Ok(s);
+            }
+            if Instant::now() >= end {
+                return Err(ControlError::Timeout(timeout));
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Resolves when the status is final.
+    pub async fn done(&self) -> CommandStatus {
+        loop {
+            if let Some(s) = self.status().filter(CommandStatus::is_final) {
+                return s;
+            }
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    }
+}

@@ -1,0 +1,349 @@
+//! The cycle: take the application's requests, read the drives, run the kernel, write the
+//! drives, exchange with the bus, record the figures, publish the status. Runs in the
+//! cycle thread; nothing here allocates, locks or panics once the engine is built.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
+use gantry_kernel::axis::handle::{CommandStatus, HandleId};
+use gantry_kernel::axis::state::AxisState;
+
+use super::bus::CycleBus;
+use super::clock::{now_ns, CycleClock, Wake};
+use super::protocol::{
+    DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
+};
+use super::stats::CycleStats;
+use crate::ethercat::cycle::CspCycle;
+use crate::ethercat::health::{BusHealth, COMMUNICATION_FAULT};
+
+/// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
+const REQUESTS_PER_CYCLE: usize = 32;
+/// Cycles between snapshots.
+const PUBLISH_EVERY: u64 = 10;
+/// Cycles between recomputing the histogram summaries.
+const FIGURES_EVERY: u64 = 1000;
+/// Cycles a shutdown waits for the axes to stop and the drives to switch off.
+const SHUTDOWN_CYCLES: u32 = 5000;
+
+/// Error code given to the axes when the cycle overran too often in a row (CiA 301 0x6100
+/// "internal software").
+pub const OVERRUN_FAULT: u16 = 0x6100;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Entry {
+    id: u64,
+    handle: Option<HandleId>,
+    status: CommandStatus,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    Running,
+    /// Quick-stopping and disabling; counts cycles left.
+    ShuttingDown(u32),
+    Ended,
+}
+
+/// The application's side of the channels, handed to [`super::controller::Controller`].
+pub struct AppEnds {
+    /// Requests to the cycle.
+    pub requests: rtrb::Producer<Request>,
+    /// Snapshots from the cycle.
+    pub snapshot: triple_buffer::Output<Snapshot>,
+    /// Trace samples from the cycle.
+    pub trace: rtrb::Consumer<TraceSample>,
+}
+
+/// Everything the cycle thread owns.
+pub struct Engine<B: CycleBus> {
+    /// The bus.
+    pub bus: B,
+    /// Kernel and CiA-402 channels.
+    pub cycle: CspCycle,
+    /// Bus health.
+    pub health: BusHealth,
+    requests: rtrb::Consumer<Request>,
+    snapshot: triple_buffer::Input<Snapshot>,
+    trace: rtrb::Producer<TraceSample>,
+    stats: CycleStats,
+    tracked: Vec<Entry>,
+    next_slot: usize,
+    newest_id: u64,
+    overrun_limit: u32,
+    overrun_stop: bool,
+    phase: Phase,
+    cycles: u64,
+    figures: super::stats::CycleFigures,
+}
+
+impl<B: CycleBus> Engine<B> {
+    /// An engine and the application's ends of its channels (allocates, once).
+    pub fn new(
+        bus: B,
+        cycle: CspCycle,
+        health: BusHealth,
+        overrun_limit: u32,
+        trace_capacity: usize,
+    ) -> (Self, AppEnds) {
+        let (req_tx, req_rx) = rtrb::RingBuffer::new(1024);
+        let (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(cycle.len()));
+        let (trace_tx, trace_rx) = rtrb::RingBuffer::new(trace_capacity.max(1));
+        let engine = Self {
+            bus,
+            cycle,
+            health,
+            requests: req_rx,
+            snapshot: snap_in,
+            trace: trace_tx,
+            stats: CycleStats::default(),
+            tracked: vec![
+                Entry {
+                    id: 0,
+                    handle: None,
+                    status: CommandStatus::Expired,
+                };
+                TRACKED_COMMANDS
+            ],
+            next_slot: 0,
+            newest_id: 0,
+            overrun_limit: overrun_limit.max(1),
+            overrun_stop: false,
+            phase: Phase::Running,
+            cycles: 0,
+            figures: Default::default(),
+        };
+        let app = AppEnds {
+            requests: req_tx,
+            snapshot: snap_out,
+            trace: trace_rx,
+        };
+        (engine, app)
+    }
+
+    /// Runs cycles every `period_ns` until shut down (a [`Request::Shutdown`], or `stop`
+    /// set from outside, e.g. by a signal handler). Returns the engine for the bus'
+    /// shutdown.
+    pub fn run(mut self, period_ns: u64, stop: &AtomicBool) -> Self {
+        let mut clock = CycleClock::start(period_ns);
+        loop {
+            let wake = clock.wait();
+            if stop.load(Ordering::Relaxed) && self.phase == Phase::Running {
+                self.begin_shutdown();
+            }
+            if !self.step(wake) {
+                return self;
+            }
+        }
+    }
+
+    /// One cycle; false once the engine has ended.
+    pub fn step(&mut self, wake: Wake) -> bool {
+        let t0 = now_ns();
+        self.take_requests();
+        let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
+        if self.overrun_stop {
+            for axis in 0..self.cycle.len() {
+                let _ = self.cycle.force_fault(axis, OVERRUN_FAULT);
+            }
+        }
+        self.cycle.step();
+        let _ = self.bus.write_outputs(&mut self.cycle);
+        let t1 = now_ns();
+        self.bus.exchange(&mut self.health);
+        let t2 = now_ns();
+        let in_a_row = self
+            .stats
+            .record(wake, t1.saturating_sub(t0), t2.saturating_sub(t1));
+        if in_a_row >= self.overrun_limit {
+            self.overrun_stop = true;
+        }
+        self.cycles += 1;
+        self.update_tracked();
+        self.push_trace();
+        self.advance_shutdown();
+        if self.cycles % FIGURES_EVERY == 0 {
+            self.figures = self.stats.figures();
+        }
+        if self.cycles % PUBLISH_EVERY == 0 || self.phase == Phase::Ended {
+            self.publish();
+        }
+        self.phase != Phase::Ended
+    }
+
+    fn take_requests(&mut self) {
+        for _ in 0..REQUESTS_PER_CYCLE {
+            let Ok(request) = self.requests.pop() else {
+                return;
+            };
+            match request {
+                Request::Axis { id, axis, command } => {
+                    let entry = match self.cycle.kernel.command(axis, command) {
+                        Ok(h) => Entry {
+                            id,
+                            handle: Some(h),
+                            status: self.cycle.kernel.command_status(h),
+                        },
+                        Err(e) => Entry {
+                            id,
+                            handle: None,
+                            status: CommandStatus::Error(e),
+                        },
+                    };
+                    self.track(entry);
+                }
+                Request::Reset { id, axis } => {
+                    let entry = self.reset(id, axis);
+                    self.track(entry);
+                }
+                Request::Shutdown => self.begin_shutdown(),
+            }
+        }
+    }
+
+    /// A reset: the slave back to OP if it left, the bus faults forgotten (they come
+    /// back next cycle if they are still there), then the axis' Reset.
+    fn reset(&mut self, id: u64, axis: usize) -> Entry {
+        let error = |e| Entry {
+            id,
+            handle: None,
+            status: CommandStatus::Error(e),
+        };
+        if self.overrun_stop {
+            self.overrun_stop = false;
+        }
+        if self.health.any_fault() || self.cycle.inputs(axis).is_none() {
+            if self.bus.recover(axis).is_err() {
+                return error(CommandError::DriveResetFailed {
+                    code: COMMUNICATION_FAULT,
+                });
+            }
+            self.health.clear();
+        }
+        match self.cycle.kernel.command(axis, Command::Reset) {
+            Ok(h) => Entry {
+                id,
+                handle: Some(h),
+                status: self.cycle.kernel.command_status(h),
+            },
+            Err(e) => error(e),
+        }
+    }
+
+    fn track(&mut self, entry: Entry) {
+        self.newest_id = self.newest_id.max(entry.id);
+        if let Some(slot) = self.tracked.get_mut(self.next_slot) {
+            *slot = entry;
+        }
+        self.next_slot = (self.next_slot + 1) % TRACKED_COMMANDS;
+    }
+
+    fn update_tracked(&mut self) {
+        for e in &mut self.tracked {
+            if let (Some(h), false) = (e.handle, e.status.is_final()) {
+                e.status = self.cycle.kernel.command_status(h);
+            }
+        }
+    }
+
+    fn push_trace(&mut self) {
+        if self.trace.slots() == 0 {
+            return;
+        }
+        let mut s = TraceSample {
+            time_s: self.cycle.kernel.time(),
+            set: [0.0; TRACE_AXES],
+            set_velocity: [0.0; TRACE_AXES],
+            actual: [0.0; TRACE_AXES],
+        };
+        for i in 0..self.cycle.len().min(TRACE_AXES) {
+            if let Some(st) = self.cycle.kernel.axis_status(i) {
+                s.set[i] = st.set.p;
+                s.set_velocity[i] = st.set.v;
+                s.actual[i] = st.actual_position;
+            }
+        }
+        let _ = self.trace.push(s);
+    }
+
+    fn begin_shutdown(&mut self) {
+        if self.phase != Phase::Running {
+            return;
+        }
+        for axis in 0..self.cycle.len() {
+            let moving =
+                self.cycle.kernel.axis_status(axis).is_some_and(|s| {
+                    !matches!(s.state, AxisState::Disabled | AxisState::ErrorStop)
+                });
+            let command = if moving {
+                Command::QuickStop
+            } else {
+                Command::Power(PowerCommand::DisableForced)
+            };
+            let _ = self.cycle.kernel.command(axis, command);
+        }
+        self.phase = Phase::ShuttingDown(SHUTDOWN_CYCLES);
+    }
+
+    fn advance_shutdown(&mut self) {
+        let Phase::ShuttingDown(left) = self.phase else {
+            return;
+        };
+        let all_off = (0..self.cycle.len()).all(|axis| {
+            let axis_off = self
+                .cycle
+                .kernel
+                .axis_status(axis)
+                .is_some_and(|s| matches!(s.state, AxisState::Disabled | AxisState::ErrorStop));
+            let drive_off = self.cycle.inputs(axis).is_none_or(|i| {
+                i.statusword.state() != Some(gantry_drives::cia402::State::OperationEnabled)
+            });
+            axis_off && drive_off
+        });
+        self.phase = if all_off || left == 0 {
+            Phase::Ended
+        } else {
+            Phase::ShuttingDown(left - 1)
+        };
+    }
+
+    fn publish(&mut self) {
+        let n = self.cycle.len();
+        let snap = self.snapshot.input_buffer_mut();
+        snap.cycle = self.cycles;
+        snap.time_s = self.cycle.kernel.time();
+        for i in 0..n {
+            if let (Some(dst), Some(src)) = (snap.axes.get_mut(i), self.cycle.kernel.axis_status(i))
+            {
+                *dst = *src;
+            }
+            if let Some(d) = snap.drives.get_mut(i) {
+                let inputs = self.cycle.inputs(i).copied().unwrap_or_default();
+                *d = DriveStatus {
+                    state: inputs.statusword.state(),
+                    statusword: inputs.statusword.0,
+                    error_code: inputs.error_code,
+                    bus_fault: self.health.fault(self.bus.drive_of(i)),
+                };
+            }
+        }
+        snap.lost_frames = self.health.lost_total;
+        snap.working_counter_errors = self.health.wkc_total;
+        snap.figures = self.figures;
+        for (dst, src) in snap.commands.iter_mut().zip(&self.tracked) {
+            *dst = Tracked {
+                id: src.id,
+                status: src.status,
+            };
+        }
+        snap.newest_id = self.newest_id;
+        snap.overrun_stop = self.overrun_stop;
+        snap.ended = self.phase == Phase::Ended;
+        self.snapshot.publish();
+    }
+
+    /// The cycle figures so far (computed now).
+    pub fn figures(&self) -> super::stats::CycleFigures {
+        self.stats.figures()
+    }
+}

@@ -1,0 +1,133 @@
+//! What crosses between the application and the cycle thread: requests one way (a
+//! lock-free SPSC queue), a latest-wins snapshot the other way (a triple buffer), and
+//! trace samples (a second SPSC queue). Every type here is fixed-size or preallocated, so
+//! the cycle thread neither allocates nor locks to use them.
+
+use gantry_drives::cia402::State;
+use gantry_kernel::axis::command::Command;
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::status::AxisStatus;
+
+use super::stats::CycleFigures;
+use crate::ethercat::health::BusFault;
+
+/// Axes a trace sample holds.
+pub const TRACE_AXES: usize = 16;
+/// Commands whose status the snapshot keeps (the oldest drop out).
+pub const TRACKED_COMMANDS: usize = 256;
+
+/// A request from the application.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request {
+    /// A motion or power command for an axis.
+    Axis {
+        /// Request id (the handle's).
+        id: u64,
+        /// Axis index.
+        axis: usize,
+        /// The command.
+        command: Command,
+    },
+    /// Reset an axis: bring its slave back to OP if it left, then the axis' Reset.
+    Reset {
+        /// Request id.
+        id: u64,
+        /// Axis index.
+        axis: usize,
+    },
+    /// Stop moving axes, disable the drives, end the cycle.
+    Shutdown,
+}
+
+/// Status of one request as the cycle thread last saw it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tracked {
+    /// Request id.
+    pub id: u64,
+    /// Its status.
+    pub status: CommandStatus,
+}
+
+/// What a drive reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DriveStatus {
+    /// Power state from the statusword.
+    pub state: Option<State>,
+    /// Statusword.
+    pub statusword: u16,
+    /// Error code 0x603F (when mapped).
+    pub error_code: Option<u16>,
+    /// The bus cannot reach it: why.
+    pub bus_fault: Option<BusFault>,
+}
+
+/// Everything the application can see, replaced as a whole every few cycles.
+#[derive(Clone, Debug, Default)]
+pub struct Snapshot {
+    /// Cycles run.
+    pub cycle: u64,
+    /// Kernel time (s).
+    pub time_s: f64,
+    /// The axes, in configuration order.
+    pub axes: Vec<AxisStatus>,
+    /// The drive of each axis.
+    pub drives: Vec<DriveStatus>,
+    /// Frames lost since start.
+    pub lost_frames: u64,
+    /// Cycles with a wrong working counter since start.
+    pub working_counter_errors: u64,
+    /// Cycle figures.
+    pub figures: CycleFigures,
+    /// Recent requests and their status (ring; see `newest_id`).
+    pub commands: Vec<Tracked>,
+    /// Highest request id the cycle thread has taken.
+    pub newest_id: u64,
+    /// The cycle thread stopped every axis because of overruns in a row.
+    pub overrun_stop: bool,
+    /// The cycle thread has ended.
+    pub ended: bool,
+}
+
+impl Snapshot {
+    /// An empty snapshot sized for `axes` axes (allocates once, here).
+    pub fn sized(axes: usize) -> Self {
+        Self {
+            axes: vec![AxisStatus::default(); axes],
+            drives: vec![DriveStatus::default(); axes],
+            commands: vec![
+                Tracked {
+                    id: 0,
+                    status: CommandStatus::Expired,
+                };
+                TRACKED_COMMANDS
+            ],
+            ..Self::default()
+        }
+    }
+
+    /// The status of request `id`: `None` while the cycle thread has not taken it yet.
+    pub fn status_of(&self, id: u64) -> Option<CommandStatus> {
+        if id > self.newest_id {
+            return None;
+        }
+        Some(
+            self.commands
+                .iter()
+                .find(|t| t.id == id)
+                .map_or(CommandStatus::Expired, |t| t.status),
+        )
+    }
+}
+
+/// One cycle's set and actual positions of the first [`TRACE_AXES`] axes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceSample {
+    /// Kernel time (s).
+    pub time_s: f64,
+    /// Set positions.
+    pub set: [f64; TRACE_AXES],
+    /// Set velocities.
+    pub set_velocity: [f64; TRACE_AXES],
+    /// Actual positions.
+    pub actual: [f64; TRACE_AXES],
+}

@@ -1,0 +1,105 @@
+//! A slow application keeps buffered moves flowing: its task runs every 10 ms and now and
+//! then stalls for 50 ms, yet the axis, cycling at 1 ms over the in-process simulator,
+//! never stands still between moves — the next move is always queued in time, and the
+//! junction takes at most one zero-velocity cycle, as in the kernel alone.
+
+use std::sync::mpsc;
+use std::time::Duration;
+
+use gantry::ethercat::bus::EthercatBus;
+use gantry::runtime::clock::CycleClock;
+use gantry::runtime::controller::Controller;
+use gantry::runtime::engine::Engine;
+use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
+use gantry_kernel::axis::handle::CommandStatus;
+
+#[test]
+fn buffered_moves_from_a_stalling_10ms_task_run_without_standstill() {
+    let config = gantry_tests::sim_config(1, 1000);
+    let (tx, rx) = mpsc::channel();
+    let cycle_thread = std::thread::spawn(move || {
+        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 100_000);
+        tx.send(ends).unwrap();
+        let mut clock = CycleClock::start(1_000_000);
+        while engine.step(clock.wait()) {}
+    });
+    let ctl = Controller::new(rx.recv().unwrap(), vec!["x".into()]);
+    ctl.command(0, Command::Power(PowerCommand::Enable))
+        .unwrap();
+    let home = ctl
+        .command(
+            0,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        )
+        .unwrap();
+    home.wait(Duration::from_secs(2)).unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+
+    // The application: every 10 ms, keep two moves queued behind the running one; every
+    // 7th period it stalls for 50 ms. Moves of 20 mm at 200 mm/s take ~0.15 s.
+    let mut handles = Vec::new();
+    let mut trace = Vec::new();
+    ctl.drain_trace(&mut trace);
+    trace.clear();
+    let moves = 20;
+    let mut period = 0;
+    while handles.len() < moves {
+        let pending = handles
+            .iter()
+            .filter(|h: &&gantry::runtime::controller::CommandHandle| {
+                !matches!(h.status(), Some(s) if s.is_final() || s == CommandStatus::Active)
+            })
+            .count();
+        if pending < 2 {
+            let to = if handles.len() % 2 == 0 { 20.0 } else { 0.0 };
+            let mode = if handles.is_empty() {
+                BufferMode::Aborting
+            } else {
+                BufferMode::Buffered
+            };
+            let m = MovePtp::new(PositioningMode::AbsNormal, to).buffered(mode);
+            handles.push(ctl.command(0, Command::MovePtp(m)).unwrap());
+        }
+        period += 1;
+        let pause = if period % 7 == 0 { 50 } else { 10 };
+        std::thread::sleep(Duration::from_millis(pause));
+        ctl.drain_trace(&mut trace);
+    }
+    let last = handles
+        .last()
+        .unwrap()
+        .wait(Duration::from_secs(10))
+        .unwrap();
+    ctl.drain_trace(&mut trace);
+    ctl.shutdown().unwrap();
+    cycle_thread.join().unwrap();
+    assert_eq!(last, CommandStatus::Done);
+    for (i, h) in handles.iter().enumerate() {
+        assert_eq!(h.status(), Some(CommandStatus::Done), "move {i}");
+    }
+    // From the first motion to the end of the last move: never two zero-velocity cycles
+    // in a row.
+    let moving: Vec<f64> = trace.iter().map(|s| s.set_velocity[0]).collect();
+    let start = moving.iter().position(|v| v.abs() > 0.0).unwrap();
+    let end = moving.iter().rposition(|v| v.abs() > 0.0).unwrap();
+    let mut run = 0;
+    let mut worst = 0;
+    for v in &moving[start..=end] {
+        run = if v.abs() < 1e-12 { run + 1 } else { 0 };
+        worst = worst.max(run);
+    }
+    let stalls = period / 7;
+    eprintln!(
+        "{moves} buffered moves over {} cycles, application stalled {stalls} times for 50 ms; longest zero-velocity run between moves: {worst} cycle(s)",
+        end - start + 1
+    );
+    assert!(
+        worst <= 1,
+        "a standstill between buffered moves: {worst} cycles"
+    );
+    assert!(stalls >= 3, "the application did stall");
+}
