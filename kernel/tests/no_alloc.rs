@@ -4,46 +4,18 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use common::*;
 use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, Jog, MoveDirection, MovePtp, PositioningMode,
 };
 use gantry_kernel::profile::RampType;
 
-struct Counting;
-
-thread_local! {
-    static WATCHING: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if WATCHING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as our caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if WATCHING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
+mod counting {
+    include!("common/counting_alloc.rs");
 }
 
 #[global_allocator]
-static ALLOC: Counting = Counting;
+static ALLOC: counting::Counting = counting::Counting;
 
 #[test]
 fn step_and_commands_do_not_allocate() {
@@ -59,7 +31,7 @@ fn step_and_commands_do_not_allocate() {
         })
         .collect();
     let mut k = kernel(axes);
-    WATCHING.with(|w| w.set(true));
+    counting::watch(true);
     let mut cycles = 0u64;
     for round in 0..40 {
         for axis in 0..8 {
@@ -98,8 +70,8 @@ fn step_and_commands_do_not_allocate() {
             cycles += 1;
         }
     }
-    WATCHING.with(|w| w.set(false));
-    let n = COUNT.with(Cell::get);
+    counting::watch(false);
+    let n = counting::take_count();
     assert_eq!(n, 0, "{n} allocations in {cycles} cycles");
     assert_eq!(cycles, 20_000);
 }

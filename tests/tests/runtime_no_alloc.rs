@@ -2,8 +2,6 @@
 //! in-process simulator (4 axes) while a counting allocator watches the cycle thread for
 //! 3000 cycles, as the application sends moves, halts, resets and a bus fault happens.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -14,37 +12,12 @@ use gantry::runtime::controller::Controller;
 use gantry::runtime::engine::Engine;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 
-struct Counting;
-
-thread_local! {
-    static WATCHING: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if WATCHING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as our caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if WATCHING.with(Cell::get) {
-            COUNT.with(|c| c.set(c.get() + 1));
-        }
-        // SAFETY: same contract as our caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
+mod counting {
+    include!("../../kernel/tests/common/counting_alloc.rs");
 }
 
 #[global_allocator]
-static ALLOC: Counting = Counting;
+static ALLOC: counting::Counting = counting::Counting;
 
 #[test]
 fn the_cycle_thread_does_not_allocate() {
@@ -60,17 +33,16 @@ fn the_cycle_thread_does_not_allocate() {
             engine.step(clock.wait());
         }
         // The counter counts: one allocation while watching is seen.
-        WATCHING.with(|w| w.set(true));
+        counting::watch(true);
         std::hint::black_box(vec![1u8; 16]);
-        WATCHING.with(|w| w.set(false));
-        assert_eq!(COUNT.with(Cell::get), 1, "the counting allocator works");
-        COUNT.with(|c| c.set(0));
-        WATCHING.with(|w| w.set(true));
+        counting::watch(false);
+        assert_eq!(counting::take_count(), 1, "the counting allocator works");
+        counting::watch(true);
         for _ in 0..3000 {
             engine.step(clock.wait());
         }
-        WATCHING.with(|w| w.set(false));
-        (COUNT.with(Cell::get), engine.figures())
+        counting::watch(false);
+        (counting::take_count(), engine.figures())
     });
     let ends = rx.recv().unwrap();
     let names = (0..4).map(|i| format!("a{i}")).collect();
