@@ -28,8 +28,8 @@ pub enum ChainError {
 /// to slave 0's port 0, passes its processing unit to port 1 and the next link, and so on;
 /// the last slave turns it round (its port 1 is closed) and the frame comes back through
 /// every slave's port 1 → port 0 forwarding. Forward and return delays differ, as in real
-/// ESCs, so a master that halves loop times is off by `(processing − forwarding) / 2` per
-/// hop.
+/// ESCs, so a master that halves loop times is off by `(processing − forwarding) / 2` for
+/// every hop with slaves behind it (the last hop turns round in the processing unit).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WireTiming {
     /// One link (cable and both PHYs), either direction.

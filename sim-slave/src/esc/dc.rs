@@ -32,8 +32,8 @@ const OMEGA_AT_DEFAULT_START: f64 = 10.0;
 const DEFAULT_SPEED_COUNTER_START: f64 = 4096.0;
 /// Bound of the integral (drift) correction: ±500 ppm.
 const FREQ_MAX: f64 = 500e-6;
-/// Bound of the total speed correction: ±1000 ppm (the slope of the adjustment).
-const CORRECTION_MAX: f64 = 1000e-6;
+/// Bound of the proportional slew: ±500 ppm (the slope of an offset adjustment).
+const SLEW_MAX: f64 = 500e-6;
 /// Longest gap between two writes the integral accounts for: after a pause the loop
 /// resumes instead of jumping.
 const MAX_SAMPLE_GAP_S: f64 = 0.01;
@@ -53,13 +53,17 @@ pub struct Arrival {
     pub port1: Option<u64>,
 }
 
-/// A local clock: chain time in, local time out, running at `(1 + drift) × (1 +
-/// correction)`. Local time is kept in `f64` nanoseconds (exact to well below 1 ns for
-/// the first 100 days).
+/// A local clock: chain time in, local time out. It runs at `(1 + drift) × (1 + freq +
+/// slew)` until the slew has made up the difference it was started for, then at `(1 +
+/// drift) × (1 + freq)`. Local time is kept in `f64` nanoseconds (exact to well below
+/// 1 ns for the first 100 days).
 #[derive(Clone, Debug)]
 pub struct Clock {
     drift: f64,
-    correction: f64,
+    freq: f64,
+    slew: f64,
+    /// Chain time the slew ends.
+    slew_end: u64,
     base_chain: u64,
     base_local: f64,
 }
@@ -74,20 +78,30 @@ impl Clock {
         };
         Self {
             drift,
-            correction: 0.0,
+            freq: 0.0,
+            slew: 0.0,
+            slew_end: 0,
             base_chain: 0,
             base_local: local_at_zero as f64,
         }
     }
 
-    fn rate(&self) -> f64 {
-        (1.0 + self.drift) * (1.0 + self.correction)
+    fn rate(&self, slewing: bool) -> f64 {
+        let slew = if slewing { self.slew } else { 0.0 };
+        (1.0 + self.drift) * (1.0 + self.freq + slew)
     }
 
     /// Local time at chain time `t`, with fractions.
     pub fn local_f(&self, t: u64) -> f64 {
-        let dt = t as i128 - self.base_chain as i128;
-        self.base_local + dt as f64 * self.rate()
+        let split = self.slew_end.max(self.base_chain);
+        let dt = |from: u64, to: u64| (to as i128 - from as i128) as f64;
+        if t <= split {
+            self.base_local + dt(self.base_chain, t) * self.rate(true)
+        } else {
+            self.base_local
+                + dt(self.base_chain, split) * self.rate(true)
+                + dt(split, t) * self.rate(false)
+        }
     }
 
     /// Local time at chain time `t` (ns; the cast saturates, it cannot panic).
@@ -95,16 +109,25 @@ impl Clock {
         self.local_f(t) as u64
     }
 
-    /// The speed correction the control loop applies (relative).
+    /// The drift part of the speed correction (relative).
     pub fn correction(&self) -> f64 {
-        self.correction
+        self.freq
     }
 
-    /// Changes the speed correction from chain time `t` on.
-    fn set_correction(&mut self, t: u64, correction: f64) {
+    /// From chain time `t` on: speed correction `freq`, plus `slew` until `amount_ns` of
+    /// difference are made up.
+    fn adjust(&mut self, t: u64, freq: f64, slew: f64, amount_ns: f64) {
         self.base_local = self.local_f(t);
         self.base_chain = t;
-        self.correction = correction;
+        self.freq = freq;
+        self.slew = slew;
+        let duration = if slew == 0.0 {
+            0.0
+        } else {
+            (amount_ns / slew).abs()
+        };
+        // The cast saturates.
+        self.slew_end = t.saturating_add(duration as u64);
     }
 }
 
@@ -201,7 +224,7 @@ impl DcUnit {
             self.sample(mem, at.port0, len >= 8);
         }
         if overlaps(ado, len, DC_SPEED_COUNTER_START, 2) {
-            self.reset_loop(mem);
+            self.reset_loop(mem, at.port0);
         }
         if overlaps(ado, len, DC_ACTIVATION, 1) {
             self.on_activation(mem);
@@ -290,20 +313,21 @@ impl DcUnit {
         let omega = OMEGA_AT_DEFAULT_START * DEFAULT_SPEED_COUNTER_START / start;
         let error_s = self.mean_diff * 1e-9;
         self.freq = (self.freq - omega * omega * error_s * gap_s).clamp(-FREQ_MAX, FREQ_MAX);
-        let correction = (self.freq - 2.0 * omega * error_s).clamp(-CORRECTION_MAX, CORRECTION_MAX);
-        self.clock.set_correction(t, correction);
+        let slew = (-2.0 * omega * error_s).clamp(-SLEW_MAX, SLEW_MAX);
+        self.clock.adjust(t, self.freq, slew, self.mean_diff);
         let shown = encode_difference(self.mean_diff.round() as i64);
         mem.pdi_write(DC_SYSTEM_TIME_DIFFERENCE, &shown.to_le_bytes());
         let speed = (self.freq / SPEED_DIFF_LSB).round() as i16;
         mem.pdi_write(DC_SPEED_COUNTER_DIFF, &speed.to_le_bytes());
     }
 
-    /// A write to 0x0930 resets the loop: difference and speed counter diff start over.
-    fn reset_loop(&mut self, mem: &mut Memory) {
+    /// A write to 0x0930 resets the loop: difference and speed counter diff start over,
+    /// the clock runs at its own speed again.
+    fn reset_loop(&mut self, mem: &mut Memory, t: u64) {
         self.mean_diff = 0.0;
         self.freq = 0.0;
         self.last_sample = None;
-        // The clock keeps its speed from now until the next sample.
+        self.clock.adjust(t, 0.0, 0.0, 0.0);
         mem.pdi_write(DC_SYSTEM_TIME_DIFFERENCE, &[0; 4]);
         mem.pdi_write(DC_SPEED_COUNTER_DIFF, &[0; 2]);
     }
@@ -445,7 +469,12 @@ mod tests {
             write(&mut dc, &mut mem, 0x0910, &1_000u64.to_le_bytes(), &at(0));
         }
         assert_eq!(bytes(&mem, 0x0932, 2), [0, 0]);
-        assert!(dc.clock().correction().abs() <= CORRECTION_MAX);
+        assert_eq!(dc.clock().correction(), 0.0);
+        // The slew makes up the 1000 ns (at 2ω × 1 µs = 20 ppm, in 50 ms), then stops.
+        let before = dc.system_time(&mem, 0);
+        assert_eq!(dc.system_time(&mem, 10_000_000) - before, 10_000_200);
+        let made_up = dc.system_time(&mem, 100_000_000) - before;
+        assert!(made_up.abs_diff(100_001_000) <= 1, "{made_up}");
     }
 
     #[test]
