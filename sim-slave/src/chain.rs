@@ -360,6 +360,39 @@ mod tests {
         assert_eq!(c.slaves()[0].sync0_events(), 11);
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 1000,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(7),
+            failure_persistence: None,
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+        /// Any physical command on any part of the DC block, at any time, with any data:
+        /// no panic.
+        #[test]
+        fn dc_accesses_never_panic(
+            cmd in 0u8..16,
+            adp in proptest::prelude::any::<u16>(),
+            ado in 0x08F0u16..0x09C0,
+            data in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..24),
+            advance in proptest::prelude::any::<u64>(),
+        ) {
+            let dc = |i: u32| {
+                let mut d = description(i);
+                d.dc = i != 1;
+                Slave::new(d).with_dc_clock(f64::from(i) * 300.0 - 300.0, u64::MAX / 2)
+            };
+            let mut c = SlaveChain::new((0..3).map(dc).collect());
+            for ado in [ado, 0x0981, 0x0910] {
+                let mut f = frame(Command::from(cmd), adp, ado, &data);
+                let _ = c.process(&mut f);
+                c.advance(advance >> 24);
+            }
+            c.advance(advance);
+            c.advance(u64::MAX);
+        }
+    }
+
     #[test]
     fn malformed_frames_are_dropped_untouched() {
         let mut c = chain(2);
