@@ -1,10 +1,15 @@
 //! The network: frames pass the slaves in order, each serving every datagram, as on a
 //! line topology (ports 0→1). The first slave marks the frame as forwarded (the
 //! locally-administered bit of the source address), as real ESCs do.
+//!
+//! The chain keeps the network's time (ns, advanced by [`SlaveChain::advance`] or
+//! [`SlaveChain::tick`]). A frame is sent at the current time and reaches each slave a
+//! little later ([`WireTiming`]); the slaves' DC units stamp it with their local clocks.
 
 use thiserror::Error;
 
 use crate::esc::datagram::{self, DatagramError};
+use crate::esc::dc::Arrival;
 use crate::esc::frame::{Frame, FrameError};
 use crate::fault::Faults;
 use crate::slave::Slave;
@@ -23,11 +28,64 @@ pub enum ChainError {
     Lost,
 }
 
+/// Propagation of a frame along the line (ns). A frame leaves the master, crosses a link
+/// to slave 0's port 0, passes its processing unit to port 1 and the next link, and so on;
+/// the last slave turns it round (its port 1 is closed) and the frame comes back through
+/// every slave's port 1 → port 0 forwarding. Forward and return delays differ, as in real
+/// ESCs, so a master that halves loop times is off by `(processing − forwarding) / 2` for
+/// every hop with slaves behind it (the last hop turns round in the processing unit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WireTiming {
+    /// One link (cable and both PHYs), either direction.
+    pub link_ns: u64,
+    /// Port 0 in → processing unit → port 1 out (on the last slave: back to port 0).
+    pub processing_ns: u64,
+    /// Port 1 in → port 0 out on the way back.
+    pub forwarding_ns: u64,
+}
+
+impl Default for WireTiming {
+    fn default() -> Self {
+        Self {
+            link_ns: 100,
+            processing_ns: 180,
+            forwarding_ns: 140,
+        }
+    }
+}
+
+impl WireTiming {
+    /// When a frame sent at `sent` passes slave `i` of `n`.
+    pub fn arrival(&self, sent: u64, i: usize, n: usize) -> Arrival {
+        let hop = self.link_ns.saturating_add(self.processing_ns);
+        let at = |k: usize| {
+            sent.saturating_add(self.link_ns)
+                .saturating_add(hop.saturating_mul(k as u64))
+        };
+        let last = n.saturating_sub(1);
+        let port1 = (i < last).then(|| {
+            // Leaves the last slave, then crosses (last − i − 1) slaves and links back.
+            let turned = at(last).saturating_add(self.processing_ns);
+            let back = self.link_ns.saturating_add(self.forwarding_ns);
+            turned
+                .saturating_add(back.saturating_mul((last - i - 1) as u64))
+                .saturating_add(self.link_ns)
+        });
+        Arrival {
+            port0: at(i),
+            port1,
+        }
+    }
+}
+
 /// A line of slaves.
 #[derive(Clone, Debug, Default)]
 pub struct SlaveChain {
     slaves: Vec<Slave>,
     faults: Faults,
+    /// The network's time (ns).
+    now_ns: u64,
+    timing: WireTiming,
 }
 
 impl SlaveChain {
@@ -41,6 +99,8 @@ impl SlaveChain {
         Self {
             slaves,
             faults: Faults::default(),
+            now_ns: 0,
+            timing: WireTiming::default(),
         }
     }
 
@@ -65,15 +125,53 @@ impl SlaveChain {
         self.faults
     }
 
+    /// The same chain with these propagation delays.
+    pub fn with_timing(mut self, timing: WireTiming) -> Self {
+        self.timing = timing;
+        self
+    }
+
+    /// The propagation delays.
+    pub fn timing(&self) -> WireTiming {
+        self.timing
+    }
+
+    /// The network's time (ns since the chain was made).
+    pub fn now_ns(&self) -> u64 {
+        self.now_ns
+    }
+
+    /// Advances the network's time by `ns` (DC clocks and SYNC0) and runs the
+    /// applications for as long.
+    pub fn advance(&mut self, ns: u64) {
+        self.advance_clocks(ns);
+        self.run_applications(ns as f64 * 1e-9);
+    }
+
+    fn advance_clocks(&mut self, ns: u64) {
+        self.now_ns = self.now_ns.saturating_add(ns);
+        for s in &mut self.slaves {
+            s.advance_to(self.now_ns);
+        }
+    }
+
     /// The slaves.
     pub fn slaves(&self) -> &[Slave] {
         &self.slaves
     }
 
-    /// Runs `dt_s` seconds of every slave's application, then the couplings: every
-    /// device that watches another slave's axis (switch cams) gets that slave's position
-    /// as it is *after* this step, so the inputs of both agree in the next frame.
+    /// Runs `dt_s` seconds of every slave's application; the network's time advances as
+    /// much (rounded to ns).
     pub fn tick(&mut self, dt_s: f64) {
+        // The cast saturates (negative and NaN give 0).
+        self.advance_clocks((dt_s * 1e9).round() as u64);
+        self.run_applications(dt_s);
+    }
+
+    /// The applications, then the couplings: every device that watches another slave's
+    /// axis (switch cams) gets that slave's position as it is *after* this step, so the
+    /// inputs of both agree in the next frame.
+    fn run_applications(&mut self, dt_s: f64) {
         for s in &mut self.slaves {
             s.tick(dt_s);
         }
@@ -109,7 +207,9 @@ impl SlaveChain {
             return Err(ChainError::Lost);
         }
         let mut f = Frame::new_unchecked(&mut *frame);
-        for slave in self.slaves.iter_mut().take(reachable) {
+        for (i, slave) in self.slaves.iter_mut().enumerate().take(reachable) {
+            // The last slave reached turns the frame round.
+            slave.frame_arrives(self.timing.arrival(self.now_ns, i, reachable));
             datagram::for_each_mut(f.payload_mut(), |mut d| {
                 slave.serve(&mut d);
             })?;
@@ -234,6 +334,114 @@ mod tests {
             "ports 0 and 1: link and communication"
         );
         assert_eq!(last & 0x0F30, 0x0610, "port 0 open, port 1 loop closed");
+    }
+
+    #[test]
+    fn frames_reach_each_slave_later_and_come_back_on_port_1() {
+        let t = WireTiming {
+            link_ns: 100,
+            processing_ns: 180,
+            forwarding_ns: 140,
+        };
+        let a: Vec<_> = (0..3).map(|i| t.arrival(1_000, i, 3)).collect();
+        assert_eq!(
+            a.iter().map(|a| a.port0).collect::<Vec<_>>(),
+            [1_100, 1_380, 1_660]
+        );
+        // The last slave turns the frame round at 1_840; slave 1 sees it on port 1 after
+        // one link, slave 0 after another forwarding and link.
+        assert_eq!(
+            a.iter().map(|a| a.port1).collect::<Vec<_>>(),
+            [Some(2_180), Some(1_940), None]
+        );
+    }
+
+    #[test]
+    fn only_dc_slaves_latch_and_count_receive_times() {
+        use crate::esc::registers::{DC_RECEIVE_TIME_PORT0, FEATURES};
+        let dc = |i| {
+            let mut d = description(i);
+            d.dc = true;
+            Slave::new(d).with_dc_clock(0.0, 1_000_000 * u64::from(i))
+        };
+        let mut c = SlaveChain::new(vec![dc(1), Slave::new(description(2)), dc(3)]);
+        c.advance(5_000);
+        let mut f = frame(Command::Brd, 0, FEATURES, &[0, 0]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0, vec![0x0C, 0x01], "OR of the feature bits");
+        assert_eq!(c.slaves()[1].memory().read_u16(FEATURES) & 0x010C, 0);
+        let mut f = frame(Command::Bwr, 0, DC_RECEIVE_TIME_PORT0, &[0; 4]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 2, "the slave without DC does not answer");
+        let mut f = frame(Command::Aprd, 0, DC_RECEIVE_TIME_PORT0, &[0; 8]);
+        c.process(&mut f).unwrap();
+        let (data, wkc) = reply(&f);
+        assert_eq!(wkc, 1);
+        let p0 = u32::from_le_bytes(data[0..4].try_into().unwrap());
+        let p1 = u32::from_le_bytes(data[4..8].try_into().unwrap());
+        assert_eq!(p0, 1_000_000 + 5_100);
+        // Two hops out (link + processing), the turn in the last slave, one forwarding and
+        // two links back.
+        assert_eq!(p1 - p0, 2 * 280 + 180 + 140 + 2 * 100);
+        let mut f = frame(Command::Aprd, 0xFFFF, DC_RECEIVE_TIME_PORT0, &[0; 4]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).1, 0);
+    }
+
+    #[test]
+    fn advancing_time_drives_sync0() {
+        use crate::esc::registers::{DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME};
+        let mut d = description(1);
+        d.dc = true;
+        let mut c = SlaveChain::new(vec![Slave::new(d)]);
+        for (ado, data) in [
+            (DC_START_TIME_CYCLIC, 2_000_000u64.to_le_bytes().to_vec()),
+            (DC_SYNC0_CYCLE_TIME, 1_000_000u32.to_le_bytes().to_vec()),
+            (DC_ACTIVATION, vec![0x03]),
+        ] {
+            let mut f = frame(Command::Apwr, 0, ado, &data);
+            c.process(&mut f).unwrap();
+            assert_eq!(reply(&f).1, 1);
+        }
+        c.advance(1_000_000);
+        assert_eq!(c.slaves()[0].sync0_events(), 0);
+        c.tick(0.001);
+        assert_eq!(c.slaves()[0].sync0_events(), 1);
+        c.advance(10_500_000);
+        assert_eq!(c.slaves()[0].sync0_events(), 11);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 1000,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(7),
+            failure_persistence: None,
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+        /// Any physical command on any part of the DC block, at any time, with any data:
+        /// no panic.
+        #[test]
+        fn dc_accesses_never_panic(
+            cmd in 0u8..16,
+            adp in proptest::prelude::any::<u16>(),
+            ado in 0x08F0u16..0x09C0,
+            data in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..24),
+            advance in proptest::prelude::any::<u64>(),
+        ) {
+            let dc = |i: u32| {
+                let mut d = description(i);
+                d.dc = i != 1;
+                Slave::new(d).with_dc_clock(f64::from(i) * 300.0 - 300.0, u64::MAX / 2)
+            };
+            let mut c = SlaveChain::new((0..3).map(dc).collect());
+            for ado in [ado, 0x0981, 0x0910] {
+                let mut f = frame(Command::from(cmd), adp, ado, &data);
+                let _ = c.process(&mut f);
+                c.advance(advance >> 24);
+            }
+            c.advance(advance);
+            c.advance(u64::MAX);
+        }
     }
 
     #[test]

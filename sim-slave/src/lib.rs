@@ -1,9 +1,9 @@
 //! The simulated slave network: emulated EtherCAT slave controllers, CANopen nodes and
 //! plant models (servo drive, encoder module, switch cams).
 //!
-//! Written so far (issue 3, first part): the EtherCAT wire formats the emulated slave
-//! controllers parse ([`esc::frame`], [`esc::datagram`]). Not yet: the register file, SII,
-//! SyncManagers/FMMUs, AL state machine, DC, mailbox/CoE, devices, transports.
+//! Written so far: the EtherCAT wire formats ([`esc::frame`], [`esc::datagram`]), the
+//! register file, SII, FMMUs, AL state machine, distributed clocks ([`esc::dc`]), the CoE
+//! mailbox and the servo plant; `README.md` lists what is not yet there.
 #![deny(missing_docs)]
 #![cfg_attr(
     not(test),

@@ -7,8 +7,11 @@ use crate::esc::al::AlState;
 use crate::esc::al::{self, AlStatusCode};
 use crate::esc::command::{self, Served};
 use crate::esc::datagram::Datagram;
+use crate::esc::dc::{Arrival, DcUnit};
 use crate::esc::memory::{Memory, RAM_BYTES};
-use crate::esc::registers::{AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS, PROCESS_RAM, SM0};
+use crate::esc::registers::{
+    AL_CONTROL, AL_STATUS, AL_STATUS_CODE, DL_STATUS, FEATURES, FEATURES_DC, PROCESS_RAM, SM0,
+};
 use crate::esc::sii::{self, DeviceDescription, Sii};
 use crate::esc::watchdog::ProcessDataWatchdog;
 use crate::plant::DeviceModel;
@@ -36,13 +39,24 @@ pub struct Slave {
     /// Object dictionary of the CoE mailbox (slaves without CoE have none).
     od: Option<ObjectDictionary>,
     watchdog: ProcessDataWatchdog,
+    /// The DC unit (slaves whose description has no DC have none).
+    dc: Option<DcUnit>,
+    /// When the frame being served passes this slave (set by the chain per frame).
+    arrival: Arrival,
 }
 
 impl Slave {
     /// A slave in Init with its EEPROM generated from `description`.
     pub fn new(description: DeviceDescription) -> Self {
         let sii = Sii::new(description.image());
-        let mut memory = Memory::new();
+        let (mut memory, dc) = if description.dc {
+            (Memory::new(), Some(DcUnit::new(0.0, 0)))
+        } else {
+            let mut memory = Memory::without_dc();
+            let features = memory.read_u16(FEATURES) & !(FEATURES_DC as u16);
+            memory.pdi_write(FEATURES, &features.to_le_bytes());
+            (memory, None)
+        };
         sii.reset(&mut memory);
         Self {
             memory,
@@ -51,6 +65,51 @@ impl Slave {
             device: DeviceModel::None,
             od: None,
             watchdog: ProcessDataWatchdog::default(),
+            dc,
+            arrival: Arrival::default(),
+        }
+    }
+
+    /// The same slave with its DC clock running `drift_ppm` fast (negative: slow) and
+    /// reading `local_at_zero` ns at chain time 0 (ESCs power up at different times).
+    /// No effect on a slave without DC.
+    pub fn with_dc_clock(mut self, drift_ppm: f64, local_at_zero: u64) -> Self {
+        if self.dc.is_some() {
+            self.dc = Some(DcUnit::new(drift_ppm, local_at_zero));
+        }
+        self
+    }
+
+    /// The same slave with its DC clock running `drift_ppm` fast (negative: slow).
+    pub fn with_dc_drift_ppm(self, drift_ppm: f64) -> Self {
+        self.with_dc_clock(drift_ppm, 0)
+    }
+
+    /// The DC unit, if the slave has DC.
+    pub fn dc(&self) -> Option<&DcUnit> {
+        self.dc.as_ref()
+    }
+
+    /// The slave's system time at chain time `t` (ns), if it has DC: what a read of
+    /// 0x0910 would return if a frame passed then.
+    pub fn dc_system_time(&self, t: u64) -> Option<u64> {
+        self.dc.as_ref().map(|dc| dc.system_time(&self.memory, t))
+    }
+
+    /// SYNC0 pulses generated so far (0 without DC); device models latch on its change.
+    pub fn sync0_events(&self) -> u64 {
+        self.dc.as_ref().map_or(0, DcUnit::sync0_pulses)
+    }
+
+    /// The next frame passes this slave at these times (chain time).
+    pub fn frame_arrives(&mut self, arrival: Arrival) {
+        self.arrival = arrival;
+    }
+
+    /// The chain's time is now `t` (ns): the cyclic unit generates the SYNC0 pulses due.
+    pub fn advance_to(&mut self, t: u64) {
+        if let Some(dc) = self.dc.as_mut() {
+            dc.advance(&mut self.memory, t);
         }
     }
 
@@ -148,6 +207,10 @@ impl Slave {
     pub fn serve(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
         let ado = d.ado();
         let len = d.data_len();
+        let physical = !d.command().is_logical();
+        if let (Some(dc), true) = (self.dc.as_ref(), physical) {
+            dc.before_access(&mut self.memory, ado, len, &self.arrival);
+        }
         let served = command::serve(&mut self.memory, d);
         let written = matches!(served, Served::Written | Served::ReadWritten);
         // Process data written: a logical write lands in the SyncManager areas the
@@ -160,7 +223,15 @@ impl Slave {
         if written && ProcessDataWatchdog::triggered_by(&self.memory, wd_at, wd_len) {
             self.watchdog.trigger(&mut self.memory);
         }
-        let wrote = written && !d.command().is_logical();
+        let wrote = written && physical;
+        if let (Some(dc), true) = (self.dc.as_mut(), wrote) {
+            dc.after_write(&mut self.memory, ado, len, &self.arrival);
+        }
+        if let (Some(dc), true, Served::Read | Served::ReadWritten) =
+            (self.dc.as_mut(), physical, served)
+        {
+            dc.after_read(&mut self.memory, ado, len);
+        }
         if wrote {
             let touched = |reg: u16, w: usize| {
                 (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize

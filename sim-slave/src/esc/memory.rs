@@ -39,6 +39,10 @@ fn access_map() -> &'static [u8] {
 #[derive(Clone, Debug)]
 pub struct Memory {
     bytes: Box<[u8]>,
+    /// Whether the DC registers (0x0900–0x09AF) exist: an ESC without DC leaves them
+    /// unmapped, so accesses there are not counted (a master latching receive times with a
+    /// broadcast expects only DC slaves in the working counter).
+    dc: bool,
 }
 
 impl Default for Memory {
@@ -59,23 +63,35 @@ impl Memory {
                 dst.copy_from_slice(src);
             }
         }
-        Self { bytes }
+        Self { bytes, dc: true }
+    }
+
+    /// Memory of an ESC without distributed clocks: the DC block is unmapped.
+    pub fn without_dc() -> Self {
+        Self {
+            dc: false,
+            ..Self::new()
+        }
     }
 
     /// Whether every byte of `[address, address + len)` is a register or RAM.
-    fn mapped(address: u16, len: usize) -> bool {
+    fn mapped(&self, address: u16, len: usize) -> bool {
         let (start, end) = (address as usize, address as usize + len);
         let ram = PROCESS_RAM as usize..PROCESS_RAM as usize + RAM_BYTES;
         if ram.contains(&start) && end <= ram.end {
             return true;
         }
         let map = access_map();
-        (start..end).all(|a| ram.contains(&a) || map.get(a).is_some_and(|&m| m != UNMAPPED))
+        (start..end).all(|a| {
+            ram.contains(&a)
+                || (map.get(a).is_some_and(|&m| m != UNMAPPED)
+                    && (self.dc || !u16::try_from(a).is_ok_and(registers::is_dc)))
+        })
     }
 
     /// EtherCAT read into `out` (OR-ed in when `or`); false when nothing there is mapped.
     pub fn ecat_read(&self, address: u16, out: &mut [u8], or: bool) -> bool {
-        if !Self::mapped(address, out.len()) {
+        if !self.mapped(address, out.len()) {
             return false;
         }
         let at = address as usize;
@@ -93,7 +109,7 @@ impl Memory {
     /// EtherCAT write; bytes of read-only registers keep their value. False when nothing
     /// there is mapped.
     pub fn ecat_write(&mut self, address: u16, data: &[u8]) -> bool {
-        if !Self::mapped(address, data.len()) {
+        if !self.mapped(address, data.len()) {
             return false;
         }
         let at = address as usize;
@@ -140,6 +156,16 @@ impl Memory {
         u16::from_le_bytes(b)
     }
 
+    /// Reads a little-endian u64.
+    pub fn read_u64(&self, address: u16) -> u64 {
+        let mut b = [0; 8];
+        let at = address as usize;
+        if let Some(s) = self.bytes.get(at..at + 8) {
+            b.copy_from_slice(s);
+        }
+        u64::from_le_bytes(b)
+    }
+
     /// Reads a little-endian u32.
     pub fn read_u32(&self, address: u16) -> u32 {
         let mut b = [0; 4];
@@ -162,7 +188,7 @@ mod tests {
         let mut b = [0u8; 1];
         assert!(m.ecat_read(TYPE, &mut b, false));
         assert_eq!(b[0], 0x11);
-        assert_eq!(m.read_u16(FEATURES), 0x000C);
+        assert_eq!(m.read_u16(FEATURES), 0x010C);
         assert!(m.ecat_write(STATION_ADDRESS, &[1, 2]));
         assert_eq!(m.read_u16(STATION_ADDRESS), 0x0201);
         assert!(m.ecat_write(AL_STATUS, &[8, 0]));
@@ -179,5 +205,18 @@ mod tests {
         assert!(!m.ecat_write(0x0050, &[1]));
         assert!(m.ecat_write(PROCESS_RAM, &[1, 2, 3]));
         assert!(!m.ecat_read(PROCESS_RAM + RAM_BYTES as u16, &mut b, false));
+    }
+
+    #[test]
+    fn an_esc_without_dc_does_not_map_the_dc_block() {
+        let mut m = Memory::without_dc();
+        let mut b = [0u8; 4];
+        assert!(!m.ecat_read(0x0900, &mut b, false));
+        assert!(!m.ecat_write(0x0910, &[1, 2, 3, 4]));
+        assert!(!m.ecat_read(0x09AE, &mut b[..2], false));
+        assert!(m.ecat_read(0x083C, &mut b, false), "SyncManagers stay");
+        let mut m = Memory::new();
+        assert!(m.ecat_write(0x0900, &[1, 2, 3, 4]));
+        assert_eq!(m.read_u32(0x0900), 0, "receive times are read-only");
     }
 }

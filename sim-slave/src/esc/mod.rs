@@ -5,6 +5,7 @@
 pub mod al;
 pub mod command;
 pub mod datagram;
+pub mod dc;
 pub mod fmmu;
 pub mod frame;
 pub mod memory;
