@@ -95,7 +95,7 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
             sm(INPUTS_AT, 0, 0x20, 4),
         ],
         fmmus: vec![1, 2, 3],
-        dc: false,
+        dc: true,
         tx_pdos: vec![],
         rx_pdos: vec![],
     }
