@@ -11,5 +11,6 @@ pub mod ethercat;
 pub mod pcap;
 pub mod plot;
 pub mod runtime;
+pub mod service;
 pub mod status_table;
 pub mod trace;

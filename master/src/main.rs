@@ -5,9 +5,49 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+use gantry::cli::client::{self, Client};
 use gantry::cli::profile::{self, Request};
 use gantry::cli::scan;
 use gantry::demo::{self, DemoArgs};
+use gantry::service::{self, server, RunArgs};
+use serde_json::json;
+
+/// Options of the commands that talk to a running gantry.
+#[derive(clap::Args, Debug)]
+struct ClientOpts {
+    /// Control socket of the running gantry.
+    #[arg(long)]
+    socket: Option<PathBuf>,
+    /// Print JSON for scripts.
+    #[arg(long)]
+    json: bool,
+}
+
+impl ClientOpts {
+    fn connect(&self) -> anyhow::Result<Client> {
+        let path = self.socket.clone().unwrap_or_else(server::default_socket);
+        Ok(Client::connect(&path)?)
+    }
+}
+
+/// Sends a one-axis command and waits for it (or not).
+fn axis_command(
+    opts: &ClientOpts,
+    axis: &str,
+    request: serde_json::Value,
+    no_wait: bool,
+) -> anyhow::Result<()> {
+    let mut c = opts.connect()?;
+    client::command(
+        &mut c,
+        axis,
+        request,
+        no_wait,
+        opts.json,
+        &mut std::io::stdout(),
+    )?;
+    Ok(())
+}
 
 /// gantry: a Linux motion master for CiA-402 drives.
 #[derive(Parser, Debug)]
@@ -47,6 +87,133 @@ enum Cmd {
         #[arg(long)]
         pcap: Option<String>,
     },
+    /// Run a configuration as a service with a control socket (see deploy/examples).
+    Run {
+        /// Configuration file (TOML).
+        #[arg(long)]
+        config: String,
+        /// Run without real-time scheduling (when the capabilities are missing); says so.
+        #[arg(long)]
+        no_rt: bool,
+        /// Control socket path (default: $XDG_RUNTIME_DIR/gantry.sock or /tmp/gantry-UID.sock).
+        #[arg(long)]
+        socket: Option<PathBuf>,
+    },
+    /// Axes, drives, bus and cycle figures of a running gantry.
+    Status {
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Power an axis on.
+    Enable {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Power an axis off (stopping it first).
+    Disable {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Move an axis (point to point), showing progress.
+    Move {
+        /// Axis name.
+        axis: String,
+        /// Target (or distance with --mode relative), in the axis' units.
+        #[arg(long, allow_negative_numbers = true)]
+        to: f64,
+        /// absolute or relative.
+        #[arg(long, default_value = "absolute")]
+        mode: String,
+        /// Speed (units/s; default: the axis' default).
+        #[arg(long, allow_negative_numbers = true)]
+        speed: Option<f64>,
+        /// Acceleration (units/s²).
+        #[arg(long, allow_negative_numbers = true)]
+        acceleration: Option<f64>,
+        /// Deceleration (units/s²).
+        #[arg(long, allow_negative_numbers = true)]
+        deceleration: Option<f64>,
+        /// Jerk (units/s³).
+        #[arg(long, allow_negative_numbers = true)]
+        jerk: Option<f64>,
+        /// aborting, buffered, blending-low, blending-previous, blending-next, blending-high.
+        #[arg(long)]
+        buffer: Option<String>,
+        /// Return at once with the command's handle.
+        #[arg(long)]
+        no_wait: bool,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Jog an axis until halted.
+    Jog {
+        /// Axis name.
+        axis: String,
+        /// + or -.
+        #[arg(long, allow_hyphen_values = true)]
+        direction: String,
+        /// Speed (units/s).
+        #[arg(long, allow_negative_numbers = true)]
+        speed: f64,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Decelerate an axis to a stop.
+    Halt {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Stop an axis and lock it until released (`gantry release`).
+    Stop {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Release a stopped axis.
+    Release {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Set an axis' position without moving (homing by "set position"; marks it homed).
+    SetPosition {
+        /// Axis name.
+        axis: String,
+        /// The position the axis is at now, in its units.
+        #[arg(long, allow_negative_numbers = true)]
+        position: f64,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Reset an axis in ErrorStop (its slave back to OP, the drive's fault reset).
+    Reset {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Record set and actual positions of axes, to CSV or SVG (by extension).
+    Trace {
+        /// Axis names.
+        #[arg(required = true)]
+        axes: Vec<String>,
+        /// Seconds to record (up to 60).
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Output file (.csv or .svg).
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
     /// Print the planned profile of one move as JSON.
     Profile {
         /// Start position.
@@ -82,8 +249,18 @@ enum Cmd {
     },
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // The message only: it says what and where; a backtrace would not help a user.
+            eprintln!("gantry: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Cmd::Demo {
             out,
@@ -120,6 +297,86 @@ fn main() -> anyhow::Result<()> {
                 report.csv.display(),
                 report.svg.display()
             )?;
+        }
+        Cmd::Run {
+            config,
+            no_rt,
+            socket,
+        } => {
+            let args = RunArgs {
+                config,
+                no_rt,
+                socket: socket.unwrap_or_else(server::default_socket),
+            };
+            service::run(&args, &mut std::io::stdout())?;
+        }
+        Cmd::Status { client: opts } => {
+            let mut c = opts.connect()?;
+            client::status(&mut c, opts.json, &mut std::io::stdout())?;
+        }
+        Cmd::Enable { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "enable", "axis": axis}), false)?
+        }
+        Cmd::Disable { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "disable", "axis": axis}), false)?
+        }
+        Cmd::Move {
+            axis,
+            to,
+            mode,
+            speed,
+            acceleration,
+            deceleration,
+            jerk,
+            buffer,
+            no_wait,
+            client: opts,
+        } => {
+            let request = json!({
+                "cmd": "move", "axis": axis, "to": to, "mode": mode, "speed": speed,
+                "acceleration": acceleration, "deceleration": deceleration, "jerk": jerk,
+                "buffer": buffer,
+            });
+            axis_command(&opts, &axis, request, no_wait)?
+        }
+        Cmd::Jog {
+            axis,
+            direction,
+            speed,
+            client: opts,
+        } => {
+            let request =
+                json!({"cmd": "jog", "axis": axis, "direction": direction, "speed": speed});
+            axis_command(&opts, &axis, request, true)?
+        }
+        Cmd::Halt { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "halt", "axis": axis}), false)?
+        }
+        Cmd::Stop { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "stop", "axis": axis}), false)?
+        }
+        Cmd::Release { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "release", "axis": axis}), false)?
+        }
+        Cmd::SetPosition {
+            axis,
+            position,
+            client: opts,
+        } => {
+            let request = json!({"cmd": "set_position", "axis": axis, "position": position});
+            axis_command(&opts, &axis, request, false)?
+        }
+        Cmd::Reset { axis, client: opts } => {
+            axis_command(&opts, &axis, json!({"cmd": "reset", "axis": axis}), false)?
+        }
+        Cmd::Trace {
+            axes,
+            seconds,
+            out,
+            client: opts,
+        } => {
+            let mut c = opts.connect()?;
+            client::trace(&mut c, &axes, seconds, &out, &mut std::io::stdout())?;
         }
         Cmd::Scan {
             interface,

@@ -1,4 +1,5 @@
 //! The `gantry` subcommands.
 
+pub mod client;
 pub mod profile;
 pub mod scan;

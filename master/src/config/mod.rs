@@ -49,7 +49,20 @@ impl Config {
             path: path.into(),
             reason: e.to_string(),
         })?;
-        Self::parse(&text, path)
+        let mut config = Self::parse(&text, path)?;
+        // Files named in the configuration are relative to it.
+        let dir = std::path::Path::new(path)
+            .parent()
+            .unwrap_or(std::path::Path::new(""));
+        for file in [&mut config.bus.simulator, &mut config.bus.pcap]
+            .into_iter()
+            .flatten()
+        {
+            if std::path::Path::new(file.as_str()).is_relative() {
+                *file = dir.join(&*file).display().to_string();
+            }
+        }
+        Ok(config)
     }
 
     /// Parses and checks `text`; `path` names it in errors.

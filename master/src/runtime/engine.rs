@@ -342,6 +342,11 @@ impl<B: CycleBus> Engine<B> {
         self.snapshot.publish();
     }
 
+    /// The bus, for its shutdown after the last cycle.
+    pub fn into_bus(self) -> B {
+        self.bus
+    }
+
     /// The cycle figures so far (computed now).
     pub fn figures(&self) -> super::stats::CycleFigures {
         self.stats.figures()

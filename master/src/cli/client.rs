@@ -1,0 +1,362 @@
+//! The client commands (`gantry status`, `move`, `jog`, …): one JSON line to the running
+//! service's control socket, one line back, printed for people or (`--json`) for scripts.
+
+use std::io::{BufRead, BufReader, IsTerminal, Write};
+use std::os::unix::net::UnixStream;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+use thiserror::Error;
+
+use crate::plot::{self, Panel};
+use crate::service::protocol::VERSION;
+use crate::trace::Trace;
+
+/// Why a client command failed.
+#[derive(Debug, Error)]
+pub enum ClientError {
+    /// The service is not there.
+    #[error(
+        "cannot reach gantry at {path}: {reason} (is `gantry run` running? --socket sets the path)"
+    )]
+    Connect {
+        /// Socket path.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// The connection broke or the reply was not JSON.
+    #[error("control socket: {0}")]
+    Io(String),
+    /// The service refused the request.
+    #[error("{0}")]
+    Refused(String),
+    /// The command ended in error.
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// A connection to the service.
+pub struct Client {
+    writer: UnixStream,
+    reader: BufReader<UnixStream>,
+}
+
+impl Client {
+    /// Connects to the socket at `path`.
+    pub fn connect(path: &Path) -> Result<Self, ClientError> {
+        let connect_error = |e: std::io::Error| ClientError::Connect {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        };
+        let writer = UnixStream::connect(path).map_err(connect_error)?;
+        let reader = BufReader::new(writer.try_clone().map_err(connect_error)?);
+        Ok(Self { writer, reader })
+    }
+
+    /// Sends one request (without `v`), returns the result or the service's error.
+    pub fn request(&mut self, mut request: Value) -> Result<Value, ClientError> {
+        if let Some(o) = request.as_object_mut() {
+            o.insert("v".into(), json!(VERSION));
+        }
+        let io = |e: std::io::Error| ClientError::Io(e.to_string());
+        writeln!(self.writer, "{request}").map_err(io)?;
+        let mut line = String::new();
+        self.reader.read_line(&mut line).map_err(io)?;
+        let reply: Value =
+            serde_json::from_str(&line).map_err(|e| ClientError::Io(format!("reply: {e}")))?;
+        if reply["ok"] == json!(true) {
+            Ok(reply["result"].clone())
+        } else {
+            Err(ClientError::Refused(
+                reply["error"].as_str().unwrap_or("refused").to_string(),
+            ))
+        }
+    }
+
+    /// Waits for `handle` to be final; on a terminal, shows `progress` every 100 ms.
+    pub fn wait(
+        &mut self,
+        handle: u64,
+        timeout: Duration,
+        mut progress: impl FnMut(&mut Self) -> Option<String>,
+    ) -> Result<Value, ClientError> {
+        let end = Instant::now() + timeout;
+        let tty = std::io::stdout().is_terminal();
+        loop {
+            let s = self.request(json!({"cmd": "wait", "handle": handle, "timeout_s": 0.1}));
+            match s {
+                Ok(status) => {
+                    if tty {
+                        print!("\r\x1b[K");
+                    }
+                    return match status["status"].as_str() {
+                        Some("Done") => Ok(status),
+                        Some("Error") => Err(ClientError::Failed(
+                            status["error"].as_str().unwrap_or("error").to_string(),
+                        )),
+                        other => Err(ClientError::Failed(format!(
+                            "ended {}",
+                            other.unwrap_or("unknown")
+                        ))),
+                    };
+                }
+                Err(ClientError::Refused(e)) if e.contains("not final") => {}
+                Err(e) => return Err(e),
+            }
+            if Instant::now() >= end {
+                return Err(ClientError::Failed(format!(
+                    "not done after {:.0} s (it goes on; `gantry status` shows it)",
+                    timeout.as_secs_f64()
+                )));
+            }
+            if tty {
+                if let Some(line) = progress(self) {
+                    print!("\r\x1b[K{line}");
+                    let _ = std::io::stdout().flush();
+                }
+            }
+        }
+    }
+}
+
+/// The axis entry of a status reply.
+fn axis_of<'a>(status: &'a Value, axis: &str) -> Option<&'a Value> {
+    status["axes"]
+        .as_array()?
+        .iter()
+        .find(|a| a["name"] == json!(axis))
+}
+
+/// `gantry status`.
+pub fn status(
+    client: &mut Client,
+    json_out: bool,
+    out: &mut impl Write,
+) -> Result<(), ClientError> {
+    let s = client.request(json!({"cmd": "status"}))?;
+    let io = |e: std::io::Error| ClientError::Io(e.to_string());
+    if json_out {
+        writeln!(out, "{s}").map_err(io)?;
+        return Ok(());
+    }
+    let f = |v: &Value| v.as_f64().map_or("-".into(), |x| format!("{x:.3}"));
+    writeln!(
+        out,
+        "t = {:.3} s, {} cycles{}",
+        s["time_s"].as_f64().unwrap_or(0.0),
+        s["cycles"],
+        if s["real_time"] == json!(true) {
+            ""
+        } else {
+            " (not real time)"
+        }
+    )
+    .map_err(io)?;
+    writeln!(
+        out,
+        "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} error",
+        "axis", "state", "position", "set", "velocity", "homed"
+    )
+    .map_err(io)?;
+    for a in s["axes"].as_array().into_iter().flatten() {
+        writeln!(
+            out,
+            "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {}",
+            a["name"].as_str().unwrap_or("?"),
+            a["state"].as_str().unwrap_or("?"),
+            f(&a["position"]),
+            f(&a["set_position"]),
+            f(&a["velocity"]),
+            if a["homed"] == json!(true) {
+                "yes"
+            } else {
+                "no"
+            },
+            a["error"].as_str().unwrap_or("")
+        )
+        .map_err(io)?;
+    }
+    writeln!(
+        out,
+        "{:<6} {:<6} {:<22} {:<10} fault",
+        "axis", "drive", "drive state", "sw"
+    )
+    .map_err(io)?;
+    for d in s["drives"].as_array().into_iter().flatten() {
+        let fault = d["bus_fault"]
+            .as_str()
+            .or(d["error_code"].as_str())
+            .unwrap_or("");
+        writeln!(
+            out,
+            "{:<6} {:<6} {:<22} {:<10} {}",
+            d["axis"].as_str().unwrap_or("?"),
+            d["drive"].as_u64().map_or("?".into(), |n| n.to_string()),
+            d["state"].as_str().unwrap_or("-"),
+            d["statusword"].as_str().unwrap_or("-"),
+            fault
+        )
+        .map_err(io)?;
+    }
+    let c = &s["cycle"];
+    let summary = |h: &Value| {
+        format!(
+            "p50 {} µs, p99 {} µs, p99.9 {} µs, max {:.0} µs",
+            h["p50_us"],
+            h["p99_us"],
+            h["p999_us"],
+            h["max_us"].as_f64().unwrap_or(0.0)
+        )
+    };
+    writeln!(
+        out,
+        "bus: {} frames lost, {} wrong working counters\ncycle: wake-up {}; compute {}; round trip {}; {} overruns",
+        s["bus"]["lost_frames"],
+        s["bus"]["working_counter_errors"],
+        summary(&c["wake"]),
+        summary(&c["compute"]),
+        summary(&c["round_trip"]),
+        c["overruns"]
+    )
+    .map_err(io)?;
+    Ok(())
+}
+
+/// Sends `request` for `axis` and, unless `no_wait`, waits for it with a progress line.
+pub fn command(
+    client: &mut Client,
+    axis: &str,
+    request: Value,
+    no_wait: bool,
+    json_out: bool,
+    out: &mut impl Write,
+) -> Result<(), ClientError> {
+    let io = |e: std::io::Error| ClientError::Io(e.to_string());
+    let target = request["to"].as_f64();
+    let relative = request["mode"] == json!("relative");
+    let sent = client.request(request)?;
+    let handle = sent["handle"].as_u64().unwrap_or(0);
+    if no_wait {
+        if json_out {
+            writeln!(out, "{}", json!({"handle": handle})).map_err(io)?;
+        } else {
+            writeln!(out, "{axis}: handle {handle}").map_err(io)?;
+        }
+        return Ok(());
+    }
+    let start = client
+        .request(json!({"cmd": "status"}))
+        .ok()
+        .and_then(|s| axis_of(&s, axis).and_then(|a| a["position"].as_f64()));
+    let goal = match (target, start) {
+        (Some(t), Some(p)) if relative => Some((p, p + t)),
+        (Some(t), Some(p)) => Some((p, t)),
+        _ => None,
+    };
+    let result = client.wait(handle, Duration::from_secs(600), |c| {
+        let s = c.request(json!({"cmd": "status"})).ok()?;
+        let a = axis_of(&s, axis)?;
+        let p = a["position"].as_f64()?;
+        let units = a["units"].as_str().unwrap_or("");
+        Some(match goal {
+            Some((from, to)) if (to - from).abs() > 1e-9 => {
+                let frac = ((p - from) / (to - from)).clamp(0.0, 1.0);
+                let bar: String = (0..20)
+                    .map(|i| if (i as f64) < frac * 20.0 { '#' } else { '-' })
+                    .collect();
+                format!(
+                    "{axis} {p:10.3} {units} → {to:.3} {units} [{bar}] {:3.0}%",
+                    frac * 100.0
+                )
+            }
+            _ => format!(
+                "{axis} {p:10.3} {units} ({})",
+                a["state"].as_str().unwrap_or("?")
+            ),
+        })
+    });
+    let status = client.request(json!({"cmd": "status"}))?;
+    let position = axis_of(&status, axis).and_then(|a| a["position"].as_f64());
+    match result {
+        Ok(_) => {
+            if json_out {
+                writeln!(
+                    out,
+                    "{}",
+                    json!({"handle": handle, "status": "Done", "position": position})
+                )
+                .map_err(io)?;
+            } else {
+                let units = axis_of(&status, axis)
+                    .and_then(|a| a["units"].as_str())
+                    .unwrap_or("");
+                writeln!(
+                    out,
+                    "{axis}: done at {:.3} {units}",
+                    position.unwrap_or(f64::NAN)
+                )
+                .map_err(io)?;
+            }
+            Ok(())
+        }
+        Err(e) => Err(ClientError::Failed(format!("{axis}: {e}"))),
+    }
+}
+
+/// `gantry trace`: records, then writes CSV or SVG (by the file's extension).
+pub fn trace(
+    client: &mut Client,
+    axes: &[String],
+    seconds: f64,
+    path: &Path,
+    out: &mut impl Write,
+) -> Result<(), ClientError> {
+    let r = client.request(json!({"cmd": "trace", "axes": axes, "seconds": seconds}))?;
+    let columns: Vec<String> = r["columns"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .skip(1)
+        .filter_map(|c| c.as_str().map(String::from))
+        .collect();
+    let rows = r["rows"].as_array().cloned().unwrap_or_default();
+    let mut t = Trace::new(columns.clone(), rows.len().max(1));
+    for row in &rows {
+        let v: Vec<f64> = row
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(Value::as_f64)
+            .collect();
+        if let Some((time, values)) = v.split_first() {
+            t.push(*time, values)
+                .map_err(|e| ClientError::Io(e.to_string()))?;
+        }
+    }
+    let svg = path.extension().is_some_and(|e| e == "svg");
+    if svg {
+        let doc = plot::svg(
+            &t,
+            &[Panel {
+                title: "set and actual position".into(),
+                channels: (0..columns.len()).collect(),
+            }],
+        );
+        std::fs::write(path, doc)
+            .map_err(|e| ClientError::Io(format!("{}: {e}", path.display())))?;
+    } else {
+        t.write_csv(path)
+            .map_err(|e| ClientError::Io(e.to_string()))?;
+    }
+    writeln!(
+        out,
+        "trace: {} samples of {} to {}",
+        rows.len(),
+        axes.join(", "),
+        path.display()
+    )
+    .map_err(|e| ClientError::Io(e.to_string()))?;
+    Ok(())
+}

@@ -1,0 +1,180 @@
+//! `gantry run --config FILE`: the master as a service. The cycle thread (real time
+//! unless `--no-rt`) brings the bus up and runs the engine; the main thread serves the
+//! control socket and handles signals: the first SIGINT/SIGTERM quick-stops moving axes,
+//! disables the drives and takes the bus to PreOp; a second one exits at once.
+
+pub mod protocol;
+pub mod server;
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::config::{Config, ConfigError};
+use crate::ethercat::bus::EthercatBus;
+use crate::runtime::controller::Controller;
+use crate::runtime::engine::{AppEnds, Engine};
+use crate::runtime::rt::{self, RtError};
+use crate::runtime::stats::CycleFigures;
+
+/// How `gantry run` was asked to run.
+#[derive(Clone, Debug)]
+pub struct RunArgs {
+    /// Configuration file.
+    pub config: String,
+    /// Run without real-time scheduling (and say so).
+    pub no_rt: bool,
+    /// Control socket path.
+    pub socket: PathBuf,
+}
+
+/// Why the service did not run.
+#[derive(Debug, Error)]
+pub enum ServiceError {
+    /// The configuration is wrong.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Real time is not possible.
+    #[error(transparent)]
+    RealTime(#[from] RtError),
+    /// The bus did not come up.
+    #[error("{0}")]
+    Start(String),
+    /// The control socket could not be opened.
+    #[error("control socket {path}: {reason}")]
+    Socket {
+        /// Its path.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// Runs the service until shut down.
+pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures, ServiceError> {
+    let config = Config::load(&args.config)?;
+    let real_time = !args.no_rt;
+    if real_time {
+        rt::check(&config.rt, config.bus.interface.is_some())?;
+    } else {
+        let _ = writeln!(
+            out,
+            "gantry: --no-rt: the cycle is NOT real time (no SCHED_FIFO, no locked memory)"
+        );
+    }
+    let period_ns = u64::from(config.bus.cycle_us) * 1000;
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel::<Result<AppEnds, String>>();
+    let cycle_config = config.clone();
+    let cycle_stop = stop.clone();
+    let cycle_thread = std::thread::Builder::new()
+        .name("gantry-cycle".into())
+        .spawn(move || -> Option<CycleFigures> {
+            if real_time {
+                if let Err(e) = rt::enter(&cycle_config.rt) {
+                    let _ = tx.send(Err(e.to_string()));
+                    return None;
+                }
+            }
+            let mut log = std::io::stdout();
+            let (bus, cycle, health) = match EthercatBus::bring_up(&cycle_config, &mut log) {
+                Ok(up) => up,
+                Err(e) => {
+                    let _ = tx.send(Err(e.to_string()));
+                    return None;
+                }
+            };
+            let (engine, ends) =
+                Engine::new(bus, cycle, health, cycle_config.rt.overrun_limit, 1 << 16);
+            let _ = tx.send(Ok(ends));
+            let engine = engine.run(period_ns, &cycle_stop);
+            let figures = engine.figures();
+            engine.into_bus().shut_down(&mut log);
+            Some(figures)
+        })
+        .map_err(|e| ServiceError::Start(e.to_string()))?;
+    let ends = match rx.recv() {
+        Ok(Ok(ends)) => ends,
+        Ok(Err(e)) => {
+            let _ = cycle_thread.join();
+            return Err(ServiceError::Start(e));
+        }
+        Err(_) => {
+            return Err(ServiceError::Start(
+                "the cycle thread ended at start".into(),
+            ))
+        }
+    };
+    let names = config.axes.iter().map(|a| a.name.clone()).collect();
+    let controller = Controller::new(ends, names);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| ServiceError::Start(format!("tokio: {e}")))?;
+    let socket = args.socket.clone();
+    let listener = runtime
+        .block_on(async { server::bind(&socket) })
+        .map_err(|e| ServiceError::Socket {
+            path: socket.display().to_string(),
+            reason: e.to_string(),
+        })?;
+    let _ = writeln!(
+        out,
+        "gantry: {} axes, cycle {} µs{}, control socket {}",
+        config.axes.len(),
+        config.bus.cycle_us,
+        if real_time {
+            ", real time"
+        } else {
+            ", not real time"
+        },
+        socket.display()
+    );
+    let state = server::ServerState::new(controller.clone(), config, real_time);
+    runtime.block_on(async {
+        let server = tokio::spawn(server::serve(listener, state.clone()));
+        let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt()).ok();
+        let mut sigterm = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
+        let mut signals = 0;
+        let mut tick = tokio::time::interval(Duration::from_millis(5));
+        loop {
+            tokio::select! {
+                _ = async { match sigint.as_mut() { Some(s) => { s.recv().await; } None => std::future::pending().await } } => signals += 1,
+                _ = async { match sigterm.as_mut() { Some(s) => { s.recv().await; } None => std::future::pending().await } } => signals += 1,
+                _ = tick.tick() => {
+                    state.collect_trace();
+                    if controller.snapshot().ended || cycle_thread.is_finished() {
+                        break;
+                    }
+                    continue;
+                }
+            }
+            if signals == 1 {
+                let _ = writeln!(std::io::stdout(), "gantry: stopping (quick stop, disable, bus to PreOp); again to force exit");
+                stop.store(true, Ordering::Relaxed);
+            } else {
+                let _ = writeln!(std::io::stdout(), "gantry: forced exit");
+                let _ = std::fs::remove_file(&socket);
+                std::process::exit(130);
+            }
+        }
+        server.abort();
+    });
+    let _ = std::fs::remove_file(&args.socket);
+    let figures = cycle_thread
+        .join()
+        .ok()
+        .flatten()
+        .ok_or_else(|| ServiceError::Start("the cycle thread failed".into()))?;
+    let _ = writeln!(
+        out,
+        "gantry: stopped after {} cycles; wake-up {}; compute {}; round trip {}; overruns {}",
+        figures.cycles, figures.wake, figures.compute, figures.round_trip, figures.overruns
+    );
+    Ok(figures)
+}

@@ -1,0 +1,379 @@
+//! The control socket: a Unix domain socket (mode 0660) serving the JSON-lines protocol to
+//! any number of clients, each in its own task. Requests become [`Controller`] calls;
+//! replies are built from the latest snapshot. Nothing a client sends can reach the cycle
+//! thread except as a well-formed request through the queue.
+
+use std::collections::VecDeque;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use gantry_drives::cia402::error_code::{describe, describe_fault};
+use gantry_kernel::axis::command::{
+    BufferMode, Command, HaltMode, Jog, MoveDirection, MovePtp, PositioningMode, PowerCommand,
+};
+use gantry_kernel::axis::handle::CommandStatus;
+use serde_json::{json, Value};
+use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
+use tokio::net::{UnixListener, UnixStream};
+
+use super::protocol::{self, Request, MAX_LINE};
+use crate::config::Config;
+use crate::runtime::controller::{CommandHandle, ControlError, Controller};
+use crate::runtime::protocol::{Snapshot, TraceSample};
+
+/// Trace samples kept for `trace` requests (60 s at 1 kHz).
+const TRACE_KEEP: usize = 60_000;
+
+/// What the server shares between client tasks.
+pub struct ServerState {
+    /// The cycle.
+    pub controller: Controller,
+    /// The configuration (axis units and defaults).
+    pub config: Config,
+    /// Whether the cycle runs in real time.
+    pub real_time: bool,
+    trace: Mutex<VecDeque<TraceSample>>,
+    handles: Mutex<Vec<CommandHandle>>,
+}
+
+impl ServerState {
+    /// Shared state for a server.
+    pub fn new(controller: Controller, config: Config, real_time: bool) -> Arc<Self> {
+        Arc::new(Self {
+            controller,
+            config,
+            real_time,
+            trace: Mutex::new(VecDeque::with_capacity(TRACE_KEEP)),
+            handles: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Moves new trace samples from the cycle into the kept window (call every few ms).
+    pub fn collect_trace(&self) {
+        let mut new = Vec::new();
+        self.controller.drain_trace(&mut new);
+        let mut kept = self.trace.lock().unwrap_or_else(|p| p.into_inner());
+        for s in new {
+            if kept.len() == TRACE_KEEP {
+                kept.pop_front();
+            }
+            kept.push_back(s);
+        }
+    }
+}
+
+/// Binds the socket at `path` (replacing a stale one), mode 0660.
+pub fn bind(path: &Path) -> std::io::Result<UnixListener> {
+    if path.exists() {
+        // A socket left by a gantry that died; a live one would still answer.
+        if std::os::unix::net::UnixStream::connect(path).is_ok() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::AddrInUse,
+                format!("{} is in use by a running gantry", path.display()),
+            ));
+        }
+        std::fs::remove_file(path)?;
+    }
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    let listener = UnixListener::bind(path)?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o660))?;
+    Ok(listener)
+}
+
+/// Serves clients until the task is dropped.
+pub async fn serve(listener: UnixListener, state: Arc<ServerState>) {
+    loop {
+        let Ok((stream, _)) = listener.accept().await else {
+            continue;
+        };
+        tokio::spawn(client(stream, state.clone()));
+    }
+}
+
+async fn client(stream: UnixStream, state: Arc<ServerState>) {
+    let (read, mut write) = stream.into_split();
+    let mut reader = BufReader::new(read);
+    loop {
+        let mut line = Vec::new();
+        match (&mut reader)
+            .take(MAX_LINE as u64 + 1)
+            .read_until(b'\n', &mut line)
+            .await
+        {
+            Ok(0) | Err(_) => return,
+            Ok(_) => {}
+        }
+        let reply = if line.len() > MAX_LINE {
+            let reply = protocol::error(&format!("request longer than {MAX_LINE} bytes"));
+            let _ = write.write_all(format!("{reply}\n").as_bytes()).await;
+            return;
+        } else {
+            match std::str::from_utf8(&line) {
+                Ok(text) if text.trim().is_empty() => continue,
+                Ok(text) => match protocol::parse(text.trim()) {
+                    Ok(request) => match handle(&state, request).await {
+                        Ok(result) => protocol::ok(result),
+                        Err(e) => protocol::error(&e),
+                    },
+                    Err(e) => protocol::error(&e),
+                },
+                Err(_) => protocol::error("request is not UTF-8"),
+            }
+        };
+        if write
+            .write_all(format!("{reply}\n").as_bytes())
+            .await
+            .is_err()
+        {
+            return;
+        }
+    }
+}
+
+fn status_name(s: CommandStatus) -> Value {
+    match s {
+        CommandStatus::Error(e) => json!({"status": "Error", "error": e.to_string()}),
+        other => json!({ "status": format!("{other:?}") }),
+    }
+}
+
+fn number(name: &str, v: f64) -> Result<f64, String> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{name} must be a finite number"))
+    }
+}
+
+async fn handle(state: &ServerState, request: Request) -> Result<Value, String> {
+    let ctl = &state.controller;
+    let axis = |name: &str| ctl.axis(name).map_err(|e| e.to_string());
+    let sent = |h: Result<CommandHandle, ControlError>| -> Result<Value, String> {
+        let h = h.map_err(|e| e.to_string())?;
+        let id = h.id();
+        let mut handles = state.handles.lock().unwrap_or_else(|p| p.into_inner());
+        if handles.len() >= 4096 {
+            handles.remove(0);
+        }
+        handles.push(h);
+        Ok(json!({ "handle": id }))
+    };
+    match request {
+        Request::Status => Ok(status_json(state, &ctl.snapshot())),
+        Request::Enable { axis: a } => {
+            sent(ctl.command(axis(&a)?, Command::Power(PowerCommand::Enable)))
+        }
+        Request::Disable { axis: a } => {
+            sent(ctl.command(axis(&a)?, Command::Power(PowerCommand::Disable)))
+        }
+        Request::Move {
+            axis: a,
+            to,
+            mode,
+            speed,
+            acceleration,
+            deceleration,
+            jerk,
+            buffer,
+        } => {
+            let i = axis(&a)?;
+            let mode = match mode.as_deref().unwrap_or("absolute") {
+                "absolute" => PositioningMode::AbsNormal,
+                "relative" => PositioningMode::RelTarget,
+                other => {
+                    return Err(format!(
+                        "mode {other:?} is not \"absolute\" or \"relative\""
+                    ))
+                }
+            };
+            let buffer = match buffer.as_deref().unwrap_or("aborting") {
+                "aborting" => BufferMode::Aborting,
+                "buffered" => BufferMode::Buffered,
+                "blending-low" => BufferMode::BlendingLow,
+                "blending-previous" => BufferMode::BlendingPrevious,
+                "blending-next" => BufferMode::BlendingNext,
+                "blending-high" => BufferMode::BlendingHigh,
+                other => return Err(format!("buffer {other:?} is not a buffer mode")),
+            };
+            let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer);
+            m.speed = speed;
+            m.acceleration = acceleration;
+            m.deceleration = deceleration;
+            m.jerk = jerk;
+            sent(ctl.command(i, Command::MovePtp(m)))
+        }
+        Request::Jog {
+            axis: a,
+            direction,
+            speed,
+        } => {
+            let i = axis(&a)?;
+            let direction = match direction.as_str() {
+                "+" | "positive" => MoveDirection::Positive,
+                "-" | "negative" => MoveDirection::Negative,
+                other => return Err(format!("direction {other:?} is not \"+\" or \"-\"")),
+            };
+            let d = state
+                .config
+                .kernel_axes
+                .get(i)
+                .map(|c| c.defaults)
+                .ok_or("no axis")?;
+            let jog = Jog::new(
+                direction,
+                number("speed", speed)?,
+                d.acceleration,
+                d.deceleration,
+            );
+            sent(ctl.command(i, Command::Jog(jog)))
+        }
+        Request::Halt { axis: a } => sent(ctl.command(
+            axis(&a)?,
+            Command::Halt {
+                mode: HaltMode::Normal,
+                deceleration: None,
+            },
+        )),
+        Request::Stop { axis: a } => {
+            sent(ctl.command(axis(&a)?, Command::Stop { deceleration: None }))
+        }
+        Request::Release { axis: a } => sent(ctl.command(axis(&a)?, Command::Release)),
+        Request::SetPosition { axis: a, position } => sent(ctl.command(
+            axis(&a)?,
+            Command::SetPosition {
+                position: number("position", position)?,
+                relative: false,
+            },
+        )),
+        Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
+        Request::Command { handle } => {
+            let h = find(state, handle)?;
+            Ok(h.status().map_or(json!({"status": "Pending"}), status_name))
+        }
+        Request::Wait { handle, timeout_s } => {
+            let h = find(state, handle)?;
+            let timeout =
+                Duration::from_secs_f64(number("timeout_s", timeout_s)?.clamp(0.0, 3600.0));
+            match tokio::time::timeout(timeout, h.done()).await {
+                Ok(s) => Ok(status_name(s)),
+                Err(_) => Err(format!("handle {handle} not final after {timeout_s} s")),
+            }
+        }
+        Request::Trace { axes, seconds } => {
+            let idx: Vec<usize> = axes.iter().map(|a| axis(a)).collect::<Result<_, _>>()?;
+            if idx
+                .iter()
+                .any(|&i| i >= crate::runtime::protocol::TRACE_AXES)
+            {
+                return Err("only the first 16 axes are traced".into());
+            }
+            let seconds = number("seconds", seconds)?.clamp(0.0, 60.0);
+            let start = ctl.snapshot().time_s;
+            tokio::time::sleep(Duration::from_secs_f64(seconds)).await;
+            state.collect_trace();
+            let kept = state.trace.lock().unwrap_or_else(|p| p.into_inner());
+            let rows: Vec<Value> = kept
+                .iter()
+                .filter(|s| s.time_s >= start)
+                .map(|s| {
+                    let mut row = vec![json!(s.time_s)];
+                    for &i in &idx {
+                        row.push(json!(s.set[i]));
+                        row.push(json!(s.actual[i]));
+                    }
+                    Value::Array(row)
+                })
+                .collect();
+            let columns: Vec<String> = std::iter::once("time_s".to_string())
+                .chain(
+                    axes.iter()
+                        .flat_map(|a| [format!("{a}.set"), format!("{a}.actual")]),
+                )
+                .collect();
+            Ok(json!({"columns": columns, "rows": rows}))
+        }
+        Request::Shutdown => {
+            ctl.shutdown().map_err(|e| e.to_string())?;
+            Ok(json!({"shutting_down": true}))
+        }
+    }
+}
+
+fn find(state: &ServerState, id: u64) -> Result<CommandHandle, String> {
+    state
+        .handles
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .iter()
+        .find(|h| h.id() == id)
+        .cloned()
+        .ok_or_else(|| format!("no handle {id} (handles are per service run)"))
+}
+
+/// The `status` reply.
+pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
+    let axes: Vec<Value> = state
+        .config
+        .axes
+        .iter()
+        .zip(&snap.axes)
+        .map(|(cfg, s)| {
+            json!({
+                "name": cfg.name,
+                "units": cfg.units,
+                "state": s.state.name(),
+                "position": s.actual_position,
+                "set_position": s.set.p,
+                "velocity": s.set.v,
+                "homed": s.bits.homed,
+                "moving": s.bits.moving,
+                "error": s.error.as_ref().map(describe_fault),
+            })
+        })
+        .collect();
+    let drives: Vec<Value> = state
+        .config
+        .axes
+        .iter()
+        .zip(&snap.drives)
+        .map(|(cfg, d)| {
+            json!({
+                "axis": cfg.name,
+                "drive": cfg.drive,
+                "state": d.state.map(|s| s.name()),
+                "statusword": format!("{:#06x}", d.statusword),
+                "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),
+                "bus_fault": d.bus_fault.map(|f| f.to_string()),
+            })
+        })
+        .collect();
+    json!({
+        "time_s": snap.time_s,
+        "cycles": snap.cycle,
+        "real_time": state.real_time,
+        "ended": snap.ended,
+        "overrun_stop": snap.overrun_stop,
+        "axes": axes,
+        "drives": drives,
+        "bus": {
+            "lost_frames": snap.lost_frames,
+            "working_counter_errors": snap.working_counter_errors,
+        },
+        "cycle": snap.figures,
+    })
+}
+
+/// The default socket path: `$XDG_RUNTIME_DIR/gantry.sock`, else `/tmp/gantry-UID.sock`.
+pub fn default_socket() -> PathBuf {
+    std::env::var_os("XDG_RUNTIME_DIR")
+        .map(|d| PathBuf::from(d).join("gantry.sock"))
+        .unwrap_or_else(|| {
+            // SAFETY: getuid has no failure mode.
+            let uid = unsafe { libc::getuid() };
+            PathBuf::from(format!("/tmp/gantry-{uid}.sock"))
+        })
+}

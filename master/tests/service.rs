@@ -1,0 +1,232 @@
+//! `gantry run` end to end, through the binary: the service on the example configuration
+//! with simulated drives in the process (`--no-rt`: no root needed), driven by the client
+//! commands a user types — status, enable, set-position, move (absolute, relative, JSON),
+//! jog + halt, stop + release, reset, trace — and by hostile requests on the raw socket;
+//! SIGTERM shuts it down gracefully. Without the capabilities it refuses to start.
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn gantry() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gantry"))
+}
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../deploy/examples")
+        .join(name)
+}
+
+struct Service {
+    child: Child,
+    socket: PathBuf,
+}
+
+impl Service {
+    fn start(tag: &str) -> Self {
+        let socket = std::env::temp_dir().join(format!("gantry-{tag}-{}.sock", std::process::id()));
+        let child = gantry()
+            .args(["run", "--no-rt", "--config"])
+            .arg(example("sim-4-axes.toml"))
+            .arg("--socket")
+            .arg(&socket)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let end = Instant::now() + Duration::from_secs(20);
+        while UnixStream::connect(&socket).is_err() {
+            assert!(Instant::now() < end, "the service did not open its socket");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Self { child, socket }
+    }
+
+    fn cli(&self, args: &[&str]) -> Output {
+        gantry()
+            .args(args)
+            .arg("--socket")
+            .arg(&self.socket)
+            .output()
+            .unwrap()
+    }
+
+    /// Runs a client command that must succeed; its stdout.
+    fn ok(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    /// Runs a client command that must fail; its stderr.
+    fn fails(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(!out.status.success(), "{args:?} should fail");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    fn status(&self) -> serde_json::Value {
+        serde_json::from_str(&self.ok(&["status", "--json"])).unwrap()
+    }
+
+    fn axis(&self, name: &str) -> serde_json::Value {
+        self.status()["axes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|a| a["name"] == name)
+            .unwrap()
+            .clone()
+    }
+}
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = std::fs::remove_file(&self.socket);
+    }
+}
+
+fn raw_request(socket: &Path, line: &[u8]) -> serde_json::Value {
+    let mut s = UnixStream::connect(socket).unwrap();
+    s.write_all(line).unwrap();
+    let mut reply = String::new();
+    BufReader::new(s).read_line(&mut reply).unwrap();
+    serde_json::from_str(&reply).unwrap()
+}
+
+#[test]
+fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
+    let svc = Service::start("e2e");
+    let s = svc.status();
+    assert_eq!(s["axes"].as_array().unwrap().len(), 4);
+    assert_eq!(s["real_time"], false);
+    assert!(svc.ok(&["status"]).contains("Disabled"));
+
+    svc.ok(&["enable", "x"]);
+    assert_eq!(svc.axis("x")["state"], "Standstill");
+    let e = svc.fails(&["move", "x", "--to", "20"]);
+    assert!(e.contains("not homed"), "{e}");
+    svc.ok(&["set-position", "x", "--position", "0"]);
+    let out = svc.ok(&["move", "x", "--to", "20", "--speed", "100"]);
+    assert!(out.contains("x: done at 20.0"), "{out}");
+    let out = svc.ok(&["move", "x", "--to", "5", "--mode", "relative", "--json"]);
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(j["status"], "Done");
+    assert!((j["position"].as_f64().unwrap() - 25.0).abs() < 0.05, "{j}");
+
+    // Jog, then halt.
+    svc.ok(&["jog", "x", "--direction", "+", "--speed", "20"]);
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(svc.axis("x")["state"], "ContinuousMotion");
+    svc.ok(&["halt", "x"]);
+    assert!(svc.axis("x")["position"].as_f64().unwrap() > 25.5);
+
+    // Stop locks the axis until released.
+    svc.ok(&["stop", "x"]);
+    let e = svc.fails(&["move", "x", "--to", "0"]);
+    assert!(e.contains("Stopping"), "{e}");
+    svc.ok(&["release", "x"]);
+
+    // Trace while a move runs.
+    svc.ok(&["move", "x", "--to", "0", "--no-wait"]);
+    let csv = std::env::temp_dir().join(format!("gantry-trace-{}.csv", std::process::id()));
+    let out = svc.ok(&[
+        "trace",
+        "x",
+        "--seconds",
+        "0.5",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.contains("samples of x"), "{out}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(
+        lines[0].contains("x.set") && lines[0].contains("x.actual"),
+        "{}",
+        lines[0]
+    );
+    assert!(lines.len() > 300, "0.5 s at 1 kHz: {} lines", lines.len());
+    std::fs::remove_file(&csv).unwrap();
+
+    // Mistakes get clear answers, and the service goes on.
+    let e = svc.fails(&["enable", "w"]);
+    assert!(e.contains("no axis named \"w\""), "{e}");
+    let e = svc.fails(&["move", "x", "--to", "1", "--speed", "-3"]);
+    assert!(e.contains("speed"), "{e}");
+    for (line, says) in [
+        (&b"garbage\n"[..], "not JSON"),
+        (&b"{\"v\":9,\"cmd\":\"status\"}\n"[..], "version 9"),
+        (
+            &b"{\"v\":1,\"cmd\":\"move\",\"axis\":\"x\",\"to\":1e999}\n"[..],
+            "not JSON",
+        ),
+        (
+            &b"{\"v\":1,\"cmd\":\"halt\",\"axis\":\"x\",\"extra\":1}\n"[..],
+            "unknown field",
+        ),
+    ] {
+        let r = raw_request(&svc.socket, line);
+        assert_eq!(r["ok"], false, "{r}");
+        assert!(r["error"].as_str().unwrap().contains(says), "{r}");
+    }
+    let huge = vec![b'x'; 70 * 1024];
+    let r = raw_request(&svc.socket, &huge);
+    assert!(r["error"].as_str().unwrap().contains("longer than"), "{r}");
+    svc.ok(&["reset", "x"]);
+    assert_eq!(svc.status()["ended"], false);
+
+    // SIGTERM: quick stop, disable, bus to PreOp, exit 0.
+    let mut svc = svc;
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(svc.child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(s) = svc.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(Instant::now() < end, "the service did not stop");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut out = String::new();
+    std::io::Read::read_to_string(svc.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert!(status.success(), "{out}");
+    assert!(out.contains("bus: slaves in PreOp"), "{out}");
+    assert!(out.contains("stopped after"), "{out}");
+    assert!(!svc.socket.exists(), "the socket is removed");
+}
+
+#[test]
+fn without_capabilities_it_refuses_to_start_and_says_which() {
+    // As nobody (no capabilities, RLIMIT_RTPRIO 0): real time needs CAP_SYS_NICE.
+    let out = Command::new("setpriv")
+        .args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+        .arg(env!("CARGO_BIN_EXE_gantry"))
+        .args(["run", "--config"])
+        .arg(example("sim-4-axes.toml"))
+        .output();
+    let Ok(out) = out else {
+        panic!("setpriv (util-linux) is needed for this test");
+    };
+    let e = String::from_utf8_lossy(&out.stderr);
+    if nix::unistd::Uid::current().is_root() {
+        assert!(!out.status.success());
+        assert!(e.contains("needs CAP_SYS_NICE"), "{e}");
+        assert!(e.contains("--no-rt"), "{e}");
+    } else {
+        // Not root: setpriv itself cannot switch users; the test needs root.
+        assert!(!out.status.success(), "{e}");
+    }
+}
