@@ -125,7 +125,7 @@ enum Cmd {
         /// Target (or distance with --mode relative), in the axis' units.
         #[arg(long, allow_negative_numbers = true)]
         to: f64,
-        /// absolute or relative.
+        /// absolute or relative; on a modulo axis also positive or negative (direction).
         #[arg(long, default_value = "absolute")]
         mode: String,
         /// Speed (units/s; default: the axis' default).

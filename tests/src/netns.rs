@@ -90,17 +90,22 @@ impl Drop for VethPair {
 
 /// The `gantry-sim` binary built beside the running test (target/<profile>/gantry-sim).
 pub fn gantry_sim_binary() -> Result<std::path::PathBuf, String> {
+    built_binary("gantry-sim")
+}
+
+/// A workspace binary built beside the running test (target/<profile>/NAME).
+pub fn built_binary(name: &str) -> Result<std::path::PathBuf, String> {
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let dir = exe
         .parent()
         .and_then(|deps| deps.parent())
         .ok_or("test binary has no target directory")?;
-    let bin = dir.join("gantry-sim");
+    let bin = dir.join(name);
     if bin.exists() {
         Ok(bin)
     } else {
         Err(format!(
-            "{} is missing: build it first (cargo build --release -p gantry-sim; deploy/test.sh does)",
+            "{} is missing: build it first (cargo build --release --workspace --bins; deploy/test.sh does)",
             bin.display()
         ))
     }

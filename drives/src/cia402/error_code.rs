@@ -16,6 +16,10 @@ const KNOWN: &[(u16, &str)] = &[
     (0x4210, "excess temperature, device"),
     (0x4310, "excess temperature, drive"),
     (0x5441, "safe torque off active"),
+    (
+        0x6100,
+        "internal software (gantry stops the axes with it after too many cycle overruns in a row)",
+    ),
     (0x7121, "motor blocked"),
     (0x7300, "sensor (encoder) error"),
     (0x7305, "incremental sensor 1 fault"),

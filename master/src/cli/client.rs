@@ -200,6 +200,13 @@ pub fn status(
         )
         .map_err(io)?;
     }
+    if s["overrun_stop"] == json!(true) {
+        writeln!(
+            out,
+            "cycle: the axes were stopped after too many overruns in a row (rt.overrun_limit); reset them"
+        )
+        .map_err(io)?;
+    }
     let c = &s["cycle"];
     let summary = |h: &Value| {
         format!(
@@ -235,6 +242,7 @@ pub fn command(
 ) -> Result<(), ClientError> {
     let io = |e: std::io::Error| ClientError::Io(e.to_string());
     let target = request["to"].as_f64();
+    let request_is_move = request["cmd"] == json!("move");
     let relative = request["mode"] == json!("relative");
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
@@ -255,7 +263,9 @@ pub fn command(
         (Some(t), Some(p)) => Some((p, t)),
         _ => None,
     };
-    let result = client.wait(handle, Duration::from_secs(600), |c| {
+    // Moves may take long; power, halts and resets finish in seconds or not at all.
+    let timeout = if request_is_move { 600 } else { 30 };
+    let result = client.wait(handle, Duration::from_secs(timeout), |c| {
         let s = c.request(json!({"cmd": "status"})).ok()?;
         let a = axis_of(&s, axis)?;
         let p = a["position"].as_f64()?;

@@ -44,7 +44,8 @@ pub enum Request {
         axis: String,
         /// Target (absolute) or distance (relative), in the axis' units.
         to: f64,
-        /// `"absolute"` (default) or `"relative"`.
+        /// `"absolute"` (default; the shorter way on a modulo axis) or `"relative"`; on a
+        /// modulo axis also `"positive"` / `"negative"` (the direction to go round).
         #[serde(default)]
         mode: Option<String>,
         /// Speed (units/s).

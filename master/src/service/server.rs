@@ -181,12 +181,21 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
             buffer,
         } => {
             let i = axis(&a)?;
-            let mode = match mode.as_deref().unwrap_or("absolute") {
-                "absolute" => PositioningMode::AbsNormal,
-                "relative" => PositioningMode::RelTarget,
-                other => {
+            let modulo = state
+                .config
+                .kernel_axes
+                .get(i)
+                .is_some_and(|c| c.mechanics.modulo.is_some());
+            let mode = match (mode.as_deref().unwrap_or("absolute"), modulo) {
+                ("absolute", false) => PositioningMode::AbsNormal,
+                // On a modulo axis "absolute" takes the shorter way round.
+                ("absolute" | "shortest", true) => PositioningMode::AbsModuloAuto,
+                ("positive", true) => PositioningMode::AbsModuloPos,
+                ("negative", true) => PositioningMode::AbsModuloNeg,
+                ("relative", _) => PositioningMode::RelTarget,
+                (other, _) => {
                     return Err(format!(
-                        "mode {other:?} is not \"absolute\" or \"relative\""
+                        "mode {other:?} is not absolute or relative (or, on a modulo axis, shortest, positive or negative)"
                     ))
                 }
             };
