@@ -30,6 +30,11 @@ need_packages() {
   local missing=()
   command -v tshark >/dev/null 2>&1 || missing+=(tshark)
   command -v ip >/dev/null 2>&1 || missing+=(iproute2)
+  # cyclictest: gantry rt-check measures beside it; ethtool: NIC coalescing check;
+  # setpriv: the test that runs gantry without capabilities.
+  command -v cyclictest >/dev/null 2>&1 || missing+=(rt-tests)
+  command -v ethtool >/dev/null 2>&1 || missing+=(ethtool)
+  command -v setpriv >/dev/null 2>&1 || missing+=(util-linux)
   if [ ${#missing[@]} -gt 0 ]; then
     local sudo=""
     [ "$(id -u)" = 0 ] || sudo="sudo"

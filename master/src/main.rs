@@ -214,6 +214,19 @@ enum Cmd {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// Check this machine for real-time use and measure the cycle's wake-up latency
+    /// (beside cyclictest when rt-tests is installed).
+    RtCheck {
+        /// Take priority, CPU and interface from this configuration.
+        #[arg(long)]
+        config: Option<String>,
+        /// Cycle time to measure at (µs; default: the configuration's, else 1000).
+        #[arg(long)]
+        cycle_us: Option<u32>,
+        /// Seconds to measure (each of gantry and cyclictest).
+        #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+        seconds: f64,
+    },
     /// Print the planned profile of one move as JSON.
     Profile {
         /// Start position.
@@ -377,6 +390,35 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             let mut c = opts.connect()?;
             client::trace(&mut c, &axes, seconds, &out, &mut std::io::stdout())?;
+        }
+        Cmd::RtCheck {
+            config,
+            cycle_us,
+            seconds,
+        } => {
+            anyhow::ensure!(
+                seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0,
+                "--seconds {seconds} must be above 0 and at most 3600"
+            );
+            let config = config
+                .map(|c| gantry::config::Config::load(&c))
+                .transpose()?;
+            let rt = config.as_ref().map(|c| c.rt).unwrap_or_default();
+            let interface = config.as_ref().and_then(|c| c.bus.interface.clone());
+            let cycle = cycle_us
+                .or(config.as_ref().map(|c| c.bus.cycle_us))
+                .unwrap_or(1000);
+            anyhow::ensure!(
+                (50..=100_000).contains(&cycle),
+                "--cycle-us {cycle} must be 50 to 100000"
+            );
+            gantry::cli::rt_check::run(
+                &rt,
+                interface.as_deref(),
+                cycle,
+                seconds,
+                &mut std::io::stdout(),
+            )?;
         }
         Cmd::Scan {
             interface,

@@ -196,3 +196,48 @@ fn pcap_of_the_ethercat_demo_dissects_clean_in_tshark() {
     assert_eq!(bad, 0, "no malformed frame, no expert warning");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn rt_check_reports_the_machine_and_measures() {
+    let out = gantry()
+        .args(["rt-check", "--seconds", "0.3", "--cycle-us", "1000"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    for check in [
+        "kernel",
+        "capabilities",
+        "CPU isolation",
+        "CPU frequency governor",
+        "RT throttling",
+    ] {
+        assert!(text.contains(check), "{check}: {text}");
+    }
+    assert!(text.contains("gantry      p50"), "{text}");
+    let bad = gantry()
+        .args(["rt-check", "--seconds", "-1"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--seconds -1"));
+}
+
+/// With rt-tests installed (deploy/test.sh installs it), the same figures from cyclictest
+/// and the ratio.
+#[test]
+#[ignore = "needs cyclictest (rt-tests) and SCHED_FIFO; deploy/test.sh runs it"]
+fn rt_check_measures_beside_cyclictest() {
+    let out = gantry()
+        .args(["rt-check", "--seconds", "0.5", "--cycle-us", "1000"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("cyclictest  p50"), "{text}");
+    assert!(text.contains("ratio gantry/cyclictest"), "{text}");
+    assert!(!text.contains("NOT real time"), "{text}");
+}

@@ -2,4 +2,5 @@
 
 pub mod client;
 pub mod profile;
+pub mod rt_check;
 pub mod scan;

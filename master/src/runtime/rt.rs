@@ -129,7 +129,25 @@ pub fn enter(rt: &RtSection) -> Result<(), RtError> {
     )
     .map_err(|e| failed(format!("SCHED_FIFO {}", rt.priority), format!("{e:?}")))?;
     prefault_stack();
+    hold_cpu_dma_latency();
     Ok(())
+}
+
+/// Asks the kernel to keep the CPUs out of deep idle states while gantry runs (PM QoS:
+/// write 0 to /dev/cpu_dma_latency and keep it open), as cyclictest does: waking from a
+/// deep C-state costs tens to hundreds of µs. Best effort: without the right to it, the
+/// cycle runs anyway (rt-check reports the latency either way).
+fn hold_cpu_dma_latency() {
+    static HELD: std::sync::OnceLock<Option<std::fs::File>> = std::sync::OnceLock::new();
+    HELD.get_or_init(|| {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/cpu_dma_latency")
+            .ok()?;
+        f.write_all(&0i32.to_ne_bytes()).ok()?;
+        Some(f)
+    });
 }
 
 /// Touches the stack the cycle will use, so its pages are present (and, with mlockall,
