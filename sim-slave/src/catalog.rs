@@ -57,11 +57,14 @@ pub struct ServoOptions {
     pub start_counts: i32,
     /// Position loop bandwidth (Hz).
     pub bandwidth_hz: f64,
+    /// The motor's hidden commutation offset (counts), for commissioning to find.
+    pub commutation_offset: i32,
 }
 
 impl Default for ServoOptions {
     fn default() -> Self {
         Self {
+            commutation_offset: 0,
             serial: 1,
             start_counts: 0,
             bandwidth_hz: 200.0,
@@ -105,6 +108,7 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
 pub fn servo(options: ServoOptions) -> Slave {
     let mut drive = ServoDrive::new(OUTPUTS_AT, INPUTS_AT, options.start_counts);
     drive.bandwidth_hz = options.bandwidth_hz;
+    drive.commutation_offset = options.commutation_offset;
     Slave::new(servo_description(options.serial))
         .with_coe(ObjectDictionary::cia402_servo(
             VENDOR_ID,

@@ -98,6 +98,9 @@ pub enum SlaveConfig {
         /// Position loop bandwidth (Hz).
         #[serde(default = "default_bandwidth_hz")]
         bandwidth_hz: f64,
+        /// The motor's hidden commutation offset (counts), for commissioning to find.
+        #[serde(default)]
+        commutation_offset: i32,
     },
     /// An incremental encoder module.
     Encoder {
@@ -292,10 +295,12 @@ impl SimConfig {
                     SlaveConfig::Servo {
                         start_position,
                         bandwidth_hz,
+                        commutation_offset,
                     } => catalog::servo(ServoOptions {
                         serial,
                         start_counts: *start_position,
                         bandwidth_hz: *bandwidth_hz,
+                        commutation_offset: *commutation_offset,
                     }),
                     SlaveConfig::Encoder {
                         counts_per_rev,
@@ -334,7 +339,8 @@ mod tests {
             c.slaves[1],
             SlaveConfig::Servo {
                 start_position: -7,
-                bandwidth_hz: 200.0
+                bandwidth_hz: 200.0,
+                commutation_offset: 0
             }
         );
         assert_eq!(c.chain().unwrap().slaves().len(), 2);

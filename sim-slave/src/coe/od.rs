@@ -15,6 +15,7 @@ pub fn servo_pdo_rules() -> PdoRules {
             objects::TARGET_VELOCITY,
             objects::TARGET_TORQUE,
             objects::MODES_OF_OPERATION,
+            objects::TOUCH_PROBE_FUNCTION,
         ],
         inputs: vec![
             objects::STATUSWORD,
@@ -24,8 +25,11 @@ pub fn servo_pdo_rules() -> PdoRules {
             objects::ERROR_CODE,
             objects::MODES_OF_OPERATION_DISPLAY,
             objects::FOLLOWING_ERROR_ACTUAL_VALUE,
+            objects::TOUCH_PROBE_STATUS,
+            objects::TOUCH_PROBE_POS1_POS_VALUE,
+            objects::DIGITAL_INPUTS,
         ],
-        max_entries: 8,
+        max_entries: 10,
     }
 }
 

@@ -200,7 +200,7 @@ mod tests {
                 "{bad:#x}"
             );
         }
-        assert_eq!(write(&mut od, 0x1A00, 0, &[9]), Err(OdError::PdoTooLong));
+        assert_eq!(write(&mut od, 0x1A00, 0, &[11]), Err(OdError::PdoTooLong));
         // Count covering an entry that is not mappable (entry 3 is empty).
         assert_eq!(write(&mut od, 0x1A00, 0, &[3]), Err(OdError::NotMappable));
         write(&mut od, 0x1A00, 0, &[2]).unwrap();

@@ -20,8 +20,23 @@ const MAX_PDO_BYTES: usize = 64;
 /// controller" family, which EtherCAT drives use for a lost SyncManager watchdog.
 pub const ERROR_SYNC_WATCHDOG: u16 = 0x8700;
 
-/// Modes of operation value of cyclic synchronous position.
+/// Modes of operation: cyclic synchronous position, velocity, torque.
 const CSP: i8 = 8;
+const CSV: i8 = 9;
+const CST: i8 = 10;
+
+/// Touch probe function bits (CiA 402 0x60B8): enable probe 1; continuous (else first
+/// event only); trigger on the encoder's zero impulse (else the probe input); sample the
+/// positive edge.
+mod tp {
+    pub const ENABLE_1: u16 = 1 << 0;
+    pub const CONTINUOUS_1: u16 = 1 << 1;
+    pub const ZERO_IMPULSE_1: u16 = 1 << 2;
+    pub const POSITIVE_EDGE_1: u16 = 1 << 4;
+    /// Touch probe status (0x60B9): probe 1 enabled; positive edge value stored.
+    pub const STATUS_ENABLED_1: u16 = 1 << 0;
+    pub const STATUS_STORED_1: u16 = 1 << 1;
+}
 
 /// A servo drive model.
 #[derive(Clone, Debug)]
@@ -32,6 +47,19 @@ pub struct ServoDrive {
     pub inputs_at: u16,
     /// Position loop bandwidth (Hz): the load follows the set position as a first-order lag.
     pub bandwidth_hz: f64,
+    /// Encoder counts per motor revolution (the index pulse comes once per revolution).
+    pub counts_per_rev: u32,
+    /// Where in the revolution the index pulse sits (counts).
+    pub index_at: u32,
+    /// Motor pole pairs (electrical revolutions per mechanical one).
+    pub pole_pairs: u32,
+    /// The motor's true commutation offset (counts), unknown to the master until it is
+    /// commissioned: the drive's setting is `commutation_setting`.
+    pub commutation_offset: i32,
+    /// The commutation offset the drive was told (counts).
+    pub commutation_setting: i32,
+    /// Acceleration at rated torque (counts/s²), for CST.
+    pub rated_acceleration: f64,
     state: DeviceStateMachine,
     error_code: u16,
     /// Load position (counts, fractional).
@@ -40,7 +68,12 @@ pub struct ServoDrive {
     velocity: f64,
     /// Last target position received.
     target: i32,
+    target_velocity: i32,
+    target_torque: i16,
     mode: i8,
+    touch_probe_function: u16,
+    touch_probe_status: u16,
+    touch_probe_pos1: i32,
     layout: PdoLayout,
 }
 
@@ -56,8 +89,67 @@ impl ServoDrive {
             position: f64::from(start_counts),
             velocity: 0.0,
             target: start_counts,
+            target_velocity: 0,
+            target_torque: 0,
             mode: CSP,
+            touch_probe_function: 0,
+            touch_probe_status: 0,
+            touch_probe_pos1: 0,
+            counts_per_rev: 1 << 17,
+            index_at: 1000,
+            pole_pairs: 5,
+            commutation_offset: 0,
+            commutation_setting: 0,
+            rated_acceleration: 2.0e7,
             layout: PdoLayout::csp_minimal(),
+        }
+    }
+
+    /// cos of the electrical angle by which the commutation setting misses the motor's
+    /// true offset: 1 when commissioned, 0 at 90° electrical (no torque at all).
+    pub fn torque_efficiency(&self) -> f64 {
+        let error = f64::from(self.commutation_offset) - f64::from(self.commutation_setting);
+        let electrical = 2.0 * core::f64::consts::PI * f64::from(self.pole_pairs) * error
+            / f64::from(self.counts_per_rev.max(1));
+        electrical.cos()
+    }
+
+    fn set_touch_probe(&mut self, function: u16) {
+        if function & tp::ENABLE_1 == 0 {
+            self.touch_probe_status = 0;
+        } else if self.touch_probe_function & tp::ENABLE_1 == 0 {
+            // Rising edge of the enable: arm, nothing stored yet.
+            self.touch_probe_status = tp::STATUS_ENABLED_1;
+        }
+        self.touch_probe_function = function;
+    }
+
+    /// The index pulse: once per revolution at `index_at`. Touch probe 1, armed on the zero
+    /// impulse with the positive edge, stores the exact position where it was crossed.
+    fn watch_index(&mut self, from: f64, to: f64) {
+        let f = self.touch_probe_function;
+        let armed = f & tp::ENABLE_1 != 0
+            && f & tp::ZERO_IMPULSE_1 != 0
+            && f & tp::POSITIVE_EDGE_1 != 0
+            && (f & tp::CONTINUOUS_1 != 0 || self.touch_probe_status & tp::STATUS_STORED_1 == 0);
+        if !armed || from == to {
+            return;
+        }
+        let rev = f64::from(self.counts_per_rev.max(1));
+        let at = f64::from(self.index_at);
+        // The first index position passed going from `from` to `to`.
+        let crossed = if to > from {
+            let k = ((from - at) / rev).floor() + 1.0;
+            let p = at + k * rev;
+            (p <= to).then_some(p)
+        } else {
+            let k = ((from - at) / rev).ceil() - 1.0;
+            let p = at + k * rev;
+            (p >= to).then_some(p)
+        };
+        if let Some(p) = crossed {
+            self.touch_probe_pos1 = p.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            self.touch_probe_status |= tp::STATUS_STORED_1;
         }
     }
 
@@ -114,16 +206,24 @@ impl ServoDrive {
             mem.ecat_read(self.outputs_at, o, false);
         }
         let mut cw = Controlword(0);
+        let mut touch_probe = None;
         let mut at = 0;
         for o in &self.layout.outputs {
             let v = field(&out, at, o.kind.size());
             match o.index {
                 0x6040 => cw = Controlword(v as u16),
                 0x607A => self.target = v as i32,
-                0x6060 => self.mode = v as i8,
+                0x60FF => self.target_velocity = v as i32,
+                0x6071 => self.target_torque = v as i16,
+                0x60B8 => touch_probe = Some(v as u16),
+                // A mode the drive does not have is not taken (the display keeps the old).
+                0x6060 if matches!(v as i8, CSP | CSV | CST) => self.mode = v as i8,
                 _ => {}
             }
             at += o.kind.size();
+        }
+        if let Some(f) = touch_probe {
+            self.set_touch_probe(f);
         }
         if self.state.state() == State::FaultReactionActive {
             self.state.fault_reaction_done();
@@ -133,15 +233,39 @@ impl ServoDrive {
             self.error_code = 0;
         }
         let before = self.position;
+        let dt = dt_s.max(0.0);
         if self.state.state() == State::OperationEnabled {
-            let k = 1.0 - (-2.0 * core::f64::consts::PI * self.bandwidth_hz * dt_s.max(0.0)).exp();
-            self.position += (f64::from(self.target) - self.position) * k;
-        }
-        self.velocity = if dt_s > 0.0 {
-            (self.position - before) / dt_s
+            // A wrong commutation offset costs torque: cos of the electrical angle error.
+            let gain = self.torque_efficiency();
+            let lag =
+                |hz: f64| 1.0 - (-2.0 * core::f64::consts::PI * hz * gain.max(0.02) * dt).exp();
+            match self.mode {
+                CSV => {
+                    let v_target = f64::from(self.target_velocity);
+                    self.velocity += (v_target - self.velocity) * lag(2.0 * self.bandwidth_hz);
+                    self.position += self.velocity * dt;
+                }
+                CST => {
+                    let torque = f64::from(self.target_torque) / 1000.0;
+                    // Viscous friction brings an unloaded motor to a finite speed.
+                    let a = torque * gain * self.rated_acceleration - 5.0 * self.velocity;
+                    self.velocity += a * dt;
+                    self.position += self.velocity * dt;
+                }
+                _ => {
+                    self.position +=
+                        (f64::from(self.target) - self.position) * lag(self.bandwidth_hz);
+                    self.velocity = if dt > 0.0 {
+                        (self.position - before) / dt
+                    } else {
+                        0.0
+                    };
+                }
+            }
         } else {
-            0.0
-        };
+            self.velocity = 0.0;
+        }
+        self.watch_index(before, self.position);
         let mut inp = [0u8; MAX_PDO_BYTES];
         let mut at = 0;
         for o in &self.layout.inputs {
@@ -167,6 +291,9 @@ impl ServoDrive {
             objects::ERROR_CODE => i64::from(self.error_code),
             objects::MODES_OF_OPERATION_DISPLAY => i64::from(self.mode),
             objects::FOLLOWING_ERROR_ACTUAL_VALUE => counts(f64::from(self.target) - self.position),
+            objects::TOUCH_PROBE_STATUS => i64::from(self.touch_probe_status),
+            objects::TOUCH_PROBE_POS1_POS_VALUE => i64::from(self.touch_probe_pos1),
+            objects::DIGITAL_INPUTS => 0,
             _ => 0,
         }
     }
@@ -230,5 +357,147 @@ mod tests {
         let sw = gantry_drives::cia402::Statusword(u16::from_le_bytes([inp[0], inp[1]]));
         assert_eq!(sw.state(), Some(State::OperationEnabled));
         assert_eq!(i32::from_le_bytes([inp[2], inp[3], inp[4], inp[5]]), 2000);
+    }
+
+    /// A servo mapped to `layout`, enabled, with outputs written by `out`.
+    fn enabled(layout: PdoLayout, start: i32) -> (ServoDrive, Memory) {
+        let mut mem = Memory::new();
+        let mut d = ServoDrive::new(PROCESS_RAM, PROCESS_RAM + 0x100, start);
+        d.configure(layout);
+        for cw in [0x06u16, 0x07, 0x0F] {
+            mem.pdi_write(PROCESS_RAM, &cw.to_le_bytes());
+            d.step(&mut mem, 0.001);
+        }
+        assert_eq!(d.state(), State::OperationEnabled);
+        (d, mem)
+    }
+
+    fn layout(outputs: &[ObjectId], inputs: &[ObjectId]) -> PdoLayout {
+        PdoLayout {
+            outputs: outputs.to_vec(),
+            inputs: inputs.to_vec(),
+        }
+    }
+
+    #[test]
+    fn csv_follows_the_target_velocity_and_cst_accelerates_with_torque() {
+        use objects::*;
+        // Outputs: controlword, mode, target velocity, target torque.
+        let l = layout(
+            &[
+                CONTROLWORD,
+                MODES_OF_OPERATION,
+                TARGET_VELOCITY,
+                TARGET_TORQUE,
+            ],
+            &[
+                STATUSWORD,
+                POSITION_ACTUAL_VALUE,
+                MODES_OF_OPERATION_DISPLAY,
+            ],
+        );
+        let (mut d, mut mem) = enabled(l, 0);
+        let out = |mem: &mut Memory, mode: i8, v: i32, t: i16| {
+            let mut b = [0u8; 9];
+            b[0..2].copy_from_slice(&0x0Fu16.to_le_bytes());
+            b[2] = mode as u8;
+            b[3..7].copy_from_slice(&v.to_le_bytes());
+            b[7..9].copy_from_slice(&t.to_le_bytes());
+            mem.pdi_write(PROCESS_RAM, &b);
+        };
+        out(&mut mem, 9, 10_000, 0);
+        for _ in 0..1000 {
+            d.step(&mut mem, 0.001);
+        }
+        // 1 s at 10 000 counts/s, less the time the velocity loop took to get there.
+        let p = d.position();
+        assert!((9_900.0..10_000.0).contains(&p), "CSV: {p}");
+        let mut inp = [0u8; 7];
+        mem.ecat_read(PROCESS_RAM + 0x100, &mut inp, false);
+        assert_eq!(inp[6], 9, "mode display");
+        // An unsupported mode (homing, 6) is not taken.
+        out(&mut mem, 6, 0, 0);
+        d.step(&mut mem, 0.001);
+        mem.ecat_read(PROCESS_RAM + 0x100, &mut inp, false);
+        assert_eq!(inp[6], 9);
+        // CST: torque accelerates; a wrong commutation offset (90° electrical) gives none.
+        out(&mut mem, 10, 0, 100);
+        let p0 = d.position();
+        for _ in 0..100 {
+            d.step(&mut mem, 0.001);
+        }
+        assert!(d.position() - p0 > 1000.0, "CST moves");
+        let (mut d2, mut mem2) = enabled(PdoLayout::csp_minimal(), 0);
+        d2.configure(layout(
+            &[
+                CONTROLWORD,
+                MODES_OF_OPERATION,
+                TARGET_VELOCITY,
+                TARGET_TORQUE,
+            ],
+            &[
+                STATUSWORD,
+                POSITION_ACTUAL_VALUE,
+                MODES_OF_OPERATION_DISPLAY,
+            ],
+        ));
+        d2.counts_per_rev = 20_000;
+        d2.commutation_offset = (d2.counts_per_rev / d2.pole_pairs / 4) as i32;
+        assert!(d2.torque_efficiency().abs() < 1e-9);
+        out(&mut mem2, 10, 0, 100);
+        for _ in 0..100 {
+            d2.step(&mut mem2, 0.001);
+        }
+        assert!(d2.position().abs() < 1e-6, "no torque at 90° electrical");
+        d2.commutation_setting = d2.commutation_offset;
+        assert!((d2.torque_efficiency() - 1.0).abs() < 1e-12, "commissioned");
+    }
+
+    #[test]
+    fn touch_probe_latches_the_index_pulse_exactly() {
+        use objects::*;
+        let l = layout(
+            &[CONTROLWORD, TARGET_POSITION, TOUCH_PROBE_FUNCTION],
+            &[
+                STATUSWORD,
+                POSITION_ACTUAL_VALUE,
+                TOUCH_PROBE_STATUS,
+                TOUCH_PROBE_POS1_POS_VALUE,
+            ],
+        );
+        let (mut d, mut mem) = enabled(l, 0);
+        let out = |mem: &mut Memory, target: i32, tp: u16| {
+            let mut b = [0u8; 8];
+            b[0..2].copy_from_slice(&0x0Fu16.to_le_bytes());
+            b[2..6].copy_from_slice(&target.to_le_bytes());
+            b[6..8].copy_from_slice(&tp.to_le_bytes());
+            mem.pdi_write(PROCESS_RAM, &b);
+        };
+        let read = |mem: &Memory| {
+            let mut b = [0u8; 12];
+            mem.ecat_read(PROCESS_RAM + 0x100, &mut b, false);
+            (
+                u16::from_le_bytes([b[6], b[7]]),
+                i32::from_le_bytes([b[8], b[9], b[10], b[11]]),
+            )
+        };
+        // Armed (enable, zero impulse, positive edge), single event.
+        out(&mut mem, 0, 0x0015);
+        d.step(&mut mem, 0.001);
+        assert_eq!(read(&mem), (0x0001, 0), "enabled, nothing stored");
+        // Move past two index positions (1000 and 1000 + 2^17): the first is stored.
+        out(&mut mem, 200_000, 0x0015);
+        for _ in 0..500 {
+            d.step(&mut mem, 0.001);
+        }
+        assert_eq!(read(&mem), (0x0003, 1000));
+        // Re-arm (enable off, on) and come back: the crossing going down is stored too.
+        out(&mut mem, 200_000, 0);
+        d.step(&mut mem, 0.001);
+        out(&mut mem, 0, 0x0015);
+        for _ in 0..500 {
+            d.step(&mut mem, 0.001);
+        }
+        assert_eq!(read(&mem), (0x0003, 1000 + (1 << 17)));
     }
 }
