@@ -31,6 +31,11 @@ fn access_map() -> &'static [u8] {
                 bytes.fill(access);
             }
         }
+        for (a, m) in map.iter_mut().enumerate() {
+            if registers::sm_byte_read_only(a as u16) {
+                *m = READ_ONLY;
+            }
+        }
         map
     })
 }
@@ -182,6 +187,14 @@ mod tests {
         assert_eq!(m.read_u16(AL_STATUS), 1, "read-only from the EtherCAT side");
         m.pdi_write(AL_STATUS, &[2, 0]);
         assert_eq!(m.read_u16(AL_STATUS), 2, "the device application sets it");
+        // SyncManager 1: the master configures start, length, control and activate; the
+        // status (mailbox full) and PDI control bytes belong to the ESC.
+        m.pdi_write(0x080D, &[0x08]);
+        assert!(m.ecat_write(0x0808, &[0x80, 0x10, 0x80, 0, 0x22, 0x00, 0x01, 0x02]));
+        assert_eq!(
+            m.raw(0x0808, 8),
+            Some(&[0x80, 0x10, 0x80, 0, 0x22, 0x08, 0x01, 0][..])
+        );
     }
 
     #[test]

@@ -148,6 +148,13 @@ pub const TABLE: [Register; 28] = [
     reg(DC, 0xB0, RW, 0, "Distributed clocks"),
 ];
 
+/// SyncManager register bytes that are read-only from the EtherCAT side inside the
+/// otherwise writable SyncManager block (ESC datasheet section II, 0x0800+y*8): status
+/// (+5) and PDI control (+7), both owned by the ESC and its PDI.
+pub const fn sm_byte_read_only(address: u16) -> bool {
+    address >= SM0 && address < SM0 + 8 * 8 && matches!((address - SM0) % 8, 5 | 7)
+}
+
 /// The register containing `address`, if any.
 pub fn find(address: u16) -> Option<&'static Register> {
     TABLE
@@ -181,5 +188,7 @@ mod tests {
         // one 16-bit read, and the ECAT event mask it clears.
         assert_eq!(find(0x0141).map(|r| r.name), Some("ESC configuration"));
         assert_eq!(find(0x0201).map(|r| r.name), Some("ECAT event mask"));
+        assert!(sm_byte_read_only(0x080D) && sm_byte_read_only(0x080F));
+        assert!(!sm_byte_read_only(0x080E) && !sm_byte_read_only(0x0840));
     }
 }
