@@ -72,6 +72,7 @@ struct Report {
     #[serde(default)]
     sdo_1c12: Vec<Vec<u16>>,
     enabled: Vec<bool>,
+    dc: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -161,6 +162,11 @@ fn check_bringup(peer: &Output, r: &Report) {
             "slave {i} still in OP after the exchange"
         );
     }
+    assert_eq!(
+        r.dc,
+        Some(false),
+        "config_dc finds no distributed clocks: the simulator has none and must not say so"
+    );
     assert!(r.reached_op, "all slaves reached OP: {:?}", r.errors);
     assert_eq!(
         r.expected_wkc,

@@ -180,7 +180,7 @@ mod tests {
         let mut b = [0u8; 1];
         assert!(m.ecat_read(TYPE, &mut b, false));
         assert_eq!(b[0], 0x11);
-        assert_eq!(m.read_u16(FEATURES), 0x000C);
+        assert_eq!(m.read_u16(FEATURES), 0x0000);
         assert!(m.ecat_write(STATION_ADDRESS, &[1, 2]));
         assert_eq!(m.read_u16(STATION_ADDRESS), 0x0201);
         assert!(m.ecat_write(AL_STATUS, &[8, 0]));

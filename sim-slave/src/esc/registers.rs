@@ -106,8 +106,11 @@ pub const TABLE: [Register; 28] = [
     reg(SM_COUNT, 1, R, 8, "SyncManagers supported"),
     reg(RAM_SIZE, 1, R, 8, "RAM size"),
     reg(PORT_DESCRIPTOR, 1, R, 0x0F, "Port descriptor"),
-    // Bit 2: DC supported, bit 3: 64-bit DC, bit 8: enhanced link detection.
-    reg(FEATURES, 2, R, 0x000C, "ESC features supported"),
+    // Bit 2: DC available, bit 3: 64-bit DC. No distributed clocks are emulated yet (the
+    // 0x0900 block is plain memory, its system time does not run), so the ESC says so:
+    // a master that believed it (SOEM's config_dc did) configures a clock that never ticks.
+    // Bits 9/10 = 0: LRW and the read-write commands are supported.
+    reg(FEATURES, 2, R, 0x0000, "ESC features supported"),
     reg(STATION_ADDRESS, 2, RW, 0, "Configured station address"),
     reg(STATION_ALIAS, 2, RW, 0, "Configured station alias"),
     reg(DL_CONTROL, 4, RW, 0x0000_0001, "DL control"),
@@ -189,6 +192,12 @@ mod tests {
         assert_eq!(find(0x0141).map(|r| r.name), Some("ESC configuration"));
         assert_eq!(find(0x0201).map(|r| r.name), Some("ECAT event mask"));
         assert!(sm_byte_read_only(0x080D) && sm_byte_read_only(0x080F));
+        let features = find(FEATURES).map_or(0xFFFF, |r| r.reset);
+        assert_eq!(
+            features & 0b1100,
+            0,
+            "no DC is advertised while none is emulated"
+        );
         assert!(!sm_byte_read_only(0x080E) && !sm_byte_read_only(0x0840));
     }
 }
