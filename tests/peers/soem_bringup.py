@@ -3,14 +3,15 @@
 
 Usage: soem_bringup.py IFACE [--seconds 1.5] [--cycle-us 1000] [--late-frames-percent 2]
 
-Scans the network, prints every slave, looks for distributed clocks (config_dc; the
-simulator has none), maps the process data, walks the slaves to SAFEOP and OP the way
-SOEM's examples do, exchanges process data checking the working counter every cycle (a
-frame that comes back with another working counter is an error; one not back within 5 ms
-is counted as late: the machine is shared), reads 0x1018:01 and 0x1C12 by SDO, enables
-every CiA-402 servo with the controlword sequence 0x0006/0x0007/0x000F and checks the
-statusword. Human-readable lines go to stderr; the last line on stdout is one JSON object
-with the results. Exits non-zero on any failure.
+Scans the network, prints every slave, has slave 0 request an invalid transition
+(PREOP->OP: refused with AL status code 0x0011, cleared by an acknowledge), looks for
+distributed clocks (config_dc; the simulator has none), maps the process data, walks the
+slaves to SAFEOP and OP the way SOEM's examples do, exchanges process data checking the
+working counter every cycle (a frame that comes back with another working counter is an
+error; one not back within 5 ms is counted as late: the machine is shared), reads
+0x1018:01 and 0x1C12 by SDO, enables every CiA-402 servo with the controlword sequence
+0x0006/0x0007/0x000F and checks the statusword. Human-readable lines go to stderr; the
+last line on stdout is one JSON object with the results. Exits non-zero on any failure.
 
 This is a test peer run as its own process (pysoem/SOEM are GPL): nothing of it is linked
 into gantry.
@@ -156,6 +157,30 @@ class Bringup:
         self.each_in(pysoem.PREOP_STATE, "state")
         for i, s in enumerate(m.slaves):
             self.r["slaves"][i]["al_status_code"] = s.al_status
+        if not self.r["errors"]:
+            self.refused_transition()
+
+    def refused_transition(self):
+        """PREOP -> OP skips SAFEOP: the slave must refuse it with the error flag and AL
+        status code 0x0011, keep it until acknowledged, and clear it on PREOP + ACK."""
+        self.r["stage"] = "refused_transition"
+        m, s = self.master, self.master.slaves[0]
+        s.state = pysoem.OP_STATE
+        s.write_state()
+        s.state_check(pysoem.PREOP_STATE | pysoem.STATE_ERROR, 50_000)
+        m.read_state()
+        refused = {"state": state_name(s.state), "al_status_code": s.al_status}
+        s.state = pysoem.PREOP_STATE | pysoem.STATE_ACK
+        s.write_state()
+        s.state_check(pysoem.PREOP_STATE, 50_000)
+        m.read_state()
+        refused.update(after_ack=state_name(s.state), code_after_ack=s.al_status)
+        self.r["refused_transition"] = refused
+        log(f"slave 0: PREOP->OP refused: {refused}")
+        if refused["state"] != "PREOP+ERROR" or refused["al_status_code"] != 0x0011:
+            self.fail(f"PREOP->OP not refused with 0x0011: {refused}")
+        if refused["after_ack"] != "PREOP":
+            self.fail(f"error not cleared by PREOP+ACK: {refused}")
 
     def each_in(self, state, key):
         """Reads every slave's AL status on its own (FPRD) and checks it is `state`: the

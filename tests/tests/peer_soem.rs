@@ -73,6 +73,15 @@ struct Report {
     sdo_1c12: Vec<Vec<u16>>,
     enabled: Vec<bool>,
     dc: Option<bool>,
+    refused_transition: Option<RefusedTransition>,
+}
+
+/// Slave 0 asked for PREOP -> OP (skipping SAFEOP), then acknowledged.
+#[derive(Debug, Deserialize, PartialEq)]
+struct RefusedTransition {
+    state: String,
+    al_status_code: u16,
+    after_ack: String,
 }
 
 #[derive(Debug, Deserialize)]
@@ -166,6 +175,15 @@ fn check_bringup(peer: &Output, r: &Report) {
         r.dc,
         Some(false),
         "config_dc finds no distributed clocks: the simulator has none and must not say so"
+    );
+    assert_eq!(
+        r.refused_transition,
+        Some(RefusedTransition {
+            state: "PREOP+ERROR".into(),
+            al_status_code: 0x0011,
+            after_ack: "PREOP".into(),
+        }),
+        "PREOP -> OP refused with 'invalid requested state change', cleared by PREOP + ACK"
     );
     assert!(r.reached_op, "all slaves reached OP: {:?}", r.errors);
     assert_eq!(
