@@ -10,8 +10,10 @@ slaves to SAFEOP and OP the way SOEM's examples do, exchanges process data check
 working counter every cycle (a frame that comes back with another working counter is an
 error; one not back within 5 ms is counted as late: the machine is shared), reads
 0x1018:01 and 0x1C12 by SDO, enables every CiA-402 servo with the controlword sequence
-0x0006/0x0007/0x000F and checks the statusword. Human-readable lines go to stderr; the
-last line on stdout is one JSON object with the results. Exits non-zero on any failure.
+0x0006/0x0007/0x000F and checks the statusword, then stops sending for 300 ms and checks
+that the process-data watchdog took every slave to SAFEOP with AL status code 0x001B and
+faulted its drive. Human-readable lines go to stderr; the last line on stdout is one JSON
+object with the results. Exits non-zero on any failure.
 
 This is a test peer run as its own process (pysoem/SOEM are GPL): nothing of it is linked
 into gantry.
@@ -100,7 +102,8 @@ class Bringup:
         m = self.master
         m.open(self.ifname)
         try:
-            for stage in (self.scan, self.map_and_safeop, self.to_op, self.sdo, self.exchange_and_enable):
+            stages = (self.scan, self.map_and_safeop, self.to_op, self.sdo, self.exchange_and_enable, self.watchdog)
+            for stage in stages:
                 t0 = time.perf_counter()
                 stage()
                 self.r["stage_seconds"][stage.__name__] = round(time.perf_counter() - t0, 3)
@@ -314,6 +317,32 @@ class Bringup:
             self.fail(f"{self.r['wkc_errors']} working-counter errors in {self.r['cycles']} cycles")
         if self.r["late_frames"] * 100 > self.late_frames_percent * self.r["cycles"]:
             self.fail(f"{self.r['late_frames']} frames late in {self.r['cycles']} cycles")
+
+    def watchdog(self):
+        """Stop sending process data for 300 ms in OP: every slave's process-data watchdog
+        (100 ms by default) must take it to SAFEOP with the error flag and AL status code
+        0x001B, its drive must fault; an acknowledge clears the error."""
+        m = self.master
+        self.r["stage"] = "watchdog"
+        time.sleep(0.3)
+        m.read_state()
+        seen = [(state_name(s.state), s.al_status) for s in m.slaves]
+        self.cycle()  # inputs are still valid in SAFEOP
+        faulted = [IN.unpack(bytes(s.input)[: IN.size])[0] & 0x4F == 0x08 for s in m.slaves]
+        for s in m.slaves:
+            s.state = pysoem.SAFEOP_STATE | pysoem.STATE_ACK
+            s.write_state()
+        m.state_check(pysoem.SAFEOP_STATE, 50_000)
+        m.read_state()
+        after = [state_name(s.state) for s in m.slaves]
+        self.r["watchdog"] = {"tripped": seen, "drive_faulted": faulted, "after_ack": after}
+        log(f"watchdog: {self.r['watchdog']}")
+        if any(st != "SAFEOP+ERROR" or code != 0x001B for st, code in seen):
+            self.fail(f"the process-data watchdog did not take every slave to SAFEOP+ERROR 0x001B: {seen}")
+        if not all(faulted):
+            self.fail(f"not every drive faulted: {faulted}")
+        if any(a != "SAFEOP" for a in after):
+            self.fail(f"acknowledge did not clear the error: {after}")
 
 
 def main():

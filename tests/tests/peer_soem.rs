@@ -1,6 +1,7 @@
 //! A second, independent master: SOEM (through the `pysoem` Python package, run as its
 //! own process — SOEM is GPL and never linked into gantry) brings three simulated servos
-//! to OP over a veth pair, exchanges process data, reads SDOs and enables the drives.
+//! to OP over a veth pair, exchanges process data, reads SDOs, enables the drives and
+//! lets the process-data watchdog trip.
 //! The simulator must follow the ESC datasheet, not what ethercrab happens to do.
 //!
 //! The peer is `tests/peers/soem_bringup.py`; its last line on stdout is a JSON report.
@@ -74,6 +75,16 @@ struct Report {
     enabled: Vec<bool>,
     dc: Option<bool>,
     refused_transition: Option<RefusedTransition>,
+    watchdog: Option<Watchdog>,
+}
+
+/// 300 ms without process data in OP, then an acknowledge.
+#[derive(Debug, Deserialize)]
+struct Watchdog {
+    /// (AL state, AL status code) of every slave after the silence.
+    tripped: Vec<(String, u16)>,
+    drive_faulted: Vec<bool>,
+    after_ack: Vec<String>,
 }
 
 /// Slave 0 asked for PREOP -> OP (skipping SAFEOP), then acknowledged.
@@ -220,6 +231,14 @@ fn check_bringup(peer: &Output, r: &Report) {
         vec![true; SERVOS],
         "every servo Operation enabled"
     );
+    let wd = r.watchdog.as_ref().expect("the watchdog stage ran");
+    assert_eq!(
+        wd.tripped,
+        vec![("SAFEOP+ERROR".to_string(), 0x001B); SERVOS],
+        "the process-data watchdog took every slave to SAFEOP with 0x001B"
+    );
+    assert_eq!(wd.drive_faulted, vec![true; SERVOS], "every drive faulted");
+    assert_eq!(wd.after_ack, vec!["SAFEOP"; SERVOS], "acknowledged");
     assert!(r.ok, "the peer reported failures: {:?}", r.errors);
     assert!(
         peer.status.success(),
