@@ -141,13 +141,28 @@ impl Slave {
 
     /// Serves one datagram and applies the side effects of what it wrote.
     pub fn serve(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
+        if d.command().is_logical() {
+            // Process data (the hot path): a logical write lands in the SyncManager
+            // areas the FMMUs map; nothing else reacts to it.
+            let served = command::serve(&mut self.memory, d);
+            let written = matches!(served, Served::Written | Served::ReadWritten);
+            if written && ProcessDataWatchdog::triggered_by(&self.memory, PROCESS_RAM, RAM_BYTES) {
+                self.watchdog.trigger(&mut self.memory);
+            }
+            return served;
+        }
+        self.serve_physical(d)
+    }
+
+    /// Serves a register or RAM access by address (not through the FMMUs).
+    fn serve_physical(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
         let ado = d.ado();
         let len = d.data_len();
         let sm1_was_active = self.sync_manager(1).2;
         // Mailbox mode (ESC datasheet section I, 8.2): an empty read mailbox cannot be
         // read — the access fails and the working counter stays. Keep what the frame
         // carried so that a refused read leaves it as it came.
-        let refused_read = self.read_mailbox_empty(ado, len) && !d.command().is_logical();
+        let refused_read = self.read_mailbox_empty(ado, len);
         let before = refused_read.then(|| (d.data().to_vec(), d.wkc()));
         let served = command::serve(&mut self.memory, d);
         if let Some((data, wkc)) = before {
@@ -158,18 +173,11 @@ impl Slave {
             }
         }
         let written = matches!(served, Served::Written | Served::ReadWritten);
-        // Process data written: a logical write lands in the SyncManager areas the
-        // FMMUs map; a physical one where it says.
-        let (wd_at, wd_len) = if d.command().is_logical() {
-            (PROCESS_RAM, RAM_BYTES)
-        } else {
-            (ado, len)
-        };
-        if written && ProcessDataWatchdog::triggered_by(&self.memory, wd_at, wd_len) {
+        // Process data written by address lands where it says.
+        if written && ProcessDataWatchdog::triggered_by(&self.memory, ado, len) {
             self.watchdog.trigger(&mut self.memory);
         }
-        let wrote = written && !d.command().is_logical();
-        if wrote {
+        if written {
             let touched = |reg: u16, w: usize| {
                 (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize
             };
