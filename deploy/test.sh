@@ -35,6 +35,9 @@ need_packages() {
   command -v cyclictest >/dev/null 2>&1 || missing+=(rt-tests)
   command -v ethtool >/dev/null 2>&1 || missing+=(ethtool)
   command -v setpriv >/dev/null 2>&1 || missing+=(util-linux)
+  # python3 with venv (ensurepip) runs the SOEM test peer (tests/peers/).
+  command -v python3 >/dev/null 2>&1 || missing+=(python3)
+  python3 -c "import ensurepip" >/dev/null 2>&1 || missing+=(python3-venv)
   if [ ${#missing[@]} -gt 0 ]; then
     local sudo=""
     [ "$(id -u)" = 0 ] || sudo="sudo"
@@ -44,8 +47,22 @@ need_packages() {
   fi
 }
 
+need_peer() {
+  # SOEM as a second, independent EtherCAT master (tests/tests/peer_soem.rs): the pysoem
+  # wheel in a venv of its own, run as a separate process — SOEM is GPL and is never
+  # linked into gantry. Made once; the test finds its python in GANTRY_PEER_PYTHON.
+  local venv="$HOME/.cache/gantry/venv" version=1.1.10
+  local py="$venv/bin/python"
+  if ! "$py" -c "import importlib.metadata as m, sys; sys.exit(m.version('pysoem') != '$version')" >/dev/null 2>&1; then
+    [ -x "$py" ] || python3 -m venv "$venv"
+    "$py" -m pip install --quiet --disable-pip-version-check "pysoem==$version"
+  fi
+  export GANTRY_PEER_PYTHON="$py"
+}
+
 step "toolchain components" need_components
 step "packages" need_packages
+step "SOEM test peer (pysoem venv)" need_peer
 step "fmt" cargo fmt --all -- --check
 step "clippy" cargo clippy --workspace --all-targets --release -- -D warnings
 step "binaries" cargo build --workspace --release --bins

@@ -18,6 +18,9 @@ use crate::plant::DeviceModel;
 
 /// SyncManager status bit 3: mailbox full.
 const MAILBOX_FULL: u8 = 0x08;
+/// SyncManager activate bit 1 (master): repeat request; PDI control bit 1 (slave): repeat
+/// acknowledge.
+const REPEAT: u8 = 0x02;
 
 /// Register address of SyncManager `n`.
 fn sm_base(n: u16) -> u16 {
@@ -43,6 +46,8 @@ pub struct Slave {
     dc: Option<DcUnit>,
     /// When the frame being served passes this slave (set by the chain per frame).
     arrival: Arrival,
+    /// Whether the read mailbox (SM1) holds an answer the master may ask to be repeated.
+    answered: bool,
 }
 
 impl Slave {
@@ -67,6 +72,7 @@ impl Slave {
             watchdog: ProcessDataWatchdog::default(),
             dc,
             arrival: Arrival::default(),
+            answered: false,
         }
     }
 
@@ -205,34 +211,52 @@ impl Slave {
 
     /// Serves one datagram and applies the side effects of what it wrote.
     pub fn serve(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
+        if d.command().is_logical() {
+            // Process data (the hot path): a logical write lands in the SyncManager
+            // areas the FMMUs map; nothing else reacts to it.
+            let served = command::serve(&mut self.memory, d);
+            let written = matches!(served, Served::Written | Served::ReadWritten);
+            if written && ProcessDataWatchdog::triggered_by(&self.memory, PROCESS_RAM, RAM_BYTES) {
+                self.watchdog.trigger(&mut self.memory);
+            }
+            return served;
+        }
+        self.serve_physical(d)
+    }
+
+    /// Serves a register or RAM access by address (not through the FMMUs).
+    fn serve_physical(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
         let ado = d.ado();
         let len = d.data_len();
-        let physical = !d.command().is_logical();
-        if let (Some(dc), true) = (self.dc.as_ref(), physical) {
+        if let Some(dc) = self.dc.as_ref() {
             dc.before_access(&mut self.memory, ado, len, &self.arrival);
         }
+        let sm1_was_active = self.sync_manager(1).2;
+        // Mailbox mode (ESC datasheet section I, 8.2): an empty read mailbox cannot be
+        // read — the access fails and the working counter stays. Keep what the frame
+        // carried so that a refused read leaves it as it came.
+        let refused_read = self.read_mailbox_empty(ado, len);
+        let before = refused_read.then(|| (d.data().to_vec(), d.wkc()));
         let served = command::serve(&mut self.memory, d);
+        if let Some((data, wkc)) = before {
+            if matches!(served, Served::Read | Served::ReadWritten) {
+                d.data_mut().copy_from_slice(&data);
+                d.set_wkc(wkc);
+                return Served::Passed;
+            }
+        }
         let written = matches!(served, Served::Written | Served::ReadWritten);
-        // Process data written: a logical write lands in the SyncManager areas the
-        // FMMUs map; a physical one where it says.
-        let (wd_at, wd_len) = if d.command().is_logical() {
-            (PROCESS_RAM, RAM_BYTES)
-        } else {
-            (ado, len)
-        };
-        if written && ProcessDataWatchdog::triggered_by(&self.memory, wd_at, wd_len) {
+        // Process data written by address lands where it says.
+        if written && ProcessDataWatchdog::triggered_by(&self.memory, ado, len) {
             self.watchdog.trigger(&mut self.memory);
         }
-        let wrote = written && physical;
-        if let (Some(dc), true) = (self.dc.as_mut(), wrote) {
+        if let (Some(dc), true) = (self.dc.as_mut(), written) {
             dc.after_write(&mut self.memory, ado, len, &self.arrival);
         }
-        if let (Some(dc), true, Served::Read | Served::ReadWritten) =
-            (self.dc.as_mut(), physical, served)
-        {
+        if let (Some(dc), Served::Read | Served::ReadWritten) = (self.dc.as_mut(), served) {
             dc.after_read(&mut self.memory, ado, len);
         }
-        if wrote {
+        if written {
             let touched = |reg: u16, w: usize| {
                 (ado as usize) < reg as usize + w && (ado as usize + len) > reg as usize
             };
@@ -241,6 +265,9 @@ impl Slave {
             }
             if sii::touches_control(ado, len) {
                 self.sii.on_control_write(&mut self.memory);
+            }
+            if touched(SM0, 8 * 8) {
+                self.on_sync_manager_write(sm1_was_active);
             }
             let (start, length, active) = self.sync_manager(0);
             if active && length > 0 && covers(ado, len, start + length - 1) {
@@ -256,6 +283,55 @@ impl Slave {
             }
         }
         served
+    }
+
+    /// Whether `[ado, ado + len)` lies in the read mailbox (SM1) while it is enabled and
+    /// empty.
+    fn read_mailbox_empty(&self, ado: u16, len: usize) -> bool {
+        let (start, length, active) = self.sync_manager(1);
+        let full = self.byte(sm_base(1) + 5) & MAILBOX_FULL != 0;
+        active
+            && !full
+            && length > 1
+            && ado >= start
+            && ado as usize + len <= start as usize + length as usize
+    }
+
+    fn byte(&self, address: u16) -> u8 {
+        self.memory
+            .raw(address, 1)
+            .and_then(|b| b.first().copied())
+            .unwrap_or(0)
+    }
+
+    /// The master wrote SyncManager registers. A disabled SyncManager loses its buffer
+    /// state (datasheet section I, 8.7: the state is reset; a mailbox is empty again).
+    /// On the read mailbox, a toggled repeat request (activate bit 1) makes the
+    /// application put its last answer back and toggle the repeat acknowledge (PDI
+    /// control bit 1) — how a master recovers an answer whose frame was lost (section I,
+    /// 8.6, Figure 26). Enabling the mailbox starts with request and acknowledge equal.
+    fn on_sync_manager_write(&mut self, sm1_was_active: bool) {
+        for n in 0..8 {
+            let base = sm_base(n);
+            if self.byte(base + 6) & 0x01 == 0 {
+                let status = self.byte(base + 5) & !MAILBOX_FULL;
+                self.memory.pdi_write(base + 5, &[status]);
+                if n == 1 {
+                    self.answered = false;
+                }
+            }
+        }
+        let base = sm_base(1);
+        let (request, pdi) = (self.byte(base + 6), self.byte(base + 7));
+        if request & 0x01 == 0 || request & REPEAT == pdi & REPEAT {
+            return;
+        }
+        if sm1_was_active && self.answered {
+            let status = self.byte(base + 5) | MAILBOX_FULL;
+            self.memory.pdi_write(base + 5, &[status]);
+        }
+        self.memory
+            .pdi_write(base + 7, &[(pdi & !REPEAT) | (request & REPEAT)]);
     }
 
     /// SyncManager `n` as the master configured it: (start, length, enabled).
@@ -294,6 +370,7 @@ impl Slave {
         self.memory.pdi_write(out_start, &area);
         let status = self.memory.read_u16(sm_base(1) + 4) | (u16::from(MAILBOX_FULL) << 8);
         self.memory.pdi_write(sm_base(1) + 4, &status.to_le_bytes());
+        self.answered = true;
     }
 
     fn on_al_control(&mut self) {
@@ -335,5 +412,123 @@ impl Slave {
         self.memory.pdi_write(AL_STATUS, &out.status.to_le_bytes());
         self.memory
             .pdi_write(AL_STATUS_CODE, &out.code.raw().to_le_bytes());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::catalog::{self, ServoOptions, MAILBOX_IN_AT, MAILBOX_OUT_AT};
+    use crate::esc::datagram::Command;
+
+    /// Serves one FPxx datagram to station 0 (the reset address); returns (WKC, data).
+    fn fp(slave: &mut Slave, cmd: Command, ado: u16, data: &[u8]) -> (u16, Vec<u8>) {
+        let mut buf = vec![0u8; 12 + data.len()];
+        let mut d = Datagram::new_unchecked(&mut buf[..]);
+        d.set_command(cmd);
+        d.set_adp(0);
+        d.set_ado(ado);
+        d.set_len(data.len(), false, false);
+        d.data_mut().copy_from_slice(data);
+        slave.serve(&mut d);
+        (d.wkc(), d.data().to_vec())
+    }
+
+    /// A servo with its mailbox SyncManagers set up as a master does (one 16-byte write).
+    fn servo_with_mailbox() -> Slave {
+        let mut s = catalog::servo(ServoOptions::default());
+        let mut sms = Vec::new();
+        for (at, control) in [(MAILBOX_OUT_AT, 0x26u8), (MAILBOX_IN_AT, 0x22)] {
+            sms.extend(at.to_le_bytes());
+            sms.extend(128u16.to_le_bytes());
+            sms.extend([control, 0, 0x01, 0]);
+        }
+        assert_eq!(fp(&mut s, Command::Fpwr, SM0, &sms).0, 1);
+        s
+    }
+
+    /// An SDO upload request of 0x1018:01 in a 128-byte mailbox.
+    fn upload_1018_01(counter: u8) -> Vec<u8> {
+        let mut m = vec![0u8; 128];
+        m[0] = 10;
+        m[5] = coe::MAILBOX_TYPE_COE | (counter << 4);
+        m[6..8].copy_from_slice(&(coe::COE_SDO_REQUEST << 12).to_le_bytes());
+        m[8..12].copy_from_slice(&[0x40, 0x18, 0x10, 0x01]);
+        m
+    }
+
+    fn full(s: &Slave) -> bool {
+        s.byte(sm_base(1) + 5) & MAILBOX_FULL != 0
+    }
+
+    #[test]
+    fn an_empty_read_mailbox_cannot_be_read() {
+        let mut s = servo_with_mailbox();
+        let (wkc, data) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0xAA; 128]);
+        assert_eq!(wkc, 0, "read of an empty mailbox fails");
+        assert!(data.iter().all(|&b| b == 0xAA), "the frame keeps its data");
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(1)).0,
+            1
+        );
+        assert!(full(&s));
+        let (wkc, answer) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]);
+        assert_eq!(wkc, 1);
+        assert_eq!(&answer[8..12], &[0x43, 0x18, 0x10, 0x01]);
+        assert!(!full(&s), "read to the last byte empties it");
+        assert_eq!(fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]).0, 0);
+        // The registers stay readable, and so does anything outside the mailbox.
+        assert_eq!(fp(&mut s, Command::Fprd, sm_base(1) + 5, &[0; 2]).0, 1);
+    }
+
+    #[test]
+    fn a_repeat_request_puts_the_last_answer_back() {
+        let mut s = servo_with_mailbox();
+        // No answer yet: a repeat request is acknowledged but there is nothing to read.
+        assert_eq!(fp(&mut s, Command::Fpwr, sm_base(1) + 6, &[0x03]).0, 1);
+        assert_eq!(s.byte(sm_base(1) + 7) & REPEAT, REPEAT);
+        assert!(!full(&s));
+        fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(2));
+        let (_, first) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]);
+        // The frame carrying the answer was lost: the master toggles the request bit
+        // (SOEM writes status + activate as one word; the status byte is ignored).
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, sm_base(1) + 5, &[0x00, 0x01]).0,
+            1
+        );
+        assert_eq!(
+            s.byte(sm_base(1) + 7) & REPEAT,
+            0,
+            "acknowledge follows the request"
+        );
+        assert!(full(&s), "the answer is back");
+        let (wkc, again) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]);
+        assert_eq!((wkc, &again), (1, &first));
+        // Writing the request bit unchanged repeats nothing.
+        fp(&mut s, Command::Fpwr, sm_base(1) + 6, &[0x01]);
+        assert!(!full(&s));
+    }
+
+    #[test]
+    fn status_is_the_escs_and_disabling_empties_the_mailbox() {
+        let mut s = servo_with_mailbox();
+        fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(3));
+        assert!(full(&s));
+        fp(&mut s, Command::Fpwr, sm_base(1) + 5, &[0x00]);
+        assert!(full(&s), "the status byte is read-only from EtherCAT");
+        // A master that resets every SyncManager (SOEM: BWR of zeros over 0x0800).
+        fp(&mut s, Command::Fpwr, SM0, &[0; 32]);
+        assert!(!full(&s), "a disabled SyncManager is reset");
+        // Enabled again with the repeat bit set: a fresh start, not a repeat.
+        fp(&mut s, Command::Fpwr, SM0, &{
+            let mut sms = [0u8; 16];
+            sms[8..10].copy_from_slice(&MAILBOX_IN_AT.to_le_bytes());
+            sms[10..12].copy_from_slice(&128u16.to_le_bytes());
+            sms[12] = 0x22;
+            sms[14] = 0x03;
+            sms
+        });
+        assert!(!full(&s));
+        assert_eq!(s.byte(sm_base(1) + 7) & REPEAT, REPEAT);
     }
 }

@@ -88,6 +88,80 @@ impl Drop for VethPair {
     }
 }
 
+/// Three namespaces in a line — master, relay, simulator — joined by two veth pairs, for
+/// tests that put a process between master and simulator (one that drops frames, as a
+/// bad wire would). Needs root; removed again on drop.
+pub struct RelayedVeth {
+    /// Namespace of the master end.
+    pub master_ns: String,
+    /// Namespace of the relay.
+    pub relay_ns: String,
+    /// Namespace of the simulator end.
+    pub sim_ns: String,
+    /// Interface of the master (inside `master_ns`).
+    pub master_if: String,
+    /// Relay interface towards the master (inside `relay_ns`).
+    pub relay_master_if: String,
+    /// Relay interface towards the simulator (inside `relay_ns`).
+    pub relay_sim_if: String,
+    /// Interface of the simulator (inside `sim_ns`).
+    pub sim_if: String,
+}
+
+impl RelayedVeth {
+    /// Creates the namespaces and both pairs; names carry `tag` and the process ID.
+    pub fn create(tag: &str) -> Result<Self, String> {
+        let id = std::process::id();
+        let line = Self {
+            master_ns: format!("gm-{tag}-{id}"),
+            relay_ns: format!("gr-{tag}-{id}"),
+            sim_ns: format!("gs-{tag}-{id}"),
+            master_if: "ecat-m".into(),
+            relay_master_if: "relay-m".into(),
+            relay_sim_if: "relay-s".into(),
+            sim_if: "ecat-s".into(),
+        };
+        for ns in [&line.master_ns, &line.relay_ns, &line.sim_ns] {
+            ip(&["netns", "add", ns])?;
+        }
+        for (ns, a, peer_ns, b) in [
+            (
+                &line.master_ns,
+                &line.master_if,
+                &line.relay_ns,
+                &line.relay_master_if,
+            ),
+            (
+                &line.relay_ns,
+                &line.relay_sim_if,
+                &line.sim_ns,
+                &line.sim_if,
+            ),
+        ] {
+            ip(&[
+                "-n", ns, "link", "add", a, "type", "veth", "peer", "name", b, "netns", peer_ns,
+            ])?;
+        }
+        for (ns, link) in [
+            (&line.master_ns, &line.master_if),
+            (&line.relay_ns, &line.relay_master_if),
+            (&line.relay_ns, &line.relay_sim_if),
+            (&line.sim_ns, &line.sim_if),
+        ] {
+            ip(&["-n", ns, "link", "set", link, "up"])?;
+        }
+        Ok(line)
+    }
+}
+
+impl Drop for RelayedVeth {
+    fn drop(&mut self) {
+        for ns in [&self.master_ns, &self.relay_ns, &self.sim_ns] {
+            let _ = ip(&["netns", "del", ns]);
+        }
+    }
+}
+
 /// The `gantry-sim` binary built beside the running test (target/<profile>/gantry-sim).
 pub fn gantry_sim_binary() -> Result<std::path::PathBuf, String> {
     built_binary("gantry-sim")

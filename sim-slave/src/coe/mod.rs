@@ -70,20 +70,24 @@ pub fn serve(od: &mut ObjectDictionary, request: &[u8]) -> Option<Vec<u8>> {
     let cmd = *sdo.first()?;
     let index = u16::from_le_bytes([*sdo.get(1)?, *sdo.get(2)?]);
     let sub = *sdo.get(3)?;
-    let reply = |payload: Vec<u8>| {
+    let coe_reply = |service: u16, payload: Vec<u8>| {
         let mut out = Vec::with_capacity(MAILBOX_HEADER_LEN + 2 + payload.len());
         out.extend(((2 + payload.len()) as u16).to_le_bytes());
         out.extend([0, 0, 0, MAILBOX_TYPE_COE | (counter << 4)]);
-        out.extend((COE_SDO_RESPONSE << 12).to_le_bytes());
+        out.extend((service << 12).to_le_bytes());
         out.extend(payload);
         out
     };
+    let reply = |payload: Vec<u8>| coe_reply(COE_SDO_RESPONSE, payload);
+    // ETG.1000.6 Table 40: "Abort SDO Transfer Request" travels with the CoE service
+    // "SDO request" (2), whichever side aborts; masters (SOEM) tell an abort from a
+    // response by that service before they look at the command specifier.
     let aborted = |code: u32| {
         let mut p = vec![0x80];
         p.extend(index.to_le_bytes());
         p.push(sub);
         p.extend(code.to_le_bytes());
-        reply(p)
+        coe_reply(COE_SDO_REQUEST, p)
     };
     if cmd & 0x10 != 0 {
         return Some(aborted(abort::UNSUPPORTED_ACCESS));
@@ -159,10 +163,13 @@ mod tests {
     fn sdo_of(resp: &[u8]) -> &[u8] {
         assert_eq!(resp[5] & 0x0F, MAILBOX_TYPE_COE);
         assert_eq!((resp[5] >> 4) & 7, 3, "counter echoed");
-        assert_eq!(
-            u16::from_le_bytes([resp[6], resp[7]]) >> 12,
+        let service = u16::from_le_bytes([resp[6], resp[7]]) >> 12;
+        let expected = if resp[8] == 0x80 {
+            COE_SDO_REQUEST
+        } else {
             COE_SDO_RESPONSE
-        );
+        };
+        assert_eq!(service, expected);
         &resp[8..]
     }
 
@@ -193,6 +200,28 @@ mod tests {
         assert_eq!(abort_of(&r), abort::UNSUPPORTED_ACCESS, "complete access");
         let r = serve(&mut od, &request(&[0xE0, 0x12, 0x1C, 0x00, 0, 0, 0, 0])).unwrap();
         assert_eq!(abort_of(&r), abort::BAD_COMMAND);
+    }
+
+    #[test]
+    fn aborts_are_sdo_requests_with_the_abort_specifier() {
+        let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+        let r = serve(&mut od, &request(&[0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0])).unwrap();
+        assert_eq!(
+            u16::from_le_bytes([r[0], r[1]]),
+            10,
+            "CoE header + 8 SDO bytes"
+        );
+        assert_eq!(
+            u16::from_le_bytes([r[6], r[7]]) >> 12,
+            COE_SDO_REQUEST,
+            "an abort is an SDO request (ETG.1000.6 Table 40), not a response"
+        );
+        assert_eq!(r[8], 0x80);
+        assert_eq!(&r[9..12], &[0x00, 0x20, 0x00], "index and sub-index echoed");
+        assert_eq!(
+            u32::from_le_bytes(r[12..16].try_into().unwrap()),
+            abort::NO_OBJECT
+        );
     }
 
     #[test]

@@ -165,6 +165,14 @@ impl ObjectDictionary {
         for (sub, v) in [(1u8, vendor), (2, product), (3, revision), (4, serial)] {
             od.insert(0x1018, sub, &v.to_le_bytes(), false);
         }
+        // 0x1C00 SyncManager communication type (ETG.1000.6 Table 67): 1 mailbox
+        // receive, 2 mailbox send, 3 process data outputs, 4 process data inputs. Masters
+        // (SOEM) read it to find which SyncManagers carry process data before they read
+        // the PDO assignment 0x1C12 + n.
+        od.insert(0x1C00, 0, &[4], false);
+        for (sub, kind) in [(1u8, 1u8), (2, 2), (3, 3), (4, 4)] {
+            od.insert(0x1C00, sub, &[kind], false);
+        }
         let rules = servo_pdo_rules();
         pdo::install(&mut od, &rules, &PdoLayout::csp_minimal());
         od.set_pdo_rules(rules);
@@ -196,6 +204,9 @@ mod tests {
     fn reads_writes_and_errors() {
         let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
         assert_eq!(od.read(0x1018, 2), Ok(&2u32.to_le_bytes()[..]));
+        assert_eq!(od.read(0x1C00, 0), Ok(&[4u8][..]), "four SyncManagers");
+        assert_eq!(od.read(0x1C00, 3), Ok(&[3u8][..]), "SM2: outputs");
+        assert_eq!(od.read(0x1C00, 4), Ok(&[4u8][..]), "SM3: inputs");
         assert_eq!(od.read(0x1018, 9), Err(OdError::NoSubIndex));
         assert_eq!(od.read(0x2000, 0), Err(OdError::NoObject));
         assert_eq!(od.write(0x1000, 0, &[0, 0, 0, 0]), Err(OdError::ReadOnly));

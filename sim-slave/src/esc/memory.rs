@@ -31,6 +31,11 @@ fn access_map() -> &'static [u8] {
                 bytes.fill(access);
             }
         }
+        for (a, m) in map.iter_mut().enumerate() {
+            if registers::sm_byte_read_only(a as u16) {
+                *m = READ_ONLY;
+            }
+        }
         map
     })
 }
@@ -66,44 +71,62 @@ impl Memory {
         Self { bytes, dc: true }
     }
 
-    /// Memory of an ESC without distributed clocks: the DC block is unmapped.
+    /// Memory of an ESC without distributed clocks: the DC block is unmapped (and zero).
     pub fn without_dc() -> Self {
-        Self {
+        let mut m = Self {
             dc: false,
             ..Self::new()
+        };
+        for (a, b) in m.bytes.iter_mut().enumerate() {
+            if u16::try_from(a).is_ok_and(registers::is_dc) {
+                *b = 0;
+            }
         }
+        m
     }
 
-    /// Whether every byte of `[address, address + len)` is a register or RAM.
+    /// Whether register byte `a` exists in this ESC (the DC block only with DC).
+    fn has(&self, a: usize) -> bool {
+        self.dc || !u16::try_from(a).is_ok_and(registers::is_dc)
+    }
+
+    /// Whether at least one byte of `[address, address + len)` is a register or RAM. An
+    /// ESC counts a datagram when at least one of its bytes was read or written (ESC
+    /// datasheet section I, "Working Counter"): a read spanning reserved addresses
+    /// (SOEM reads AL status, the reserved 0x0132 and AL status code in one go) counts.
     fn mapped(&self, address: u16, len: usize) -> bool {
         let (start, end) = (address as usize, address as usize + len);
         let ram = PROCESS_RAM as usize..PROCESS_RAM as usize + RAM_BYTES;
-        if ram.contains(&start) && end <= ram.end {
+        if start < ram.end && end > ram.start {
             return true;
         }
         let map = access_map();
-        (start..end).all(|a| {
-            ram.contains(&a)
-                || (map.get(a).is_some_and(|&m| m != UNMAPPED)
-                    && (self.dc || !u16::try_from(a).is_ok_and(registers::is_dc)))
-        })
+        (start..end).any(|a| map.get(a).is_some_and(|&m| m != UNMAPPED) && self.has(a))
     }
 
     /// EtherCAT read into `out` (OR-ed in when `or`); false when nothing there is mapped.
+    /// Reserved addresses read as zero (section II: "read data from reserved addresses
+    /// has to be ignored"); addresses past the RAM leave the frame as it was.
     pub fn ecat_read(&self, address: u16, out: &mut [u8], or: bool) -> bool {
         if !self.mapped(address, out.len()) {
             return false;
         }
         let at = address as usize;
-        match self.bytes.get(at..at + out.len()) {
-            Some(src) => {
-                for (o, s) in out.iter_mut().zip(src) {
+        if let Some(src) = self.bytes.get(at..at + out.len()) {
+            // Reserved register bytes are never written, so they hold zero.
+            for (o, s) in out.iter_mut().zip(src) {
+                *o = if or { *o | *s } else { *s };
+            }
+        } else {
+            // The datagram runs past the end of the RAM: only the bytes inside.
+            let inside = self.bytes.len().saturating_sub(at);
+            if let (Some(src), Some(dst)) = (self.bytes.get(at..), out.get_mut(..inside)) {
+                for (o, s) in dst.iter_mut().zip(src) {
                     *o = if or { *o | *s } else { *s };
                 }
-                true
             }
-            None => false,
         }
+        true
     }
 
     /// EtherCAT write; bytes of read-only registers keep their value. False when nothing
@@ -114,16 +137,19 @@ impl Memory {
         }
         let at = address as usize;
         if at >= PROCESS_RAM as usize {
-            // Process RAM: all writable (and `mapped` checked the range).
-            if let Some(dst) = self.bytes.get_mut(at..at + data.len()) {
-                dst.copy_from_slice(data);
+            // Process RAM: all writable; a datagram running past its end writes the
+            // bytes inside.
+            let n = data.len().min(self.bytes.len().saturating_sub(at));
+            if let (Some(dst), Some(src)) = (self.bytes.get_mut(at..at + n), data.get(..n)) {
+                dst.copy_from_slice(src);
             }
             return true;
         }
         let map = access_map();
         for (i, b) in data.iter().enumerate() {
             let a = at + i;
-            let writable = a >= PROCESS_RAM as usize || map.get(a) == Some(&READ_WRITE);
+            let writable =
+                a >= PROCESS_RAM as usize || (map.get(a) == Some(&READ_WRITE) && self.has(a));
             if writable {
                 if let Some(dst) = self.bytes.get_mut(a) {
                     *dst = *b;
@@ -180,7 +206,7 @@ impl Memory {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::esc::registers::{AL_STATUS, FEATURES, STATION_ADDRESS, TYPE};
+    use crate::esc::registers::{AL_STATUS, AL_STATUS_CODE, FEATURES, STATION_ADDRESS, TYPE};
 
     #[test]
     fn reset_values_and_access_rights() {
@@ -195,6 +221,14 @@ mod tests {
         assert_eq!(m.read_u16(AL_STATUS), 1, "read-only from the EtherCAT side");
         m.pdi_write(AL_STATUS, &[2, 0]);
         assert_eq!(m.read_u16(AL_STATUS), 2, "the device application sets it");
+        // SyncManager 1: the master configures start, length, control and activate; the
+        // status (mailbox full) and PDI control bytes belong to the ESC.
+        m.pdi_write(0x080D, &[0x08]);
+        assert!(m.ecat_write(0x0808, &[0x80, 0x10, 0x80, 0, 0x22, 0x00, 0x01, 0x02]));
+        assert_eq!(
+            m.raw(0x0808, 8),
+            Some(&[0x80, 0x10, 0x80, 0, 0x22, 0x08, 0x01, 0][..])
+        );
     }
 
     #[test]
@@ -218,5 +252,28 @@ mod tests {
         let mut m = Memory::new();
         assert!(m.ecat_write(0x0900, &[1, 2, 3, 4]));
         assert_eq!(m.read_u32(0x0900), 0, "receive times are read-only");
+    }
+
+    #[test]
+    fn accesses_spanning_reserved_addresses_count_and_read_zero_there() {
+        let mut m = Memory::new();
+        m.pdi_write(AL_STATUS, &[0x02, 0x00]);
+        m.pdi_write(AL_STATUS_CODE, &[0x11, 0x00]);
+        // AL status (2), reserved 0x0132..0x0134, AL status code (2): one 6-byte read.
+        let mut b = [0xEEu8; 6];
+        assert!(m.ecat_read(AL_STATUS, &mut b, false));
+        assert_eq!(b, [0x02, 0x00, 0, 0, 0x11, 0x00]);
+        // A write across the reserved bytes lands in the registers, not in between.
+        assert!(m.ecat_write(0x0010, &[1, 2, 3, 4, 5, 6]));
+        assert_eq!(m.read_u16(STATION_ADDRESS), 0x0201);
+        let mut r = [0xEEu8; 6];
+        assert!(m.ecat_read(0x0010, &mut r, false));
+        assert_eq!(r, [1, 2, 3, 4, 0, 0], "0x0014.. is reserved");
+        // The last RAM bytes and beyond: what is inside counts.
+        let end = PROCESS_RAM + RAM_BYTES as u16;
+        assert!(m.ecat_write(end - 2, &[7, 8, 9, 10]));
+        let mut t = [0u8; 4];
+        assert!(m.ecat_read(end - 2, &mut t, false));
+        assert_eq!(t, [7, 8, 0, 0]);
     }
 }

@@ -70,6 +70,10 @@ pub const AL_STATUS: u16 = 0x0130;
 pub const AL_STATUS_CODE: u16 = 0x0134;
 /// 0x0140 PDI control.
 pub const PDI_CONTROL: u16 = 0x0140;
+/// 0x0141 ESC configuration (loaded from the EEPROM's configuration area).
+pub const ESC_CONFIG: u16 = 0x0141;
+/// 0x0200 ECAT event mask.
+pub const ECAT_EVENT_MASK: u16 = 0x0200;
 /// 0x0300 RX error counters (4 ports × 2 bytes).
 pub const RX_ERROR_COUNTER: u16 = 0x0300;
 /// 0x0400 Watchdog divider.
@@ -144,7 +148,7 @@ pub const DC_END: u16 = 0x09B0;
 pub const PROCESS_RAM: u16 = 0x1000;
 
 /// The register table (ET1100-like ESC with 8 FMMUs and 8 SyncManagers).
-pub const TABLE: [Register; 51] = [
+pub const TABLE: [Register; 53] = [
     reg(TYPE, 1, R, 0x11, "Type"),
     reg(REVISION, 1, R, 0x00, "Revision"),
     reg(BUILD, 2, R, 0x0001, "Build"),
@@ -163,6 +167,8 @@ pub const TABLE: [Register; 51] = [
     reg(AL_STATUS, 2, R, 0x0001, "AL status"),
     reg(AL_STATUS_CODE, 2, R, 0, "AL status code"),
     reg(PDI_CONTROL, 1, R, 0x05, "PDI control"),
+    reg(ESC_CONFIG, 1, R, 0x00, "ESC configuration"),
+    reg(ECAT_EVENT_MASK, 2, RW, 0, "ECAT event mask"),
     reg(RX_ERROR_COUNTER, 8, RW, 0, "RX error counter"),
     reg(WATCHDOG_DIVIDER, 2, RW, 0x09C2, "Watchdog divider"),
     reg(WATCHDOG_TIME_PDI, 2, RW, 0x03E8, "Watchdog time PDI"),
@@ -243,6 +249,13 @@ pub const TABLE: [Register; 51] = [
     reg(DC_LATCH, 8, R, 0, "Latch unit"),
 ];
 
+/// SyncManager register bytes that are read-only from the EtherCAT side inside the
+/// otherwise writable SyncManager block (ESC datasheet section II, 0x0800+y*8): status
+/// (+5) and PDI control (+7), both owned by the ESC and its PDI.
+pub const fn sm_byte_read_only(address: u16) -> bool {
+    address >= SM0 && address < SM0 + 8 * 8 && matches!((address - SM0) % 8, 5 | 7)
+}
+
 /// Feature bits (0x0008) of the DC unit: DC supported, 64-bit system time, enhanced DC
 /// SYNC activation.
 pub const FEATURES_DC: u64 = 0x010C;
@@ -284,5 +297,11 @@ mod tests {
         assert_eq!(find(0x0913).map(|r| r.name), Some("System time"));
         assert_eq!(find(0x09AF).map(|r| r.name), Some("Latch unit"));
         assert_eq!(find(DC_END), None);
+        // Registers SOEM touches during its scan: PDI control and ESC configuration as
+        // one 16-bit read, and the ECAT event mask it clears.
+        assert_eq!(find(0x0141).map(|r| r.name), Some("ESC configuration"));
+        assert_eq!(find(0x0201).map(|r| r.name), Some("ECAT event mask"));
+        assert!(sm_byte_read_only(0x080D) && sm_byte_read_only(0x080F));
+        assert!(!sm_byte_read_only(0x080E) && !sm_byte_read_only(0x0840));
     }
 }
