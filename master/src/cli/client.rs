@@ -219,9 +219,14 @@ pub fn status(
     };
     writeln!(
         out,
-        "bus: {} frames lost, {} wrong working counters\ncycle: wake-up {}; compute {}; round trip {}; {} overruns",
+        "bus: {} frames lost, {} wrong working counters, {}\ncycle: wake-up {}; compute {}; round trip {}; {} overruns",
         s["bus"]["lost_frames"],
         s["bus"]["working_counter_errors"],
+        s["bus"]["dc"]["sync0_offset_us"]
+            .as_f64()
+            .map_or("no distributed clocks".into(), |us| format!(
+                "distributed clocks: frames reach the reference {us:.0} µs into the SYNC0 period"
+            )),
         summary(&c["wake"]),
         summary(&c["compute"]),
         summary(&c["round_trip"]),

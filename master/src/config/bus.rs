@@ -19,9 +19,16 @@ pub struct BusSection {
     /// Write every frame to this pcap file.
     #[serde(default)]
     pub pcap: Option<String>,
+    /// Distributed clocks: SYNC0 on the slaves at the cycle time (when they have DC).
+    #[serde(default = "yes")]
+    pub dc: bool,
     /// How much trouble on the wire is ridden through.
     #[serde(default)]
     pub faults: FaultsSection,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// `[bus.faults]`.

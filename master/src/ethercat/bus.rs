@@ -6,7 +6,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use ethercrab::std::ethercat_now;
-use ethercrab::subdevice_group::Op;
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
@@ -33,6 +33,34 @@ const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
 type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op>;
+type GroupDc = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, HasDc>;
+
+/// The group in OP, with or without distributed clocks.
+enum Groups {
+    Plain(Group),
+    Dc(GroupDc),
+}
+
+/// Runs `$body` with `$g` bound to whichever group it is.
+macro_rules! with_group {
+    ($groups:expr, $g:ident => $body:expr) => {
+        match $groups {
+            Groups::Plain($g) => $body,
+            Groups::Dc($g) => $body,
+        }
+    };
+}
+
+/// What distributed clocks say each cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DcStatus {
+    /// SYNC0 runs on the slaves at the cycle time.
+    pub active: bool,
+    /// The reference clock's system time (ns) at the last exchange.
+    pub system_time_ns: u64,
+    /// Where in the SYNC0 period the last frame reached the reference clock (ns).
+    pub cycle_offset_ns: u64,
+}
 
 /// Why the bus did not come up.
 #[derive(Debug, Error)]
@@ -74,7 +102,8 @@ enum Link {
 /// The EtherCAT bus in OP.
 pub struct EthercatBus {
     md: MainDevice<'static>,
-    group: Group,
+    group: Groups,
+    dc: DcStatus,
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
     link: Option<Link>,
@@ -158,17 +187,57 @@ impl EthercatBus {
             );
         }
         let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
-        let group =
-            futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+        let dc_capable = group
+            .iter(&md)
+            .any(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None));
+        let cycle = Duration::from_micros(u64::from(config.bus.cycle_us));
+        let group = if config.bus.dc && dc_capable {
+            // SYNC0 at the cycle time, starting well after OP is reached.
+            let dc = DcConfiguration {
+                start_delay: Duration::from_millis(100),
+                sync0_period: cycle,
+                sync0_shift: Duration::ZERO,
+            };
+            // Every slave with DC generates SYNC0 (its AssignActivate).
+            let mut group = group;
+            for mut sd in group.iter_mut(&md) {
+                if !matches!(sd.dc_support(), ethercrab::DcSupport::None) {
+                    sd.set_dc_sync(ethercrab::DcSync::Sync0);
+                }
+            }
+            // The process data first (SyncManagers, FMMUs), then the clocks.
+            let group = futures_lite::future::block_on(group.into_pre_op_pdi(&md))
+                .map_err(bus_error("process data set-up"))?;
+            let group = futures_lite::future::block_on(group.configure_dc_sync(&md, dc))
+                .map_err(bus_error("distributed clocks"))?;
+            let group =
+                futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let _ = writeln!(
+                out,
+                "distributed clocks: SYNC0 every {} µs",
+                config.bus.cycle_us
+            );
+            Groups::Dc(group)
+        } else {
+            let group =
+                futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            if config.bus.dc {
+                let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
+            }
+            Groups::Plain(group)
+        };
         let _ = writeln!(out, "all slaves in OP");
-        let addresses: Vec<u16> = group.iter(&md).map(|sd| sd.configured_address()).collect();
+        let group_ref = &group;
+        let addresses: Vec<u16> =
+            with_group!(group_ref, g => g.iter(&md).map(|sd| sd.configured_address()).collect());
         // LRW: a slave with outputs counts 2, with inputs 1.
-        let expected_wkc = group
+        let expected_wkc = with_group!(group_ref, g => g
             .iter(&md)
             .map(|sd| {
-                2 * u16::from(!sd.outputs_raw().is_empty()) + u16::from(!sd.inputs_raw().is_empty())
+                2 * u16::from(!sd.outputs_raw().is_empty())
+                    + u16::from(!sd.inputs_raw().is_empty())
             })
-            .sum();
+            .sum());
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
         let kernel = Kernel::new(dt, config.kernel_axes.clone())
             .map_err(|e| StartError::Setup(e.to_string()))?;
@@ -182,11 +251,16 @@ impl EthercatBus {
             addresses,
             expected_wkc,
         );
-        let slaves = group.len();
+        let slaves = with_group!(group_ref, g => g.len());
+        let dc = DcStatus {
+            active: matches!(group, Groups::Dc(_)),
+            ..DcStatus::default()
+        };
         Ok((
             Self {
                 md,
                 group,
+                dc,
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves),
                 link: Some(link),
@@ -196,16 +270,33 @@ impl EthercatBus {
         ))
     }
 
+    /// Distributed clocks as of the last exchange.
+    pub fn dc(&self) -> DcStatus {
+        self.dc
+    }
+
+    /// The simulated chain, when the bus is the in-process simulator (for tests and
+    /// diagnostics).
+    pub fn simulated_chain(
+        &self,
+    ) -> Option<std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>> {
+        match &self.link {
+            Some(Link::Embedded(e)) => Some(e.chain.clone()),
+            _ => None,
+        }
+    }
+
     /// Takes the slaves down to PreOp and stops the link.
     pub fn shut_down(mut self, out: &mut dyn Write) {
         let md = &self.md;
+        let group = std::mem::replace(&mut self.group, Groups::Plain(Group::default()));
         let result = futures_lite::future::block_on(async {
-            self.group
+            with_group!(group, g => g
                 .into_safe_op(md)
                 .await?
                 .into_pre_op(md)
                 .await
-                .map(|_| ())
+                .map(|_| ()))
         });
         match result {
             Ok(()) => {
@@ -234,7 +325,7 @@ impl CycleBus for EthercatBus {
                 cycle.comm_fault(axis)?;
                 continue;
             }
-            match self.group.subdevice(&self.md, drive) {
+            match with_group!(&self.group, g => g.subdevice(&self.md, drive)) {
                 Ok(sd) => cycle.read_inputs(axis, &sd.inputs_raw())?,
                 Err(_) => cycle.comm_fault(axis)?,
             }
@@ -244,7 +335,7 @@ impl CycleBus for EthercatBus {
 
     fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError> {
         for (axis, &drive) in self.drives.iter().enumerate() {
-            if let Ok(sd) = self.group.subdevice(&self.md, drive) {
+            if let Ok(sd) = with_group!(&self.group, g => g.subdevice(&self.md, drive)) {
                 cycle.write_outputs(axis, sd.io_raw_mut().outputs())?;
             }
         }
@@ -252,12 +343,23 @@ impl CycleBus for EthercatBus {
     }
 
     fn exchange(&mut self, health: &mut BusHealth) {
-        match futures_lite::future::block_on(self.group.tx_rx(&self.md)) {
-            Ok(r) => {
+        let answer = match &self.group {
+            Groups::Plain(g) => futures_lite::future::block_on(g.tx_rx(&self.md))
+                .map(|r| (r.working_counter, r.subdevice_states, None)),
+            // With DC the frame also carries the reference clock's time to the others.
+            Groups::Dc(g) => futures_lite::future::block_on(g.tx_rx_dc(&self.md))
+                .map(|r| (r.working_counter, r.subdevice_states, Some(r.extra))),
+        };
+        match answer {
+            Ok((working_counter, states, info)) => {
+                if let Some(info) = info {
+                    self.dc.system_time_ns = info.dc_system_time;
+                    self.dc.cycle_offset_ns = info.cycle_start_offset.as_nanos() as u64;
+                }
                 self.states.clear();
-                self.states.extend(r.subdevice_states.iter().copied());
+                self.states.extend(states.iter().copied());
                 health.record(Exchange::Answered {
-                    working_counter: r.working_counter,
+                    working_counter,
                     states: &self.states,
                 });
             }
@@ -267,14 +369,19 @@ impl CycleBus for EthercatBus {
 
     fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError> {
         let drive = self.drive_of(axis);
-        let sd = self
-            .group
-            .subdevice(&self.md, drive)
-            .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
-        futures_lite::future::block_on(recover_slave(&sd))
+        with_group!(&self.group, g => {
+            let sd = g
+                .subdevice(&self.md, drive)
+                .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
+            futures_lite::future::block_on(recover_slave(&sd))
+        })
     }
 
     fn drive_of(&self, axis: usize) -> usize {
         self.drives.get(axis).copied().unwrap_or(usize::MAX)
+    }
+
+    fn dc_offset_ns(&self) -> Option<u64> {
+        self.dc.active.then_some(self.dc.cycle_offset_ns)
     }
 }

@@ -18,4 +18,9 @@ pub trait CycleBus {
     fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError>;
     /// The chain position of `axis`' drive.
     fn drive_of(&self, axis: usize) -> usize;
+    /// With distributed clocks: where in the SYNC0 period the last frame reached the
+    /// reference clock (ns). `None` without DC.
+    fn dc_offset_ns(&self) -> Option<u64> {
+        None
+    }
 }

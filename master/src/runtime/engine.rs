@@ -330,6 +330,7 @@ impl<B: CycleBus> Engine<B> {
         snap.lost_frames = self.health.lost_total;
         snap.working_counter_errors = self.health.wkc_total;
         snap.figures = self.figures;
+        snap.dc_offset_ns = self.bus.dc_offset_ns();
         for (dst, src) in snap.commands.iter_mut().zip(&self.tracked) {
             *dst = Tracked {
                 id: src.id,
@@ -340,6 +341,11 @@ impl<B: CycleBus> Engine<B> {
         snap.overrun_stop = self.overrun_stop;
         snap.ended = self.phase == Phase::Ended;
         self.snapshot.publish();
+    }
+
+    /// The bus.
+    pub fn bus(&self) -> &B {
+        &self.bus
     }
 
     /// The bus, for its shutdown after the last cycle.

@@ -82,6 +82,9 @@ pub struct Snapshot {
     pub commands: Vec<Tracked>,
     /// Highest request id the cycle thread has taken.
     pub newest_id: u64,
+    /// Distributed clocks: where in the SYNC0 period the last frame reached the reference
+    /// clock (ns); `None` without DC.
+    pub dc_offset_ns: Option<u64>,
     /// The cycle thread stopped every axis because of overruns in a row.
     pub overrun_stop: bool,
     /// The cycle thread has ended.

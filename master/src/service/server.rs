@@ -371,6 +371,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         "bus": {
             "lost_frames": snap.lost_frames,
             "working_counter_errors": snap.working_counter_errors,
+            "dc": snap.dc_offset_ns.map(|ns| json!({"sync0_offset_us": ns as f64 / 1000.0})),
         },
         "cycle": snap.figures,
     })
