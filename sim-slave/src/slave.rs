@@ -48,6 +48,8 @@ pub struct Slave {
     arrival: Arrival,
     /// Whether the read mailbox (SM1) holds an answer the master may ask to be repeated.
     answered: bool,
+    /// The SDO server's segmented transfer, if one runs.
+    sdo: coe::SdoServer,
 }
 
 impl Slave {
@@ -73,6 +75,7 @@ impl Slave {
             dc,
             arrival: Arrival::default(),
             answered: false,
+            sdo: coe::SdoServer::default(),
         }
     }
 
@@ -349,9 +352,6 @@ impl Slave {
         let Some(od) = self.od.as_mut() else { return };
         let mut request = vec![0u8; length as usize];
         self.memory.ecat_read(start, &mut request, false);
-        let Some(response) = coe::serve(od, &request) else {
-            return;
-        };
         let (out_start, out_len, out_active) = {
             let base = sm_base(1);
             (
@@ -359,6 +359,9 @@ impl Slave {
                 self.memory.read_u16(base + 2),
                 self.memory.read_u16(base + 6) & 0x01 != 0,
             )
+        };
+        let Some(response) = coe::serve(od, &mut self.sdo, &request, usize::from(out_len)) else {
+            return;
         };
         if !out_active || response.len() > out_len as usize {
             return;
