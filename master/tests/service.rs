@@ -230,3 +230,27 @@ fn without_capabilities_it_refuses_to_start_and_says_which() {
         assert!(!out.status.success(), "{e}");
     }
 }
+
+#[test]
+fn an_axis_on_a_drive_the_bus_does_not_have_stops_start_up() {
+    let dir = std::env::temp_dir().join(format!("gantry-missing-drive-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
+    assert!(text.contains("drive = 3"));
+    std::fs::write(dir.join("g.toml"), text.replace("drive = 3", "drive = 7")).unwrap();
+    std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
+    let out = gantry()
+        .args(["run", "--no-rt", "--config"])
+        .arg(dir.join("g.toml"))
+        .arg("--socket")
+        .arg(dir.join("s.sock"))
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("axis \"c\" is on drive 7, but the bus has 4 slaves"),
+        "{e}"
+    );
+}
