@@ -50,7 +50,7 @@ pub fn findings(rt: &RtSection, interface: Option<&str>) -> Vec<Finding> {
         advice: crate::runtime::rt::check(rt, interface.is_some())
             .err()
             .map(|_| {
-                "grant the capabilities named above (deploy/ has a systemd unit with them)".into()
+                "grant the capabilities named above (deploy/gantry.service grants them to the service)".into()
             }),
     });
     let isolated = read("/sys/devices/system/cpu/isolated").unwrap_or_default();
