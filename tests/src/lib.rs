@@ -56,3 +56,51 @@ pub fn sim_config(axes: usize, cycle_us: u32) -> gantry::config::Config {
     }
     gantry::config::Config::parse(&text, "test.toml").expect("valid test configuration")
 }
+
+/// A device without a mailbox whose process data the EEPROM describes (one RxPDO 0x1600
+/// on SM2 at 0x1100, one TxPDO 0x1A00 on SM3 at 0x1400), as simple terminals have:
+/// `outputs` and `inputs` list (object index, bits), sub-index 0.
+pub fn eeprom_pdo_device(
+    serial: u32,
+    outputs: &[(u16, u8)],
+    inputs: &[(u16, u8)],
+) -> gantry_sim::esc::sii::DeviceDescription {
+    use gantry_sim::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
+    let pdo = |index, sync_manager, entries: &[(u16, u8)]| PdoDescription {
+        index,
+        sync_manager,
+        entries: entries
+            .iter()
+            .map(|&(index, bits)| PdoEntry {
+                index,
+                sub: 0,
+                bits,
+            })
+            .collect(),
+    };
+    let sm = |start, control, kind| SmDescription {
+        start,
+        length: 0,
+        control,
+        enable: true,
+        kind,
+    };
+    DeviceDescription {
+        vendor_id: gantry_sim::catalog::VENDOR_ID,
+        product_code: 0x0402,
+        revision: 1,
+        serial,
+        order_code: "SIM-IO".into(),
+        name: "sim I/O".into(),
+        mailbox: None,
+        mailbox_protocols: 0,
+        sync_managers: vec![
+            sm(gantry_sim::catalog::OUTPUTS_AT, 0x64, 3),
+            sm(gantry_sim::catalog::INPUTS_AT, 0x20, 4),
+        ],
+        fmmus: vec![1, 2],
+        dc: false,
+        rx_pdos: vec![pdo(0x1600, 0, outputs)],
+        tx_pdos: vec![pdo(0x1A00, 1, inputs)],
+    }
+}

@@ -5,59 +5,22 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use gantry_sim::catalog;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::coe::od::ObjectDictionary;
-use gantry_sim::esc::sii::{DeviceDescription, SmDescription};
+use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::slave::Slave;
 use gantry_tests::EmbeddedBus;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
+/// The catalog servo's EEPROM (CoE mailbox, no PDOs listed), as a revision-2 device.
 fn coe_servo() -> DeviceDescription {
     DeviceDescription {
-        vendor_id: 0x0A5A,
-        product_code: 0x0402,
         revision: 2,
         serial: 99,
-        order_code: "SIM-SERVO-COE".into(),
-        name: "simulated CiA-402 servo (CoE)".into(),
-        mailbox: Some((0x1000, 128, 0x1080, 128)),
-        mailbox_protocols: 0x0004,
-        sync_managers: vec![
-            SmDescription {
-                start: 0x1000,
-                length: 128,
-                control: 0x26,
-                enable: true,
-                kind: 1,
-            },
-            SmDescription {
-                start: 0x1080,
-                length: 128,
-                control: 0x22,
-                enable: true,
-                kind: 2,
-            },
-            SmDescription {
-                start: 0x1100,
-                length: 0,
-                control: 0x64,
-                enable: true,
-                kind: 3,
-            },
-            SmDescription {
-                start: 0x1400,
-                length: 0,
-                control: 0x20,
-                enable: true,
-                kind: 4,
-            },
-        ],
-        fmmus: vec![1, 2, 3],
-        dc: false,
-        tx_pdos: vec![],
-        rx_pdos: vec![],
+        ..catalog::servo_description(99)
     }
 }
 

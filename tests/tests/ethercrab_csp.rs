@@ -8,8 +8,9 @@ use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
 use gantry_kernel::profile::{plan_position, KinematicState, Limits, RampType};
+use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;
-use gantry_sim::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
+use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::plant::servo::ServoDrive;
 use gantry_sim::plant::DeviceModel;
 use gantry_sim::slave::Slave;
@@ -18,52 +19,17 @@ use gantry_tests::EmbeddedBus;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
-const OUTPUTS_AT: u16 = 0x1100;
-const INPUTS_AT: u16 = 0x1400;
 const DT: f64 = 0.001;
 
 fn servo_description() -> DeviceDescription {
-    let pdo = |index, sm, entries: &[(u16, u8)]| PdoDescription {
-        index,
-        sync_manager: sm,
-        entries: entries
-            .iter()
-            .map(|&(index, bits)| PdoEntry {
-                index,
-                sub: 0,
-                bits,
-            })
-            .collect(),
-    };
     DeviceDescription {
-        vendor_id: 0x0A5A,
-        product_code: 0x0402,
-        revision: 1,
-        serial: 1,
         order_code: "SIM-SERVO".into(),
         name: "simulated CiA-402 servo".into(),
-        mailbox: None,
-        mailbox_protocols: 0,
-        sync_managers: vec![
-            SmDescription {
-                start: OUTPUTS_AT,
-                length: 0,
-                control: 0x64,
-                enable: true,
-                kind: 3,
-            },
-            SmDescription {
-                start: INPUTS_AT,
-                length: 0,
-                control: 0x20,
-                enable: true,
-                kind: 4,
-            },
-        ],
-        fmmus: vec![1, 2],
-        dc: false,
-        rx_pdos: vec![pdo(0x1600, 0, &[(0x6040, 16), (0x607A, 32)])],
-        tx_pdos: vec![pdo(0x1A00, 1, &[(0x6041, 16), (0x6064, 32)])],
+        ..gantry_tests::eeprom_pdo_device(
+            1,
+            &[(0x6040, 16), (0x607A, 32)],
+            &[(0x6041, 16), (0x6064, 32)],
+        )
     }
 }
 

@@ -14,7 +14,7 @@ use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::registers::{
     DC_SPEED_COUNTER_DIFF, DC_SYSTEM_TIME_DELAY, DC_SYSTEM_TIME_DIFFERENCE,
 };
-use gantry_sim::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
+use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::slave::Slave;
 use gantry_tests::EmbeddedBus;
 
@@ -36,47 +36,12 @@ const DC_CYCLES: u64 = 1_000;
 const START_DELAY_NS: u64 = 10_000_000;
 
 fn dc_io_device(serial: u32) -> DeviceDescription {
-    let pdo = |index, sm, entries: &[(u16, u8)]| PdoDescription {
-        index,
-        sync_manager: sm,
-        entries: entries
-            .iter()
-            .map(|&(index, bits)| PdoEntry {
-                index,
-                sub: 0,
-                bits,
-            })
-            .collect(),
-    };
     DeviceDescription {
-        vendor_id: 0x0A5A,
         product_code: 0x403,
-        revision: 1,
-        serial,
         order_code: "SIM-DC-IO".into(),
         name: "sim DC I/O".into(),
-        mailbox: None,
-        mailbox_protocols: 0,
-        sync_managers: vec![
-            SmDescription {
-                start: 0x1100,
-                length: 0,
-                control: 0x64,
-                enable: true,
-                kind: 3,
-            },
-            SmDescription {
-                start: 0x1400,
-                length: 0,
-                control: 0x20,
-                enable: true,
-                kind: 4,
-            },
-        ],
-        fmmus: vec![1, 2],
         dc: true,
-        rx_pdos: vec![pdo(0x1600, 0, &[(0x7000, 16)])],
-        tx_pdos: vec![pdo(0x1A00, 1, &[(0x6000, 16)])],
+        ..gantry_tests::eeprom_pdo_device(serial, &[(0x7000, 16)], &[(0x6000, 16)])
     }
 }
 

@@ -4,61 +4,22 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;
-use gantry_sim::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
+use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::slave::Slave;
 use gantry_tests::EmbeddedBus;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
-const OUTPUTS_AT: u16 = 0x1100;
-const INPUTS_AT: u16 = 0x1400;
-
 fn io_device() -> DeviceDescription {
-    let pdo = |index, sm, entries: &[(u16, u8)]| PdoDescription {
-        index,
-        sync_manager: sm,
-        entries: entries
-            .iter()
-            .map(|&(index, bits)| PdoEntry {
-                index,
-                sub: 0,
-                bits,
-            })
-            .collect(),
-    };
-    DeviceDescription {
-        vendor_id: 0x0A5A,
-        product_code: 0x402,
-        revision: 1,
-        serial: 7,
-        order_code: "SIM-IO".into(),
-        name: "sim I/O".into(),
-        mailbox: None,
-        mailbox_protocols: 0,
-        sync_managers: vec![
-            SmDescription {
-                start: OUTPUTS_AT,
-                length: 0,
-                control: 0x64,
-                enable: true,
-                kind: 3,
-            },
-            SmDescription {
-                start: INPUTS_AT,
-                length: 0,
-                control: 0x20,
-                enable: true,
-                kind: 4,
-            },
-        ],
-        fmmus: vec![1, 2],
-        dc: false,
-        // Outputs: controlword + target position; inputs: statusword + position actual.
-        rx_pdos: vec![pdo(0x1600, 0, &[(0x6040, 16), (0x607A, 32)])],
-        tx_pdos: vec![pdo(0x1A00, 1, &[(0x6041, 16), (0x6064, 32)])],
-    }
+    // Outputs: controlword + target position; inputs: statusword + position actual.
+    gantry_tests::eeprom_pdo_device(
+        7,
+        &[(0x6040, 16), (0x607A, 32)],
+        &[(0x6041, 16), (0x6064, 32)],
+    )
 }
 
 #[test]
