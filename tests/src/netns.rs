@@ -184,3 +184,59 @@ pub fn built_binary(name: &str) -> Result<std::path::PathBuf, String> {
         ))
     }
 }
+
+/// A child process killed and reaped when dropped, however the test ends.
+pub struct Reaped(Option<std::process::Child>);
+
+impl Reaped {
+    /// Watches `child`.
+    pub fn new(child: std::process::Child) -> Self {
+        Self(Some(child))
+    }
+
+    /// The child, for the caller to wait for itself (it is no longer killed on drop).
+    pub fn take(&mut self) -> std::process::Child {
+        self.0.take().expect("taken once")
+    }
+
+    /// The child.
+    pub fn child(&mut self) -> &mut std::process::Child {
+        self.0.as_mut().expect("not taken")
+    }
+}
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Starts `gantry-sim` (SCHED_FIFO 70) on `iface` in namespace `ns` with the chain in
+/// `config`, and waits until it has bound its socket (its first line, which must name
+/// `slaves` slaves).
+pub fn start_gantry_sim(ns: &str, iface: &str, config: &std::path::Path, slaves: usize) -> Reaped {
+    use std::io::BufRead;
+    let mut sim = Reaped::new(
+        Command::new("ip")
+            .args(["netns", "exec", ns])
+            .arg(gantry_sim_binary().expect("gantry-sim is built"))
+            .args(["--interface", iface, "--config"])
+            .arg(config)
+            .args(["--priority", "70"])
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("start gantry-sim"),
+    );
+    let mut first = String::new();
+    std::io::BufReader::new(sim.child().stdout.take().expect("piped"))
+        .read_line(&mut first)
+        .expect("gantry-sim's first line");
+    assert!(
+        first.contains(&format!("{slaves} slaves")),
+        "gantry-sim started: {first:?}"
+    );
+    sim
+}

@@ -13,11 +13,11 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::sync::Mutex;
 
 use gantry_sim::catalog::{SERVO_PRODUCT, VENDOR_ID};
-use gantry_tests::netns::{gantry_sim_binary, RelayedVeth, VethPair};
+use gantry_tests::netns::{start_gantry_sim, Reaped, RelayedVeth, VethPair};
 use serde::Deserialize;
 
 const SERVOS: usize = 3;
@@ -109,27 +109,12 @@ struct PeerSlave {
 
 /// Starts `gantry-sim` with the three servos on `iface` in `ns`; returns the process and
 /// the directory of its configuration (removed by the caller).
-fn start_sim(ns: &str, iface: &str, tag: &str) -> (Child, PathBuf) {
+fn start_sim(ns: &str, iface: &str, tag: &str) -> (Reaped, PathBuf) {
     let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("sim.toml");
     std::fs::write(&config, SIM_CONFIG).unwrap();
-    let mut sim = Command::new("ip")
-        .args(["netns", "exec", ns])
-        .arg(gantry_sim_binary().unwrap())
-        .args(["--interface", iface, "--config"])
-        .arg(&config)
-        .args(["--seconds", "120", "--priority", "70"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start gantry-sim");
-    // The simulator prints its first line once its socket is bound.
-    let mut first = String::new();
-    BufReader::new(sim.stdout.as_mut().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    assert!(first.contains("3 slaves"), "gantry-sim started: {first:?}");
-    (sim, dir)
+    (start_gantry_sim(ns, iface, &config, SERVOS), dir)
 }
 
 /// Runs the SOEM peer on `iface` in `ns`; prints its output and returns its report.
@@ -253,10 +238,9 @@ fn soem_brings_three_servos_to_op_and_enables_them() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let python = peer_python();
     let pair = VethPair::create("soem").expect("veth pair in two namespaces");
-    let (mut sim, dir) = start_sim(&pair.sim_ns, &pair.sim_if, "soem");
+    let (sim, dir) = start_sim(&pair.sim_ns, &pair.sim_if, "soem");
     let (peer, report) = run_peer(&python, &pair.master_ns, &pair.master_if, &[]);
-    let _ = sim.kill();
-    let _ = sim.wait();
+    drop(sim);
     std::fs::remove_dir_all(&dir).unwrap();
     check_bringup(&peer, &report);
 }
@@ -267,7 +251,7 @@ fn soem_recovers_lost_mailbox_answers_by_repeat_request() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let python = peer_python();
     let line = RelayedVeth::create("soemloss").expect("three namespaces in a line");
-    let (mut sim, dir) = start_sim(&line.sim_ns, &line.sim_if, "soemloss");
+    let (sim, dir) = start_sim(&line.sim_ns, &line.sim_if, "soemloss");
     let relay_script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("peers/lossy_relay.py");
     let mailbox_in = format!("{:#06x}", gantry_sim::catalog::MAILBOX_IN_AT);
     let mut relay = Command::new("ip")
@@ -286,8 +270,7 @@ fn soem_recovers_lost_mailbox_answers_by_repeat_request() {
     let (peer, report) = run_peer(&python, &line.master_ns, &line.master_if, &[]);
     let _ = relay.kill();
     let _ = relay.wait();
-    let _ = sim.kill();
-    let _ = sim.wait();
+    drop(sim);
     std::fs::remove_dir_all(&dir).unwrap();
     let mut drops = String::new();
     std::io::Read::read_to_string(&mut relay_out, &mut drops).unwrap();

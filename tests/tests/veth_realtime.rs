@@ -6,9 +6,6 @@
 //!
 //! Needs root for the namespaces; `deploy/test.sh` runs it (`--include-ignored`).
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
@@ -24,7 +21,7 @@ use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::ball_screw_5mm;
-use gantry_tests::netns::{gantry_sim_binary, VethPair};
+use gantry_tests::netns::{start_gantry_sim, VethPair};
 
 const DRIVES: usize = 4;
 const CYCLES: u64 = 10_000;
@@ -217,24 +214,10 @@ fn four_drives_at_1khz_for_10_s_over_veth() {
     std::fs::create_dir_all(&dir).unwrap();
     let config = dir.join("sim.toml");
     std::fs::write(&config, SIM_CONFIG).unwrap();
-    let mut sim = Command::new("ip")
-        .args(["netns", "exec", &pair.sim_ns])
-        .arg(gantry_sim_binary().unwrap())
-        .args(["--interface", &pair.sim_if, "--config"])
-        .arg(&config)
-        .args(["--seconds", "60", "--priority", "70"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start gantry-sim");
-    // The simulator prints its first line once its socket is bound.
-    let mut sim_out = BufReader::new(sim.stdout.take().unwrap());
-    let mut first = String::new();
-    sim_out.read_line(&mut first).unwrap();
-    assert!(first.contains("4 slaves"), "gantry-sim started: {first:?}");
+    let sim = start_gantry_sim(&pair.sim_ns, &pair.sim_if, &config, 4);
 
     let report = std::thread::scope(|s| s.spawn(|| run_master(&pair)).join().unwrap());
-    let _ = sim.kill();
-    let _ = sim.wait();
+    drop(sim);
     std::fs::remove_dir_all(&dir).unwrap();
     let report = report.unwrap();
     eprintln!(

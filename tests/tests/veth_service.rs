@@ -2,32 +2,13 @@
 //! `gantry-sim` over a veth pair in two network namespaces; the CLI commands work against
 //! it end to end, and the cycle figures are reported. Needs root; `deploy/test.sh` runs it.
 
-use std::io::{BufRead, BufReader};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use gantry_tests::netns::{built_binary, gantry_sim_binary, VethPair};
+use gantry_tests::netns::{built_binary, start_gantry_sim, Reaped, VethPair};
 
 fn examples() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/examples")
-}
-
-/// A child process killed when the test ends, however it ends.
-struct Reaped(std::process::Child);
-
-impl Reaped {
-    /// The child, no longer reaped here (waited for by the caller).
-    fn take(&mut self) -> std::process::Child {
-        let placeholder = Command::new("true").spawn().unwrap();
-        std::mem::replace(&mut self.0, placeholder)
-    }
-}
-
-impl Drop for Reaped {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 #[test]
@@ -53,21 +34,12 @@ fn gantry_run_drives_the_simulator_over_veth_in_real_time() {
             .replace("overrun_limit = 10", "overrun_limit = 1000"),
     )
     .unwrap();
-    let sim = Command::new("ip")
-        .args(["netns", "exec", &pair.sim_ns])
-        .arg(gantry_sim_binary().unwrap())
-        .args(["--interface", &pair.sim_if, "--config"])
-        .arg(examples().join("sim-4-servos.toml"))
-        .args(["--priority", "70"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut sim = Reaped(sim);
-    let mut first = String::new();
-    BufReader::new(sim.0.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    assert!(first.contains("4 slaves"), "{first}");
+    let sim = start_gantry_sim(
+        &pair.sim_ns,
+        &pair.sim_if,
+        &examples().join("sim-4-servos.toml"),
+        4,
+    );
 
     let gantry = built_binary("gantry").unwrap();
     let socket = dir.join("gantry.sock");
@@ -82,10 +54,10 @@ fn gantry_run_drives_the_simulator_over_veth_in_real_time() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut service = Reaped(service);
+    let mut service = Reaped::new(service);
     let end = Instant::now() + Duration::from_secs(30);
     while std::os::unix::net::UnixStream::connect(&socket).is_err() {
-        if let Some(status) = service.0.try_wait().unwrap() {
+        if let Some(status) = service.child().try_wait().unwrap() {
             let out = service.take().wait_with_output().unwrap();
             panic!(
                 "gantry run ended ({status}): {}{}",
@@ -141,7 +113,7 @@ fn gantry_run_drives_the_simulator_over_veth_in_real_time() {
     assert_eq!(status["overrun_stop"], false, "{table}");
 
     nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(service.0.id() as i32),
+        nix::unistd::Pid::from_raw(service.child().id() as i32),
         nix::sys::signal::Signal::SIGTERM,
     )
     .unwrap();

@@ -65,20 +65,17 @@ impl Link {
         }
     }
 
-    /// The next reply, if one is waiting (never blocks).
-    fn recv(&mut self, buf: &mut Vec<u8>) -> io::Result<bool> {
+    /// The next reply into `buf`, if one is waiting (never blocks): its length.
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
         match self {
-            Link::Embedded { replies, .. } => Ok(replies.pop_front().map(|r| *buf = r).is_some()),
-            Link::Raw(socket) => {
-                buf.resize(RECV_BYTES, 0);
-                match socket.recv(buf, Some(std::time::Duration::ZERO))? {
-                    Some(n) => {
-                        buf.truncate(n);
-                        Ok(true)
-                    }
-                    None => Ok(false),
+            Link::Embedded { replies, .. } => Ok(replies.pop_front().map(|r| {
+                let n = r.len().min(buf.len());
+                if let (Some(dst), Some(src)) = (buf.get_mut(..n), r.get(..n)) {
+                    dst.copy_from_slice(src);
                 }
-            }
+                n
+            })),
+            Link::Raw(socket) => socket.recv(buf, Some(std::time::Duration::ZERO)),
         }
     }
 
@@ -174,7 +171,7 @@ impl FramePump {
                 let waker = Waker::from(bell.clone());
                 let started = Instant::now();
                 let mut stats = PumpStats::default();
-                let mut buf = Vec::with_capacity(RECV_BYTES);
+                let mut buf = vec![0u8; RECV_BYTES];
                 let record = |capture: &mut Option<PcapWriter<_>>, frame: &[u8]| {
                     if let Some(c) = capture.as_mut() {
                         let _ = c.frame(started.elapsed().as_micros() as u64, frame);
@@ -196,13 +193,14 @@ impl FramePump {
                     }
                     loop {
                         match link.recv(&mut buf) {
-                            Ok(true) => {
-                                record(&mut capture, &buf);
-                                if rx.receive_frame(&buf).is_ok() {
+                            Ok(Some(n)) => {
+                                let frame = buf.get(..n).unwrap_or_default();
+                                record(&mut capture, frame);
+                                if rx.receive_frame(frame).is_ok() {
                                     stats.received += 1;
                                 }
                             }
-                            Ok(false) => break,
+                            Ok(None) => break,
                             Err(_) => {
                                 stats.errors += 1;
                                 break;

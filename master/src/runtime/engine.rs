@@ -209,10 +209,8 @@ impl<B: CycleBus> Engine<B> {
             handle: None,
             status: CommandStatus::Error(e),
         };
-        if self.overrun_stop {
-            self.overrun_stop = false;
-        }
-        if self.health.any_fault() || self.cycle.inputs(axis).is_none() {
+        self.overrun_stop = false;
+        if self.health.any_fault() {
             if self.bus.recover(axis).is_err() {
                 return error(CommandError::DriveResetFailed {
                     code: COMMUNICATION_FAULT,
