@@ -3,6 +3,7 @@
 
 pub mod lockstep;
 pub mod netns;
+pub mod seccomp;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 

@@ -1,6 +1,7 @@
-//! The cycle thread allocates nothing and takes no lock: the engine runs at 1 kHz over the
-//! in-process simulator (4 axes) while a counting allocator watches the cycle thread for
-//! 3000 cycles, as the application sends moves, halts, resets and a bus fault happens.
+//! The cycle thread allocates nothing: the engine runs at 1 kHz over the in-process
+//! simulator (4 axes) while a counting allocator watches the cycle thread for 3000 cycles,
+//! as the application sends moves and resets. (That it takes no lock is
+//! `runtime_no_lock.rs`.)
 
 use std::sync::mpsc;
 use std::time::Duration;

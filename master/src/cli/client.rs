@@ -209,17 +209,18 @@ pub fn status(
     }
     let c = &s["cycle"];
     let summary = |h: &Value| {
+        let us = |key: &str| h[key].as_f64().unwrap_or(0.0);
         format!(
-            "p50 {} µs, p99 {} µs, p99.9 {} µs, max {:.0} µs",
-            h["p50_us"],
-            h["p99_us"],
-            h["p999_us"],
-            h["max_us"].as_f64().unwrap_or(0.0)
+            "p50 {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs, max {:.0} µs",
+            us("p50_us"),
+            us("p99_us"),
+            us("p999_us"),
+            us("max_us")
         )
     };
     writeln!(
         out,
-        "bus: {} frames lost, {} wrong working counters, {}\ncycle: wake-up {}; compute {}; round trip {}; {} overruns",
+        "bus: lost frames {}, wrong working counters {}, {}\ncycle: wake-up {}; compute {}; round trip {}; overruns {}",
         s["bus"]["lost_frames"],
         s["bus"]["working_counter_errors"],
         s["bus"]["dc"]["sync0_offset_us"]

@@ -16,6 +16,7 @@ use thiserror::Error;
 
 use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
+use super::doorbell::BlockOn;
 use super::embedded::EmbeddedBus;
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::mapping::map_pdos;
@@ -107,6 +108,8 @@ pub struct EthercatBus {
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
     link: Option<Link>,
+    /// Runs ethercrab's futures in the cycle thread without a lock.
+    runner: BlockOn,
 }
 
 impl EthercatBus {
@@ -150,10 +153,11 @@ impl EthercatBus {
             (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
         };
         let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
-        let group = futures_lite::future::block_on(
-            md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now),
-        )
-        .map_err(bus_error("discovery"))?;
+        let runner =
+            BlockOn::new().map_err(|e| StartError::Link(format!("the cycle's eventfd: {e}")))?;
+        let group = runner
+            .run(md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now))
+            .map_err(bus_error("discovery"))?;
         let _ = writeln!(out, "found {} EtherCAT slaves", group.len());
         for (i, sd) in group.iter(&md).enumerate() {
             let _ = writeln!(
@@ -178,7 +182,8 @@ impl EthercatBus {
             let sd = group
                 .subdevice(&md, a.drive)
                 .map_err(bus_error("addressing"))?;
-            futures_lite::future::block_on(map_pdos(&sd, &layout))
+            runner
+                .run(map_pdos(&sd, &layout))
                 .map_err(|e| StartError::Setup(e.to_string()))?;
             let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
             channels.push(
@@ -206,12 +211,13 @@ impl EthercatBus {
                 }
             }
             // The process data first (SyncManagers, FMMUs), then the clocks.
-            let group = futures_lite::future::block_on(group.into_pre_op_pdi(&md))
+            let group = runner
+                .run(group.into_pre_op_pdi(&md))
                 .map_err(bus_error("process data set-up"))?;
-            let group = futures_lite::future::block_on(group.configure_dc_sync(&md, dc))
+            let group = runner
+                .run(group.configure_dc_sync(&md, dc))
                 .map_err(bus_error("distributed clocks"))?;
-            let group =
-                futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
             let _ = writeln!(
                 out,
                 "distributed clocks: SYNC0 every {} µs",
@@ -219,8 +225,7 @@ impl EthercatBus {
             );
             Groups::Dc(group)
         } else {
-            let group =
-                futures_lite::future::block_on(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
             if config.bus.dc {
                 let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
             }
@@ -264,6 +269,7 @@ impl EthercatBus {
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves),
                 link: Some(link),
+                runner,
             },
             CspCycle::new(kernel, channels),
             health,
@@ -290,7 +296,7 @@ impl EthercatBus {
     pub fn shut_down(mut self, out: &mut dyn Write) {
         let md = &self.md;
         let group = std::mem::replace(&mut self.group, Groups::Plain(Group::default()));
-        let result = futures_lite::future::block_on(async {
+        let result = self.runner.run(async {
             with_group!(group, g => g
                 .into_safe_op(md)
                 .await?
@@ -342,16 +348,20 @@ impl CycleBus for EthercatBus {
         Ok(())
     }
 
-    fn exchange(&mut self, health: &mut BusHealth) {
+    fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64) {
         let answer = match &self.group {
-            Groups::Plain(g) => futures_lite::future::block_on(g.tx_rx(&self.md))
-                .map(|r| (r.working_counter, r.subdevice_states, None)),
+            Groups::Plain(g) => self
+                .runner
+                .run_until(g.tx_rx(&self.md), deadline_ns)
+                .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, None))),
             // With DC the frame also carries the reference clock's time to the others.
-            Groups::Dc(g) => futures_lite::future::block_on(g.tx_rx_dc(&self.md))
-                .map(|r| (r.working_counter, r.subdevice_states, Some(r.extra))),
+            Groups::Dc(g) => self
+                .runner
+                .run_until(g.tx_rx_dc(&self.md), deadline_ns)
+                .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, Some(r.extra)))),
         };
         match answer {
-            Ok((working_counter, states, info)) => {
+            Some(Ok((working_counter, states, info))) => {
                 if let Some(info) = info {
                     self.dc.system_time_ns = info.dc_system_time;
                     self.dc.cycle_offset_ns = info.cycle_start_offset.as_nanos() as u64;
@@ -363,7 +373,8 @@ impl CycleBus for EthercatBus {
                     states: &self.states,
                 });
             }
-            Err(_) => health.record(Exchange::Lost),
+            // No reply by the deadline, or ethercrab's own timeout.
+            Some(Err(_)) | None => health.record(Exchange::Lost),
         }
     }
 
@@ -373,7 +384,7 @@ impl CycleBus for EthercatBus {
             let sd = g
                 .subdevice(&self.md, drive)
                 .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
-            futures_lite::future::block_on(recover_slave(&sd))
+            self.runner.run(recover_slave(&sd))
         })
     }
 

@@ -5,6 +5,7 @@
 pub mod bus;
 pub mod cycle;
 pub mod cyclic;
+pub mod doorbell;
 pub mod embedded;
 pub mod health;
 pub mod mapping;

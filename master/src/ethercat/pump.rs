@@ -2,11 +2,13 @@
 //! on a link, and hands the replies back (`PduRx`). The link is a simulated chain in this
 //! process or a raw socket on an interface; the pump is the same, so both paths capture
 //! to pcap the same way. We run our own pump rather than ethercrab's `tx_rx_task` to get
-//! that capture and a plain blocking thread whose priority we set.
+//! that capture and a plain blocking thread. The pump is started from the cycle thread
+//! during bring-up, after that thread became real-time, so it inherits SCHED_FIFO at the
+//! cycle's priority (and its CPU mask): a reply is never held up by ordinary threads.
 
 use std::collections::VecDeque;
 use std::io;
-use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
+use std::os::fd::{AsRawFd, BorrowedFd};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Wake, Waker};
@@ -16,9 +18,8 @@ use std::time::Instant;
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::transport::raw_socket::RawSocket;
-use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
-use nix::sys::eventfd::{EfdFlags, EventFd};
 
+use super::doorbell::Doorbell;
 use crate::pcap::PcapWriter;
 
 /// Where the pump's frames go.
@@ -122,18 +123,6 @@ impl Ticker {
 /// Largest frame we receive (jumbo frames included).
 const RECV_BYTES: usize = 9100;
 
-/// Wakes the pump when ethercrab has queued a frame.
-struct Doorbell(EventFd);
-
-impl Wake for Doorbell {
-    fn wake(self: Arc<Self>) {
-        self.wake_by_ref();
-    }
-    fn wake_by_ref(self: &Arc<Self>) {
-        let _ = self.0.write(1);
-    }
-}
-
 /// What the pump counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PumpStats {
@@ -160,9 +149,7 @@ impl FramePump {
         mut link: Link,
         mut capture: Option<PcapWriter<io::BufWriter<std::fs::File>>>,
     ) -> io::Result<Self> {
-        let doorbell = Arc::new(Doorbell(EventFd::from_flags(
-            EfdFlags::EFD_NONBLOCK | EfdFlags::EFD_CLOEXEC,
-        )?));
+        let doorbell = Doorbell::new()?;
         let stop = Arc::new(AtomicBool::new(false));
         let (stop_io, bell) = (stop.clone(), doorbell.clone());
         let thread = std::thread::Builder::new()
@@ -207,7 +194,8 @@ impl FramePump {
                             }
                         }
                     }
-                    wait(&bell.0, link.fd());
+                    // Until ethercrab queues a frame, a reply arrives, or 1 ms passes.
+                    bell.wait(link.fd(), Some(std::time::Duration::from_millis(1)));
                 }
                 if let Some(c) = capture {
                     let _ = c.finish();
@@ -240,14 +228,4 @@ impl Drop for FramePump {
             let _ = t.join();
         }
     }
-}
-
-/// Sleeps until the doorbell rings, the link has a frame, or 1 ms passes.
-fn wait(bell: &EventFd, link: Option<BorrowedFd<'_>>) {
-    let mut fds = [
-        PollFd::new(bell.as_fd(), PollFlags::POLLIN),
-        PollFd::new(link.unwrap_or(bell.as_fd()), PollFlags::POLLIN),
-    ];
-    let _ = poll(&mut fds, PollTimeout::from(1u8));
-    let _ = bell.read();
 }

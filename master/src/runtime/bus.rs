@@ -12,8 +12,10 @@ pub trait CycleBus {
     fn read_inputs(&mut self, cycle: &mut CspCycle, health: &BusHealth) -> Result<(), CycleError>;
     /// Encodes every axis' outputs.
     fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError>;
-    /// Sends the outputs and receives the inputs; records the outcome in `health`.
-    fn exchange(&mut self, health: &mut BusHealth);
+    /// Sends the outputs and receives the inputs, waiting for them until `deadline_ns`
+    /// (CLOCK_MONOTONIC) at most; records the outcome in `health` (no reply by then is a
+    /// lost frame).
+    fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64);
     /// Brings the slave of `axis` back to OP if it left (a few round trips).
     fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError>;
     /// The chain position of `axis`' drive.

@@ -11,6 +11,10 @@ pub fn now_ns() -> u64 {
         .unwrap_or(0)
 }
 
+/// What a cycle keeps after its reply deadline for the rest of its work (publishing the
+/// status, the trace) before the next deadline: at most a tenth of the period.
+const REPLY_MARGIN_NS: u64 = 50_000;
+
 /// Deadlines every `period_ns` from a start time.
 #[derive(Clone, Copy, Debug)]
 pub struct CycleClock {
@@ -23,6 +27,9 @@ pub struct CycleClock {
 pub struct Wake {
     /// The deadline.
     pub deadline_ns: u64,
+    /// How long this cycle's bus exchange may wait for its reply: just before the next
+    /// deadline, so a lost frame costs this cycle's inputs and not the next cycle's start.
+    pub reply_by_ns: u64,
     /// How late the thread woke (0 if the deadline had already passed before sleeping:
     /// that is an overrun, not latency).
     pub latency_ns: u64,
@@ -65,6 +72,7 @@ impl CycleClock {
         }
         Wake {
             deadline_ns,
+            reply_by_ns: self.next_ns - (self.period_ns / 10).min(REPLY_MARGIN_NS),
             latency_ns: if overrun {
                 0
             } else {

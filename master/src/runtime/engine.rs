@@ -150,7 +150,7 @@ impl<B: CycleBus> Engine<B> {
         self.cycle.step();
         let _ = self.bus.write_outputs(&mut self.cycle);
         let t1 = now_ns();
-        self.bus.exchange(&mut self.health);
+        self.bus.exchange(&mut self.health, wake.reply_by_ns);
         let t2 = now_ns();
         let in_a_row = self
             .stats

@@ -1,0 +1,230 @@
+//! Runs a cycle thread under a seccomp filter that kills the process on any `futex` call
+//! (see `gantry_tests::seccomp`), for `tests/runtime_no_lock.rs`. Modes:
+//!
+//! - `engine`: gantry's engine on the in-process simulator, 4 axes at 1 kHz, filtered
+//!   after its warm-up for 3000 cycles while the application hammers it (moves, resets,
+//!   status, trace) and the bus loses frames and a drive's cable is pulled and plugged
+//!   back. Prints what ran and exits 0 — unless the kernel killed it first.
+//! - `contended-lock`, `parking`: the filtered thread waits on a held `Mutex`, or in
+//!   `futures_lite::block_on` (a parker): both must be killed, which shows the filter
+//!   catches what it is meant to.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{mpsc, Mutex, OnceLock};
+use std::task::{Poll, Waker};
+use std::time::Duration;
+
+use gantry::ethercat::bus::EthercatBus;
+use gantry::runtime::clock::CycleClock;
+use gantry::runtime::controller::Controller;
+use gantry::runtime::engine::Engine;
+use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_tests::seccomp::forbid_futex_in_this_thread;
+
+const AXES: usize = 4;
+const CYCLES: u64 = 3000;
+
+static FILTERED: AtomicBool = AtomicBool::new(false);
+static FINISHED: AtomicBool = AtomicBool::new(false);
+static LOST_FRAMES: AtomicU64 = AtomicU64::new(0);
+
+fn main() {
+    let mode = std::env::args().nth(1).unwrap_or_default();
+    match mode.as_str() {
+        "engine" => engine(),
+        "contended-lock" => contended_lock(),
+        "parking" => parking(),
+        other => {
+            eprintln!(
+                "cycle-under-seccomp: unknown mode {other:?} (engine, contended-lock, parking)"
+            );
+            std::process::exit(2);
+        }
+    }
+}
+
+/// Sleeps until the process exits: the filtered thread must not return, since ending a
+/// thread may free memory under malloc's locks.
+fn park_forever() -> ! {
+    loop {
+        std::thread::sleep(Duration::from_secs(3600));
+    }
+}
+
+fn wait_for(flag: &AtomicBool, what: &str) {
+    for _ in 0..30_000 {
+        if flag.load(Ordering::Acquire) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    eprintln!("cycle-under-seccomp: timed out waiting for {what}");
+    std::process::exit(3);
+}
+
+fn engine() {
+    let config = gantry_tests::sim_config(AXES, 1000);
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink())
+            .unwrap_or_else(|e| {
+                eprintln!("bring-up: {e}");
+                std::process::exit(4)
+            });
+        let chain = bus.simulated_chain();
+        let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 100_000);
+        let _ = tx.send((ends, chain));
+        let mut clock = CycleClock::start(1_000_000);
+        // Warm-up: thread-locals and first-use initialisation happen here.
+        for _ in 0..200 {
+            engine.step(clock.wait());
+        }
+        if let Err(e) = forbid_futex_in_this_thread() {
+            eprintln!("seccomp: {e}");
+            std::process::exit(5);
+        }
+        FILTERED.store(true, Ordering::Release);
+        for _ in 0..CYCLES {
+            engine.step(clock.wait());
+        }
+        LOST_FRAMES.store(engine.health.lost_total, Ordering::Relaxed);
+        FINISHED.store(true, Ordering::Release);
+        park_forever();
+    });
+    let Ok((ends, chain)) = rx.recv() else {
+        eprintln!("the cycle thread ended at start");
+        std::process::exit(4);
+    };
+    let Some(chain) = chain else {
+        eprintln!("no simulated chain");
+        std::process::exit(4);
+    };
+    let ctl = Controller::new(ends, (0..AXES).map(|i| format!("a{i}")).collect());
+    for i in 0..AXES {
+        let _ = ctl.command(i, Command::Power(PowerCommand::Enable));
+        let _ = ctl.command(
+            i,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        );
+    }
+    wait_for(&FILTERED, "the filter");
+    let (mut handles, mut resets, mut snapshots) = (Vec::new(), 0u32, 0u64);
+    let mut trace = Vec::new();
+    let mut round = 0u32;
+    while !FINISHED.load(Ordering::Acquire) {
+        round += 1;
+        for i in 0..AXES {
+            let to = if round % 2 == 0 { 5.0 } else { 0.0 };
+            let m = MovePtp::new(PositioningMode::AbsNormal, to);
+            if let Ok(h) = ctl.command(i, Command::MovePtp(m)) {
+                handles.push(h);
+            }
+        }
+        match round % 10 {
+            // Frames lost (fewer in a row than the limit: ridden through).
+            3 => {
+                if let Ok(mut c) = chain.lock() {
+                    c.drop_frames(2);
+                }
+            }
+            // The cable behind drive 2 pulled: its axes stop; plugged back and reset.
+            6 => {
+                if let Ok(mut c) = chain.lock() {
+                    c.cut_before(Some(2));
+                }
+            }
+            8 => {
+                if let Ok(mut c) = chain.lock() {
+                    c.cut_before(None);
+                }
+                for i in 0..AXES {
+                    if ctl.reset(i).is_ok() {
+                        resets += 1;
+                    }
+                    let _ = ctl.command(i, Command::Power(PowerCommand::Enable));
+                }
+            }
+            _ => {}
+        }
+        // Read the status and the trace as fast as an eager client would.
+        let until = std::time::Instant::now() + Duration::from_millis(60);
+        while std::time::Instant::now() < until {
+            std::hint::black_box(ctl.snapshot());
+            snapshots += 1;
+            ctl.drain_trace(&mut trace);
+            trace.clear();
+        }
+    }
+    let done = handles
+        .iter()
+        .filter(|h| h.status() == Some(CommandStatus::Done))
+        .count();
+    println!(
+        "cycles {CYCLES}; moves {} done {done}; resets {resets}; snapshots {snapshots}; \
+         lost frames {}",
+        handles.len(),
+        LOST_FRAMES.load(Ordering::Relaxed),
+    );
+    std::process::exit(0);
+}
+
+fn contended_lock() {
+    static LOCK: Mutex<u32> = Mutex::new(0);
+    let held = LOCK.lock();
+    std::thread::spawn(|| {
+        if forbid_futex_in_this_thread().is_err() {
+            std::process::exit(5);
+        }
+        FILTERED.store(true, Ordering::Release);
+        let taken = LOCK.lock();
+        println!("took the lock");
+        drop(taken);
+        FINISHED.store(true, Ordering::Release);
+        park_forever();
+    });
+    wait_for(&FILTERED, "the filter");
+    std::thread::sleep(Duration::from_millis(100));
+    drop(held);
+    wait_for(&FINISHED, "the lock");
+    std::process::exit(0);
+}
+
+fn parking() {
+    // Handed over without a lock: the main thread polls it.
+    static WAKER: OnceLock<Waker> = OnceLock::new();
+    std::thread::spawn(|| {
+        if forbid_futex_in_this_thread().is_err() {
+            std::process::exit(5);
+        }
+        FILTERED.store(true, Ordering::Release);
+        // A future that the main thread completes later: block_on parks until then.
+        let mut first = true;
+        futures_lite::future::block_on(std::future::poll_fn(|cx| {
+            if first {
+                first = false;
+                let _ = WAKER.set(cx.waker().clone());
+                Poll::Pending
+            } else {
+                Poll::Ready(())
+            }
+        }));
+        println!("woke up");
+        FINISHED.store(true, Ordering::Release);
+        park_forever();
+    });
+    wait_for(&FILTERED, "the filter");
+    for _ in 0..30_000 {
+        if let Some(waker) = WAKER.get() {
+            std::thread::sleep(Duration::from_millis(100));
+            waker.wake_by_ref();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    wait_for(&FINISHED, "the wake-up");
+    std::process::exit(0);
+}
