@@ -1,6 +1,8 @@
 //! Helpers shared by the axis tests: lockstep runs of a kernel with simulated axes.
 #![allow(dead_code)]
 
+pub mod commands;
+
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::status::AxisStatus;
