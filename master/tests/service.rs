@@ -126,7 +126,13 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     // Jog, then halt.
     svc.ok(&["jog", "x", "--direction", "+", "--speed", "20"]);
     std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(svc.axis("x")["state"], "ContinuousMotion");
+    let x = svc.axis("x");
+    assert_eq!(
+        x["state"],
+        "ContinuousMotion",
+        "{x}\n{}",
+        svc.ok(&["status"])
+    );
     svc.ok(&["halt", "x"]);
     assert!(svc.axis("x")["position"].as_f64().unwrap() > 25.5);
 

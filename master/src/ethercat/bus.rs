@@ -378,13 +378,17 @@ impl CycleBus for EthercatBus {
         }
     }
 
-    fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError> {
+    fn recover(&mut self, axis: usize, deadline_ns: u64) -> Result<Recovered, RecoveryError> {
         let drive = self.drive_of(axis);
         with_group!(&self.group, g => {
             let sd = g
                 .subdevice(&self.md, drive)
                 .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
-            self.runner.run(recover_slave(&sd))
+            self.runner
+                .run_until(recover_slave(&sd), deadline_ns)
+                .unwrap_or(Err(RecoveryError::TooSlow {
+                    address: sd.configured_address(),
+                }))
         })
     }
 

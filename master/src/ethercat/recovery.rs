@@ -28,6 +28,12 @@ pub enum RecoveryError {
         /// ethercrab's error.
         source: ethercrab::error::Error,
     },
+    /// The slave did not finish within the time the cycle can give it.
+    #[error("slave {address:#06x} did not answer within the cycle: reset again")]
+    TooSlow {
+        /// Station address.
+        address: u16,
+    },
     /// The slave refused OP.
     #[error("slave {address:#06x} refused OP: AL status {status:#06x}, {code}")]
     Refused {

@@ -16,8 +16,9 @@ pub trait CycleBus {
     /// (CLOCK_MONOTONIC) at most; records the outcome in `health` (no reply by then is a
     /// lost frame).
     fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64);
-    /// Brings the slave of `axis` back to OP if it left (a few round trips).
-    fn recover(&mut self, axis: usize) -> Result<Recovered, RecoveryError>;
+    /// Brings the slave of `axis` back to OP if it left (a few round trips), giving up at
+    /// `deadline_ns` (CLOCK_MONOTONIC).
+    fn recover(&mut self, axis: usize, deadline_ns: u64) -> Result<Recovered, RecoveryError>;
     /// The chain position of `axis`' drive.
     fn drive_of(&self, axis: usize) -> usize;
     /// With distributed clocks: where in the SYNC0 period the last frame reached the

@@ -30,6 +30,34 @@ const SHUTDOWN_CYCLES: u32 = 5000;
 /// "internal software").
 pub const OVERRUN_FAULT: u16 = 0x6100;
 
+/// What the cycle does when the bus' reply is not in by the next cycle's start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LateReply {
+    /// It is lost: the next cycle starts on time without it. Right for a real-time cycle,
+    /// where the bus answers in microseconds and a reply that late is not coming.
+    Lost,
+    /// Wait for it, up to `ns` after sending, and let the cycle overrun. Right without
+    /// real time (`--no-rt`, tests on a busy machine): then it is the host that is late,
+    /// not the bus, and a late reply is not a bus fault.
+    Wait {
+        /// Longest wait for a reply (or for a slave's answer during a reset).
+        ns: u64,
+    },
+}
+
+impl LateReply {
+    /// Waiting as long as ethercrab's own PDU timeout.
+    pub const WAIT: Self = Self::Wait { ns: 30_000_000 };
+
+    /// Until when the cycle that woke at `wake` waits for an answer to what it sends now.
+    fn reply_by(self, wake: &Wake, now_ns: u64) -> u64 {
+        match self {
+            Self::Lost => wake.reply_by_ns,
+            Self::Wait { ns } => now_ns + ns,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Entry {
     id: u64,
@@ -72,6 +100,7 @@ pub struct Engine<B: CycleBus> {
     newest_id: u64,
     overrun_limit: u32,
     overrun_stop: bool,
+    late_reply: LateReply,
     phase: Phase,
     cycles: u64,
     figures: super::stats::CycleFigures,
@@ -109,6 +138,7 @@ impl<B: CycleBus> Engine<B> {
             newest_id: 0,
             overrun_limit: overrun_limit.max(1),
             overrun_stop: false,
+            late_reply: LateReply::Lost,
             phase: Phase::Running,
             cycles: 0,
             figures: Default::default(),
@@ -119,6 +149,11 @@ impl<B: CycleBus> Engine<B> {
             trace: trace_rx,
         };
         (engine, app)
+    }
+
+    /// Sets what happens to a reply that is late (default [`LateReply::Lost`]).
+    pub fn set_late_reply(&mut self, late_reply: LateReply) {
+        self.late_reply = late_reply;
     }
 
     /// Runs cycles every `period_ns` until shut down (a [`Request::Shutdown`], or `stop`
@@ -140,7 +175,7 @@ impl<B: CycleBus> Engine<B> {
     /// One cycle; false once the engine has ended.
     pub fn step(&mut self, wake: Wake) -> bool {
         let t0 = now_ns();
-        self.take_requests();
+        self.take_requests(self.late_reply.reply_by(&wake, t0));
         let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
         if self.overrun_stop {
             for axis in 0..self.cycle.len() {
@@ -150,7 +185,8 @@ impl<B: CycleBus> Engine<B> {
         self.cycle.step();
         let _ = self.bus.write_outputs(&mut self.cycle);
         let t1 = now_ns();
-        self.bus.exchange(&mut self.health, wake.reply_by_ns);
+        let reply_by = self.late_reply.reply_by(&wake, t1);
+        self.bus.exchange(&mut self.health, reply_by);
         let t2 = now_ns();
         let in_a_row = self
             .stats
@@ -171,7 +207,7 @@ impl<B: CycleBus> Engine<B> {
         self.phase != Phase::Ended
     }
 
-    fn take_requests(&mut self) {
+    fn take_requests(&mut self, reply_by_ns: u64) {
         for _ in 0..REQUESTS_PER_CYCLE {
             let Ok(request) = self.requests.pop() else {
                 return;
@@ -193,7 +229,7 @@ impl<B: CycleBus> Engine<B> {
                     self.track(entry);
                 }
                 Request::Reset { id, axis } => {
-                    let entry = self.reset(id, axis);
+                    let entry = self.reset(id, axis, reply_by_ns);
                     self.track(entry);
                 }
                 Request::Shutdown => self.begin_shutdown(),
@@ -202,8 +238,9 @@ impl<B: CycleBus> Engine<B> {
     }
 
     /// A reset: the slave back to OP if it left, the bus faults forgotten (they come
-    /// back next cycle if they are still there), then the axis' Reset.
-    fn reset(&mut self, id: u64, axis: usize) -> Entry {
+    /// back next cycle if they are still there), then the axis' Reset. The slave gets
+    /// until this cycle's reply deadline to answer, so a reset costs at most one cycle.
+    fn reset(&mut self, id: u64, axis: usize, reply_by_ns: u64) -> Entry {
         let error = |e| Entry {
             id,
             handle: None,
@@ -211,7 +248,7 @@ impl<B: CycleBus> Engine<B> {
         };
         self.overrun_stop = false;
         if self.health.any_fault() {
-            if self.bus.recover(axis).is_err() {
+            if self.bus.recover(axis, reply_by_ns).is_err() {
                 return error(CommandError::DriveResetFailed {
                     code: COMMUNICATION_FAULT,
                 });

@@ -17,7 +17,7 @@ use thiserror::Error;
 use crate::config::{Config, ConfigError};
 use crate::ethercat::bus::EthercatBus;
 use crate::runtime::controller::Controller;
-use crate::runtime::engine::{AppEnds, Engine};
+use crate::runtime::engine::{AppEnds, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
 use crate::runtime::stats::CycleFigures;
 
@@ -88,8 +88,14 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
                     return None;
                 }
             };
-            let (engine, ends) =
+            let (mut engine, ends) =
                 Engine::new(bus, cycle, health, cycle_config.rt.overrun_limit, 1 << 16);
+            // Without real time a late reply is the host's fault, not the bus'.
+            engine.set_late_reply(if real_time {
+                LateReply::Lost
+            } else {
+                LateReply::WAIT
+            });
             let _ = tx.send(Ok(ends));
             let engine = engine.run(period_ns, &cycle_stop);
             let figures = engine.figures();

@@ -17,7 +17,7 @@ use std::time::Duration;
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::Controller;
-use gantry::runtime::engine::Engine;
+use gantry::runtime::engine::{Engine, LateReply};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::seccomp::forbid_futex_in_this_thread;
@@ -74,6 +74,8 @@ fn engine() {
             });
         let chain = bus.simulated_chain();
         let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 100_000);
+        // Not a real-time thread: a late reply is this host's doing, not a lost frame.
+        engine.set_late_reply(LateReply::WAIT);
         let _ = tx.send((ends, chain));
         let mut clock = CycleClock::start(1_000_000);
         // Warm-up: thread-locals and first-use initialisation happen here.
