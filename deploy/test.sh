@@ -31,10 +31,12 @@ need_packages() {
   command -v tshark >/dev/null 2>&1 || missing+=(tshark)
   command -v ip >/dev/null 2>&1 || missing+=(iproute2)
   # cyclictest: gantry rt-check measures beside it; ethtool: NIC coalescing check;
-  # setpriv: the test that runs gantry without capabilities.
+  # setpriv: the tests that run gantry without capabilities, and with the unit's.
   command -v cyclictest >/dev/null 2>&1 || missing+=(rt-tests)
   command -v ethtool >/dev/null 2>&1 || missing+=(ethtool)
   command -v setpriv >/dev/null 2>&1 || missing+=(util-linux)
+  # systemd-analyze: the test that systemd accepts deploy/gantry.service.
+  command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
   # python3 with venv (ensurepip) runs the SOEM test peer (tests/peers/).
   command -v python3 >/dev/null 2>&1 || missing+=(python3)
   python3 -c "import ensurepip" >/dev/null 2>&1 || missing+=(python3-venv)

@@ -1,0 +1,159 @@
+//! `deploy/gantry.service`: systemd accepts it (`systemd-analyze verify`), and what it
+//! grants — its user is not root, its ambient capabilities and bounding set — is
+//! enough for `gantry run` in real time: the test runs the binary as an unprivileged user
+//! with exactly those capabilities (setpriv), drives an axis through the control socket and
+//! stops it with the unit's KillSignal. Both need root (to switch users); `deploy/test.sh`
+//! runs them.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The unprivileged user the test runs gantry as (nobody).
+const NOBODY: u32 = 65534;
+
+fn deploy(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../deploy")
+        .join(name)
+}
+
+fn unit() -> String {
+    std::fs::read_to_string(deploy("gantry.service")).expect("deploy/gantry.service")
+}
+
+/// The value of `key=` in the unit (the last one, as systemd reads it).
+fn setting(unit: &str, key: &str) -> String {
+    unit.lines()
+        .filter_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
+        .last()
+        .unwrap_or_else(|| panic!("gantry.service sets no {key}"))
+        .trim()
+        .to_string()
+}
+
+/// `CAP_NET_RAW CAP_SYS_NICE` → `+net_raw,+sys_nice` (setpriv's spelling).
+fn setpriv_caps(list: &str) -> String {
+    list.split_whitespace()
+        .map(|c| format!("+{}", c.trim_start_matches("CAP_").to_lowercase()))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+#[test]
+#[ignore = "needs root and systemd-analyze (deploy/test.sh)"]
+fn systemd_accepts_the_unit() {
+    let dir = std::env::temp_dir().join(format!("gantry-unit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The unit names the installed binary; verify the one just built.
+    let exec = setting(&unit(), "ExecStart");
+    let installed = exec.split_whitespace().next().unwrap().to_string();
+    let text = unit().replace(&installed, env!("CARGO_BIN_EXE_gantry"));
+    let path = dir.join("gantry.service");
+    std::fs::write(&path, text).unwrap();
+    let out = Command::new("systemd-analyze")
+        .arg("verify")
+        .arg(&path)
+        .output()
+        .expect("systemd-analyze (package systemd) is needed; deploy/test.sh installs it");
+    std::fs::remove_dir_all(&dir).unwrap();
+    let says = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{says}");
+    assert!(says.trim().is_empty(), "systemd has remarks: {says}");
+    // Its command line is one gantry understands.
+    let args: Vec<&str> = exec.split_whitespace().skip(1).collect();
+    assert_eq!(args.first(), Some(&"run"), "{exec}");
+    let help = Command::new(env!("CARGO_BIN_EXE_gantry"))
+        .args(["run", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    for flag in args.iter().filter(|a| a.starts_with("--")) {
+        assert!(help.contains(flag), "gantry run has no {flag}: {help}");
+    }
+}
+
+#[test]
+#[ignore = "needs root to switch users (deploy/test.sh)"]
+fn the_units_capabilities_are_enough_for_real_time_without_root() {
+    let unit = unit();
+    assert_ne!(setting(&unit, "User"), "root");
+    let ambient = setpriv_caps(&setting(&unit, "AmbientCapabilities"));
+    let bounding = setpriv_caps(&setting(&unit, "CapabilityBoundingSet"));
+    // The unit's LimitMEMLOCK/LimitRTPRIO are left out on purpose: CAP_IPC_LOCK and
+    // CAP_SYS_NICE override those limits, so the capabilities alone must be enough (and
+    // raising a hard limit needs CAP_SYS_RESOURCE, which a container may not have).
+    assert_eq!(setting(&unit, "KillSignal"), "SIGTERM");
+
+    // A socket directory the unprivileged user owns, as RuntimeDirectory= gives it.
+    let dir = std::env::temp_dir().join(format!("gantry-unit-run-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::os::unix::fs::chown(&dir, Some(NOBODY), Some(NOBODY)).unwrap();
+    let socket = dir.join("gantry.sock");
+    let mut service = Command::new("setpriv")
+        .args([
+            &format!("--reuid={NOBODY}"),
+            &format!("--regid={NOBODY}"),
+            "--clear-groups",
+            &format!("--inh-caps={ambient}"),
+            &format!("--ambient-caps={ambient}"),
+            &format!("--bounding-set=-all,{bounding}"),
+        ])
+        .arg(env!("CARGO_BIN_EXE_gantry"))
+        .args(["run", "--config"])
+        .arg(deploy("examples/sim-4-axes.toml"))
+        .arg("--socket")
+        .arg(&socket)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("setpriv (util-linux)");
+    let end = Instant::now() + Duration::from_secs(20);
+    while std::os::unix::net::UnixStream::connect(&socket).is_err() {
+        if let Some(status) = service.try_wait().unwrap() {
+            let out = service.wait_with_output().unwrap();
+            panic!(
+                "gantry ended at start ({status}): {}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        assert!(Instant::now() < end, "the service did not open its socket");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let cli = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_gantry"))
+            .args(args)
+            .arg("--socket")
+            .arg(&socket)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    cli(&["enable", "x"]);
+    cli(&["set-position", "x", "--position", "0"]);
+    let moved = cli(&["move", "x", "--to", "10"]);
+    let status: serde_json::Value = serde_json::from_str(&cli(&["status", "--json"])).unwrap();
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(service.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .unwrap();
+    let out = service.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(moved.contains("done at 10.0"), "{moved}");
+    assert_eq!(status["real_time"], true, "{status}");
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("real time"), "{text}");
+    assert!(text.contains("bus: slaves in PreOp"), "{text}");
+}
