@@ -25,8 +25,8 @@ fn unit() -> String {
 /// The value of `key=` in the unit (the last one, as systemd reads it).
 fn setting(unit: &str, key: &str) -> String {
     unit.lines()
-        .filter_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
-        .last()
+        .rev()
+        .find_map(|l| l.trim().strip_prefix(key)?.strip_prefix('='))
         .unwrap_or_else(|| panic!("gantry.service sets no {key}"))
         .trim()
         .to_string()
