@@ -681,6 +681,35 @@ fn a_real_axis_takes_over_where_the_drive_stands_when_it_is_enabled() {
 }
 
 #[test]
+fn an_axis_that_is_off_has_its_set_value_where_the_drive_is() {
+    use gantry_kernel::axis::command::PowerCommand;
+    let mut cfg = linear("x");
+    cfg.kind = AxisKind::Real;
+    let mut k = Kernel::new(DT, vec![cfg]).unwrap();
+    let fb = |p, on| {
+        [gantry_kernel::axis::AxisFeedback {
+            position: p,
+            velocity: 0.0,
+            operation_enabled: on,
+            fault: None,
+        }]
+    };
+    // Pushed by hand while off: the set value follows, as TwinCAT's SetPos does.
+    for p in [3.0, 3.5, 4.25] {
+        k.step(&fb(p, false));
+        assert_eq!(k.axis_status(0).unwrap().set.p, p);
+    }
+    // Switching off an axis that is off is no error (MC_Power with Enable = FALSE).
+    let h = k.command(0, Command::Power(PowerCommand::Disable)).unwrap();
+    assert_eq!(k.command_status(h), CommandStatus::Done);
+    // Enabled, it holds: the set value no longer follows a drive that drifts.
+    k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
+    k.step(&fb(4.25, true));
+    k.step(&fb(4.3, true));
+    assert_eq!(k.axis_status(0).unwrap().set.p, 4.25);
+}
+
+#[test]
 fn reset_of_a_drive_fault_asks_the_drive_and_waits_for_it() {
     use gantry_kernel::axis::command::PowerCommand;
     use gantry_kernel::axis::{AxisFeedback, DRIVE_RESET_TICKS};

@@ -123,22 +123,22 @@ enum Cmd {
         /// Axis name.
         axis: String,
         /// Target (or distance with --mode relative), in the axis' units.
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         to: f64,
         /// absolute or relative; on a modulo axis also positive or negative (direction).
         #[arg(long, default_value = "absolute")]
         mode: String,
         /// Speed (units/s; default: the axis' default).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         speed: Option<f64>,
         /// Acceleration (units/s²).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         acceleration: Option<f64>,
         /// Deceleration (units/s²).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         deceleration: Option<f64>,
         /// Jerk (units/s³).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         jerk: Option<f64>,
         /// aborting, buffered, blending-low, blending-previous, blending-next, blending-high.
         #[arg(long)]
@@ -157,7 +157,7 @@ enum Cmd {
         #[arg(long, allow_hyphen_values = true)]
         direction: String,
         /// Speed (units/s).
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         speed: f64,
         #[command(flatten)]
         client: ClientOpts,
@@ -188,7 +188,7 @@ enum Cmd {
         /// Axis name.
         axis: String,
         /// The position the axis is at now, in its units.
-        #[arg(long, allow_negative_numbers = true)]
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         position: f64,
         #[command(flatten)]
         client: ClientOpts,
@@ -206,7 +206,7 @@ enum Cmd {
         #[arg(required = true)]
         axes: Vec<String>,
         /// Seconds to record (up to 60).
-        #[arg(long, default_value_t = 5.0)]
+        #[arg(long, default_value_t = 5.0, value_parser = finite)]
         seconds: f64,
         /// Output file (.csv or .svg).
         #[arg(long)]
@@ -262,8 +262,32 @@ enum Cmd {
     },
 }
 
+/// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
+fn finite(text: &str) -> Result<f64, String> {
+    let value: f64 = text
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number"))?;
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(format!("{text} is not a finite number"))
+    }
+}
+
 fn main() -> std::process::ExitCode {
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    if !matches!(cli.command, Cmd::Run { .. }) {
+        // `gantry status | head`: end quietly when the reader goes, as Unix tools do. The
+        // service keeps Rust's default (ignored), so a client hanging up cannot kill it.
+        // SAFETY: restoring the default disposition, before any thread starts.
+        let _ = unsafe {
+            nix::sys::signal::signal(
+                nix::sys::signal::Signal::SIGPIPE,
+                nix::sys::signal::SigHandler::SigDfl,
+            )
+        };
+    }
+    match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             // The message only: it says what and where; a backtrace would not help a user.

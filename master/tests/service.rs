@@ -111,11 +111,17 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     assert_eq!(s["real_time"], false);
     assert!(svc.ok(&["status"]).contains("Disabled"));
 
-    svc.ok(&["enable", "x"]);
+    // Off when off is no error; each command says what it did.
+    assert!(svc.ok(&["disable", "y"]).contains("y: disabled at"));
+    assert!(svc.ok(&["enable", "x"]).contains("x: enabled at"));
     assert_eq!(svc.axis("x")["state"], "Standstill");
     let e = svc.fails(&["move", "x", "--to", "20"]);
     assert!(e.contains("not homed"), "{e}");
-    svc.ok(&["set-position", "x", "--position", "0"]);
+    let out = svc.ok(&["set-position", "x", "--position", "0"]);
+    assert!(out.contains("x: position set to 0.000"), "{out}");
+    // The client refuses what is not a number before sending it.
+    let e = svc.fails(&["move", "x", "--to", "nan"]);
+    assert!(e.contains("nan is not a finite number"), "{e}");
     let out = svc.ok(&["move", "x", "--to", "20", "--speed", "100"]);
     assert!(out.contains("x: done at 20.0"), "{out}");
     let out = svc.ok(&["move", "x", "--to", "5", "--mode", "relative", "--json"]);
@@ -124,7 +130,8 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     assert!((j["position"].as_f64().unwrap() - 25.0).abs() < 0.05, "{j}");
 
     // Jog, then halt.
-    svc.ok(&["jog", "x", "--direction", "+", "--speed", "20"]);
+    let out = svc.ok(&["jog", "x", "--direction", "+", "--speed", "20"]);
+    assert!(out.contains("`gantry halt x` stops it"), "{out}");
     std::thread::sleep(Duration::from_millis(300));
     let x = svc.axis("x");
     assert_eq!(
@@ -133,7 +140,7 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
         "{x}\n{}",
         svc.ok(&["status"])
     );
-    svc.ok(&["halt", "x"]);
+    assert!(svc.ok(&["halt", "x"]).contains("x: halted at"));
     assert!(svc.axis("x")["position"].as_f64().unwrap() > 25.5);
 
     // Stop locks the axis until released.

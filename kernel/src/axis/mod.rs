@@ -503,6 +503,10 @@ impl Axis {
             self.motion = None;
             self.main = KinematicState::at_rest(self.actual_p);
         }
+        if !self.powered && self.motion.is_none() {
+            // Nor is one that is off (pushed by hand, say): its set value is where it is.
+            self.main = KinematicState::at_rest(self.actual_p);
+        }
         if let Some(h) = self.enable_handle {
             if fb.operation_enabled {
                 handles.set(h, CommandStatus::Done);

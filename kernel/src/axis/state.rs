@@ -79,7 +79,8 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
     use AxisState as S;
     match (state, cmd) {
         (_, Command::Power(PowerCommand::DisableForced)) => true,
-        (S::Disabled, Command::Power(PowerCommand::Enable)) => true,
+        // Power off when off: nothing to do, as MC_Power with Enable = FALSE.
+        (S::Disabled, Command::Power(PowerCommand::Enable | PowerCommand::Disable)) => true,
         (S::Disabled, Command::Reset) => true,
         (S::Disabled, Command::SetPosition { .. } | Command::SetHomed(_)) => true,
         (S::Disabled, _) => false,
@@ -158,6 +159,14 @@ mod tests {
         assert!(accepts(AxisState::ErrorStop, &Command::Reset));
         assert!(accepts(
             AxisState::ErrorStop,
+            &Command::Power(PowerCommand::Disable)
+        ));
+    }
+
+    #[test]
+    fn powering_off_an_axis_that_is_off_is_accepted() {
+        assert!(accepts(
+            AxisState::Disabled,
             &Command::Power(PowerCommand::Disable)
         ));
     }

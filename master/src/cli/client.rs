@@ -218,20 +218,28 @@ pub fn status(
             us("max_us")
         )
     };
+    let figures = if c["wake"]["count"].as_u64().unwrap_or(0) == 0 {
+        "cycle: figures after the first 1000 cycles".to_string()
+    } else {
+        format!(
+            "cycle: wake-up {}; compute {}; round trip {}; overruns {}",
+            summary(&c["wake"]),
+            summary(&c["compute"]),
+            summary(&c["round_trip"]),
+            c["overruns"]
+        )
+    };
     writeln!(
         out,
-        "bus: lost frames {}, wrong working counters {}, {}\ncycle: wake-up {}; compute {}; round trip {}; overruns {}",
+        "bus: lost frames {}, wrong working counters {}, {}\n{figures}",
         s["bus"]["lost_frames"],
         s["bus"]["working_counter_errors"],
-        s["bus"]["dc"]["sync0_offset_us"]
-            .as_f64()
-            .map_or("no distributed clocks".into(), |us| format!(
+        s["bus"]["dc"]["sync0_offset_us"].as_f64().map_or(
+            "no distributed clocks".into(),
+            |us| format!(
                 "distributed clocks: frames reach the reference {us:.0} µs into the SYNC0 period"
-            )),
-        summary(&c["wake"]),
-        summary(&c["compute"]),
-        summary(&c["round_trip"]),
-        c["overruns"]
+            )
+        ),
     )
     .map_err(io)?;
     Ok(())
@@ -248,15 +256,22 @@ pub fn command(
 ) -> Result<(), ClientError> {
     let io = |e: std::io::Error| ClientError::Io(e.to_string());
     let target = request["to"].as_f64();
-    let request_is_move = request["cmd"] == json!("move");
+    let cmd = request["cmd"].as_str().unwrap_or_default().to_string();
+    let request_is_move = cmd == "move";
     let relative = request["mode"] == json!("relative");
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
     if no_wait {
         if json_out {
             writeln!(out, "{}", json!({"handle": handle})).map_err(io)?;
+        } else if cmd == "jog" {
+            writeln!(
+                out,
+                "{axis}: jogging (handle {handle}); `gantry halt {axis}` stops it"
+            )
+            .map_err(io)?;
         } else {
-            writeln!(out, "{axis}: handle {handle}").map_err(io)?;
+            writeln!(out, "{axis}: started (handle {handle})").map_err(io)?;
         }
         return Ok(());
     }
@@ -310,7 +325,8 @@ pub fn command(
                     .unwrap_or("");
                 writeln!(
                     out,
-                    "{axis}: done at {:.3} {units}",
+                    "{axis}: {} {:.3} {units}",
+                    outcome(&cmd),
                     position.unwrap_or(f64::NAN)
                 )
                 .map_err(io)?;
@@ -318,6 +334,20 @@ pub fn command(
             Ok(())
         }
         Err(e) => Err(ClientError::Failed(format!("{axis}: {e}"))),
+    }
+}
+
+/// What a finished command did, in words, before the position it left the axis at.
+fn outcome(cmd: &str) -> &'static str {
+    match cmd {
+        "enable" => "enabled at",
+        "disable" => "disabled at",
+        "halt" => "halted at",
+        "stop" => "stopped at",
+        "release" => "released at",
+        "set_position" => "position set to",
+        "reset" => "reset at",
+        _ => "done at",
     }
 }
 
