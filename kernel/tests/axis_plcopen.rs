@@ -441,6 +441,20 @@ fn external_and_shadow_axes_are_never_commanded() {
     assert_eq!(k.axis_status(1).unwrap().state, AxisState::Disabled);
 }
 
+/// What a drive at rest at `position` reports for the one axis of a kernel.
+fn drive_at(
+    position: f64,
+    operation_enabled: bool,
+    fault: Option<u16>,
+) -> [gantry_kernel::axis::AxisFeedback; 1] {
+    [gantry_kernel::axis::AxisFeedback {
+        position,
+        velocity: 0.0,
+        operation_enabled,
+        fault,
+    }]
+}
+
 #[test]
 fn modulo_actual_is_reported_on_the_same_side_as_set() {
     let mut cfg = rotary("r");
@@ -457,14 +471,7 @@ fn modulo_actual_is_reported_on_the_same_side_as_set() {
         CommandStatus::Busy,
         "waits for the drive"
     );
-    let fb = |p| {
-        [gantry_kernel::axis::AxisFeedback {
-            position: p,
-            velocity: 0.0,
-            operation_enabled: true,
-            fault: None,
-        }]
-    };
+    let fb = |p| drive_at(p, true, None);
     k.step(&fb(0.0));
     assert_eq!(k.command_status(h), CommandStatus::Done);
     assert_eq!(k.axis_status(0).unwrap().state, AxisState::Standstill);
@@ -664,14 +671,7 @@ fn a_real_axis_takes_over_where_the_drive_stands_when_it_is_enabled() {
             Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
         )
         .unwrap();
-    let fb = |p, on| {
-        [gantry_kernel::axis::AxisFeedback {
-            position: p,
-            velocity: 0.0,
-            operation_enabled: on,
-            fault: None,
-        }]
-    };
+    let fb = |p, on| drive_at(p, on, None);
     k.step(&fb(12.5, false));
     assert_eq!(k.command_status(h), CommandStatus::Busy);
     k.step(&fb(12.5, true));
@@ -686,14 +686,7 @@ fn an_axis_that_is_off_has_its_set_value_where_the_drive_is() {
     let mut cfg = linear("x");
     cfg.kind = AxisKind::Real;
     let mut k = Kernel::new(DT, vec![cfg]).unwrap();
-    let fb = |p, on| {
-        [gantry_kernel::axis::AxisFeedback {
-            position: p,
-            velocity: 0.0,
-            operation_enabled: on,
-            fault: None,
-        }]
-    };
+    let fb = |p, on| drive_at(p, on, None);
     // Pushed by hand while off: the set value follows, as TwinCAT's SetPos does.
     for p in [3.0, 3.5, 4.25] {
         k.step(&fb(p, false));
@@ -712,18 +705,11 @@ fn an_axis_that_is_off_has_its_set_value_where_the_drive_is() {
 #[test]
 fn reset_of_a_drive_fault_asks_the_drive_and_waits_for_it() {
     use gantry_kernel::axis::command::PowerCommand;
-    use gantry_kernel::axis::{AxisFeedback, DRIVE_RESET_TICKS};
+    use gantry_kernel::axis::DRIVE_RESET_TICKS;
     let mut cfg = linear("x");
     cfg.kind = AxisKind::Real;
     let mut k = Kernel::new(DT, vec![cfg]).unwrap();
-    let fb = |on, fault| {
-        [AxisFeedback {
-            position: 1.0,
-            velocity: 0.0,
-            operation_enabled: on,
-            fault,
-        }]
-    };
+    let fb = |on, fault| drive_at(1.0, on, fault);
     k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
     k.step(&fb(true, None));
     k.step(&fb(false, Some(0x8700)));
