@@ -45,13 +45,15 @@ impl Service {
         Self { child, socket }
     }
 
+    /// A client command on this service's socket (arguments may follow).
+    fn command(&self, args: &[&str]) -> Command {
+        let mut c = gantry();
+        c.args(args).arg("--socket").arg(&self.socket);
+        c
+    }
+
     fn cli(&self, args: &[&str]) -> Output {
-        gantry()
-            .args(args)
-            .arg("--socket")
-            .arg(&self.socket)
-            .output()
-            .unwrap()
+        self.command(args).output().unwrap()
     }
 
     /// Runs a client command that must succeed; its stdout.
@@ -198,8 +200,20 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     svc.ok(&["reset", "x"]);
     assert_eq!(svc.status()["ended"], false);
 
-    // SIGTERM: quick stop, disable, bus to PreOp, exit 0.
+    // SIGTERM: quick stop, disable, bus to PreOp, exit 0 — and a trace still recording
+    // gets what was recorded up to the end, the stop included.
     let mut svc = svc;
+    svc.ok(&["move", "x", "--to", "300", "--no-wait"]);
+    let csv = std::env::temp_dir().join(format!("gantry-trace-end-{}.csv", std::process::id()));
+    let recording = svc
+        .command(&["trace", "x", "--seconds", "30"])
+        .arg("--out")
+        .arg(&csv)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(400));
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(svc.child.id() as i32),
         nix::sys::signal::Signal::SIGTERM,
@@ -219,6 +233,24 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     assert!(out.contains("bus: slaves in PreOp"), "{out}");
     assert!(out.contains("stopped after"), "{out}");
     assert!(!svc.socket.exists(), "the socket is removed");
+    let recorded = recording.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&recorded.stdout);
+    assert!(
+        recorded.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&recorded.stderr)
+    );
+    assert!(
+        said.contains("gantry stopped: the recording ends there"),
+        "{said}"
+    );
+    let lines = std::fs::read_to_string(&csv).unwrap();
+    std::fs::remove_file(&csv).unwrap();
+    assert!(
+        lines.lines().count() > 300,
+        "{} lines",
+        lines.lines().count()
+    );
 }
 
 #[test]

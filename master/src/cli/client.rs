@@ -396,9 +396,14 @@ pub fn trace(
         t.write_csv(path)
             .map_err(|e| ClientError::Io(e.to_string()))?;
     }
+    let cut_short = if r["complete"] == json!(false) {
+        " (gantry stopped: the recording ends there)"
+    } else {
+        ""
+    };
     writeln!(
         out,
-        "trace: {} samples of {} to {}",
+        "trace: {} samples of {} to {}{cut_short}",
         rows.len(),
         axes.join(", "),
         path.display()

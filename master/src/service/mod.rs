@@ -169,6 +169,8 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
                 std::process::exit(130);
             }
         }
+        // A `gantry trace` still recording gets what was recorded, the stop included.
+        state.end_recordings(Duration::from_secs(2)).await;
         server.abort();
     });
     let _ = std::fs::remove_file(&args.socket);

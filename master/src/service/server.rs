@@ -36,6 +36,8 @@ pub struct ServerState {
     pub real_time: bool,
     trace: Mutex<VecDeque<TraceSample>>,
     handles: Mutex<Vec<CommandHandle>>,
+    /// Set when the service ends: recordings in progress answer with what they have.
+    ending: tokio::sync::watch::Sender<bool>,
 }
 
 impl ServerState {
@@ -47,7 +49,21 @@ impl ServerState {
             real_time,
             trace: Mutex::new(VecDeque::with_capacity(TRACE_KEEP)),
             handles: Mutex::new(Vec::new()),
+            ending: tokio::sync::watch::Sender::new(false),
         })
+    }
+
+    /// The service is ending: every `trace` still recording replies now with the samples
+    /// so far (marked incomplete), so a shutdown loses no recording. Returns once every
+    /// client has its reply, or after `grace`.
+    pub async fn end_recordings(&self, grace: Duration) {
+        self.collect_trace();
+        self.ending.send_replace(true);
+        let end = tokio::time::Instant::now() + grace;
+        // Each client holds a receiver while it reads or answers a request.
+        while self.ending.receiver_count() > 0 && tokio::time::Instant::now() < end {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
     }
 
     /// Moves new trace samples from the cycle into the kept window (call every few ms).
@@ -107,6 +123,9 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
             Ok(0) | Err(_) => return,
             Ok(_) => {}
         }
+        // Held until this request's reply is written: a shutdown waits for it (see
+        // `end_recordings`).
+        let _in_progress = state.ending.subscribe();
         let reply = if line.len() > MAX_LINE {
             let reply = protocol::error(&format!("request longer than {MAX_LINE} bytes"));
             let _ = write.write_all(format!("{reply}\n").as_bytes()).await;
@@ -282,7 +301,11 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
             }
             let seconds = number("seconds", seconds)?.clamp(0.0, 60.0);
             let start = ctl.snapshot().time_s;
-            tokio::time::sleep(Duration::from_secs_f64(seconds)).await;
+            let mut ending = state.ending.subscribe();
+            let complete = tokio::select! {
+                _ = tokio::time::sleep(Duration::from_secs_f64(seconds)) => true,
+                _ = ending.wait_for(|e| *e) => false,
+            };
             state.collect_trace();
             let kept = state.trace.lock().unwrap_or_else(|p| p.into_inner());
             let rows: Vec<Value> = kept
@@ -303,7 +326,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                         .flat_map(|a| [format!("{a}.set"), format!("{a}.actual")]),
                 )
                 .collect();
-            Ok(json!({"columns": columns, "rows": rows}))
+            Ok(json!({"columns": columns, "rows": rows, "complete": complete}))
         }
         Request::Shutdown => {
             ctl.shutdown().map_err(|e| e.to_string())?;
