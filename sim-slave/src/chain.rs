@@ -207,13 +207,21 @@ impl SlaveChain {
             return Err(ChainError::Lost);
         }
         let mut f = Frame::new_unchecked(&mut *frame);
-        for (i, slave) in self.slaves.iter_mut().enumerate().take(reachable) {
+        let slaves = self.slaves.get_mut(..reachable).unwrap_or_default();
+        for (i, slave) in slaves.iter_mut().enumerate() {
             // The last slave reached turns the frame round.
             slave.frame_arrives(self.timing.arrival(self.now_ns, i, reachable));
-            datagram::for_each_mut(f.payload_mut(), |mut d| {
-                slave.serve(&mut d);
-            })?;
         }
+        // Each datagram passes the slaves in turn. A slave's state depends only on the
+        // datagrams it has served, so this leaves frame and slaves as serving slave by
+        // slave would (and is what the wire does: a long frame's first datagram reaches
+        // the next slave before its last has left this one); each datagram is decoded
+        // once, not once per slave.
+        datagram::for_each_mut(f.payload_mut(), |mut d| {
+            for slave in slaves.iter_mut() {
+                slave.serve(&mut d);
+            }
+        })?;
         if reachable > 0 {
             f.mark_forwarded();
         }
@@ -441,6 +449,83 @@ mod tests {
             }
             c.advance(advance);
             c.advance(u64::MAX);
+        }
+    }
+
+    /// A frame of several datagrams: (command, ADP, ADO, data).
+    fn frame_of(datagrams: &[(u8, u16, u16, Vec<u8>)]) -> Vec<u8> {
+        let dlen: usize = datagrams.iter().map(|d| 12 + d.3.len()).sum();
+        let mut buf = vec![0u8; 16 + dlen];
+        let mut f = Frame::new_unchecked(&mut buf[..]);
+        f.set_dst([0xff; 6]);
+        f.set_src([0x10; 6]);
+        f.set_ethertype(ETHERTYPE);
+        f.set_ecat_header(dlen);
+        let mut at = 0;
+        for (k, (cmd, adp, ado, data)) in datagrams.iter().enumerate() {
+            let payload = f.payload_mut();
+            let mut d = Datagram::new_unchecked(&mut payload[at..at + 12 + data.len()]);
+            d.set_command(Command::from(*cmd));
+            d.set_adp(*adp);
+            d.set_ado(*ado);
+            d.set_len(data.len(), false, k + 1 < datagrams.len());
+            d.data_mut().copy_from_slice(data);
+            at += 12 + data.len();
+        }
+        buf
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 300,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(11),
+            failure_persistence: None,
+            ..proptest::prelude::ProptestConfig::default()
+        })]
+        /// The chain serves a frame datagram by datagram; the result is the same as
+        /// serving it slave by slave (each slave every datagram, then the next slave):
+        /// the same reply and the same slaves. The frame first gives the slaves station
+        /// addresses, so that later datagrams of the same frame address them.
+        #[test]
+        fn serving_by_datagram_equals_serving_by_slave(
+            datagrams in proptest::collection::vec(
+                (
+                    0u8..16,
+                    proptest::sample::select(vec![0u16, 1, 0xFFFF, 0xFFFE, 0x1000, 0x1001, 0x1002]),
+                    proptest::sample::select(vec![
+                        0x0000u16, 0x0010, 0x0120, 0x0130, 0x0500, 0x0502, 0x0600, 0x0800,
+                        0x0900, 0x0910, 0x0981, 0x1000, 0x1100,
+                    ]),
+                    proptest::collection::vec(proptest::prelude::any::<u8>(), 0..10),
+                ),
+                1..8,
+            ),
+        ) {
+            use crate::catalog::{self, ServoOptions};
+            let servo = |serial| catalog::servo(ServoOptions { serial, ..ServoOptions::default() });
+            let mut c = SlaveChain::new(vec![servo(1), Slave::new(description(2)), servo(3)]);
+            c.advance(12_345);
+            let mut all: Vec<_> = (0..3u16)
+                .map(|i| (2, 0u16.wrapping_sub(i), STATION_ADDRESS, (0x1000 + i).to_le_bytes().to_vec()))
+                .collect();
+            all.extend(datagrams);
+            let mut f = frame_of(&all);
+            let mut by_slave = f.clone();
+            let mut slaves = c.slaves().to_vec();
+            c.process(&mut f).unwrap();
+            let payload = &mut by_slave[16..];
+            for (i, s) in slaves.iter_mut().enumerate() {
+                s.frame_arrives(c.timing().arrival(c.now_ns(), i, 3));
+                datagram::for_each_mut(payload, |mut d| {
+                    s.serve(&mut d);
+                })
+                .unwrap();
+            }
+            Frame::new_unchecked(&mut by_slave[..]).mark_forwarded();
+            proptest::prop_assert_eq!(f, by_slave);
+            for (a, b) in c.slaves().iter().zip(&slaves) {
+                proptest::prop_assert_eq!(format!("{a:?}"), format!("{b:?}"));
+            }
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::coe::{self, od::ObjectDictionary, pdo};
 use crate::esc::al::AlState;
 use crate::esc::al::{self, AlStatusCode};
-use crate::esc::command::{self, Served};
+use crate::esc::command::{self, Access, Served};
 use crate::esc::datagram::Datagram;
 use crate::esc::dc::{Arrival, DcUnit};
 use crate::esc::memory::{Memory, RAM_BYTES};
@@ -214,21 +214,29 @@ impl Slave {
 
     /// Serves one datagram and applies the side effects of what it wrote.
     pub fn serve(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
-        if d.command().is_logical() {
-            // Process data (the hot path): a logical write lands in the SyncManager
-            // areas the FMMUs map; nothing else reacts to it.
-            let served = command::serve(&mut self.memory, d);
-            let written = matches!(served, Served::Written | Served::ReadWritten);
-            if written && ProcessDataWatchdog::triggered_by(&self.memory, PROCESS_RAM, RAM_BYTES) {
-                self.watchdog.trigger(&mut self.memory);
-            }
-            return served;
+        match command::address(&self.memory, d) {
+            // Most datagrams of a cyclic frame are for other slaves: nothing to do.
+            Access::None => Served::Passed,
+            Access::Logical => self.serve_logical(d),
+            access => self.serve_physical(d, access),
         }
-        self.serve_physical(d)
     }
 
-    /// Serves a register or RAM access by address (not through the FMMUs).
-    fn serve_physical(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
+    /// Process data (the hot path): a logical write lands in the SyncManager areas the
+    /// FMMUs map; nothing else reacts to it.
+    fn serve_logical(&mut self, d: &mut Datagram<&mut [u8]>) -> Served {
+        let served = command::apply(&mut self.memory, d, Access::Logical);
+        let written = matches!(served, Served::Written | Served::ReadWritten);
+        if written && ProcessDataWatchdog::triggered_by(&self.memory, PROCESS_RAM, RAM_BYTES) {
+            self.watchdog.trigger(&mut self.memory);
+        }
+        served
+    }
+
+    /// Serves a register or RAM access by address (not through the FMMUs). Kept out of
+    /// [`Slave::serve`] so that passing a datagram on stays a few instructions.
+    #[inline(never)]
+    fn serve_physical(&mut self, d: &mut Datagram<&mut [u8]>, access: Access) -> Served {
         let ado = d.ado();
         let len = d.data_len();
         if let Some(dc) = self.dc.as_ref() {
@@ -240,7 +248,7 @@ impl Slave {
         // carried so that a refused read leaves it as it came.
         let refused_read = self.read_mailbox_empty(ado, len);
         let before = refused_read.then(|| (d.data().to_vec(), d.wkc()));
-        let served = command::serve(&mut self.memory, d);
+        let served = command::apply(&mut self.memory, d, access);
         if let Some((data, wkc)) = before {
             if matches!(served, Served::Read | Served::ReadWritten) {
                 d.data_mut().copy_from_slice(&data);

@@ -27,42 +27,75 @@ fn alias_enabled(mem: &Memory) -> bool {
     mem.read_u32(DL_CONTROL) & (1 << 24) != 0
 }
 
-/// Serves `d` with this slave's memory.
-pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
+/// What a datagram asks of this slave once its address is decoded: the addressing rules
+/// apart from the access itself, so that a slave can pass a datagram that is not for it
+/// without looking further (in a cyclic frame most datagrams are for another slave).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// Not for this slave (or a command it does not serve).
+    None,
+    /// Read into the frame; OR-ed in for broadcasts.
+    Read {
+        /// OR the read into the frame's data instead of replacing it.
+        or: bool,
+    },
+    /// Write the frame's data.
+    Write,
+    /// Read the old contents into the frame and write the frame's data.
+    ReadWrite,
+    /// BRW: read OR-ed in, then write the frame's original data.
+    BroadcastReadWrite,
+    /// LRD/LWR/LRW: through the FMMUs.
+    Logical,
+}
+
+/// Decodes `d`'s address for this slave. Auto-increment commands have their position
+/// incremented here, as every slave does on the way, addressed or not.
+#[inline]
+pub fn address(mem: &Memory, d: &mut Datagram<&mut [u8]>) -> Access {
     let cmd = d.command();
-    let ado = d.ado();
     let adp = d.adp();
-    let served = match cmd {
+    match cmd {
         Command::Aprd | Command::Apwr | Command::Aprw | Command::Armw => {
             // Auto-increment: the slave that sees position 0 is addressed; every slave
             // increments the position on the way.
             d.set_adp(adp.wrapping_add(1));
-            if adp == 0 {
-                match cmd {
-                    Command::Aprd | Command::Armw => read(mem, d, ado, false),
-                    Command::Apwr => write(mem, d, ado),
-                    _ => read_write(mem, d, ado),
-                }
-            } else if cmd == Command::Armw {
-                write(mem, d, ado)
-            } else {
-                Served::Passed
+            match (cmd, adp == 0) {
+                (Command::Aprd | Command::Armw, true) => Access::Read { or: false },
+                (Command::Apwr, true) => Access::Write,
+                (_, true) => Access::ReadWrite,
+                (Command::Armw, false) => Access::Write,
+                (_, false) => Access::None,
             }
         }
         Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw => {
             let me = adp == mem.read_u16(STATION_ADDRESS)
                 || (alias_enabled(mem) && adp == mem.read_u16(STATION_ALIAS));
             match (cmd, me) {
-                (Command::Fprd | Command::Frmw, true) => read(mem, d, ado, false),
-                (Command::Fpwr, true) => write(mem, d, ado),
-                (Command::Fprw, true) => read_write(mem, d, ado),
-                (Command::Frmw, false) => write(mem, d, ado),
-                _ => Served::Passed,
+                (Command::Fprd | Command::Frmw, true) => Access::Read { or: false },
+                (Command::Fpwr, true) => Access::Write,
+                (Command::Fprw, true) => Access::ReadWrite,
+                (Command::Frmw, false) => Access::Write,
+                _ => Access::None,
             }
         }
-        Command::Brd => read(mem, d, ado, true),
-        Command::Bwr => write(mem, d, ado),
-        Command::Brw => {
+        Command::Brd => Access::Read { or: true },
+        Command::Bwr => Access::Write,
+        Command::Brw => Access::BroadcastReadWrite,
+        Command::Lrd | Command::Lwr | Command::Lrw => Access::Logical,
+        Command::Nop | Command::Unknown(_) => Access::None,
+    }
+}
+
+/// Performs `access` (from [`address`]) on `d` with this slave's memory.
+pub fn apply(mem: &mut Memory, d: &mut Datagram<&mut [u8]>, access: Access) -> Served {
+    let ado = d.ado();
+    match access {
+        Access::None => Served::Passed,
+        Access::Read { or } => read(mem, d, ado, or),
+        Access::Write => write(mem, d, ado),
+        Access::ReadWrite => read_write(mem, d, ado),
+        Access::BroadcastReadWrite => {
             // Broadcast read-write: OR the read into the frame, write the frame's data.
             let data_in: [u8; 2048] = copy_prefix(d.data());
             let n = d.data().len();
@@ -75,10 +108,14 @@ pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
                 r
             }
         }
-        Command::Lrd | Command::Lwr | Command::Lrw => super::fmmu::serve(mem, d),
-        Command::Nop | Command::Unknown(_) => Served::Passed,
-    };
-    served
+        Access::Logical => super::fmmu::serve(mem, d),
+    }
+}
+
+/// Serves `d` with this slave's memory.
+pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
+    let access = address(mem, d);
+    apply(mem, d, access)
 }
 
 fn copy_prefix(data: &[u8]) -> [u8; 2048] {

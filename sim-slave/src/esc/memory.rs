@@ -114,8 +114,12 @@ impl Memory {
         let at = address as usize;
         if let Some(src) = self.bytes.get(at..at + out.len()) {
             // Reserved register bytes are never written, so they hold zero.
-            for (o, s) in out.iter_mut().zip(src) {
-                *o = if or { *o | *s } else { *s };
+            if or {
+                for (o, s) in out.iter_mut().zip(src) {
+                    *o |= *s;
+                }
+            } else {
+                out.copy_from_slice(src);
             }
         } else {
             // The datagram runs past the end of the RAM: only the bytes inside.
