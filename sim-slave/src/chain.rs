@@ -78,6 +78,9 @@ impl WireTiming {
     }
 }
 
+/// Application periods run at most in one catch-up after the host stalled.
+pub const MAX_CATCH_UP: u32 = 4;
+
 /// A line of slaves.
 #[derive(Clone, Debug, Default)]
 pub struct SlaveChain {
@@ -158,6 +161,27 @@ impl SlaveChain {
     /// The slaves.
     pub fn slaves(&self) -> &[Slave] {
         &self.slaves
+    }
+
+    /// Brings the network to time `t_ns`: the applications run once for every whole
+    /// `period_ns` of network time passed (at most [`MAX_CATCH_UP`] of them after a stall:
+    /// the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs
+    /// call this before every frame, so DC clocks and SYNC0 follow the host's clock to the
+    /// nanosecond rather than in whole periods.
+    pub fn run_until(&mut self, t_ns: u64, period_ns: u64) {
+        let period_ns = period_ns.max(1);
+        let mut runs = 0;
+        while runs < MAX_CATCH_UP {
+            let boundary = (self.now_ns / period_ns + 1) * period_ns;
+            if boundary > t_ns {
+                break;
+            }
+            self.advance(boundary - self.now_ns);
+            runs += 1;
+        }
+        if t_ns > self.now_ns {
+            self.advance_clocks(t_ns - self.now_ns);
+        }
     }
 
     /// Runs `dt_s` seconds of every slave's application; the network's time advances as

@@ -8,6 +8,7 @@
 //! kind = "servo"          # a CiA-402 servo drive (CoE, CSP)
 //! start_position = 0      # absolute encoder value at power-up, counts
 //! bandwidth_hz = 200      # position loop bandwidth
+//! dc_drift_ppm = 30       # its distributed clock runs 30 ppm fast (default 0)
 //!
 //! [[slave]]
 //! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
@@ -101,6 +102,11 @@ pub enum SlaveConfig {
         /// The motor's hidden commutation offset (counts), for commissioning to find.
         #[serde(default)]
         commutation_offset: i32,
+        /// How fast its distributed clock's oscillator runs against true time (ppm;
+        /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
+        /// the network's reference, which the master's cycle has to follow.
+        #[serde(default)]
+        dc_drift_ppm: f64,
     },
     /// An incremental encoder module.
     Encoder {
@@ -151,6 +157,9 @@ impl From<CamConfig> for SwitchCam {
 fn default_counts_per_rev() -> u32 {
     4096
 }
+
+/// Largest oscillator error of a simulated DC clock (ppm); real ones are within ±100.
+const MAX_DC_DRIFT_PPM: f64 = 1000.0;
 
 /// Highest shaft speed of an encoder (rev/s).
 const MAX_SHAFT_SPEED: f64 = 1000.0;
@@ -216,12 +225,22 @@ impl SimConfig {
         }
         for (i, s) in self.slaves.iter().enumerate() {
             match s {
-                SlaveConfig::Servo { bandwidth_hz, .. } => {
+                SlaveConfig::Servo {
+                    bandwidth_hz,
+                    dc_drift_ppm,
+                    ..
+                } => {
                     if !(bandwidth_hz.is_finite() && *bandwidth_hz > 0.0 && *bandwidth_hz <= 5000.0)
                     {
                         return Err(invalid(
                             format!("slave[{i}].bandwidth_hz"),
                             "must be above 0 and at most 5000 Hz",
+                        ));
+                    }
+                    if !(dc_drift_ppm.is_finite() && dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM) {
+                        return Err(invalid(
+                            format!("slave[{i}].dc_drift_ppm"),
+                            "must be -1000 to 1000 ppm",
                         ));
                     }
                 }
@@ -296,12 +315,14 @@ impl SimConfig {
                         start_position,
                         bandwidth_hz,
                         commutation_offset,
+                        dc_drift_ppm,
                     } => catalog::servo(ServoOptions {
                         serial,
                         start_counts: *start_position,
                         bandwidth_hz: *bandwidth_hz,
                         commutation_offset: *commutation_offset,
-                    }),
+                    })
+                    .with_dc_drift_ppm(*dc_drift_ppm),
                     SlaveConfig::Encoder {
                         counts_per_rev,
                         shaft_speed,
@@ -340,7 +361,8 @@ mod tests {
             SlaveConfig::Servo {
                 start_position: -7,
                 bandwidth_hz: 200.0,
-                commutation_offset: 0
+                commutation_offset: 0,
+                dc_drift_ppm: 0.0,
             }
         );
         assert_eq!(c.chain().unwrap().slaves().len(), 2);
@@ -363,6 +385,10 @@ mod tests {
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\nbandwidth_hz = -1\n"),
             "sim.toml: slave[0].bandwidth_hz: must be above 0 and at most 5000 Hz"
+        );
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\ndc_drift_ppm = 5000\n"),
+            "sim.toml: slave[0].dc_drift_ppm: must be -1000 to 1000 ppm"
         );
         assert_eq!(
             e("cycle_us = 1000\n"),

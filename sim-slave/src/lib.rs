@@ -22,5 +22,6 @@ pub mod config;
 pub mod esc;
 pub mod fault;
 pub mod plant;
+pub mod realtime;
 pub mod slave;
 pub mod transport;

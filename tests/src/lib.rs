@@ -39,10 +39,18 @@ pub fn servo_chain(n: u32) -> gantry_sim::chain::SlaveChain {
 /// A configuration of `axes` axes on simulated servos in this process (`[bus] simulator`),
 /// at `cycle_us`; the simulator's chain file is written to a temporary folder.
 pub fn sim_config(axes: usize, cycle_us: u32) -> gantry::config::Config {
+    sim_config_with(axes, cycle_us, "")
+}
+
+/// As [`sim_config`], with `servo` (TOML keys, e.g. `dc_drift_ppm = 300`) added to every
+/// simulated servo.
+pub fn sim_config_with(axes: usize, cycle_us: u32, servo: &str) -> gantry::config::Config {
     let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let sim = dir.join("sim.toml");
-    let chain: String = (0..axes).map(|_| "[[slave]]\nkind = \"servo\"\n").collect();
+    let chain: String = (0..axes)
+        .map(|_| format!("[[slave]]\nkind = \"servo\"\n{servo}\n"))
+        .collect();
     std::fs::write(&sim, format!("cycle_us = {cycle_us}\n{chain}")).expect("sim.toml");
     let mut text = format!(
         "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n",

@@ -105,6 +105,8 @@ fn gantry_run_drives_the_simulator_over_veth_in_real_time() {
     let table = ok(&["status"]);
     eprintln!("{table}");
     assert_eq!(status["real_time"], true);
+    // With distributed clocks the cycle holds its frames a quarter period after SYNC0.
+    assert_eq!(status["bus"]["dc"]["target_us"], 250.0, "{status}");
     // A reply later than the next cycle's start is lost; on this non-real-time kernel a
     // few are (the cycle counts them and rides through), on PREEMPT_RT none should be.
     let cycles = status["cycles"].as_u64().unwrap();

@@ -234,12 +234,16 @@ pub fn status(
         "bus: lost frames {}, wrong working counters {}, {}\n{figures}",
         s["bus"]["lost_frames"],
         s["bus"]["working_counter_errors"],
-        s["bus"]["dc"]["sync0_offset_us"].as_f64().map_or(
-            "no distributed clocks".into(),
-            |us| format!(
-                "distributed clocks: frames reach the reference {us:.0} µs into the SYNC0 period"
-            )
-        ),
+        s["bus"]["dc"]["sync0_offset_us"]
+            .as_f64()
+            .map_or("no distributed clocks".into(), |us| {
+                let held = s["bus"]["dc"]["target_us"]
+                    .as_f64()
+                    .map_or(", free-running".into(), |t| format!(", held at {t:.0} µs"));
+                format!(
+                    "distributed clocks: frames reach the reference {us:.0} µs into the SYNC0 period{held}"
+                )
+            }),
     )
     .map_err(io)?;
     Ok(())

@@ -6,8 +6,9 @@ use std::sync::{Arc, Mutex};
 
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
+use gantry_sim::realtime::WallClock;
 
-use super::pump::{FramePump, Link, Ticker};
+use super::pump::{FramePump, Link};
 use crate::pcap::PcapWriter;
 
 /// ethercrab's frames passed through a simulated chain in this process by a pump thread.
@@ -36,8 +37,9 @@ impl EmbeddedBus {
         Self::start_with(tx, rx, chain, capture, None)
     }
 
-    /// Starts the exchange thread with the chain's applications running on the wall
-    /// clock every `period` (for real-time runs on the simulator, e.g. `gantry run`).
+    /// Starts the exchange thread with the chain on the wall clock: its DC clocks follow
+    /// the host's, its applications run every `period` (for real-time runs on the
+    /// simulator, e.g. `gantry run`).
     pub fn start_realtime(
         tx: PduTx<'static>,
         rx: PduRx<'static>,
@@ -45,7 +47,8 @@ impl EmbeddedBus {
         capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
         period: std::time::Duration,
     ) -> Self {
-        Self::start_with(tx, rx, chain, capture, Some(Ticker::new(period)))
+        let clock = WallClock::start(&chain, period);
+        Self::start_with(tx, rx, chain, capture, Some(clock))
     }
 
     fn start_with(
@@ -53,13 +56,13 @@ impl EmbeddedBus {
         rx: PduRx<'static>,
         chain: SlaveChain,
         capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
-        ticker: Option<Ticker>,
+        wall_clock: Option<WallClock>,
     ) -> Self {
         let chain = Arc::new(Mutex::new(chain));
         let link = Link::Embedded {
             chain: chain.clone(),
             replies: VecDeque::new(),
-            ticker,
+            wall_clock,
         };
         let pump = FramePump::start(tx, rx, link, capture)
             .expect("eventfd and a thread for the embedded bus");

@@ -17,6 +17,7 @@ use std::time::Instant;
 
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
+use gantry_sim::realtime::WallClock;
 use gantry_sim::transport::raw_socket::RawSocket;
 
 use super::doorbell::Doorbell;
@@ -30,9 +31,8 @@ pub enum Link {
         chain: Arc<Mutex<SlaveChain>>,
         /// Replies waiting to be handed back.
         replies: VecDeque<Vec<u8>>,
-        /// Runs the slaves' applications on the wall clock (`None`: the caller ticks
-        /// the chain, lockstep).
-        ticker: Option<Ticker>,
+        /// Runs the chain on the wall clock (`None`: the caller advances it, lockstep).
+        wall_clock: Option<WallClock>,
     },
     /// A raw socket on a network interface.
     Raw(RawSocket),
@@ -44,14 +44,14 @@ impl Link {
             Link::Embedded {
                 chain,
                 replies,
-                ticker,
+                wall_clock,
             } => {
                 let mut wire = frame.to_vec();
                 let processed = chain
                     .lock()
                     .map(|mut c| {
-                        if let Some(t) = ticker.as_mut() {
-                            t.catch_up(&mut c);
+                        if let Some(clock) = wall_clock {
+                            clock.catch_up(&mut c);
                         }
                         c.process(&mut wire).is_ok()
                     })
@@ -85,37 +85,6 @@ impl Link {
             Link::Embedded { .. } => None,
             // SAFETY: the socket outlives the borrow (both live in the pump thread).
             Link::Raw(socket) => Some(unsafe { BorrowedFd::borrow_raw(socket.as_raw_fd()) }),
-        }
-    }
-}
-
-/// Runs a chain's applications in real time: before each frame, every whole period
-/// that has passed on the wall clock (at most a few after a stall).
-#[derive(Clone, Copy, Debug)]
-pub struct Ticker {
-    period: std::time::Duration,
-    next: Instant,
-}
-
-impl Ticker {
-    /// Ticks every `period`, starting now.
-    pub fn new(period: std::time::Duration) -> Self {
-        Self {
-            period,
-            next: Instant::now() + period,
-        }
-    }
-
-    fn catch_up(&mut self, chain: &mut SlaveChain) {
-        let now = Instant::now();
-        let mut n = 0;
-        while now >= self.next && n < 4 {
-            chain.tick(self.period.as_secs_f64());
-            self.next += self.period;
-            n += 1;
-        }
-        if now >= self.next {
-            self.next = now + self.period;
         }
     }
 }

@@ -46,6 +46,12 @@ impl CycleClock {
         }
     }
 
+    /// Moves every later deadline by `ns` (negative: earlier), to hold the cycle in phase
+    /// with another clock (SYNC0). Callers keep `ns` small against the period.
+    pub fn shift(&mut self, ns: i64) {
+        self.next_ns = self.next_ns.saturating_add_signed(ns);
+    }
+
     /// Sleeps until the next deadline. After an overrun the missed deadlines are skipped
     /// (the cycle keeps its phase) rather than run back to back.
     pub fn wait(&mut self) -> Wake {

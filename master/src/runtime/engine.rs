@@ -10,6 +10,7 @@ use gantry_kernel::axis::state::AxisState;
 
 use super::bus::CycleBus;
 use super::clock::{now_ns, CycleClock, Wake};
+use super::phase::PhaseLock;
 use super::protocol::{
     DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
 };
@@ -101,6 +102,9 @@ pub struct Engine<B: CycleBus> {
     overrun_limit: u32,
     overrun_stop: bool,
     late_reply: LateReply,
+    phase_lock: Option<PhaseLock>,
+    /// The last exchange was answered (its DC offset is this cycle's).
+    answered: bool,
     phase: Phase,
     cycles: u64,
     figures: super::stats::CycleFigures,
@@ -139,6 +143,8 @@ impl<B: CycleBus> Engine<B> {
             overrun_limit: overrun_limit.max(1),
             overrun_stop: false,
             late_reply: LateReply::Lost,
+            phase_lock: None,
+            answered: false,
             phase: Phase::Running,
             cycles: 0,
             figures: Default::default(),
@@ -156,10 +162,28 @@ impl<B: CycleBus> Engine<B> {
         self.late_reply = late_reply;
     }
 
+    /// Holds the cycle in phase with SYNC0 (`None`: free-running). [`Engine::run`] turns
+    /// it on by itself when the bus has distributed clocks.
+    pub fn set_phase_lock(&mut self, lock: Option<PhaseLock>) {
+        self.phase_lock = lock;
+    }
+
+    /// How far to move the cycle's next deadlines after this cycle (ns; see
+    /// [`PhaseLock`]): 0 without a phase lock, without DC, or when the frame was lost.
+    pub fn phase_correction_ns(&self) -> i64 {
+        match (self.phase_lock, self.bus.dc_offset_ns()) {
+            (Some(lock), Some(offset)) if self.answered => lock.correction_ns(offset),
+            _ => 0,
+        }
+    }
+
     /// Runs cycles every `period_ns` until shut down (a [`Request::Shutdown`], or `stop`
-    /// set from outside, e.g. by a signal handler). Returns the engine for the bus'
-    /// shutdown.
+    /// set from outside, e.g. by a signal handler), in phase with SYNC0 when the bus has
+    /// distributed clocks. Returns the engine for the bus' shutdown.
     pub fn run(mut self, period_ns: u64, stop: &AtomicBool) -> Self {
+        if self.phase_lock.is_none() && self.bus.dc_offset_ns().is_some() {
+            self.phase_lock = Some(PhaseLock::new(period_ns));
+        }
         let mut clock = CycleClock::start(period_ns);
         loop {
             let wake = clock.wait();
@@ -169,6 +193,7 @@ impl<B: CycleBus> Engine<B> {
             if !self.step(wake) {
                 return self;
             }
+            clock.shift(self.phase_correction_ns());
         }
     }
 
@@ -186,7 +211,9 @@ impl<B: CycleBus> Engine<B> {
         let _ = self.bus.write_outputs(&mut self.cycle);
         let t1 = now_ns();
         let reply_by = self.late_reply.reply_by(&wake, t1);
+        let lost_before = self.health.lost_total;
         self.bus.exchange(&mut self.health, reply_by);
+        self.answered = self.health.lost_total == lost_before;
         let t2 = now_ns();
         let in_a_row = self
             .stats
@@ -366,6 +393,7 @@ impl<B: CycleBus> Engine<B> {
         snap.working_counter_errors = self.health.wkc_total;
         snap.figures = self.figures;
         snap.dc_offset_ns = self.bus.dc_offset_ns();
+        snap.dc_target_ns = self.phase_lock.map(|l| l.target_ns());
         for (dst, src) in snap.commands.iter_mut().zip(&self.tracked) {
             *dst = Tracked {
                 id: src.id,

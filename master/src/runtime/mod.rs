@@ -7,6 +7,7 @@ pub mod clock;
 pub mod controller;
 pub mod engine;
 pub mod histogram;
+pub mod phase;
 pub mod protocol;
 pub mod rt;
 pub mod stats;

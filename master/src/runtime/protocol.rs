@@ -85,6 +85,8 @@ pub struct Snapshot {
     /// Distributed clocks: where in the SYNC0 period the last frame reached the reference
     /// clock (ns); `None` without DC.
     pub dc_offset_ns: Option<u64>,
+    /// Where the cycle holds that point when it is phase-locked to SYNC0 (ns).
+    pub dc_target_ns: Option<u64>,
     /// The cycle thread stopped every axis because of overruns in a row.
     pub overrun_stop: bool,
     /// The cycle thread has ended.

@@ -394,7 +394,10 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         "bus": {
             "lost_frames": snap.lost_frames,
             "working_counter_errors": snap.working_counter_errors,
-            "dc": snap.dc_offset_ns.map(|ns| json!({"sync0_offset_us": ns as f64 / 1000.0})),
+            "dc": snap.dc_offset_ns.map(|ns| json!({
+                "sync0_offset_us": ns as f64 / 1000.0,
+                "target_us": snap.dc_target_ns.map(|t| t as f64 / 1000.0),
+            })),
         },
         "cycle": snap.figures,
     })

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use gantry_sim::config::SimConfig;
+use gantry_sim::realtime::WallClock;
 use gantry_sim::transport::raw_socket::RawSocket;
 
 /// The simulated EtherCAT network on a network interface.
@@ -55,21 +56,22 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         config.cycle_us
     );
     let period = Duration::from_micros(u64::from(config.cycle_us));
-    let dt_s = period.as_secs_f64();
     let start = Instant::now();
     let end = args
         .seconds
         .map(|s| start + Duration::from_secs_f64(s.max(0.0)));
-    let mut next_tick = start + period;
+    // The chain's clocks follow this host's; its applications run every period.
+    let clock = WallClock::start(&chain, period);
     let mut buf = vec![0u8; 9100];
     let (mut served, mut dropped) = (0u64, 0u64);
     loop {
-        let now = Instant::now();
-        if end.is_some_and(|end| now >= end) {
+        if end.is_some_and(|end| Instant::now() >= end) {
             break;
         }
-        if let Some(n) = socket.recv(&mut buf, Some(next_tick.saturating_duration_since(now)))? {
+        let wait = clock.until_next_period(&chain);
+        if let Some(n) = socket.recv(&mut buf, Some(wait))? {
             let frame = buf.get_mut(..n).unwrap_or_default();
+            clock.catch_up(&mut chain);
             match chain.process(frame) {
                 Ok(()) => {
                     socket.send(frame)?;
@@ -79,18 +81,8 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 Err(_) => dropped += 1,
             }
         }
-        // Run the applications on their own clock; after a stall, catch up at most a
-        // few periods rather than replaying all of it.
-        let now = Instant::now();
-        let mut catch_up = 0;
-        while now >= next_tick && catch_up < 4 {
-            chain.tick(dt_s);
-            next_tick += period;
-            catch_up += 1;
-        }
-        if now >= next_tick {
-            next_tick = now + period;
-        }
+        // After a stall the applications catch up a few periods, not all of it.
+        clock.catch_up(&mut chain);
     }
     println!("gantry-sim: served {served} frames, dropped {dropped} malformed");
     Ok(())
