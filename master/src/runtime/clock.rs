@@ -35,6 +35,8 @@ pub struct Wake {
     pub latency_ns: u64,
     /// The previous cycle's work ran past this deadline.
     pub overrun: bool,
+    /// The cycle time.
+    pub period_ns: u64,
 }
 
 impl CycleClock {
@@ -79,6 +81,7 @@ impl CycleClock {
         Wake {
             deadline_ns,
             reply_by_ns: self.next_ns - (self.period_ns / 10).min(REPLY_MARGIN_NS),
+            period_ns: self.period_ns,
             latency_ns: if overrun {
                 0
             } else {

@@ -35,7 +35,9 @@ pub const OVERRUN_FAULT: u16 = 0x6100;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LateReply {
     /// It is lost: the next cycle starts on time without it. Right for a real-time cycle,
-    /// where the bus answers in microseconds and a reply that late is not coming.
+    /// where the bus answers in microseconds and a reply that late is not coming. A cycle
+    /// that itself started late still gives its frame half a period: that is an overrun
+    /// (the host was late), not a frame the bus lost.
     Lost,
     /// Wait for it, up to `ns` after sending, and let the cycle overrun. Right without
     /// real time (`--no-rt`, tests on a busy machine): then it is the host that is late,
@@ -53,7 +55,7 @@ impl LateReply {
     /// Until when the cycle that woke at `wake` waits for an answer to what it sends now.
     fn reply_by(self, wake: &Wake, now_ns: u64) -> u64 {
         match self {
-            Self::Lost => wake.reply_by_ns,
+            Self::Lost => wake.reply_by_ns.max(now_ns + wake.period_ns / 2),
             Self::Wait { ns } => now_ns + ns,
         }
     }

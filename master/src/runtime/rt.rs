@@ -137,9 +137,16 @@ pub fn enter(rt: &RtSection) -> Result<(), RtError> {
 /// write 0 to /dev/cpu_dma_latency and keep it open), as cyclictest does: waking from a
 /// deep C-state costs tens to hundreds of µs. Best effort: without the right to it, the
 /// cycle runs anyway (rt-check reports the latency either way).
+static CPU_DMA_LATENCY: std::sync::OnceLock<Option<std::fs::File>> = std::sync::OnceLock::new();
+
+/// Whether this process holds the CPUs out of deep idle states (see [`enter`]). The
+/// device is root's by default; `deploy/gantry.service` gives its group access.
+pub fn holds_cpu_dma_latency() -> bool {
+    CPU_DMA_LATENCY.get().is_some_and(Option::is_some)
+}
+
 fn hold_cpu_dma_latency() {
-    static HELD: std::sync::OnceLock<Option<std::fs::File>> = std::sync::OnceLock::new();
-    HELD.get_or_init(|| {
+    CPU_DMA_LATENCY.get_or_init(|| {
         use std::io::Write;
         let mut f = std::fs::OpenOptions::new()
             .write(true)

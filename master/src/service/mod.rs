@@ -141,6 +141,14 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
         },
         socket.display()
     );
+    if real_time && !rt::holds_cpu_dma_latency() {
+        let _ = writeln!(
+            out,
+            "gantry: cannot write /dev/cpu_dma_latency: the CPUs may sleep deeply between \
+             cycles and wake late (give this user's group write access to it, as \
+             deploy/gantry.service does)"
+        );
+    }
     let state = server::ServerState::new(controller.clone(), config, real_time);
     runtime.block_on(async {
         let server = tokio::spawn(server::serve(listener, state.clone()));
