@@ -214,6 +214,7 @@ fn rt_check_reports_the_machine_and_measures() {
         "capabilities",
         "CPU isolation",
         "CPU frequency governor",
+        "CPU idle states (PM QoS)",
         "RT throttling",
     ] {
         assert!(text.contains(check), "{check}: {text}");

@@ -87,6 +87,22 @@ pub fn findings(rt: &RtSection, interface: Option<&str>) -> Vec<Finding> {
             "set the governor to performance (cpupower frequency-set -g performance)".into()
         }),
     });
+    // PM QoS: gantry holds the CPUs out of deep idle states by writing 0 here, when it may.
+    let writable = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .is_ok();
+    f.push(Finding {
+        check: "CPU idle states (PM QoS)",
+        found: if writable {
+            "/dev/cpu_dma_latency writable: gantry holds the CPUs out of deep idle".into()
+        } else {
+            "/dev/cpu_dma_latency not writable by this user".into()
+        },
+        advice: (!writable).then(|| {
+            "waking from deep C-states adds tens to hundreds of µs: give gantry's group write access (chgrp gantry /dev/cpu_dma_latency; chmod g+w), as deploy/gantry.service does".into()
+        }),
+    });
     let runtime = read("/proc/sys/kernel/sched_rt_runtime_us").unwrap_or_default();
     f.push(Finding {
         check: "RT throttling",
