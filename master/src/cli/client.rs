@@ -313,31 +313,47 @@ pub fn command(
         })
     });
     let status = client.request(json!({"cmd": "status"}))?;
-    let position = axis_of(&status, axis).and_then(|a| a["position"].as_f64());
+    let entry = axis_of(&status, axis);
+    let position = entry.and_then(|a| a["position"].as_f64());
+    // Where the command put the axis: the set position (a move's target when it is done);
+    // the actual may still be settling into the target window behind it.
+    let set_position = entry.and_then(|a| a["set_position"].as_f64());
     match result {
         Ok(_) => {
             if json_out {
                 writeln!(
                     out,
                     "{}",
-                    json!({"handle": handle, "status": "Done", "position": position})
+                    json!({
+                        "handle": handle,
+                        "status": "Done",
+                        "position": position,
+                        "set_position": set_position,
+                    })
                 )
                 .map_err(io)?;
             } else {
-                let units = axis_of(&status, axis)
-                    .and_then(|a| a["units"].as_str())
-                    .unwrap_or("");
-                writeln!(
-                    out,
-                    "{axis}: {} {:.3} {units}",
-                    outcome(&cmd),
-                    position.unwrap_or(f64::NAN)
-                )
-                .map_err(io)?;
+                let units = entry.and_then(|a| a["units"].as_str()).unwrap_or("");
+                let set = set_position.or(position).unwrap_or(f64::NAN);
+                let actual = position.unwrap_or(f64::NAN);
+                let settling = if (actual - set).abs() >= 0.0005 {
+                    format!(" (actual {actual:.3} {units})")
+                } else {
+                    String::new()
+                };
+                writeln!(out, "{axis}: {} {set:.3} {units}{settling}", outcome(&cmd))
+                    .map_err(io)?;
             }
             Ok(())
         }
-        Err(e) => Err(ClientError::Failed(format!("{axis}: {e}"))),
+        Err(e) => {
+            // Say why, when the axis knows (a drive fault, the bus).
+            let why = entry
+                .and_then(|a| a["error"].as_str())
+                .map(|r| format!(": {r}"))
+                .unwrap_or_default();
+            Err(ClientError::Failed(format!("{axis}: {e}{why}")))
+        }
     }
 }
 
