@@ -6,7 +6,7 @@
 //! runs them.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// The unprivileged user the test runs gantry as (nobody).
@@ -30,6 +30,34 @@ fn setting(unit: &str, key: &str) -> String {
         .unwrap_or_else(|| panic!("gantry.service sets no {key}"))
         .trim()
         .to_string()
+}
+
+/// The service under test, killed if the test ends early: a failed assertion must not
+/// leave it cycling at SCHED_FIFO behind the tests that follow.
+struct Running(Option<Child>);
+
+impl Running {
+    fn child(&mut self) -> &mut Child {
+        self.0.as_mut().expect("running")
+    }
+
+    /// Waits for it to end; its output.
+    fn finish(&mut self) -> Output {
+        self.0
+            .take()
+            .expect("running")
+            .wait_with_output()
+            .expect("waited")
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.0.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
 }
 
 /// `CAP_NET_RAW CAP_SYS_NICE` → `+net_raw,+sys_nice` (setpriv's spelling).
@@ -106,28 +134,30 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
         dir.join("sim-4-servos.toml"),
     )
     .unwrap();
-    let mut service = Command::new("setpriv")
-        .args([
-            &format!("--reuid={NOBODY}"),
-            &format!("--regid={NOBODY}"),
-            "--clear-groups",
-            &format!("--inh-caps={ambient}"),
-            &format!("--ambient-caps={ambient}"),
-            &format!("--bounding-set=-all,{bounding}"),
-        ])
-        .arg(env!("CARGO_BIN_EXE_gantry"))
-        .args(["run", "--config"])
-        .arg(&config)
-        .arg("--socket")
-        .arg(&socket)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("setpriv (util-linux)");
+    let mut service = Running(Some(
+        Command::new("setpriv")
+            .args([
+                &format!("--reuid={NOBODY}"),
+                &format!("--regid={NOBODY}"),
+                "--clear-groups",
+                &format!("--inh-caps={ambient}"),
+                &format!("--ambient-caps={ambient}"),
+                &format!("--bounding-set=-all,{bounding}"),
+            ])
+            .arg(env!("CARGO_BIN_EXE_gantry"))
+            .args(["run", "--config"])
+            .arg(&config)
+            .arg("--socket")
+            .arg(&socket)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("setpriv (util-linux)"),
+    ));
     let end = Instant::now() + Duration::from_secs(20);
     while std::os::unix::net::UnixStream::connect(&socket).is_err() {
-        if let Some(status) = service.try_wait().unwrap() {
-            let out = service.wait_with_output().unwrap();
+        if let Some(status) = service.child().try_wait().unwrap() {
+            let out = service.finish();
             panic!(
                 "gantry ended at start ({status}): {}{}",
                 String::from_utf8_lossy(&out.stdout),
@@ -160,11 +190,11 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     let moved = cli(&["move", "x", "--to", "10"]);
     let status: serde_json::Value = serde_json::from_str(&cli(&["status", "--json"])).unwrap();
     nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(service.id() as i32),
+        nix::unistd::Pid::from_raw(service.child().id() as i32),
         nix::sys::signal::Signal::SIGTERM,
     )
     .unwrap();
-    let out = service.wait_with_output().unwrap();
+    let out = service.finish();
     let text = String::from_utf8_lossy(&out.stdout);
     std::fs::remove_dir_all(&dir).unwrap();
     let at: f64 = moved
