@@ -176,7 +176,10 @@ impl SlaveChain {
             if boundary > t_ns {
                 break;
             }
-            self.advance(boundary - self.now_ns);
+            // The clocks were brought to the last frame's time, mid-period; the
+            // applications still run whole periods.
+            self.advance_clocks(boundary - self.now_ns);
+            self.run_applications(period_ns as f64 * 1e-9);
             runs += 1;
         }
         if t_ns > self.now_ns {
@@ -551,6 +554,41 @@ mod tests {
                 proptest::prop_assert_eq!(format!("{a:?}"), format!("{b:?}"));
             }
         }
+    }
+
+    /// Real time brings the clocks to each frame's time, mid-period; the applications
+    /// still run whole periods, so a device's time keeps up with the network's.
+    #[test]
+    fn run_until_runs_whole_application_periods() {
+        use crate::catalog::{self, EncoderOptions};
+        use crate::plant::DeviceModel;
+        let encoder = catalog::encoder(EncoderOptions {
+            serial: 1,
+            counts_per_rev: 1000,
+            shaft_speed_rev_s: 1.0,
+        });
+        let mut c = SlaveChain::new(vec![encoder]);
+        // Frames every 0.3 ms for 100 ms, applications every 1 ms.
+        for k in 1..=333u64 {
+            c.run_until(k * 300_000, 1_000_000);
+        }
+        assert_eq!(
+            c.now_ns(),
+            99_900_000,
+            "the clocks are at the last frame's time"
+        );
+        let DeviceModel::Encoder(e) = c.slaves()[0].device() else {
+            panic!("an encoder");
+        };
+        // 99 whole periods at 1 rev/s and 1000 counts per rev: 99 counts (not 70 % of it).
+        assert_eq!(e.position_counts(), 99);
+        // After a stall, at most four periods are run, and the clocks jump.
+        c.run_until(200_000_000, 1_000_000);
+        assert_eq!(c.now_ns(), 200_000_000);
+        let DeviceModel::Encoder(e) = c.slaves()[0].device() else {
+            panic!("an encoder");
+        };
+        assert_eq!(e.position_counts(), 99 + i64::from(MAX_CATCH_UP));
     }
 
     #[test]
