@@ -4,6 +4,7 @@
 //! travel.
 
 pub mod encoder;
+pub mod record;
 pub mod servo;
 pub mod switches;
 
@@ -58,6 +59,14 @@ impl DeviceModel {
     pub fn axis_position(&self) -> Option<i64> {
         match self {
             DeviceModel::Servo(s) => Some(i64::from(s.actual_counts())),
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
+        }
+    }
+
+    /// What a drive recorded of the setpoints it took; `None` for devices without a drive.
+    pub fn record(&self) -> Option<&record::DriveRecord> {
+        match self {
+            DeviceModel::Servo(s) => Some(s.record()),
             DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
         }
     }

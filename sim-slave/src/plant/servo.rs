@@ -12,6 +12,7 @@ use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
 
 use crate::esc::memory::Memory;
+use crate::plant::record::DriveRecord;
 
 /// Most process data bytes per direction the model handles.
 const MAX_PDO_BYTES: usize = 64;
@@ -75,6 +76,7 @@ pub struct ServoDrive {
     touch_probe_status: u16,
     touch_probe_pos1: i32,
     layout: PdoLayout,
+    record: DriveRecord,
 }
 
 impl ServoDrive {
@@ -102,6 +104,7 @@ impl ServoDrive {
             commutation_setting: 0,
             rated_acceleration: 2.0e7,
             layout: PdoLayout::csp_minimal(),
+            record: DriveRecord::default(),
         }
     }
 
@@ -190,7 +193,13 @@ impl ServoDrive {
         ) {
             self.state.fault();
             self.error_code = ERROR_SYNC_WATCHDOG;
+            self.record.fault(ERROR_SYNC_WATCHDOG);
         }
+    }
+
+    /// What the drive recorded of the setpoints it took.
+    pub fn record(&self) -> &DriveRecord {
+        &self.record
     }
 
     /// Last fault's error code (0x603F), 0 when none.
@@ -235,6 +244,9 @@ impl ServoDrive {
         let before = self.position;
         let dt = dt_s.max(0.0);
         if self.state.state() == State::OperationEnabled {
+            if self.mode == CSP {
+                self.record.target(self.target);
+            }
             // A wrong commutation offset costs torque: cos of the electrical angle error.
             let gain = self.torque_efficiency();
             let lag =
@@ -264,6 +276,7 @@ impl ServoDrive {
             }
         } else {
             self.velocity = 0.0;
+            self.record.disabled();
         }
         self.watch_index(before, self.position);
         let mut inp = [0u8; MAX_PDO_BYTES];
