@@ -39,6 +39,20 @@ impl DriveUnderTest {
         }
     }
 
+    /// Every axis of `kernel`, axis `i` on the drive at chain position `i`, with
+    /// `scaling(i)`.
+    pub fn of_kernel(
+        kernel: &gantry_kernel::Kernel,
+        scaling: impl Fn(usize) -> Scaling,
+    ) -> Vec<Self> {
+        kernel
+            .axes()
+            .iter()
+            .enumerate()
+            .map(|(i, a)| Self::new(i, a.config(), scaling(i)))
+            .collect()
+    }
+
     /// Every axis of a gantry configuration, on the drive its `drive` key names.
     pub fn of_config(config: &gantry::config::Config) -> Vec<Self> {
         config
