@@ -19,6 +19,7 @@ use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::ball_screw_5mm;
+use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
 use gantry_tests::lockstep::Lockstep;
 use gantry_tests::servo_chain;
 
@@ -238,4 +239,8 @@ fn lost_frames_and_a_lost_slave_stop_what_they_must_and_recover_on_reset() {
     m.run(600);
     assert_eq!(m.status(h), CommandStatus::Done);
     assert!((m.actual(2) - 30.0).abs() < 0.01);
+    // Lost frames and a cut cable fault drives (0x8700), not their following error; and
+    // no target that reached a drive stepped further than the axis' speed allows.
+    let drives = DriveUnderTest::of_kernel(&m.cycle.kernel, |_| ball_screw_5mm());
+    assert_drive_invariants(&m.net.chain, &drives, 1e-3, TestConditions::default());
 }

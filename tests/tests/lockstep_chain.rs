@@ -24,6 +24,7 @@ use gantry_sim::plant::encoder::{control, status};
 use gantry_sim::plant::switches::SwitchCam;
 use gantry_sim::plant::DeviceModel;
 use gantry_tests::ball_screw_5mm;
+use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
 use gantry_tests::lockstep::Lockstep;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
@@ -409,4 +410,6 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
         "moves done after {done_at} cycles; switch flips (before, at, level): {:?}",
         log.flips
     );
+    let drives = DriveUnderTest::of_kernel(&c.kernel, |_| ball_screw_5mm());
+    assert_drive_invariants(&net.chain, &drives, DT, TestConditions::default());
 }

@@ -10,6 +10,7 @@ use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
+use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
 use gantry_sim::config::SimConfig;
 use thiserror::Error;
@@ -186,10 +187,14 @@ impl EthercatBus {
                 .run(map_pdos(&sd, &layout))
                 .map_err(|e| StartError::Setup(e.to_string()))?;
             let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
-            channels.push(
-                CspChannel::with_layout(scaling, &layout)
-                    .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?,
-            );
+            let mut channel = CspChannel::with_layout(scaling, &layout)
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            // A modulo period that cannot be counted is refused here, by name (the cycle
+            // would fault the axis).
+            channel
+                .set_modulo(a.modulo.and_then(Modulo::new))
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            channels.push(channel);
         }
         let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
         let dc_capable = group
