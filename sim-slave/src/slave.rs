@@ -281,13 +281,13 @@ impl Slave {
                 self.on_sync_manager_write(sm1_was_active);
             }
             let (start, length, active) = self.sync_manager(0);
-            if active && length > 0 && covers(ado, len, start + length - 1) {
+            if active && length > 0 && covers(ado, len, start.wrapping_add(length - 1)) {
                 self.on_mailbox_write(start, length);
             }
         }
         if matches!(served, Served::Read | Served::ReadWritten) {
             let (start, length, active) = self.sync_manager(1);
-            if active && length > 0 && covers(ado, len, start + length - 1) {
+            if active && length > 0 && covers(ado, len, start.wrapping_add(length - 1)) {
                 // The master read the last byte: the mailbox is empty again.
                 let status = self.memory.read_u16(sm_base(1) + 4) & !(u16::from(MAILBOX_FULL) << 8);
                 self.memory.pdi_write(sm_base(1) + 4, &status.to_le_bytes());
