@@ -54,6 +54,26 @@ impl Default for WireTiming {
     }
 }
 
+/// Nanoseconds one byte occupies a 100BASE-TX wire.
+pub const BYTE_NS: u64 = 80;
+/// Bytes of a frame on the wire around what the chain sees: preamble and start delimiter
+/// (8), frame check sequence (4) and the inter-frame gap (12) (IEEE 802.3 §3.1, §4.4).
+pub const FRAME_OVERHEAD_BYTES: u64 = 24;
+/// Shortest Ethernet frame without its check sequence (shorter frames are padded).
+pub const MIN_FRAME_BYTES: u64 = 60;
+
+/// How long a frame of `len` bytes (without check sequence) occupies the wire: the
+/// network's time moves on by as much while it passes.
+pub const fn frame_ns(len: usize) -> u64 {
+    let len = len as u64;
+    let len = if len < MIN_FRAME_BYTES {
+        MIN_FRAME_BYTES
+    } else {
+        len
+    };
+    (len + FRAME_OVERHEAD_BYTES) * BYTE_NS
+}
+
 impl WireTiming {
     /// When a frame sent at `sent` passes slave `i` of `n`.
     pub fn arrival(&self, sent: u64, i: usize, n: usize) -> Arrival {
@@ -220,8 +240,17 @@ impl SlaveChain {
         self.slaves.get_mut(i)
     }
 
-    /// Passes `frame` (a whole Ethernet frame) through every slave in place.
+    /// Passes `frame` (a whole Ethernet frame) through every slave in place. The frame is
+    /// sent at the network's current time; the time then moves on by as long as it
+    /// occupies the wire ([`frame_ns`]), lost or not: a master's next frame cannot start
+    /// earlier, and a device's timers (EEPROM, AL transitions) run while the master polls.
     pub fn process(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
+        let result = self.pass(frame);
+        self.advance_clocks(frame_ns(frame.len()));
+        result
+    }
+
+    fn pass(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
         // Check the whole frame before any slave touches it: a frame that is malformed
         // half-way must not be half processed.
         datagram::validate(Frame::new_checked(&*frame)?.payload())?;
@@ -334,6 +363,14 @@ mod tests {
         c.process(&mut f).unwrap();
         let mut f = frame(Command::Fpwr, 0x1002, 0x0502, &control::READ.to_le_bytes());
         c.process(&mut f).unwrap();
+        // The EEPROM interface is busy (0x0502 bit 15) until the read is done.
+        let mut f = frame(Command::Fprd, 0x1002, 0x0502, &[0; 2]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0[1] & 0x80, 0x80, "busy");
+        c.advance(crate::esc::sii::READ_NS);
+        let mut f = frame(Command::Fprd, 0x1002, 0x0502, &[0; 2]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0[1] & 0x80, 0, "done");
         let mut f = frame(Command::Fprd, 0x1002, 0x0508, &[0; 8]);
         c.process(&mut f).unwrap();
         let (data, wkc) = reply(&f);
@@ -405,6 +442,9 @@ mod tests {
         c.process(&mut f).unwrap();
         assert_eq!(reply(&f).0, vec![0x0C, 0x01], "OR of the feature bits");
         assert_eq!(c.slaves()[1].memory().read_u16(FEATURES) & 0x010C, 0);
+        // Each frame moves the network's time on by its time on the wire.
+        assert_eq!(c.now_ns(), 5_000 + frame_ns(f.len()));
+        let sent = c.now_ns();
         let mut f = frame(Command::Bwr, 0, DC_RECEIVE_TIME_PORT0, &[0; 4]);
         c.process(&mut f).unwrap();
         assert_eq!(reply(&f).1, 2, "the slave without DC does not answer");
@@ -414,7 +454,7 @@ mod tests {
         assert_eq!(wkc, 1);
         let p0 = u32::from_le_bytes(data[0..4].try_into().unwrap());
         let p1 = u32::from_le_bytes(data[4..8].try_into().unwrap());
-        assert_eq!(p0, 1_000_000 + 5_100);
+        assert_eq!(p0, 1_000_000 + sent as u32 + 100);
         // Two hops out (link + processing), the turn in the last slave, one forwarding and
         // two links back.
         assert_eq!(p1 - p0, 2 * 280 + 180 + 140 + 2 * 100);
@@ -539,15 +579,18 @@ mod tests {
             let mut f = frame_of(&all);
             let mut by_slave = f.clone();
             let mut slaves = c.slaves().to_vec();
+            let sent = c.now_ns();
             c.process(&mut f).unwrap();
             let payload = &mut by_slave[16..];
             for (i, s) in slaves.iter_mut().enumerate() {
-                s.frame_arrives(c.timing().arrival(c.now_ns(), i, 3));
+                s.frame_arrives(c.timing().arrival(sent, i, 3));
                 datagram::for_each_mut(payload, |mut d| {
                     s.serve(&mut d);
                 })
                 .unwrap();
+                s.advance_to(sent + frame_ns(f.len()));
             }
+            proptest::prop_assert_eq!(c.now_ns(), sent + frame_ns(f.len()));
             Frame::new_unchecked(&mut by_slave[..]).mark_forwarded();
             proptest::prop_assert_eq!(f, by_slave);
             for (a, b) in c.slaves().iter().zip(&slaves) {

@@ -50,12 +50,16 @@ pub struct Slave {
     answered: bool,
     /// The SDO server's segmented transfer, if one runs.
     sdo: coe::SdoServer,
+    /// Whether the ESC loaded its EEPROM's configuration area (DL status bit 0).
+    eeprom_loaded: bool,
+    /// The ports wired (DL status), as the chain last set them.
+    wired: [bool; 4],
 }
 
 impl Slave {
     /// A slave in Init with its EEPROM generated from `description`.
     pub fn new(description: DeviceDescription) -> Self {
-        let sii = Sii::new(description.image());
+        let mut sii = Sii::new(description.image());
         let (mut memory, dc) = if description.dc {
             (Memory::new(), Some(DcUnit::new(0.0, 0)))
         } else {
@@ -64,7 +68,7 @@ impl Slave {
             memory.pdi_write(FEATURES, &features.to_le_bytes());
             (memory, None)
         };
-        sii.reset(&mut memory);
+        let eeprom_loaded = sii.reset(&mut memory);
         Self {
             memory,
             sii,
@@ -76,7 +80,25 @@ impl Slave {
             arrival: Arrival::default(),
             answered: false,
             sdo: coe::SdoServer::default(),
+            eeprom_loaded,
+            wired: [false; 4],
         }
+    }
+
+    /// The same slave with word `addr` of its EEPROM programmed to `value` (the
+    /// configuration area's checksum follows, as a programming tool writes it), then
+    /// power-cycled so the ESC loads it: e.g. the station alias (word 4) or PDI control
+    /// (word 0).
+    pub fn with_eeprom_word(mut self, addr: usize, value: u16) -> Self {
+        self.sii.program(addr, value);
+        self.eeprom_loaded = self.sii.reset(&mut self.memory);
+        self.set_ports(self.wired);
+        self
+    }
+
+    /// The EEPROM interface.
+    pub fn sii(&self) -> &Sii {
+        &self.sii
     }
 
     /// The same slave with its DC clock running `drift_ppm` fast (negative: slow) and
@@ -115,10 +137,15 @@ impl Slave {
         self.arrival = arrival;
     }
 
-    /// The chain's time is now `t` (ns): the cyclic unit generates the SYNC0 pulses due.
+    /// The chain's time is now `t` (ns): the cyclic unit generates the SYNC0 pulses due,
+    /// an EEPROM access due completes.
     pub fn advance_to(&mut self, t: u64) {
         if let Some(dc) = self.dc.as_mut() {
             dc.advance(&mut self.memory, t);
+        }
+        if let Some(loaded) = self.sii.advance(&mut self.memory, t) {
+            self.eeprom_loaded = loaded;
+            self.set_ports(self.wired);
         }
     }
 
@@ -198,9 +225,11 @@ impl Slave {
     }
 
     /// Sets DL status (0x0110) for the ports that are wired: link and communication on a
-    /// wired port, loop closed on an open one; PDI operational (the EEPROM was loaded).
+    /// wired port, loop closed on an open one; bit 0, PDI operational, when the EEPROM's
+    /// configuration area was loaded.
     pub fn set_ports(&mut self, wired: [bool; 4]) {
-        let mut v: u16 = 1; // PDI operational
+        self.wired = wired;
+        let mut v: u16 = u16::from(self.eeprom_loaded);
         for (port, &on) in wired.iter().enumerate() {
             if on {
                 v |= 1 << (4 + port); // physical link
@@ -275,19 +304,20 @@ impl Slave {
                 self.on_al_control();
             }
             if sii::touches_control(ado, len) {
-                self.sii.on_control_write(&mut self.memory);
+                self.sii
+                    .on_control_write(&mut self.memory, self.arrival.port0);
             }
             if touched(SM0, 8 * 8) {
                 self.on_sync_manager_write(sm1_was_active);
             }
             let (start, length, active) = self.sync_manager(0);
-            if active && length > 0 && covers(ado, len, start + length - 1) {
+            if active && length > 0 && covers(ado, len, start.wrapping_add(length - 1)) {
                 self.on_mailbox_write(start, length);
             }
         }
         if matches!(served, Served::Read | Served::ReadWritten) {
             let (start, length, active) = self.sync_manager(1);
-            if active && length > 0 && covers(ado, len, start + length - 1) {
+            if active && length > 0 && covers(ado, len, start.wrapping_add(length - 1)) {
                 // The master read the last byte: the mailbox is empty again.
                 let status = self.memory.read_u16(sm_base(1) + 4) & !(u16::from(MAILBOX_FULL) << 8);
                 self.memory.pdi_write(sm_base(1) + 4, &status.to_le_bytes());

@@ -9,7 +9,7 @@ use std::cell::RefCell;
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -47,7 +47,11 @@ fn setup() -> Bench {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let chain = servo_chain(DRIVES as u32);
     let mut net = Lockstep::new(tx, rx, chain);
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<DRIVES, 512>(ethercat_now))
         .unwrap();

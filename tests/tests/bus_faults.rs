@@ -43,7 +43,7 @@ impl Machine {
         let mut net = Lockstep::new(tx, rx, chain);
         let timeouts = Timeouts {
             pdu: Duration::from_millis(20),
-            ..Timeouts::default()
+            ..gantry_tests::lockstep_timeouts()
         };
         let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
         let group = net

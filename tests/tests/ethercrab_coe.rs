@@ -4,7 +4,7 @@
 //! errors.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry_sim::catalog;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::coe::od::ObjectDictionary;
@@ -31,7 +31,11 @@ fn ethercrab_maps_pdos_and_uses_sdos_through_the_simulated_mailbox() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
     let chain = bus.chain.clone();
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
         let sd = group.subdevice(&maindevice, 0)?;

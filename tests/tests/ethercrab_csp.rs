@@ -5,7 +5,7 @@
 //! drive's time by one cycle per exchange.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
 use gantry_kernel::mechanics::{Scaling, ScalingConfig};
 use gantry_kernel::profile::{plan_position, KinematicState, Limits, RampType};
@@ -44,7 +44,11 @@ fn ethercrab_enables_the_simulated_servo_and_moves_it_in_csp() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
     let chain = bus.chain.clone();
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
         let group = group.into_op(&maindevice).await?;

@@ -3,7 +3,7 @@
 //! its outputs into the slave's memory and the slave's inputs into its image.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::sii::DeviceDescription;
@@ -27,7 +27,11 @@ fn outputs_reach_the_slave_and_inputs_reach_the_master() {
     let chain = SlaveChain::new(vec![Slave::new(io_device())]);
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let chain = bus.chain.clone();
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;

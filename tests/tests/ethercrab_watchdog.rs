@@ -6,7 +6,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry_drives::cia402::State;
@@ -51,7 +51,11 @@ fn silent_master_trips_the_watchdog_and_the_master_recovers() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let chain = SlaveChain::new(vec![catalog::servo(ServoOptions::default())]);
     let mut net = Lockstep::new(tx, rx, chain);
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<2, 64>(ethercat_now))
         .unwrap();

@@ -10,7 +10,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry_drives::cia402::State;
@@ -162,7 +162,11 @@ struct SwitchLog {
 fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let mut net = Lockstep::new(tx, rx, chain());
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<16, 256>(ethercat_now))
         .unwrap();

@@ -70,7 +70,7 @@ fn garbled_replies_never_panic_the_master_and_the_exchange_recovers() {
         // Lost replies cost one timeout each; long enough that a descheduled test thread
         // (a loaded CI machine) does not lose a clean one.
         pdu: Duration::from_millis(10),
-        ..Timeouts::default()
+        ..gantry_tests::lockstep_timeouts()
     };
     let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
     let group = net

@@ -6,7 +6,7 @@
 //! abort, by object.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::mapping::map_pdos;
@@ -26,7 +26,11 @@ static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 fn the_master_maps_pdos_in_preop_and_the_drives_exchange_them() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let mut net = Lockstep::new(tx, rx, servo_chain(2));
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<4, 128>(ethercat_now))
         .unwrap();

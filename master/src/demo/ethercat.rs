@@ -93,7 +93,14 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     };
     let bus = EmbeddedBus::start_with_capture(tx, rx, chain, capture);
     let chain = bus.chain.clone();
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    // The chain runs on lockstep time here: it moves only by each frame's time on the
+    // wire, so a busy EEPROM (250 µs) takes dozens of polls, each a round trip between
+    // threads. ethercrab's EEPROM timeout is host time (10 ms): give it a loaded host's slack.
+    let timeouts = Timeouts {
+        eeprom: std::time::Duration::from_millis(500),
+        ..Timeouts::default()
+    };
+    let maindevice = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
     let dt = args.cycle_s;
     let kernel = Kernel::new(dt, names.iter().map(|n| axis(n)).collect())?;
     // The process data every drive is mapped to in PreOp (by SDO, from this layout).
