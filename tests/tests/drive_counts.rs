@@ -216,7 +216,13 @@ impl Rig {
     }
 
     fn assert_invariants(&self) {
-        assert_drive_invariants(&self.net.chain, &self.drives, DT, TestConditions::default());
+        // Lockstep: exactly one exchange per drive cycle, as locked to the drives as a
+        // master can be, so no setpoint may be missed or doubled.
+        let locked = TestConditions {
+            phase_locked: true,
+            ..TestConditions::default()
+        };
+        assert_drive_invariants(&self.net.chain, &self.drives, DT, locked);
     }
 
     /// The kernel's set position of axis `i` as `turns · period + position` (units).
@@ -350,9 +356,28 @@ fn set_position_and_enable_with_the_actual_outside_one_period() {
             scaling: scaling(10_000, 7, 3, 360.0),
             start_counts: -3_000_001,
         },
+        // Set to 350° while still disabled, then enabled.
+        AxisSpec {
+            config: axis("e", Some(360.0), 720.0),
+            scaling: ScalingConfig {
+                invert: true,
+                ..scaling(1 << 17, 10, 1, 360.0)
+            },
+            start_counts: 1_999_999_999,
+        },
     ];
     let mut rig = Rig::new(&STORAGE_SET_POSITION, specs);
-    let before: Vec<f64> = (0..2).map(|i| rig.counts(i)).collect();
+    rig.settle(3);
+    let h = rig.command(
+        2,
+        Command::SetPosition {
+            position: 350.0,
+            relative: false,
+        },
+    );
+    assert_eq!(rig.cycle.kernel.command_status(h), CommandStatus::Done);
+    rig.settle(3);
+    let before: Vec<f64> = (0..3).map(|i| rig.counts(i)).collect();
     rig.enable_all();
     rig.settle(50);
     for (i, b) in before.iter().enumerate() {
@@ -374,8 +399,8 @@ fn set_position_and_enable_with_the_actual_outside_one_period() {
         assert_eq!(rig.cycle.kernel.command_status(h), CommandStatus::Done);
     }
     rig.settle(5);
-    let start: Vec<f64> = (0..2).map(|i| rig.counts(i)).collect();
-    let moves: Vec<HandleId> = (0..2)
+    let start: Vec<f64> = (0..3).map(|i| rig.counts(i)).collect();
+    let moves: Vec<HandleId> = (0..3)
         .map(|i| {
             rig.command(
                 i,
@@ -383,8 +408,8 @@ fn set_position_and_enable_with_the_actual_outside_one_period() {
             )
         })
         .collect();
-    let mut last_actual = [350.0f64; 2];
-    let mut worst = [0.0f64; 2];
+    let mut last_actual = [350.0f64; 3];
+    let mut worst = [0.0f64; 3];
     rig.run_until(5000, "move 720°", |r| {
         for (i, (last, w)) in last_actual.iter_mut().zip(&mut worst).enumerate() {
             let a = r.cycle.kernel.axis_status(i).unwrap().actual_position;
@@ -397,7 +422,7 @@ fn set_position_and_enable_with_the_actual_outside_one_period() {
             .all(|h| r.cycle.kernel.command_status(*h) == CommandStatus::Done)
     });
     rig.settle(300);
-    for i in 0..2 {
+    for i in 0..3 {
         let axis = &rig.drives[i].axis;
         assert!(
             worst[i] <= 360.0 * DT * 1.5,

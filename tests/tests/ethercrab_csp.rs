@@ -143,7 +143,11 @@ fn ethercrab_enables_the_simulated_servo_and_moves_it_in_csp() {
         &chain.lock().unwrap(),
         &drives,
         DT,
-        TestConditions::default(),
+        // One exchange, then one drive cycle: no setpoint may be missed or doubled.
+        TestConditions {
+            phase_locked: true,
+            ..TestConditions::default()
+        },
     );
     bus.stop();
     let (enabled_after, final_actual, final_state, max_following, target) =

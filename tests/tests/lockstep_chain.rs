@@ -415,5 +415,10 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
         log.flips
     );
     let drives = DriveUnderTest::of_kernel(&c.kernel, |_| ball_screw_5mm());
-    assert_drive_invariants(&net.chain, &drives, DT, TestConditions::default());
+    // Lockstep: one exchange per drive cycle, so no setpoint may be missed or doubled.
+    let locked = TestConditions {
+        phase_locked: true,
+        ..TestConditions::default()
+    };
+    assert_drive_invariants(&net.chain, &drives, DT, locked);
 }

@@ -171,7 +171,12 @@ pub struct CspChannel {
     /// Whole periods ⇄ counts on a modulo axis.
     modulo: Option<ModuloCounts>,
     last_cw: Controlword,
-    /// The drive's 32-bit position actual value, extended.
+    /// The drive's 32-bit position actual value, extended. Fresh with the channel (the bus
+    /// brought up), and deliberately not reset when a lost slave comes back: a drive
+    /// that kept its power kept counting, and extending by the difference to the last
+    /// value seen is right for any motion under 2³¹ counts while it was unseen, where
+    /// starting over would move a linear axis past ±2³¹ by 2³² counts. A modulo axis is
+    /// aligned again when it is next enabled either way.
     extender: CountExtender,
     /// The extended position actual value of the last inputs (counts).
     actual: i64,
