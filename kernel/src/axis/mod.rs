@@ -282,9 +282,12 @@ pub const DRIVE_RESET_TICKS: u64 = 1000;
 /// Set values of one axis for the drive layer.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AxisSetpoint {
-    /// Set position (units; wrapped into the period on modulo axes).
+    /// Set position in the drive's frame (units: the axis' set position minus its
+    /// SetPosition offset; wrapped into the period on modulo axes).
     pub position: f64,
-    /// Whole modulo periods (so the drive layer can count exactly; 0 on normal axes).
+    /// Whole modulo periods of that drive-frame position, so the drive layer can count
+    /// `turns · period + position` exactly (0 on normal axes). They can differ by one from
+    /// the axis' own turns ([`AxisStatus::turns`]) when an offset is set.
     pub turns: i64,
     /// Set velocity (units/s), for velocity feed-forward.
     pub velocity: f64,
