@@ -139,6 +139,15 @@ impl Slave {
         &self.firmware
     }
 
+    /// What the application reads of buffered output SyncManager `n`: the last buffer the
+    /// master completed (`None` when `n` is not an enabled buffered output SyncManager).
+    pub fn application_outputs(&self, n: u16) -> Option<&[u8]> {
+        self.outputs
+            .iter()
+            .find(|b| b.sm == n)
+            .map(|b| b.data.as_slice())
+    }
+
     /// The same slave with word `addr` of its EEPROM programmed to `value` (the
     /// configuration area's checksum follows, as a programming tool writes it), then
     /// power-cycled so the ESC loads it: e.g. the station alias (word 4) or PDI control
@@ -397,6 +406,7 @@ impl Slave {
             dc.before_access(&mut self.memory, ado, len, &self.arrival);
         }
         let read_mailbox_was_active = self.mailbox(Kind::MailboxRead).is_some();
+        let enabled_before = self.enabled_mask();
         // Mailbox mode (ESC datasheet section I, 8.2): an empty read mailbox cannot be
         // read, a full write mailbox cannot be written — the access fails and the working
         // counter stays. Keep what the frame carried so that a refused access leaves it
@@ -436,7 +446,7 @@ impl Slave {
                     .on_control_write(&mut self.memory, self.arrival.port0);
             }
             if touched(SM0, usize::from(sm::COUNT * sm::SIZE)) {
-                self.on_sync_manager_write(read_mailbox_was_active);
+                self.on_sync_manager_write(read_mailbox_was_active, enabled_before);
             }
             // Process data written by address lands where it says.
             for n in 0..sm::COUNT {
@@ -473,6 +483,13 @@ impl Slave {
             }
         }
         served
+    }
+
+    /// Bit n set when SyncManager n is enabled.
+    fn enabled_mask(&self) -> u8 {
+        (0..sm::COUNT)
+            .filter(|&n| SyncManager::read_from(&self.memory, n).enabled())
+            .fold(0, |m, n| m | (1 << n))
     }
 
     /// The first enabled SyncManager of this kind: (number, registers).
@@ -526,9 +543,17 @@ impl Slave {
     /// repeat acknowledge (PDI control bit 1) — how a master recovers an answer whose
     /// frame was lost (section I, 8.6, Figure 26). Enabling the mailbox starts with
     /// request and acknowledge equal.
-    fn on_sync_manager_write(&mut self, read_mailbox_was_active: bool) {
+    fn on_sync_manager_write(&mut self, read_mailbox_was_active: bool, enabled_before: u8) {
         for n in 0..sm::COUNT {
             let s = SyncManager::read_from(&self.memory, n);
+            if s.enabled() && enabled_before & (1 << n) == 0 {
+                // Just enabled: an empty mailbox, or no buffer completed yet.
+                let fresh = match s.kind() {
+                    Kind::BufferedRead | Kind::BufferedWrite => status::NO_BUFFER,
+                    _ => 0,
+                };
+                sm::set_status(&mut self.memory, n, fresh);
+            }
             if !s.enabled() {
                 let reset = match s.kind() {
                     Kind::BufferedRead | Kind::BufferedWrite => status::NO_BUFFER,
@@ -999,5 +1024,88 @@ mod tests {
         });
         assert!(!full(&s));
         assert_eq!(s.byte(sm_base(1) + 7) & REPEAT, REPEAT);
+    }
+
+    /// A slave with no firmware of its own and SyncManager `n` set to `regs`.
+    fn bare_with_sm(n: u16, regs: [u8; 8]) -> Slave {
+        let mut s = Slave::new(catalog::encoder_description(1));
+        assert_eq!(fp(&mut s, Command::Fpwr, sm_base(n), &regs).0, 1);
+        s
+    }
+
+    #[test]
+    fn a_partial_write_does_not_reach_the_application_in_three_buffer_mode() {
+        // SM2: 6 bytes at 0x1100, buffered, master writes, watchdog trigger (0x64).
+        let mut s = bare_with_sm(2, [0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
+        let status = |s: &Slave| s.byte(sm_base(2) + 5);
+        assert_eq!(status(&s), 0x30, "no buffer completed yet");
+        assert_eq!(s.application_outputs(2), Some(&[0u8; 6][..]));
+        // The first half: the application still has the old buffer.
+        assert_eq!(fp(&mut s, Command::Fpwr, 0x1100, &[1, 2, 3]).0, 1);
+        assert_eq!(s.application_outputs(2), Some(&[0u8; 6][..]));
+        assert_eq!(status(&s), 0x30);
+        // The rest, to the last byte: buffer 0 completed, write event (bit 0).
+        assert_eq!(fp(&mut s, Command::Fpwr, 0x1103, &[4, 5, 6]).0, 1);
+        assert_eq!(s.application_outputs(2), Some(&[1u8, 2, 3, 4, 5, 6][..]));
+        assert_eq!(status(&s), 0x01);
+        // The application reads it: the event clears; the next buffer is number 1.
+        s.tick(0.001);
+        assert_eq!(status(&s), 0x00);
+        fp(&mut s, Command::Fpwr, 0x1100, &[9; 6]);
+        assert_eq!(status(&s), 0x11);
+        // The master overwrites the first byte of the next buffer and stops: the
+        // application keeps the completed one, the memory the master sees holds its write.
+        fp(&mut s, Command::Fpwr, 0x1100, &[7]);
+        assert_eq!(s.application_outputs(2), Some(&[9u8; 6][..]));
+        s.tick(0.001);
+        assert_eq!(s.application_outputs(2), Some(&[9u8; 6][..]));
+        assert_eq!(s.memory().raw(0x1100, 2), Some(&[7u8, 9][..]));
+    }
+
+    #[test]
+    fn an_input_syncmanager_shows_the_masters_reads_and_the_applications_buffers() {
+        // SM3: 6 bytes at 0x1400, buffered, master reads (0x20).
+        let mut s = bare_with_sm(3, [0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
+        let status = |s: &Slave| s.byte(sm_base(3) + 5);
+        assert_eq!(status(&s), 0x30);
+        s.tick(0.001);
+        assert_eq!(status(&s), 0x00, "the application wrote buffer 0");
+        assert_eq!(fp(&mut s, Command::Fprd, 0x1400, &[0; 5]).0, 1);
+        assert_eq!(status(&s), 0x00, "not read to the last byte");
+        assert_eq!(fp(&mut s, Command::Fprd, 0x1405, &[0; 1]).0, 1);
+        assert_eq!(status(&s), 0x02, "read event");
+        s.tick(0.001);
+        assert_eq!(
+            status(&s),
+            0x10,
+            "event cleared by the next write, buffer 1"
+        );
+    }
+
+    #[test]
+    fn mailbox_rules_follow_the_control_register_not_the_number() {
+        // A device without a mailbox protocol, SM4 set up as a receive mailbox (0x26):
+        // the first write fills it, nothing empties it, the second is refused.
+        let mut s = bare_with_sm(4, [0x00, 0x12, 64, 0, 0x26, 0, 1, 0]);
+        assert_eq!(fp(&mut s, Command::Fpwr, 0x1200, &[0x11; 64]).0, 1);
+        assert_eq!(s.byte(sm_base(4) + 5) & MAILBOX_FULL, MAILBOX_FULL);
+        assert_eq!(fp(&mut s, Command::Fpwr, 0x1200, &[0x22; 64]).0, 0, "full");
+        assert_eq!(
+            s.memory().raw(0x1200, 1),
+            Some(&[0x11][..]),
+            "not overwritten"
+        );
+        // SM6 as a send mailbox (0x22): empty, so its area cannot be read.
+        fp(
+            &mut s,
+            Command::Fpwr,
+            sm_base(6),
+            &[0x00, 0x13, 64, 0, 0x22, 0, 1, 0],
+        );
+        let (wkc, data) = fp(&mut s, Command::Fprd, 0x1300, &[0xAA; 8]);
+        assert_eq!((wkc, data), (0, vec![0xAA; 8]));
+        // The same SM6 as buffered inputs (0x20) reads fine: the mode decides.
+        fp(&mut s, Command::Fpwr, sm_base(6) + 4, &[0x20]);
+        assert_eq!(fp(&mut s, Command::Fprd, 0x1300, &[0xAA; 8]).0, 1);
     }
 }
