@@ -12,6 +12,7 @@ use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::ball_screw_5mm;
@@ -55,7 +56,11 @@ fn setup() -> Bench {
     let group = net
         .block_on(md.init_single_group::<DRIVES, 512>(ethercat_now))
         .unwrap();
-    let group = net.block_on(group.into_op(&md)).unwrap();
+    let group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     let mut cycle = CspCycle::new(kernel(), vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
     for i in 0..DRIVES {
         cycle

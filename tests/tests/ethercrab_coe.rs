@@ -5,6 +5,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::catalog;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::coe::od::ObjectDictionary;
@@ -45,7 +46,12 @@ fn ethercrab_maps_pdos_and_uses_sdos_through_the_simulated_mailbox() {
         let mode_after: i8 = sd.sdo_read(0x6060, 0).await?;
         let missing = sd.sdo_read::<u32>(0x2000, 0).await.is_err();
         let read_only = sd.sdo_write(0x1000, 0, 0u32).await.is_err();
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let sd = group.subdevice(&maindevice, 0)?;
         let sizes = (sd.inputs_raw().len(), sd.outputs_raw().len());
         Ok::<_, ethercrab::error::Error>((product, mode, mode_after, missing, read_only, sizes))

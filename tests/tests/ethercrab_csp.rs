@@ -6,6 +6,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
 use gantry_kernel::mechanics::{Scaling, ScalingConfig};
 use gantry_kernel::profile::{plan_position, KinematicState, Limits, RampType};
@@ -51,7 +52,12 @@ fn ethercrab_enables_the_simulated_servo_and_moves_it_in_csp() {
     );
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let sd = group.subdevice(&maindevice, 0)?;
         let mut last_cw = Controlword(0);
         let mut enabled_after = None;

@@ -4,6 +4,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::sii::DeviceDescription;
@@ -35,7 +36,12 @@ fn outputs_reach_the_slave_and_inputs_reach_the_master() {
     let chain = bus.chain.clone();
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let sd = group.subdevice(&maindevice, 0)?;
         let (in_len, out_len) = (sd.inputs_raw().len(), sd.outputs_raw().len());
         sd.io_raw_mut()

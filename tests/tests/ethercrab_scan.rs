@@ -4,6 +4,7 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::slave::Slave;
@@ -59,7 +60,12 @@ fn ethercrab_scans_the_simulated_chain() {
                     .unwrap_or_default(),
             ));
         }
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let mut all_op = true;
         for sd in group.iter(&maindevice) {
             let (state, _code) = sd.status().await?;

@@ -13,6 +13,7 @@ use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_drives::cia402::State;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -170,7 +171,11 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
     let group = net
         .block_on(md.init_single_group::<16, 256>(ethercat_now))
         .unwrap();
-    let group: Group = net.block_on(group.into_op(&md)).unwrap();
+    let group: Group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     assert_eq!(group.len(), 10);
     for i in 0..10 {
         let sd = group.subdevice(&md, i).unwrap();

@@ -11,6 +11,7 @@ use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::raw::RawBus;
+use gantry::ethercat::transition;
 use gantry::runtime::clock::{now_ns, CycleClock};
 use gantry::runtime::histogram::{Histogram, Summary};
 use gantry_kernel::axis::command::{
@@ -106,10 +107,12 @@ fn run_master(pair: &VethPair) -> Result<Report, String> {
         if group.len() != DRIVES {
             return Err(format!("found {} slaves, expected {DRIVES}", group.len()));
         }
-        let group = group
-            .into_op(&md)
-            .await
-            .map_err(|e| format!("to OP: {e}"))?;
+        let group = async {
+            let group = group.into_safe_op(&md).await?;
+            transition::into_op(group, &md, transition::OP_TIMEOUT).await
+        }
+        .await
+        .map_err(|e| format!("to OP: {e}"))?;
         let kernel =
             Kernel::new(1e-3, (0..DRIVES).map(axis).collect()).map_err(|e| e.to_string())?;
         let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); DRIVES]);

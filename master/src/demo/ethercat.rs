@@ -7,6 +7,7 @@
 use std::io::Write;
 use std::time::Duration;
 
+use crate::ethercat::transition;
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
@@ -142,10 +143,12 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             layout.output_bytes(),
             layout.input_bytes()
         );
-        let group = group
-            .into_op(&maindevice)
-            .await
-            .map_err(|e| DemoError::Bus(format!("to OP: {e}")))?;
+        let group = async {
+            let group = group.into_safe_op(&maindevice).await?;
+            transition::into_op(group, &maindevice, transition::OP_TIMEOUT).await
+        }
+        .await
+        .map_err(|e| DemoError::Bus(format!("to OP: {e}")))?;
         let _ = writeln!(out, ">> all slaves in OP; enabling drives (CiA-402)");
         for (i, name) in names.iter().enumerate() {
             cycle

@@ -5,6 +5,7 @@
 use std::io::Write;
 use std::time::Duration;
 
+use super::transition;
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
 use ethercrab::{
@@ -222,7 +223,12 @@ impl EthercatBus {
             let group = runner
                 .run(group.configure_dc_sync(&md, dc))
                 .map_err(bus_error("distributed clocks"))?;
-            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = runner
+                .run(async {
+                    let group = group.into_safe_op(&md).await?;
+                    transition::into_op(group, &md, transition::OP_TIMEOUT).await
+                })
+                .map_err(bus_error("to OP"))?;
             let _ = writeln!(
                 out,
                 "distributed clocks: SYNC0 every {} µs",
@@ -230,7 +236,12 @@ impl EthercatBus {
             );
             Groups::Dc(group)
         } else {
-            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = runner
+                .run(async {
+                    let group = group.into_safe_op(&md).await?;
+                    transition::into_op(group, &md, transition::OP_TIMEOUT).await
+                })
+                .map_err(bus_error("to OP"))?;
             if config.bus.dc {
                 let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
             }

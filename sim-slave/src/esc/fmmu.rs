@@ -61,6 +61,34 @@ impl Fmmu {
     }
 }
 
+/// Whether a logical write of `[addr, addr + len)` reaches physical byte `phys` through an
+/// active write FMMU (how a SyncManager learns that an LWR/LRW completed its buffer).
+pub fn writes_byte(mem: &Memory, addr: u32, len: usize, phys: u16) -> bool {
+    (0..COUNT).any(|n| {
+        let f = Fmmu::read_from(mem, n);
+        f.active
+            && f.write
+            && f.overlap(addr, len).is_some_and(|(_, start, count)| {
+                u32::from(start) <= u32::from(phys)
+                    && u32::from(phys) < u32::from(start) + count as u32
+            })
+    })
+}
+
+/// Whether a logical read of `[addr, addr + len)` reaches physical byte `phys` through an
+/// active read FMMU (how a SyncManager learns that an LRD/LRW completed reading a buffer).
+pub fn reads_byte(mem: &Memory, addr: u32, len: usize, phys: u16) -> bool {
+    (0..COUNT).any(|n| {
+        let f = Fmmu::read_from(mem, n);
+        f.active
+            && f.read
+            && f.overlap(addr, len).is_some_and(|(_, start, count)| {
+                u32::from(start) <= u32::from(phys)
+                    && u32::from(phys) < u32::from(start) + count as u32
+            })
+    })
+}
+
 /// Serves a logical datagram (LRD/LWR/LRW) through the active FMMUs.
 pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
     let cmd = d.command();
