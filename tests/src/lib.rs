@@ -4,6 +4,7 @@
 pub mod lockstep;
 pub mod netns;
 pub mod seccomp;
+pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 

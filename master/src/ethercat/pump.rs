@@ -89,6 +89,9 @@ impl Link {
     }
 }
 
+/// Name of the pump thread.
+pub const PUMP_THREAD: &str = "ethercat-pump";
+
 /// Largest frame we receive (jumbo frames included).
 const RECV_BYTES: usize = 9100;
 
@@ -124,7 +127,7 @@ impl FramePump {
         let replies = Arc::new(AtomicU64::new(0));
         let (stop_io, bell, replied) = (stop.clone(), doorbell.clone(), replies.clone());
         let thread = std::thread::Builder::new()
-            .name("ethercat-pump".into())
+            .name(PUMP_THREAD.into())
             .spawn(move || {
                 let waker = Waker::from(bell.clone());
                 let started = Instant::now();
