@@ -5,6 +5,7 @@ pub mod invariant;
 pub mod lockstep;
 pub mod netns;
 pub mod seccomp;
+pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 
