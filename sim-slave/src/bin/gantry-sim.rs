@@ -4,13 +4,19 @@
 //! ```text
 //! gantry-sim --interface veth-sim --config sim.toml [--seconds 10] [--priority 80]
 //! ```
+//!
+//! On SIGTERM or SIGINT (or after `--seconds`) it prints a summary and exits: frames
+//! served and dropped, and the largest gaps the drives saw — between frames, and per
+//! slave between writes of its process data (its watchdog and setpoints depend on them).
 
+use std::io::Write;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::Parser;
 use gantry_sim::config::SimConfig;
-use gantry_sim::realtime::WallClock;
+use gantry_sim::realtime::{Gaps, WallClock};
 use gantry_sim::transport::raw_socket::RawSocket;
 
 /// The simulated EtherCAT network on a network interface.
@@ -42,10 +48,29 @@ fn main() -> ExitCode {
     }
 }
 
+/// Set by SIGTERM/SIGINT: finish the loop and print the summary.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+/// SIGTERM and SIGINT end the run with its summary (the wait for a frame is cut short:
+/// `ppoll` returns EINTR, which the socket reports as no frame).
+fn catch_signals() {
+    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGTERM, handler);
+        libc::signal(libc::SIGINT, handler);
+    }
+}
+
 fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let config = SimConfig::load(&args.config)?;
     let mut chain = config.chain()?;
     let socket = RawSocket::open(&args.interface)?;
+    catch_signals();
     if let Some(priority) = args.priority {
         set_fifo(priority)?;
     }
@@ -64,8 +89,9 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let clock = WallClock::start(&chain, period);
     let mut buf = vec![0u8; 9100];
     let (mut served, mut dropped) = (0u64, 0u64);
+    let mut gaps = Gaps::new(chain.slaves().len());
     loop {
-        if end.is_some_and(|end| Instant::now() >= end) {
+        if STOP.load(Ordering::Relaxed) || end.is_some_and(|end| Instant::now() >= end) {
             break;
         }
         let wait = clock.until_next_period(&chain);
@@ -76,6 +102,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 Ok(()) => {
                     socket.send(frame)?;
                     served += 1;
+                    gaps.frame(Instant::now(), &chain);
                 }
                 // A real network drops what it cannot parse; so do we, and count it.
                 Err(_) => dropped += 1,
@@ -84,7 +111,11 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         // After a stall the applications catch up a few periods, not all of it.
         clock.catch_up(&mut chain);
     }
-    println!("gantry-sim: served {served} frames, dropped {dropped} malformed");
+    // Whoever started us may have stopped reading: a summary nobody reads is no error.
+    let _ = writeln!(
+        std::io::stdout(),
+        "gantry-sim: served {served} frames, dropped {dropped} malformed; {gaps}"
+    );
     Ok(())
 }
 
