@@ -3,7 +3,9 @@
 
 pub mod lockstep;
 pub mod netns;
+pub mod rig;
 pub mod seccomp;
+pub mod slave_loss;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 
