@@ -8,6 +8,7 @@
 
 use thiserror::Error;
 
+use crate::esc::command::Served;
 use crate::esc::datagram::{self, DatagramError};
 use crate::esc::dc::Arrival;
 use crate::esc::frame::{Frame, FrameError};
@@ -109,6 +110,8 @@ pub struct SlaveChain {
     /// The network's time (ns).
     now_ns: u64,
     timing: WireTiming,
+    /// Per slave: logical datagrams that wrote its process data.
+    process_data_writes: Vec<u64>,
 }
 
 impl SlaveChain {
@@ -124,6 +127,7 @@ impl SlaveChain {
             faults: Faults::default(),
             now_ns: 0,
             timing: WireTiming::default(),
+            process_data_writes: vec![0; n],
         }
     }
 
@@ -141,6 +145,12 @@ impl SlaveChain {
         for (i, s) in self.slaves.iter_mut().enumerate() {
             s.set_ports([i < reachable, i + 1 < reachable, false, false]);
         }
+    }
+
+    /// Slave `k` stops exchanging process data (`None`: it resumes): it passes logical
+    /// datagrams on without serving or counting them, see [`Faults::no_process_data`].
+    pub fn stop_process_data(&mut self, k: Option<usize>) {
+        self.faults.no_process_data = k;
     }
 
     /// The faults in force.
@@ -176,6 +186,12 @@ impl SlaveChain {
         for s in &mut self.slaves {
             s.advance_to(self.now_ns);
         }
+    }
+
+    /// Per slave, how many logical datagrams (LWR, LRW) wrote its process data: what restarts its process-data watchdog. A real-time host compares
+    /// these between frames to see the gaps each drive saw.
+    pub fn process_data_writes(&self) -> &[u64] {
+        &self.process_data_writes
     }
 
     /// The slaves.
@@ -273,9 +289,19 @@ impl SlaveChain {
         // slave would (and is what the wire does: a long frame's first datagram reaches
         // the next slave before its last has left this one); each datagram is decoded
         // once, not once per slave.
+        let (faults, writes) = (self.faults, &mut self.process_data_writes);
         datagram::for_each_mut(f.payload_mut(), |mut d| {
-            for slave in slaves.iter_mut() {
-                slave.serve(&mut d);
+            let logical = d.command().is_logical();
+            for (i, slave) in slaves.iter_mut().enumerate() {
+                if logical && !faults.exchanges_process_data(i) {
+                    continue;
+                }
+                let served = slave.serve(&mut d);
+                if logical && matches!(served, Served::Written | Served::ReadWritten) {
+                    if let Some(n) = writes.get_mut(i) {
+                        *n += 1;
+                    }
+                }
             }
         })?;
         if reachable > 0 {

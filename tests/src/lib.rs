@@ -4,7 +4,9 @@
 pub mod invariant;
 pub mod lockstep;
 pub mod netns;
+pub mod rig;
 pub mod seccomp;
+pub mod slave_loss;
 pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;

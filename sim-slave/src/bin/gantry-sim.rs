@@ -6,12 +6,15 @@
 //!            [--record records.json]
 //! ```
 //!
-//! With `--record FILE` it stops on SIGTERM or SIGINT (within one period) as well as after
-//! `--seconds`, and writes what each drive recorded of the setpoints it took
+//! On SIGTERM or SIGINT (within one period) or after `--seconds` it prints a summary and
+//! exits: frames served and dropped, and the largest gaps the drives saw — between frames,
+//! and per slave between writes of its process data (its watchdog and setpoints depend on
+//! them). With `--record FILE` it also writes what each drive recorded of the setpoints it took
 //! (`gantry_sim::plant::record::DriveRecord`) to FILE as a JSON array, one entry per chain
 //! position, `null` for devices that are no drive: the test that started it judges the
 //! master by it (`gantry_tests::invariant::assert_record_invariants`).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -21,7 +24,7 @@ use clap::Parser;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::config::SimConfig;
 use gantry_sim::plant::record::DriveRecord;
-use gantry_sim::realtime::WallClock;
+use gantry_sim::realtime::{Gaps, WallClock};
 use gantry_sim::transport::raw_socket::RawSocket;
 
 /// The simulated EtherCAT network on a network interface.
@@ -40,12 +43,12 @@ struct Args {
     /// Run under SCHED_FIFO at this priority (1–99; needs CAP_SYS_NICE).
     #[arg(long)]
     priority: Option<i32>,
-    /// Stop on SIGTERM/SIGINT and write the drives' records here (JSON) on exit.
+    /// Write the drives' records here (JSON) on exit.
     #[arg(long)]
     record: Option<PathBuf>,
 }
 
-/// Set by SIGTERM/SIGINT when `--record` is given: the loop ends and the records are
+/// Set by SIGTERM/SIGINT: the loop ends, the summary is printed and the records are
 /// written.
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -113,9 +116,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     if let Some(priority) = args.priority {
         set_fifo(priority)?;
     }
-    if args.record.is_some() {
-        catch_stop_signals()?;
-    }
+    catch_stop_signals()?;
     println!(
         "gantry-sim: {} slaves on {}, applications every {} µs",
         chain.slaves().len(),
@@ -131,6 +132,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let clock = WallClock::start(&chain, period);
     let mut buf = vec![0u8; 9100];
     let (mut served, mut dropped) = (0u64, 0u64);
+    let mut gaps = Gaps::new(chain.slaves().len());
     let mut serve = || -> std::io::Result<()> {
         loop {
             if end.is_some_and(|end| Instant::now() >= end) || STOP.load(Ordering::SeqCst) {
@@ -144,6 +146,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                     Ok(()) => {
                         socket.send(frame)?;
                         served += 1;
+                        gaps.frame(Instant::now(), &chain);
                     }
                     // A real network drops what it cannot parse; so do we, and count it.
                     Err(_) => dropped += 1,
@@ -154,7 +157,11 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         }
     };
     let served_result = serve();
-    println!("gantry-sim: served {served} frames, dropped {dropped} malformed");
+    // Whoever started us may have stopped reading: a summary nobody reads is no error.
+    let _ = writeln!(
+        std::io::stdout(),
+        "gantry-sim: served {served} frames, dropped {dropped} malformed; {gaps}"
+    );
     // The records are written however the loop ended: a test wants them most when the
     // network failed.
     if let Some(path) = &args.record {
