@@ -14,6 +14,7 @@ use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{
     Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode, PowerCommand,
 };
@@ -113,7 +114,13 @@ impl Rig {
         let group = net
             .block_on(md.init_single_group::<16, 256>(ethercat_now))
             .unwrap();
-        let group: Group = net.block_on(group.into_op(&md)).unwrap();
+        // Drives reach Op only with valid outputs: the process data runs meanwhile.
+        let group: Group = net
+            .block_on(async {
+                transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT)
+                    .await
+            })
+            .unwrap();
         let scalings: Vec<Scaling> = axes
             .iter()
             .map(|a| Scaling::new(a.scaling).unwrap())
