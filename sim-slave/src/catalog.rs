@@ -5,7 +5,7 @@
 use crate::coe::od::ObjectDictionary;
 use crate::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
 use crate::plant::encoder::{self, EncoderModule};
-use crate::plant::servo::ServoDrive;
+use crate::plant::servo::{ServoDrive, ServoParams};
 use crate::plant::switches::{self, CamError, SwitchCam, SwitchesModule};
 use crate::plant::DeviceModel;
 use crate::slave::Slave;
@@ -49,27 +49,14 @@ const FMMU_INPUTS: u8 = 2;
 const MAILBOX_COE: u16 = 0x0004;
 
 /// How a simulated servo is set up.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ServoOptions {
     /// Serial number (object 0x1018:4 and the EEPROM).
     pub serial: u32,
     /// Absolute encoder value at power-up (counts).
     pub start_counts: i32,
-    /// Position loop bandwidth (Hz).
-    pub bandwidth_hz: f64,
-    /// The motor's hidden commutation offset (counts), for commissioning to find.
-    pub commutation_offset: i32,
-}
-
-impl Default for ServoOptions {
-    fn default() -> Self {
-        Self {
-            commutation_offset: 0,
-            serial: 1,
-            start_counts: 0,
-            bandwidth_hz: 200.0,
-        }
-    }
+    /// The motor, load, tuning and object power-up values (default: a 400 W servo).
+    pub params: ServoParams,
 }
 
 /// The servo's EEPROM: CoE mailbox on SM0/SM1, process data on SM2/SM3 (sized from the
@@ -106,9 +93,8 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
 
 /// A CiA-402 servo drive (CoE, CSP) as a slave.
 pub fn servo(options: ServoOptions) -> Slave {
-    let mut drive = ServoDrive::new(OUTPUTS_AT, INPUTS_AT, options.start_counts);
-    drive.bandwidth_hz = options.bandwidth_hz;
-    drive.commutation_offset = options.commutation_offset;
+    let drive =
+        ServoDrive::with_params(OUTPUTS_AT, INPUTS_AT, options.start_counts, options.params);
     Slave::new(servo_description(options.serial))
         .with_coe(ObjectDictionary::cia402_servo(
             VENDOR_ID,
