@@ -7,7 +7,7 @@ use crate::esc::al::Firmware;
 use crate::esc::sii::{config_area, PDI_DIGITAL_IO_DEVICE_EMULATION};
 use crate::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
 use crate::plant::encoder::{self, EncoderModule};
-use crate::plant::servo::ServoDrive;
+use crate::plant::servo::{ServoDrive, ServoParams};
 use crate::plant::switches::{self, CamError, SwitchCam, SwitchesModule};
 use crate::plant::DeviceModel;
 use crate::slave::Slave;
@@ -57,10 +57,8 @@ pub struct ServoOptions {
     pub serial: u32,
     /// Absolute encoder value at power-up (counts).
     pub start_counts: i32,
-    /// Position loop bandwidth (Hz).
-    pub bandwidth_hz: f64,
-    /// The motor's hidden commutation offset (counts), for commissioning to find.
-    pub commutation_offset: i32,
+    /// The motor, load, tuning and object power-up values (default: a 400 W servo).
+    pub params: ServoParams,
     /// Its firmware's transition times and checks.
     pub firmware: Firmware,
 }
@@ -68,10 +66,9 @@ pub struct ServoOptions {
 impl Default for ServoOptions {
     fn default() -> Self {
         Self {
-            commutation_offset: 0,
             serial: 1,
             start_counts: 0,
-            bandwidth_hz: 200.0,
+            params: ServoParams::default(),
             firmware: Firmware::SERVO,
         }
     }
@@ -111,9 +108,8 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
 
 /// A CiA-402 servo drive (CoE, CSP) as a slave.
 pub fn servo(options: ServoOptions) -> Slave {
-    let mut drive = ServoDrive::new(OUTPUTS_AT, INPUTS_AT, options.start_counts);
-    drive.bandwidth_hz = options.bandwidth_hz;
-    drive.commutation_offset = options.commutation_offset;
+    let drive =
+        ServoDrive::with_params(OUTPUTS_AT, INPUTS_AT, options.start_counts, options.params);
     Slave::new(servo_description(options.serial))
         .with_coe(ObjectDictionary::cia402_servo(
             VENDOR_ID,

@@ -7,8 +7,23 @@
 //! [[slave]]
 //! kind = "servo"          # a CiA-402 servo drive (CoE, CSP)
 //! start_position = 0      # absolute encoder value at power-up, counts
-//! bandwidth_hz = 200      # position loop bandwidth
+//! bandwidth_hz = 200      # velocity loop bandwidth, Hz
 //! dc_drift_ppm = 30       # its distributed clock runs 30 ppm fast (default 0)
+//! # The motor and load (defaults: a 400 W servo, 17-bit encoder, load 5x the rotor).
+//! counts_per_rev = 131072
+//! rated_torque_nm = 1.27
+//! peak_torque_nm = 3.8    # the current limit
+//! rotor_inertia_kgm2 = 0.26e-4
+//! load_inertia_ratio = 5.0
+//! coulomb_friction_nm = 0.03
+//! viscous_friction_nm_s = 1e-4  # N·m per rad/s
+//! max_speed_rpm = 6000    # power-up 0x607F max profile velocity
+//! # Power-up values of CiA 402 objects (the master may change them by SDO).
+//! following_error_window = 32768      # 0x6065, counts
+//! following_error_timeout_ms = 10     # 0x6066
+//! quick_stop_deceleration = 131072000 # 0x6085, counts/s²
+//! quick_stop_option_code = 2          # 0x605A: quick stop ramp, then switch on disabled
+//! fault_reaction_option_code = 2      # 0x605E: quick stop ramp
 //!
 //! [slave.al]              # its firmware's AL transition times (defaults 2, 10, 5 ms)
 //! init_to_preop_ms = 2
@@ -42,6 +57,7 @@ use thiserror::Error;
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
 use crate::esc::al::{Firmware, TransitionTimes};
+use crate::plant::servo::ServoParams;
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
 /// A configuration that cannot be used, with where and why.
@@ -98,25 +114,7 @@ fn default_cycle_us() -> u32 {
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum SlaveConfig {
     /// A CiA-402 servo drive.
-    Servo {
-        /// Absolute encoder value at power-up (counts).
-        #[serde(default)]
-        start_position: i32,
-        /// Position loop bandwidth (Hz).
-        #[serde(default = "default_bandwidth_hz")]
-        bandwidth_hz: f64,
-        /// The motor's hidden commutation offset (counts), for commissioning to find.
-        #[serde(default)]
-        commutation_offset: i32,
-        /// How fast its distributed clock's oscillator runs against true time (ppm;
-        /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
-        /// the network's reference, which the master's cycle has to follow.
-        #[serde(default)]
-        dc_drift_ppm: f64,
-        /// How long its firmware takes for each AL transition (`[slave.al]`).
-        #[serde(default)]
-        al: AlConfig,
-    },
+    Servo(ServoConfig),
     /// An incremental encoder module.
     Encoder {
         /// Counts per shaft revolution.
@@ -162,6 +160,136 @@ impl From<CamConfig> for SwitchCam {
             from: c.from,
             to: c.to,
             normally_closed: c.normally_closed,
+        }
+    }
+}
+
+/// A `kind = "servo"` slave: where it starts, its clock, and its motor, tuning and object
+/// power-up values ([`ServoParams`]; every key defaults to the 400 W servo).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServoConfig {
+    /// Absolute encoder value at power-up (counts).
+    pub start_position: i32,
+    /// How fast its distributed clock's oscillator runs against true time (ppm;
+    /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
+    /// the network's reference, which the master's cycle has to follow.
+    pub dc_drift_ppm: f64,
+    /// The motor's hidden commutation offset (counts), for commissioning to find.
+    pub commutation_offset: i32,
+    /// Velocity loop bandwidth (Hz): the figure servo datasheets give as the drive's
+    /// "speed response".
+    pub bandwidth_hz: f64,
+    /// Position loop gain (1/s); default a fifth of the velocity loop's 2π·bandwidth.
+    pub position_gain: Option<f64>,
+    /// Encoder counts per motor revolution.
+    pub counts_per_rev: u32,
+    /// Rated torque (N·m).
+    pub rated_torque_nm: f64,
+    /// Peak torque (N·m), the current limit.
+    pub peak_torque_nm: f64,
+    /// Rotor inertia (kg·m²).
+    pub rotor_inertia_kgm2: f64,
+    /// Load inertia as a multiple of the rotor's.
+    pub load_inertia_ratio: f64,
+    /// Coulomb friction (N·m).
+    pub coulomb_friction_nm: f64,
+    /// Viscous friction (N·m per rad/s).
+    pub viscous_friction_nm_s: f64,
+    /// Top motor speed (rpm), the power-up 0x607F.
+    pub max_speed_rpm: f64,
+    /// Motor pole pairs.
+    pub pole_pairs: u32,
+    /// Index pulse position in the revolution (counts).
+    pub index_at: u32,
+    /// The drive's loop rate (Hz).
+    pub loop_rate_hz: f64,
+    /// Current loop bandwidth (Hz).
+    pub current_loop_hz: f64,
+    /// 0x6065 Following error window (counts; 4294967295: off).
+    pub following_error_window: u32,
+    /// 0x6066 Following error time out (ms).
+    pub following_error_timeout_ms: u16,
+    /// 0x6084 Profile deceleration (counts/s²).
+    pub profile_deceleration: u32,
+    /// 0x6085 Quick stop deceleration (counts/s²).
+    pub quick_stop_deceleration: u32,
+    /// 0x605A Quick stop option code (0…8).
+    pub quick_stop_option_code: i16,
+    /// 0x605B Shutdown option code (0, 1).
+    pub shutdown_option_code: i16,
+    /// 0x605C Disable operation option code (0, 1).
+    pub disable_operation_option_code: i16,
+    /// 0x605E Fault reaction option code (0…4).
+    pub fault_reaction_option_code: i16,
+    /// How long its firmware takes for each AL transition (`[slave.al]`).
+    pub al: AlConfig,
+}
+
+impl Default for ServoConfig {
+    fn default() -> Self {
+        let p = ServoParams::default();
+        Self {
+            start_position: 0,
+            dc_drift_ppm: 0.0,
+            commutation_offset: p.commutation_offset,
+            bandwidth_hz: p.velocity_loop_hz,
+            position_gain: None,
+            counts_per_rev: p.counts_per_rev,
+            rated_torque_nm: p.rated_torque_nm,
+            peak_torque_nm: p.peak_torque_nm,
+            rotor_inertia_kgm2: p.rotor_inertia_kgm2,
+            load_inertia_ratio: p.load_inertia_ratio,
+            coulomb_friction_nm: p.coulomb_friction_nm,
+            viscous_friction_nm_s: p.viscous_friction_nm_s,
+            max_speed_rpm: p.max_speed_rpm,
+            pole_pairs: p.pole_pairs,
+            index_at: p.index_at,
+            loop_rate_hz: p.loop_rate_hz,
+            current_loop_hz: p.current_loop_hz,
+            following_error_window: p.following_error_window,
+            following_error_timeout_ms: p.following_error_timeout_ms,
+            profile_deceleration: p.profile_deceleration,
+            quick_stop_deceleration: p.quick_stop_deceleration,
+            quick_stop_option_code: p.quick_stop_option_code,
+            shutdown_option_code: p.shutdown_option_code,
+            disable_operation_option_code: p.disable_operation_option_code,
+            fault_reaction_option_code: p.fault_reaction_option_code,
+            al: AlConfig::default(),
+        }
+    }
+}
+
+impl ServoConfig {
+    /// The servo these keys describe (not checked: see [`ServoParams::check`]).
+    pub fn params(&self) -> ServoParams {
+        let c = self;
+        ServoParams {
+            counts_per_rev: c.counts_per_rev,
+            rated_torque_nm: c.rated_torque_nm,
+            peak_torque_nm: c.peak_torque_nm,
+            rotor_inertia_kgm2: c.rotor_inertia_kgm2,
+            load_inertia_ratio: c.load_inertia_ratio,
+            coulomb_friction_nm: c.coulomb_friction_nm,
+            viscous_friction_nm_s: c.viscous_friction_nm_s,
+            max_speed_rpm: c.max_speed_rpm,
+            pole_pairs: c.pole_pairs,
+            index_at: c.index_at,
+            commutation_offset: c.commutation_offset,
+            loop_rate_hz: c.loop_rate_hz,
+            current_loop_hz: c.current_loop_hz,
+            velocity_loop_hz: c.bandwidth_hz,
+            position_gain: c
+                .position_gain
+                .unwrap_or(2.0 * core::f64::consts::PI * c.bandwidth_hz / 5.0),
+            following_error_window: c.following_error_window,
+            following_error_timeout_ms: c.following_error_timeout_ms,
+            profile_deceleration: c.profile_deceleration,
+            quick_stop_deceleration: c.quick_stop_deceleration,
+            quick_stop_option_code: c.quick_stop_option_code,
+            shutdown_option_code: c.shutdown_option_code,
+            disable_operation_option_code: c.disable_operation_option_code,
+            fault_reaction_option_code: c.fault_reaction_option_code,
         }
     }
 }
@@ -222,10 +350,6 @@ const MAX_DC_DRIFT_PPM: f64 = 1000.0;
 /// Highest shaft speed of an encoder (rev/s).
 const MAX_SHAFT_SPEED: f64 = 1000.0;
 
-fn default_bandwidth_hz() -> f64 {
-    200.0
-}
-
 /// The line an error points at. For an unknown key inside a tagged table, TOML's span
 /// covers the whole table; the line of the key itself is what the user needs.
 fn error_line(text: &str, e: &toml::de::Error) -> usize {
@@ -283,26 +407,24 @@ impl SimConfig {
         }
         for (i, s) in self.slaves.iter().enumerate() {
             match s {
-                SlaveConfig::Servo {
-                    bandwidth_hz,
-                    dc_drift_ppm,
-                    al,
-                    ..
-                } => {
-                    if let Some(key) = al.invalid_key() {
+                SlaveConfig::Servo(servo) => {
+                    if let Some(key) = servo.al.invalid_key() {
                         return Err(invalid(
                             format!("slave[{i}].{key}"),
                             "must be 0 to 10000 ms",
                         ));
                     }
-                    if !(bandwidth_hz.is_finite() && *bandwidth_hz > 0.0 && *bandwidth_hz <= 5000.0)
-                    {
-                        return Err(invalid(
-                            format!("slave[{i}].bandwidth_hz"),
-                            "must be above 0 and at most 5000 Hz",
-                        ));
+                    if let Err(e) = servo.params().check() {
+                        // The TOML key of the velocity loop is `bandwidth_hz`.
+                        let name = match e.name {
+                            "velocity_loop_hz" => "bandwidth_hz",
+                            n => n,
+                        };
+                        return Err(invalid(format!("slave[{i}].{name}"), &e.reason));
                     }
-                    if !(dc_drift_ppm.is_finite() && dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM) {
+                    if !(servo.dc_drift_ppm.is_finite()
+                        && servo.dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM)
+                    {
                         return Err(invalid(
                             format!("slave[{i}].dc_drift_ppm"),
                             "must be -1000 to 1000 ppm",
@@ -342,7 +464,7 @@ impl SimConfig {
                                 &format!("there is no slave {axis} (the chain has {n})"),
                             ));
                         }
-                        Some(SlaveConfig::Servo { .. }) => {}
+                        Some(SlaveConfig::Servo(_)) => {}
                         Some(_) => {
                             return Err(invalid(
                                 format!("slave[{i}].axis"),
@@ -383,23 +505,16 @@ impl SimConfig {
             .map(|(i, s)| {
                 let serial = i as u32 + 1;
                 Ok(match s {
-                    SlaveConfig::Servo {
-                        start_position,
-                        bandwidth_hz,
-                        commutation_offset,
-                        dc_drift_ppm,
-                        al,
-                    } => catalog::servo(ServoOptions {
+                    SlaveConfig::Servo(servo) => catalog::servo(ServoOptions {
                         serial,
-                        start_counts: *start_position,
-                        bandwidth_hz: *bandwidth_hz,
-                        commutation_offset: *commutation_offset,
+                        start_counts: servo.start_position,
+                        params: servo.params(),
                         firmware: Firmware {
-                            times: al.times(TransitionTimes::SERVO),
+                            times: servo.al.times(TransitionTimes::SERVO),
                             ..Firmware::SERVO
                         },
                     })
-                    .with_dc_drift_ppm(*dc_drift_ppm),
+                    .with_dc_drift_ppm(servo.dc_drift_ppm),
                     SlaveConfig::Encoder {
                         counts_per_rev,
                         shaft_speed,
@@ -440,13 +555,15 @@ mod tests {
         assert_eq!(c.cycle_us, 500);
         assert_eq!(
             c.slaves[1],
-            SlaveConfig::Servo {
+            SlaveConfig::Servo(ServoConfig {
                 start_position: -7,
-                bandwidth_hz: 200.0,
-                commutation_offset: 0,
-                dc_drift_ppm: 0.0,
-                al: AlConfig::default(),
-            }
+                ..ServoConfig::default()
+            })
+        );
+        assert_eq!(
+            ServoConfig::default().params(),
+            ServoParams::default(),
+            "the keys' defaults are the 400 W servo's"
         );
         let chain = c.chain().unwrap();
         assert_eq!(chain.slaves().len(), 2);
@@ -507,7 +624,7 @@ mod tests {
         assert!(ty.starts_with("sim.toml:1:"), "{ty}");
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\nbandwidth_hz = -1\n"),
-            "sim.toml: slave[0].bandwidth_hz: must be above 0 and at most 5000 Hz"
+            "sim.toml: slave[0].bandwidth_hz: -1 is not within 1 to 800"
         );
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\ndc_drift_ppm = 5000\n"),

@@ -11,6 +11,8 @@ pub mod switches;
 use crate::esc::memory::Memory;
 
 /// The application of a slave.
+// A servo's model is larger than the others'; each slave holds one, built once.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, Default)]
 pub enum DeviceModel {
     /// No application (an ESC alone, e.g. a coupler).
@@ -79,7 +81,7 @@ impl DeviceModel {
     /// devices coupled to it: a servo's position actual value.
     pub fn axis_position(&self) -> Option<i64> {
         match self {
-            DeviceModel::Servo(s) => Some(i64::from(s.actual_counts())),
+            DeviceModel::Servo(s) => Some(s.position_counts()),
             DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
         }
     }
