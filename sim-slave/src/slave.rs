@@ -368,7 +368,11 @@ impl Slave {
                 self.memory.read_u16(base + 6) & 0x01 != 0,
             )
         };
-        let Some(response) = coe::serve(od, &mut self.sdo, &request, usize::from(out_len)) else {
+        // The drive's objects are live: its values in before, what was written out after.
+        self.device.publish_objects(od);
+        let response = coe::serve(od, &mut self.sdo, &request, usize::from(out_len));
+        self.device.take_objects(od);
+        let Some(response) = response else {
             return;
         };
         if !out_active || response.len() > out_len as usize {

@@ -633,3 +633,70 @@ fn the_minimal_mapping_still_works() {
     assert_eq!(d.record().targets, 151);
     assert_eq!(d.record().max_target_step_counts, 10);
 }
+
+#[test]
+fn sdo_reads_live_values_and_writes_settings_within_their_ranges() {
+    use crate::coe::od::OdError;
+    let mut r = Rig::enabled(0, p(), CSV);
+    let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+    r.d.install_objects(&mut od);
+    let read_u32 = |od: &ObjectDictionary, o: ObjectId| {
+        let b = od.read(o.index, o.sub).unwrap();
+        u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+    };
+    assert_eq!(read_u32(&od, MOTOR_RATED_TORQUE), 1270, "mN·m");
+    assert_eq!(read_u32(&od, FOLLOWING_ERROR_WINDOW), 1 << 15);
+    assert_eq!(
+        read_u32(&od, MAX_PROFILE_VELOCITY),
+        100 * p().counts_per_rev,
+        "6000 rpm"
+    );
+    assert_eq!(
+        od.write(0x6076, 0, &1u32.to_le_bytes()),
+        Err(OdError::ReadOnly)
+    );
+    assert_eq!(
+        od.write(0x6064, 0, &1i32.to_le_bytes()),
+        Err(OdError::ReadOnly)
+    );
+    assert_eq!(
+        od.write(0x605A, 0, &9i16.to_le_bytes()),
+        Err(OdError::ValueRange)
+    );
+    assert_eq!(
+        od.write(0x6060, 0, &[6]),
+        Err(OdError::ValueRange),
+        "no homing"
+    );
+    let too_fast = p().max_speed_counts() as u32 + 1;
+    assert_eq!(
+        od.write(0x607F, 0, &too_fast.to_le_bytes()),
+        Err(OdError::ValueRange)
+    );
+    // Moving: the actual values an upload reads are the drive's.
+    r.velocity = 100_000;
+    r.cycles(100);
+    r.d.publish_objects(&mut od);
+    let v = read_u32(&od, VELOCITY_ACTUAL_VALUE) as i32;
+    assert!((v - 100_000).abs() < 100, "{v}");
+    // Quick stop option code 6 by SDO: the drive now stays in Quick stop active.
+    od.write(0x605A, 0, &6i16.to_le_bytes()).unwrap();
+    od.write(0x6085, 0, &(1u32 << 30).to_le_bytes()).unwrap();
+    r.d.take_objects(&od);
+    r.cw = 0x02;
+    let i = r.cycles(50);
+    assert_eq!(i.sw.state(), Some(State::QuickStopActive));
+    assert!(i.velocity.abs() < 100, "stopped and held: {i:?}");
+}
+
+#[test]
+fn a_period_costs_bounded_work() {
+    // 16 substeps per 1 ms; a 100 ms period is capped at 1600, a longer one too.
+    let mut r = Rig::enabled(0, p(), CSP);
+    let t = std::time::Instant::now();
+    r.cycles(1000);
+    let per_period = t.elapsed().as_secs_f64() / 1000.0;
+    eprintln!("one 1 ms period of one servo: {:.1} µs", per_period * 1e6);
+    r.d.run(10.0);
+    assert_eq!(r.d.state(), State::OperationEnabled);
+}
