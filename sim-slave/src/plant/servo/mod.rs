@@ -8,8 +8,11 @@
 //!   position demand and the actual position are further apart than the window for longer
 //!   than the time out, the drive faults with 0x8611.
 //! - **Setpoint step** (0x607F max profile velocity): a CSP target that moved further since
-//!   the last one than the motor can go at its maximum speed in that time (plus one count)
-//!   faults at once with [`ERROR_SETPOINT_STEP`]. Real drives have this monitor (Bosch
+//!   the last one than the motor can go at 0x607F in that time (plus one count) faults at
+//!   once with [`ERROR_SETPOINT_STEP`]. "That time" is since the target last changed, so a
+//!   frame the master sent a period late is no fault (the drive counts such misses, it does
+//!   not fault on one); the first target after enabling must be within one period of the
+//!   load. A jump after a standstill is left to the following error, as on real drives. Real drives have this monitor (Bosch
 //!   Rexroth IndraDrive: F2037 "Excessive position command difference") because without it
 //!   the loops lunge at peak torque for the whole following-error time out before 0x8611
 //!   stops them. The code is manufacturer-specific, as theirs is: CiA 402 has no standard
@@ -185,6 +188,9 @@ pub struct ServoDrive {
     fresh: bool,
     /// Run time since the last setpoint was taken (s).
     since_take: f64,
+    /// Run time since the target taken last changed (s), and that time when it changed.
+    since_change: f64,
+    change_interval: f64,
     /// Time between the last two setpoints taken (s).
     setpoint_period: Option<f64>,
     /// The last CSP target, unwrapped to the drive's full position (counts).
@@ -246,6 +252,8 @@ impl ServoDrive {
             pending_touch_probe: None,
             fresh: false,
             since_take: 0.0,
+            since_change: 0.0,
+            change_interval: 0.0,
             setpoint_period: None,
             target_abs: None,
             seg_start: p,
@@ -584,6 +592,7 @@ impl ServoDrive {
     /// by. Call it once per new setpoint: a run without one is a missed setpoint, and the
     /// time between two calls is the setpoint period the target is interpolated over.
     pub fn take_outputs(&mut self, mem: &Memory) {
+        let previous = self.target;
         let mut out = [0u8; MAX_PDO_BYTES];
         let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
         if let Some(o) = out.get_mut(..n_out) {
@@ -606,6 +615,10 @@ impl ServoDrive {
         }
         if self.since_take > 0.0 {
             self.setpoint_period = Some(self.since_take);
+        }
+        if self.target != previous {
+            self.change_interval = self.since_change;
+            self.since_change = 0.0;
         }
         self.since_take = 0.0;
         self.fresh = true;
@@ -662,6 +675,7 @@ impl ServoDrive {
             }
         }
         self.since_take += dt;
+        self.since_change += dt;
         self.watch_index(before, self.motor.position);
     }
 
@@ -797,11 +811,20 @@ impl ServoDrive {
     /// what the motor can move in the setpoint period, and interpolated over it.
     fn new_setpoint(&mut self, dt: f64) {
         let period = self.setpoint_period.filter(|p| *p > 0.0).unwrap_or(dt);
+        // The time the motor had for the step: since the target last changed, so that a
+        // setpoint the master sent late (its frame missed a period: the same target taken
+        // twice) is judged over the periods it covers, as a drive that counts its missed
+        // SM events does. The first target after enabling must be within one period's
+        // move of where the load is.
+        let interval = match self.target_abs {
+            Some(_) => period.max(self.change_interval),
+            None => period,
+        };
         let reference = self.target_abs.unwrap_or(self.demand);
         let r = round_i64(reference);
         let t = r as f64 + f64::from(self.target.wrapping_sub(r as i32));
         let step = (t - reference).abs();
-        let limit = f64::from(self.settings.max_profile_velocity) * period + 1.0;
+        let limit = f64::from(self.settings.max_profile_velocity) * interval + 1.0;
         if step > limit {
             self.fault(ERROR_SETPOINT_STEP);
             return;

@@ -307,10 +307,45 @@ fn an_impossible_setpoint_step_faults_at_once() {
     let i = r.cycles(100);
     assert_eq!(i.sw.state(), Some(State::Fault));
     assert!(i.position > 0, "never lunged back to the bad target: {i:?}");
-    // 0x607F lower: the same step is now too much.
+    // 0x607F lower: 1 m counts/s allows 1001 counts per 1 ms period.
     let mut r = Rig::enabled(0, params, CSP);
     r.d.settings.max_profile_velocity = 1_000_000;
-    r.target = 1002;
+    r.target = 1001;
+    r.cycle();
+    r.target = 2002;
+    assert_eq!(r.cycle().error, 0);
+    r.target = 3004;
+    assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
+    // The first target after enabling must be within a period's move of the load.
+    let mut r = Rig::new(0, params);
+    r.target = 20_000;
+    for cw in [0x06, 0x07, 0x0F] {
+        r.cw = cw;
+        r.cycle();
+    }
+    assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
+}
+
+#[test]
+fn a_setpoint_sent_a_period_late_is_judged_over_the_periods_it_covers() {
+    // At 50 rev/s, 6554 counts per period; the master misses a period (the drive takes
+    // the same target twice), then sends the target that is two periods on: no fault.
+    let mut r = Rig::enabled(0, p(), CSP);
+    let per = (50.0 * f64::from(p().counts_per_rev) * DT) as i32;
+    for k in 1..=200 {
+        let v = per.min(per * k / 50);
+        if k != 120 {
+            r.target += v;
+        } else {
+            r.cycle();
+            r.target += 2 * v;
+        }
+        r.cycle();
+    }
+    assert_eq!(r.d.record().faults, 0);
+    assert_eq!(r.d.record().max_target_step_counts, 2 * per as u64);
+    // More than 0x607F allows in one period (13 108 counts) is refused.
+    r.target += 2 * per + 3;
     assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
 }
 
