@@ -110,13 +110,10 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
 pub fn servo(options: ServoOptions) -> Slave {
     let drive =
         ServoDrive::with_params(OUTPUTS_AT, INPUTS_AT, options.start_counts, options.params);
+    let mut od = ObjectDictionary::cia402_servo(VENDOR_ID, SERVO_PRODUCT, 1, options.serial);
+    drive.install_objects(&mut od);
     Slave::new(servo_description(options.serial))
-        .with_coe(ObjectDictionary::cia402_servo(
-            VENDOR_ID,
-            SERVO_PRODUCT,
-            1,
-            options.serial,
-        ))
+        .with_coe(od)
         .with_device(DeviceModel::Servo(drive))
         .with_firmware(options.firmware)
 }

@@ -632,7 +632,11 @@ impl Slave {
             .map(|k| (k, SyncManager::read_from(&self.memory, k)))
             .find(|(_, o)| o.enabled() && o.kind() == Kind::MailboxRead);
         let out_len = out.map_or(0, |(_, o)| usize::from(o.length));
-        let Some(response) = coe::serve(od, &mut self.sdo, &request, out_len) else {
+        // The drive's objects are live: its values in before, what was written out after.
+        self.device.publish_objects(od);
+        let response = coe::serve(od, &mut self.sdo, &request, out_len);
+        self.device.take_objects(od);
+        let Some(response) = response else {
             return;
         };
         let Some((k, o)) = out else { return };

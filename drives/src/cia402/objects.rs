@@ -59,6 +59,16 @@ pub const STATUSWORD: ObjectId = obj(0x6041, 0, DataType::U16, "Statusword");
 /// 0x605A Quick stop option code.
 pub const QUICK_STOP_OPTION_CODE: ObjectId =
     obj(0x605A, 0, DataType::I16, "Quick stop option code");
+/// 0x605B Shutdown option code (transition 8: 0 disable drive function, 1 slow down
+/// on the slow down ramp, then disable).
+pub const SHUTDOWN_OPTION_CODE: ObjectId = obj(0x605B, 0, DataType::I16, "Shutdown option code");
+/// 0x605C Disable operation option code (transition 5: as 0x605B).
+pub const DISABLE_OPERATION_OPTION_CODE: ObjectId =
+    obj(0x605C, 0, DataType::I16, "Disable operation option code");
+/// 0x605E Fault reaction option code (0 disable drive function, 1 slow down ramp, 2 quick
+/// stop ramp, 3 current limit, 4 voltage limit).
+pub const FAULT_REACTION_OPTION_CODE: ObjectId =
+    obj(0x605E, 0, DataType::I16, "Fault reaction option code");
 /// 0x6060 Modes of operation.
 pub const MODES_OF_OPERATION: ObjectId = obj(0x6060, 0, DataType::I8, "Modes of operation");
 /// 0x6061 Modes of operation display.
@@ -69,17 +79,28 @@ pub const POSITION_ACTUAL_VALUE: ObjectId = obj(0x6064, 0, DataType::I32, "Posit
 /// 0x6065 Following error window (increments).
 pub const FOLLOWING_ERROR_WINDOW: ObjectId =
     obj(0x6065, 0, DataType::U32, "Following error window");
+/// 0x6066 Following error time out (ms).
+pub const FOLLOWING_ERROR_TIME_OUT: ObjectId =
+    obj(0x6066, 0, DataType::U16, "Following error time out");
 /// 0x606C Velocity actual value (increments/s).
 pub const VELOCITY_ACTUAL_VALUE: ObjectId = obj(0x606C, 0, DataType::I32, "Velocity actual value");
 /// 0x6071 Target torque (per mille of rated torque).
 pub const TARGET_TORQUE: ObjectId = obj(0x6071, 0, DataType::I16, "Target torque");
+/// 0x6072 Max torque (per mille of rated torque).
+pub const MAX_TORQUE: ObjectId = obj(0x6072, 0, DataType::U16, "Max torque");
+/// 0x6076 Motor rated torque (mN·m): the unit of the torque objects.
+pub const MOTOR_RATED_TORQUE: ObjectId = obj(0x6076, 0, DataType::U32, "Motor rated torque");
 /// 0x6077 Torque actual value (per mille of rated torque).
 pub const TORQUE_ACTUAL_VALUE: ObjectId = obj(0x6077, 0, DataType::I16, "Torque actual value");
 /// 0x607A Target position (increments).
 pub const TARGET_POSITION: ObjectId = obj(0x607A, 0, DataType::I32, "Target position");
 /// 0x607C Home offset (increments).
 pub const HOME_OFFSET: ObjectId = obj(0x607C, 0, DataType::I32, "Home offset");
-/// 0x6085 Quick stop deceleration.
+/// 0x607F Max profile velocity (increments/s).
+pub const MAX_PROFILE_VELOCITY: ObjectId = obj(0x607F, 0, DataType::U32, "Max profile velocity");
+/// 0x6084 Profile deceleration (increments/s²): the "slow down ramp" of the option codes.
+pub const PROFILE_DECELERATION: ObjectId = obj(0x6084, 0, DataType::U32, "Profile deceleration");
+/// 0x6085 Quick stop deceleration (increments/s²).
 pub const QUICK_STOP_DECELERATION: ObjectId =
     obj(0x6085, 0, DataType::U32, "Quick stop deceleration");
 /// 0x6098 Homing method.
@@ -112,20 +133,28 @@ pub const DIGITAL_INPUTS: ObjectId = obj(0x60FD, 0, DataType::U32, "Digital inpu
 pub const TARGET_VELOCITY: ObjectId = obj(0x60FF, 0, DataType::I32, "Target velocity");
 
 /// Every object above, for tables and lookups.
-pub const ALL: [ObjectId; 24] = [
+pub const ALL: [ObjectId; 32] = [
     ERROR_CODE,
     CONTROLWORD,
     STATUSWORD,
     QUICK_STOP_OPTION_CODE,
+    SHUTDOWN_OPTION_CODE,
+    DISABLE_OPERATION_OPTION_CODE,
+    FAULT_REACTION_OPTION_CODE,
     MODES_OF_OPERATION,
     MODES_OF_OPERATION_DISPLAY,
     POSITION_ACTUAL_VALUE,
     FOLLOWING_ERROR_WINDOW,
+    FOLLOWING_ERROR_TIME_OUT,
     VELOCITY_ACTUAL_VALUE,
     TARGET_TORQUE,
+    MAX_TORQUE,
+    MOTOR_RATED_TORQUE,
     TORQUE_ACTUAL_VALUE,
     TARGET_POSITION,
     HOME_OFFSET,
+    MAX_PROFILE_VELOCITY,
+    PROFILE_DECELERATION,
     QUICK_STOP_DECELERATION,
     HOMING_METHOD,
     HOMING_SPEED_SWITCH,

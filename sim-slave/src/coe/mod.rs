@@ -41,6 +41,8 @@ pub mod abort {
     pub const PDO_TOO_LONG: u32 = 0x0604_0042;
     /// Data cannot be transferred or stored because of the present device state.
     pub const DEVICE_STATE: u32 = 0x0800_0022;
+    /// Value range of parameter exceeded (download only).
+    pub const VALUE_RANGE: u32 = 0x0609_0030;
 }
 
 fn abort_code(e: OdError) -> u32 {
@@ -52,6 +54,7 @@ fn abort_code(e: OdError) -> u32 {
         OdError::WrongState => abort::DEVICE_STATE,
         OdError::NotMappable => abort::NOT_MAPPABLE,
         OdError::PdoTooLong => abort::PDO_TOO_LONG,
+        OdError::ValueRange => abort::VALUE_RANGE,
     }
 }
 

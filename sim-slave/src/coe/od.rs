@@ -44,6 +44,9 @@ pub struct Entry {
     pub value: Vec<u8>,
     /// Whether SDO downloads may write it.
     pub writable: bool,
+    /// The values a download may write (inclusive, as a signed or unsigned integer of
+    /// the entry's size); `None`: any.
+    pub range: Option<(i64, i64)>,
 }
 
 /// An object dictionary.
@@ -74,6 +77,8 @@ pub enum OdError {
     NotMappable,
     /// More entries than the PDO holds (abort 0x06040042).
     PdoTooLong,
+    /// The value is outside the object's range (abort 0x06090030).
+    ValueRange,
 }
 
 impl ObjectDictionary {
@@ -93,8 +98,37 @@ impl ObjectDictionary {
                 sub,
                 value: value.to_vec(),
                 writable,
+                range: None,
             }),
         }
+    }
+
+    /// Adds or replaces an entry that downloads may only set within `min..=max` (CiA 301
+    /// §7.2.4.3.17: abort 0x06090030 otherwise).
+    pub fn insert_ranged(&mut self, index: u16, sub: u8, value: &[u8], min: i64, max: i64) {
+        self.insert(index, sub, value, true);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.range = Some((min, max));
+        }
+    }
+
+    /// The device itself sets an entry's value (its live actual values, or a setting it
+    /// changed), whatever its access: no allocation, the length must be the entry's.
+    pub fn set(&mut self, index: u16, sub: u8, value: &[u8]) -> Result<(), OdError> {
+        let e = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+            .ok_or(OdError::NoObject)?;
+        if e.value.len() != value.len() {
+            return Err(OdError::LengthMismatch);
+        }
+        e.value.copy_from_slice(value);
+        Ok(())
     }
 
     /// Reads an entry.
@@ -151,6 +185,24 @@ impl ObjectDictionary {
         if e.value.len() != value.len() {
             return Err(OdError::LengthMismatch);
         }
+        if let Some((min, max)) = e.range {
+            // Signed when the range reaches below 0, else unsigned.
+            let mut b = [0u8; 8];
+            let n = value.len().min(8);
+            if let (Some(dst), Some(src)) = (b.get_mut(..n), value.get(..n)) {
+                dst.copy_from_slice(src);
+            }
+            let raw = i64::from_le_bytes(b);
+            let v = if min < 0 && n > 0 && n < 8 {
+                let shift = 64 - 8 * n as u32;
+                (raw << shift) >> shift
+            } else {
+                raw
+            };
+            if v < min || v > max {
+                return Err(OdError::ValueRange);
+            }
+        }
         e.value.copy_from_slice(value);
         Ok(())
     }
@@ -178,11 +230,18 @@ impl ObjectDictionary {
         od.set_pdo_rules(rules);
         od.insert(0x6060, 0, &[8], true);
         od.insert(0x6061, 0, &[8], false);
+        // Command values: rww (CiA 402-2); a mapped RxPDO overwrites them each cycle.
         for o in [
             objects::CONTROLWORD,
             objects::TARGET_POSITION,
             objects::TARGET_VELOCITY,
             objects::TARGET_TORQUE,
+        ] {
+            od.insert(o.index, o.sub, &vec![0; o.kind.size()], true);
+        }
+        // Actual values: ro. The drive's settings are added by the drive model
+        // (`ServoDrive::install_objects`), with its values and ranges.
+        for o in [
             objects::STATUSWORD,
             objects::POSITION_ACTUAL_VALUE,
             objects::VELOCITY_ACTUAL_VALUE,
@@ -213,5 +272,34 @@ mod tests {
         assert_eq!(od.write(0x6060, 0, &[9, 9]), Err(OdError::LengthMismatch));
         od.write(0x6060, 0, &[9]).unwrap();
         assert_eq!(od.read(0x6060, 0), Ok(&[9u8][..]));
+        assert_eq!(od.write(0x6041, 0, &[0, 0]), Err(OdError::ReadOnly));
+        od.write(0x6040, 0, &[0x0F, 0]).unwrap();
+        // The device sets read-only values; lengths still count.
+        od.set(0x6041, 0, &[0x37, 0x02]).unwrap();
+        assert_eq!(od.read(0x6041, 0), Ok(&[0x37u8, 0x02][..]));
+        assert_eq!(od.set(0x6041, 0, &[0]), Err(OdError::LengthMismatch));
+        assert_eq!(od.set(0x2000, 0, &[0]), Err(OdError::NoObject));
+    }
+
+    #[test]
+    fn ranged_entries_refuse_values_outside() {
+        let mut od = ObjectDictionary::default();
+        od.insert_ranged(0x605A, 0, &2i16.to_le_bytes(), 0, 8);
+        od.insert_ranged(0x6085, 0, &1000u32.to_le_bytes(), 1, i64::from(u32::MAX));
+        od.write(0x605A, 0, &8i16.to_le_bytes()).unwrap();
+        assert_eq!(
+            od.write(0x605A, 0, &(-1i16).to_le_bytes()),
+            Err(OdError::ValueRange)
+        );
+        assert_eq!(
+            od.write(0x605A, 0, &9i16.to_le_bytes()),
+            Err(OdError::ValueRange)
+        );
+        assert_eq!(od.read(0x605A, 0), Ok(&8i16.to_le_bytes()[..]));
+        assert_eq!(
+            od.write(0x6085, 0, &0u32.to_le_bytes()),
+            Err(OdError::ValueRange)
+        );
+        od.write(0x6085, 0, &u32::MAX.to_le_bytes()).unwrap();
     }
 }

@@ -36,6 +36,21 @@ impl DeviceModel {
         }
     }
 
+    /// Before the slave serves an SDO request: the device writes its present values
+    /// into its dictionary, so that an upload reads them.
+    pub fn publish_objects(&self, od: &mut crate::coe::od::ObjectDictionary) {
+        if let DeviceModel::Servo(s) = self {
+            s.publish_objects(od);
+        }
+    }
+
+    /// After the slave served an SDO request: the device takes what was written.
+    pub fn take_objects(&mut self, od: &crate::coe::od::ObjectDictionary) {
+        if let DeviceModel::Servo(s) = self {
+            s.take_objects(od);
+        }
+    }
+
     /// The process-data watchdog expired: the master is gone.
     pub fn on_watchdog(&mut self) {
         match self {

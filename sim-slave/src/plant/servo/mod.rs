@@ -8,8 +8,11 @@
 //!   position demand and the actual position are further apart than the window for longer
 //!   than the time out, the drive faults with 0x8611.
 //! - **Setpoint step** (0x607F max profile velocity): a CSP target that moved further since
-//!   the last one than the motor can go at its maximum speed in that time (plus one count)
-//!   faults at once with [`ERROR_SETPOINT_STEP`]. Real drives have this monitor (Bosch
+//!   the last one than the motor can go at 0x607F in that time (plus one count) faults at
+//!   once with [`ERROR_SETPOINT_STEP`]. "That time" is since the target last changed, so a
+//!   frame the master sent a period late is no fault (the drive counts such misses, it does
+//!   not fault on one); the first target after enabling must be within one period of the
+//!   load. A jump after a standstill is left to the following error, as on real drives. Real drives have this monitor (Bosch
 //!   Rexroth IndraDrive: F2037 "Excessive position command difference") because without it
 //!   the loops lunge at peak torque for the whole following-error time out before 0x8611
 //!   stops them. The code is manufacturer-specific, as theirs is: CiA 402 has no standard
@@ -49,6 +52,7 @@ use gantry_drives::cia402::state::transition;
 use gantry_drives::cia402::statusword;
 use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
 
+use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
 use motor::{Drive, Gains, Motor};
@@ -184,6 +188,9 @@ pub struct ServoDrive {
     fresh: bool,
     /// Run time since the last setpoint was taken (s).
     since_take: f64,
+    /// Run time since the target taken last changed (s), and that time when it changed.
+    since_change: f64,
+    change_interval: f64,
     /// Time between the last two setpoints taken (s).
     setpoint_period: Option<f64>,
     /// The last CSP target, unwrapped to the drive's full position (counts).
@@ -245,6 +252,8 @@ impl ServoDrive {
             pending_touch_probe: None,
             fresh: false,
             since_take: 0.0,
+            since_change: 0.0,
+            change_interval: 0.0,
             setpoint_period: None,
             target_abs: None,
             seg_start: p,
@@ -383,6 +392,192 @@ impl ServoDrive {
         self.error_code
     }
 
+    /// Adds the drive's CiA 402 objects to its dictionary with their access rights
+    /// (CiA 402-2): the settings rw within their ranges, the motor's rated torque ro, the
+    /// modes of operation limited to those the drive has. Values as they are now.
+    pub fn install_objects(&self, od: &mut ObjectDictionary) {
+        let max_speed = self.params.max_speed_counts().min(f64::from(u32::MAX)) as i64;
+        let u32_max = i64::from(u32::MAX);
+        let ranged: [(ObjectId, i64, i64); 11] = [
+            (objects::MODES_OF_OPERATION, i64::from(CSP), i64::from(CST)),
+            (objects::FOLLOWING_ERROR_WINDOW, 0, u32_max),
+            (objects::FOLLOWING_ERROR_TIME_OUT, 0, i64::from(u16::MAX)),
+            (objects::MAX_TORQUE, 0, i64::from(u16::MAX)),
+            // Above the motor's top speed it would promise what the motor cannot do.
+            (objects::MAX_PROFILE_VELOCITY, 0, max_speed),
+            // A ramp of 0 would never stop.
+            (objects::PROFILE_DECELERATION, 1, u32_max),
+            (objects::QUICK_STOP_DECELERATION, 1, u32_max),
+            (objects::QUICK_STOP_OPTION_CODE, 0, 8),
+            (objects::SHUTDOWN_OPTION_CODE, 0, 1),
+            (objects::DISABLE_OPERATION_OPTION_CODE, 0, 1),
+            (objects::FAULT_REACTION_OPTION_CODE, 0, 4),
+        ];
+        for (o, min, max) in ranged {
+            od.insert_ranged(o.index, o.sub, &vec![0; o.kind.size()], min, max);
+        }
+        // The simulated motor is fixed: its rated torque is read-only here.
+        let o = objects::MOTOR_RATED_TORQUE;
+        od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
+        self.publish_objects(od);
+    }
+
+    /// Writes the drive's present values into its dictionary (before the master's SDO
+    /// request is served, so that an upload reads what the drive has now).
+    pub fn publish_objects(&self, od: &mut ObjectDictionary) {
+        let s = &self.settings;
+        let rated_mnm = (self.params.rated_torque_nm * 1000.0).round() as i64;
+        let values: [(ObjectId, i64); 22] = [
+            (objects::CONTROLWORD, i64::from(self.controlword.0)),
+            (objects::TARGET_POSITION, i64::from(self.target)),
+            (objects::TARGET_VELOCITY, i64::from(self.target_velocity)),
+            (objects::TARGET_TORQUE, i64::from(self.target_torque)),
+            (objects::MODES_OF_OPERATION, i64::from(self.mode)),
+            (objects::MODES_OF_OPERATION_DISPLAY, i64::from(self.mode)),
+            (objects::STATUSWORD, i64::from(self.statusword())),
+            (
+                objects::POSITION_ACTUAL_VALUE,
+                i64::from(self.actual_counts()),
+            ),
+            (
+                objects::VELOCITY_ACTUAL_VALUE,
+                round_i64(self.velocity_mean),
+            ),
+            (objects::TORQUE_ACTUAL_VALUE, self.torque_per_mille()),
+            (objects::ERROR_CODE, i64::from(self.error_code)),
+            (
+                objects::FOLLOWING_ERROR_ACTUAL_VALUE,
+                self.following_error(),
+            ),
+            (
+                objects::FOLLOWING_ERROR_WINDOW,
+                i64::from(s.following_error_window),
+            ),
+            (
+                objects::FOLLOWING_ERROR_TIME_OUT,
+                i64::from(s.following_error_timeout_ms),
+            ),
+            (objects::MAX_TORQUE, i64::from(s.max_torque)),
+            (objects::MOTOR_RATED_TORQUE, rated_mnm),
+            (
+                objects::MAX_PROFILE_VELOCITY,
+                i64::from(s.max_profile_velocity),
+            ),
+            (
+                objects::PROFILE_DECELERATION,
+                i64::from(s.profile_deceleration),
+            ),
+            (
+                objects::QUICK_STOP_DECELERATION,
+                i64::from(s.quick_stop_deceleration),
+            ),
+            (
+                objects::QUICK_STOP_OPTION_CODE,
+                i64::from(s.quick_stop_option_code),
+            ),
+            (
+                objects::SHUTDOWN_OPTION_CODE,
+                i64::from(s.shutdown_option_code),
+            ),
+            (
+                objects::DISABLE_OPERATION_OPTION_CODE,
+                i64::from(s.disable_operation_option_code),
+            ),
+        ];
+        let fault_reaction = (
+            objects::FAULT_REACTION_OPTION_CODE,
+            i64::from(s.fault_reaction_option_code),
+        );
+        for (o, v) in values.into_iter().chain([fault_reaction]) {
+            let bytes = v.to_le_bytes();
+            if let Some(b) = bytes.get(..o.kind.size()) {
+                // An object the dictionary does not carry is not the drive's to add.
+                let _ = od.set(o.index, o.sub, b);
+            }
+        }
+    }
+
+    /// Takes what the master wrote by SDO into the drive's command and settings (after
+    /// its request was served). The dictionary checked access and ranges.
+    pub fn take_objects(&mut self, od: &ObjectDictionary) {
+        let get = |o: ObjectId| {
+            od.read(o.index, o.sub).ok().map(|b| {
+                let n = o.kind.size().min(b.len());
+                let signed = matches!(
+                    o.kind,
+                    objects::DataType::I8 | objects::DataType::I16 | objects::DataType::I32
+                );
+                let v = field(b, 0, n);
+                if signed || n == 0 {
+                    v
+                } else {
+                    v & ((1i64 << (8 * n)) - 1)
+                }
+            })
+        };
+        let s = &mut self.settings;
+        if let Some(v) = get(objects::CONTROLWORD) {
+            self.controlword = Controlword(v as u16);
+        }
+        if let Some(v) = get(objects::TARGET_POSITION) {
+            self.target = v as i32;
+        }
+        if let Some(v) = get(objects::TARGET_VELOCITY) {
+            self.target_velocity = v as i32;
+        }
+        if let Some(v) = get(objects::TARGET_TORQUE) {
+            self.target_torque = v as i16;
+        }
+        if let Some(v) = get(objects::MODES_OF_OPERATION) {
+            if matches!(v as i8, CSP | CSV | CST) {
+                self.mode = v as i8;
+            }
+        }
+        if let Some(v) = get(objects::FOLLOWING_ERROR_WINDOW) {
+            s.following_error_window = v as u32;
+        }
+        if let Some(v) = get(objects::FOLLOWING_ERROR_TIME_OUT) {
+            s.following_error_timeout_ms = v as u16;
+        }
+        if let Some(v) = get(objects::MAX_TORQUE) {
+            s.max_torque = v as u16;
+        }
+        if let Some(v) = get(objects::MAX_PROFILE_VELOCITY) {
+            s.max_profile_velocity = v as u32;
+        }
+        if let Some(v) = get(objects::PROFILE_DECELERATION) {
+            s.profile_deceleration = (v as u32).max(1);
+        }
+        if let Some(v) = get(objects::QUICK_STOP_DECELERATION) {
+            s.quick_stop_deceleration = (v as u32).max(1);
+        }
+        let code = |v: Option<i64>, hi: i16, old: i16| {
+            v.map(|v| v as i16)
+                .filter(|c| (0..=hi).contains(c))
+                .unwrap_or(old)
+        };
+        s.quick_stop_option_code = code(
+            get(objects::QUICK_STOP_OPTION_CODE),
+            8,
+            s.quick_stop_option_code,
+        );
+        s.shutdown_option_code = code(
+            get(objects::SHUTDOWN_OPTION_CODE),
+            1,
+            s.shutdown_option_code,
+        );
+        s.disable_operation_option_code = code(
+            get(objects::DISABLE_OPERATION_OPTION_CODE),
+            1,
+            s.disable_operation_option_code,
+        );
+        s.fault_reaction_option_code = code(
+            get(objects::FAULT_REACTION_OPTION_CODE),
+            4,
+            s.fault_reaction_option_code,
+        );
+    }
+
     /// One cycle: take the outputs, run the drive for `dt_s`, publish the inputs.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
         self.take_outputs(mem);
@@ -397,6 +592,7 @@ impl ServoDrive {
     /// by. Call it once per new setpoint: a run without one is a missed setpoint, and the
     /// time between two calls is the setpoint period the target is interpolated over.
     pub fn take_outputs(&mut self, mem: &Memory) {
+        let previous = self.target;
         let mut out = [0u8; MAX_PDO_BYTES];
         let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
         if let Some(o) = out.get_mut(..n_out) {
@@ -419,6 +615,10 @@ impl ServoDrive {
         }
         if self.since_take > 0.0 {
             self.setpoint_period = Some(self.since_take);
+        }
+        if self.target != previous {
+            self.change_interval = self.since_change;
+            self.since_change = 0.0;
         }
         self.since_take = 0.0;
         self.fresh = true;
@@ -457,9 +657,11 @@ impl ServoDrive {
         if dt > 0.0 {
             let n = ((dt * self.params.loop_rate_hz).ceil() as usize).clamp(1, MAX_SUBSTEPS);
             let g = Gains::of(&self.params, dt / n as f64);
+            let limit = self.torque_limit();
+            let efficiency = self.torque_efficiency();
             let mut torque = 0.0;
             for _ in 0..n {
-                self.substep(&g);
+                self.substep(&g, limit, efficiency);
                 torque += self.motor.torque;
             }
             self.torque_mean = torque / n as f64;
@@ -473,6 +675,7 @@ impl ServoDrive {
             }
         }
         self.since_take += dt;
+        self.since_change += dt;
         self.watch_index(before, self.motor.position);
     }
 
@@ -608,11 +811,20 @@ impl ServoDrive {
     /// what the motor can move in the setpoint period, and interpolated over it.
     fn new_setpoint(&mut self, dt: f64) {
         let period = self.setpoint_period.filter(|p| *p > 0.0).unwrap_or(dt);
+        // The time the motor had for the step: since the target last changed, so that a
+        // setpoint the master sent late (its frame missed a period: the same target taken
+        // twice) is judged over the periods it covers, as a drive that counts its missed
+        // SM events does. The first target after enabling must be within one period's
+        // move of where the load is.
+        let interval = match self.target_abs {
+            Some(_) => period.max(self.change_interval),
+            None => period,
+        };
         let reference = self.target_abs.unwrap_or(self.demand);
         let r = round_i64(reference);
         let t = r as f64 + f64::from(self.target.wrapping_sub(r as i32));
         let step = (t - reference).abs();
-        let limit = f64::from(self.settings.max_profile_velocity) * period + 1.0;
+        let limit = f64::from(self.settings.max_profile_velocity) * interval + 1.0;
         if step > limit {
             self.fault(ERROR_SETPOINT_STEP);
             return;
@@ -641,8 +853,9 @@ impl ServoDrive {
         0.001 * self.params.max_speed_counts()
     }
 
-    /// One period of the drive's loops.
-    fn substep(&mut self, g: &Gains) {
+    /// One period of the drive's loops, with the torque limit (N·m) and the commutation's
+    /// torque efficiency.
+    fn substep(&mut self, g: &Gains, limit: f64, efficiency: f64) {
         let kp = self.params.position_gain;
         let vmax = self.params.max_speed_counts();
         let drive = if let Some(b) = self.braking.as_mut() {
@@ -684,8 +897,6 @@ impl ServoDrive {
                 _ => Drive::Off,
             }
         };
-        let limit = self.torque_limit();
-        let efficiency = self.torque_efficiency();
         self.motor.substep(g, drive, limit, efficiency);
         if let Some(b) = self.braking {
             let ramp_done = !matches!(b.brake, Brake::Ramp(_)) || b.ramp == 0.0;

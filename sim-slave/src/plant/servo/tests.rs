@@ -307,10 +307,45 @@ fn an_impossible_setpoint_step_faults_at_once() {
     let i = r.cycles(100);
     assert_eq!(i.sw.state(), Some(State::Fault));
     assert!(i.position > 0, "never lunged back to the bad target: {i:?}");
-    // 0x607F lower: the same step is now too much.
+    // 0x607F lower: 1 m counts/s allows 1001 counts per 1 ms period.
     let mut r = Rig::enabled(0, params, CSP);
     r.d.settings.max_profile_velocity = 1_000_000;
-    r.target = 1002;
+    r.target = 1001;
+    r.cycle();
+    r.target = 2002;
+    assert_eq!(r.cycle().error, 0);
+    r.target = 3004;
+    assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
+    // The first target after enabling must be within a period's move of the load.
+    let mut r = Rig::new(0, params);
+    r.target = 20_000;
+    for cw in [0x06, 0x07, 0x0F] {
+        r.cw = cw;
+        r.cycle();
+    }
+    assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
+}
+
+#[test]
+fn a_setpoint_sent_a_period_late_is_judged_over_the_periods_it_covers() {
+    // At 50 rev/s, 6554 counts per period; the master misses a period (the drive takes
+    // the same target twice), then sends the target that is two periods on: no fault.
+    let mut r = Rig::enabled(0, p(), CSP);
+    let per = (50.0 * f64::from(p().counts_per_rev) * DT) as i32;
+    for k in 1..=200 {
+        let v = per.min(per * k / 50);
+        if k != 120 {
+            r.target += v;
+        } else {
+            r.cycle();
+            r.target += 2 * v;
+        }
+        r.cycle();
+    }
+    assert_eq!(r.d.record().faults, 0);
+    assert_eq!(r.d.record().max_target_step_counts, 2 * per as u64);
+    // More than 0x607F allows in one period (13 108 counts) is refused.
+    r.target += 2 * per + 3;
     assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
 }
 
@@ -632,4 +667,71 @@ fn the_minimal_mapping_still_works() {
     // Taken in Operation enabled: the 4th enabling cycle's, 100 moving, 50 standing.
     assert_eq!(d.record().targets, 151);
     assert_eq!(d.record().max_target_step_counts, 10);
+}
+
+#[test]
+fn sdo_reads_live_values_and_writes_settings_within_their_ranges() {
+    use crate::coe::od::OdError;
+    let mut r = Rig::enabled(0, p(), CSV);
+    let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+    r.d.install_objects(&mut od);
+    let read_u32 = |od: &ObjectDictionary, o: ObjectId| {
+        let b = od.read(o.index, o.sub).unwrap();
+        u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+    };
+    assert_eq!(read_u32(&od, MOTOR_RATED_TORQUE), 1270, "mN·m");
+    assert_eq!(read_u32(&od, FOLLOWING_ERROR_WINDOW), 1 << 15);
+    assert_eq!(
+        read_u32(&od, MAX_PROFILE_VELOCITY),
+        100 * p().counts_per_rev,
+        "6000 rpm"
+    );
+    assert_eq!(
+        od.write(0x6076, 0, &1u32.to_le_bytes()),
+        Err(OdError::ReadOnly)
+    );
+    assert_eq!(
+        od.write(0x6064, 0, &1i32.to_le_bytes()),
+        Err(OdError::ReadOnly)
+    );
+    assert_eq!(
+        od.write(0x605A, 0, &9i16.to_le_bytes()),
+        Err(OdError::ValueRange)
+    );
+    assert_eq!(
+        od.write(0x6060, 0, &[6]),
+        Err(OdError::ValueRange),
+        "no homing"
+    );
+    let too_fast = p().max_speed_counts() as u32 + 1;
+    assert_eq!(
+        od.write(0x607F, 0, &too_fast.to_le_bytes()),
+        Err(OdError::ValueRange)
+    );
+    // Moving: the actual values an upload reads are the drive's.
+    r.velocity = 100_000;
+    r.cycles(100);
+    r.d.publish_objects(&mut od);
+    let v = read_u32(&od, VELOCITY_ACTUAL_VALUE) as i32;
+    assert!((v - 100_000).abs() < 100, "{v}");
+    // Quick stop option code 6 by SDO: the drive now stays in Quick stop active.
+    od.write(0x605A, 0, &6i16.to_le_bytes()).unwrap();
+    od.write(0x6085, 0, &(1u32 << 30).to_le_bytes()).unwrap();
+    r.d.take_objects(&od);
+    r.cw = 0x02;
+    let i = r.cycles(50);
+    assert_eq!(i.sw.state(), Some(State::QuickStopActive));
+    assert!(i.velocity.abs() < 100, "stopped and held: {i:?}");
+}
+
+#[test]
+fn a_period_costs_bounded_work() {
+    // 16 substeps per 1 ms; a 100 ms period is capped at 1600, a longer one too.
+    let mut r = Rig::enabled(0, p(), CSP);
+    let t = std::time::Instant::now();
+    r.cycles(1000);
+    let per_period = t.elapsed().as_secs_f64() / 1000.0;
+    eprintln!("one 1 ms period of one servo: {:.1} µs", per_period * 1e6);
+    r.d.run(10.0);
+    assert_eq!(r.d.state(), State::OperationEnabled);
 }
