@@ -90,6 +90,24 @@ pub struct Slave {
     sync0_at_safeop: u64,
     /// Completed output buffers the application reads (3-buffer mode).
     outputs: Vec<OutputBuffer>,
+    /// What the firmware counts of the outputs against SYNC0 (0x1C32).
+    sync: SyncCounters,
+}
+
+/// The SyncManager output parameters (object 0x1C32) a DC-synchronous device keeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SyncCounters {
+    /// SYNC0 edges seen so far.
+    sync0_seen: u64,
+    /// Output buffers completed since the last SYNC0 edge.
+    buffers_since_sync0: u32,
+    /// 0x1C32:0B SM event missed counter (+3 per SYNC0 without outputs, −1 per buffer).
+    pub sm_event_missed: u16,
+    /// 0x1C32:0C cycle time too small: a second output buffer within one SYNC0 period
+    /// (the first was overwritten before the device took it).
+    pub cycle_time_too_small: u16,
+    /// 0x1C32:20 sync error: the SM event missed counter reached the limit.
+    pub sync_error: bool,
 }
 
 impl Slave {
@@ -125,7 +143,13 @@ impl Slave {
             dc_mode: false,
             sync0_at_safeop: 0,
             outputs: Vec::new(),
+            sync: SyncCounters::default(),
         }
+    }
+
+    /// What the firmware counted of the outputs against SYNC0 (object 0x1C32).
+    pub fn sync_counters(&self) -> &SyncCounters {
+        &self.sync
     }
 
     /// The same slave with this firmware behind its ESC (transition times and checks).
@@ -208,6 +232,13 @@ impl Slave {
         if let Some(dc) = self.dc.as_mut() {
             dc.advance(&mut self.memory, t);
         }
+        let edges = self.sync0_events().saturating_sub(self.sync.sync0_seen);
+        if edges > 0 {
+            self.sync.sync0_seen = self.sync0_events();
+            if self.dc_mode {
+                self.on_sync0(edges);
+            }
+        }
         if let Some(loaded) = self.sii.advance(&mut self.memory, t) {
             self.eeprom_loaded = loaded;
             self.set_ports(self.wired);
@@ -265,10 +296,20 @@ impl Slave {
     /// what a master is half-way through writing; reading clears the SyncManager's
     /// write event, writing the inputs clears its read event and names the new buffer.
     pub fn tick(&mut self, dt_s: f64) {
+        let state = AlState::from_bits(self.al_status());
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
         }
-        self.device.step(&mut self.memory, dt_s);
+        match (&mut self.device, state) {
+            // A drive takes its outputs at SYNC0 or when the frame wrote them, not here;
+            // its inputs are valid from SafeOp on (ETG.1000.6 §6.4.1), not before.
+            (DeviceModel::Servo(drive), AlState::SafeOp | AlState::Op) => {
+                drive.run(dt_s);
+                drive.publish_inputs(&mut self.memory);
+            }
+            (DeviceModel::Servo(drive), _) => drive.run(dt_s),
+            (device, _) => device.step(&mut self.memory, dt_s),
+        }
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
         }
@@ -393,6 +434,22 @@ impl Slave {
             }
         }
         self.outputs_received = true;
+        let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
+        if self.dc_mode {
+            // DC: the device takes the outputs at its next SYNC0 edge; a second buffer
+            // before that edge overwrites the first, which is never taken.
+            self.sync.buffers_since_sync0 = self.sync.buffers_since_sync0.saturating_add(1);
+            self.sync.sm_event_missed = self.sync.sm_event_missed.saturating_sub(1);
+            if self.sync.buffers_since_sync0 >= 2 && in_op {
+                self.sync.cycle_time_too_small = self.sync.cycle_time_too_small.wrapping_add(1);
+                if let Some(r) = self.device.record_mut() {
+                    r.sync_doubled = r.sync_doubled.saturating_add(1);
+                }
+            }
+        } else if in_op {
+            // Free run (SM-synchronous): the frame that completed the buffer is the event.
+            self.device.take_outputs(&self.memory);
+        }
     }
 
     /// Serves a register or RAM access by address (not through the FMMUs). Kept out of
@@ -483,6 +540,68 @@ impl Slave {
             }
         }
         served
+    }
+
+    /// `edges` SYNC0 pulses came (more than one when the chain caught up after a stall).
+    /// In Op the device takes the last completed output buffer at the first; an edge with
+    /// no buffer since the previous one is a missed setpoint (0x1C32:0B +3, the drive's
+    /// record); at the 0x10F1:02 limit it leaves Op with a sync error (0x001A) and the
+    /// drive faults (its fault reaction for a lost sync: 0x8700, sync controller).
+    fn on_sync0(&mut self, edges: u64) {
+        let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
+        let counting = in_op && self.outputs_received;
+        let mut missed = 0u64;
+        if self.sync.buffers_since_sync0 == 0 {
+            missed += 1;
+        } else if in_op {
+            for b in &mut self.outputs {
+                swap_buffer(&mut self.memory, b);
+            }
+            self.device.take_outputs(&self.memory);
+            for b in &mut self.outputs {
+                swap_buffer(&mut self.memory, b);
+            }
+        }
+        // Every further edge of a catch-up had no buffer before it.
+        missed += edges - 1;
+        self.sync.buffers_since_sync0 = 0;
+        if !counting || missed == 0 {
+            return;
+        }
+        if let Some(r) = self.device.record_mut() {
+            r.sync_missed = r
+                .sync_missed
+                .saturating_add(missed.min(u64::from(u32::MAX)) as u32);
+        }
+        let limit = self.firmware.sync_error_limit;
+        for _ in 0..missed.min(u64::from(limit)) {
+            if self.sync.sm_event_missed <= limit {
+                self.sync.sm_event_missed = self.sync.sm_event_missed.saturating_add(3);
+            }
+        }
+        if self.sync.sm_event_missed >= limit {
+            self.sync.sync_error = true;
+            self.set_al(
+                u16::from(AlState::SafeOp.raw()) | al::ERROR_BIT,
+                AlStatusCode::SyncError,
+            );
+            self.device.on_watchdog();
+        }
+    }
+
+    /// Leaving Op: the outputs are no longer taken; the device gets its safe state, all
+    /// outputs zero (a drive: controlword 0, disable voltage).
+    fn take_safe_outputs(&mut self) {
+        let Some(b) = self.outputs.first() else {
+            return;
+        };
+        let (start, len) = (b.start, b.data.len());
+        let Some(kept) = self.memory.raw(start, len).map(<[u8]>::to_vec) else {
+            return;
+        };
+        self.memory.pdi_write(start, &vec![0; len]);
+        self.device.take_outputs(&self.memory);
+        self.memory.pdi_write(start, &kept);
     }
 
     /// Bit n set when SyncManager n is enabled.
@@ -655,6 +774,7 @@ impl Slave {
         let was_op = AlState::from_bits(self.al_status()) == AlState::Op;
         if was_op && AlState::from_bits(status) != AlState::Op {
             self.outputs_received = false;
+            self.take_safe_outputs();
         }
         self.memory.pdi_write(AL_STATUS, &status.to_le_bytes());
         self.memory
@@ -708,6 +828,10 @@ impl Slave {
         if (current, after) == (AlState::PreOp, AlState::SafeOp) {
             self.outputs_received = false;
             self.dc_mode = self.byte(DC_ACTIVATION) & DC_SYNC0 != 0;
+            self.sync = SyncCounters {
+                sync0_seen: self.sync0_events(),
+                ..SyncCounters::default()
+            };
         }
         self.pending = Some(Pending {
             from: current,
@@ -742,6 +866,11 @@ impl Slave {
             }
         }
         self.pending = None;
+        if p.to == AlState::Op {
+            // The output handler starts afresh: the sync supervision too.
+            self.sync.sm_event_missed = 0;
+            self.sync.sync_error = false;
+        }
         if (p.from, p.to) == (AlState::PreOp, AlState::SafeOp) {
             let layout = self
                 .od
