@@ -1073,6 +1073,27 @@ mod tests {
         let (state, record, code) = drive(&c);
         assert_eq!((state, code), (State::Fault, 0x8700));
         assert_eq!(record.sync_missed, 3);
+        // The master reads them by SDO: 0x1C32:0B (SM event missed), :20 (sync error),
+        // :01 (sync type 2: SYNC0).
+        let upload = |c: &mut SlaveChain, sub: u8, counter: u8| {
+            let mut m = vec![0u8; 128];
+            m[0] = 10;
+            m[5] = crate::coe::MAILBOX_TYPE_COE | (counter << 4);
+            m[6..8].copy_from_slice(&(crate::coe::COE_SDO_REQUEST << 12).to_le_bytes());
+            m[8..12].copy_from_slice(&[0x40, 0x32, 0x1C, sub]);
+            assert_eq!(send(c, Command::Apwr, 0, 0x1000, &m).1, 1);
+            let (answer, wkc) = send(c, Command::Aprd, 0, 0x1080, &[0; 128]);
+            assert_eq!(wkc, 1);
+            assert_eq!(
+                &answer[8..12],
+                &[0x4B, 0x32, 0x1C, sub][..],
+                "2-byte upload"
+            );
+            u16::from_le_bytes([answer[12], answer[13]])
+        };
+        assert_eq!(upload(&mut c, 0x0B, 1), 6);
+        assert_eq!(upload(&mut c, 0x0C, 2), 1);
+        assert_eq!(upload(&mut c, 0x01, 3), 2);
     }
 
     #[test]

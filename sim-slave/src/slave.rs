@@ -27,6 +27,10 @@ const DEVICE_EMULATION: u8 = 0x01;
 const DC_CYCLIC: u8 = 0x01;
 const DC_SYNC0: u8 = 0x02;
 const DC_SYNC1: u8 = 0x04;
+/// Object 0x1C32, SM output parameter (ETG.1020).
+pub const SM_OUTPUT_PARAMETER: u16 = 0x1C32;
+/// Object 0x10F1, error settings (sub 2: sync error counter limit).
+pub const ERROR_SETTINGS: u16 = 0x10F1;
 /// Smallest mailbox the firmware accepts (mailbox header, CoE header and an expedited
 /// SDO: the slave stack code's MIN_MBX_SIZE is 34 bytes).
 const MIN_MAILBOX_BYTES: u16 = 34;
@@ -743,6 +747,7 @@ impl Slave {
     /// in the read mailbox and mark that full; the write mailbox is empty again once the
     /// firmware took the request.
     fn on_mailbox_write(&mut self, n: u16, s: SyncManager) {
+        self.publish_sync_objects();
         let Some(od) = self.od.as_mut() else { return };
         let mut request = vec![0u8; usize::from(s.length)];
         self.memory.ecat_read(s.start, &mut request, false);
@@ -765,6 +770,56 @@ impl Slave {
         self.memory.pdi_write(o.start, &area);
         sm::set_status(&mut self.memory, k, o.status | status::MAILBOX_FULL);
         self.answered = true;
+        // The master may have written the sync error counter limit.
+        if let Some(limit) = self
+            .od
+            .as_ref()
+            .and_then(|od| od.read(ERROR_SETTINGS, 2).ok())
+            .and_then(|v| <[u8; 2]>::try_from(v.get(..2)?).ok())
+            .map(u16::from_le_bytes)
+        {
+            self.firmware.sync_error_limit = limit.max(1);
+        }
+    }
+
+    /// Puts what the firmware counts into its object dictionary before the master reads
+    /// it by SDO: 0x1C32 SM output parameter (ETG.1020: :01 sync type, :02 cycle time,
+    /// :0B SM event missed, :0C cycle time too small, :20 sync error) and 0x10F1 error
+    /// settings (:02 sync error counter limit, writable).
+    fn publish_sync_objects(&mut self) {
+        let cycle = self
+            .memory
+            .read_u32(crate::esc::registers::DC_SYNC0_CYCLE_TIME);
+        let (sync, limit, dc_mode) = (self.sync, self.firmware.sync_error_limit, self.dc_mode);
+        let Some(od) = self.od.as_mut() else { return };
+        // Sync type: 2 synchronous with SYNC0, 1 synchronous with the SM2 event.
+        let sync_type: u16 = if dc_mode { 2 } else { 1 };
+        od.insert(SM_OUTPUT_PARAMETER, 0, &[0x20], false);
+        od.insert(SM_OUTPUT_PARAMETER, 0x01, &sync_type.to_le_bytes(), false);
+        od.insert(SM_OUTPUT_PARAMETER, 0x02, &cycle.to_le_bytes(), false);
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x0B,
+            &sync.sm_event_missed.to_le_bytes(),
+            false,
+        );
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x0C,
+            &sync.cycle_time_too_small.to_le_bytes(),
+            false,
+        );
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x20,
+            &[u8::from(sync.sync_error)],
+            false,
+        );
+        if od.read(ERROR_SETTINGS, 2).is_err() {
+            od.insert(ERROR_SETTINGS, 0, &[2], false);
+            od.insert(ERROR_SETTINGS, 1, &0u32.to_le_bytes(), false);
+            od.insert(ERROR_SETTINGS, 2, &limit.to_le_bytes(), true);
+        }
     }
 
     /// Writes AL status and AL status code. Leaving Op stops the output handler: the
