@@ -342,6 +342,12 @@ impl SimConfig {
                             "must be 0 to 10000 ms",
                         ));
                     }
+                    if al.sync_error_limit == Some(0) {
+                        return Err(invalid(
+                            format!("slave[{i}].al.sync_error_limit"),
+                            "must be at least 1",
+                        ));
+                    }
                     if *counts_per_rev == 0 {
                         return Err(invalid(
                             format!("slave[{i}].counts_per_rev"),
