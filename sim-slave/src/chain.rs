@@ -982,6 +982,181 @@ mod tests {
         assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
     }
 
+    /// The servo's drive state and record.
+    fn drive(
+        c: &SlaveChain,
+    ) -> (
+        gantry_drives::cia402::State,
+        crate::plant::record::DriveRecord,
+        u16,
+    ) {
+        match c.slaves()[0].device() {
+            crate::plant::DeviceModel::Servo(s) => (s.state(), *s.record(), s.error_code()),
+            other => panic!("not a servo: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_dc_drive_takes_its_outputs_at_sync0_and_counts_missed_and_doubled_setpoints() {
+        use crate::esc::registers::{
+            DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME, SM0,
+        };
+        use gantry_drives::cia402::State;
+        let mut c = servo_in_preop();
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        // SYNC0 every 1 ms from half a period on: frames sent right after each whole
+        // period arrive mid-period (each frame's wire time moves them 7 µs a period).
+        let start = (c.now_ns() + 500_000).to_le_bytes();
+        send(&mut c, Command::Apwr, 0, DC_START_TIME_CYCLIC, &start);
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            DC_SYNC0_CYCLE_TIME,
+            &1_000_000u32.to_le_bytes(),
+        );
+        send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[0x03]);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        let period = |c: &mut SlaveChain| {
+            let t = c.now_ns();
+            c.advance(1_000_000 - (t % 1_000_000));
+        };
+        for _ in 0..11 {
+            period(&mut c);
+        }
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00]);
+        let out = |c: &mut SlaveChain, cw: u16, target: i32| {
+            let mut b = cw.to_le_bytes().to_vec();
+            b.extend(target.to_le_bytes());
+            assert_eq!(send(c, Command::Apwr, 0, 0x1100, &b).1, 1);
+        };
+        // SafeOp: outputs are ignored (safe state), the drive stays where it is.
+        out(&mut c, 0x06, 0);
+        period(&mut c);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+        // To Op with outputs every period; then enable (6, 7, 15) and move.
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        for _ in 0..6 {
+            out(&mut c, 0x06, 0);
+            period(&mut c);
+        }
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        for (k, cw) in [0x06u16, 0x07, 0x0F, 0x0F, 0x0F, 0x0F, 0x0F, 0x0F]
+            .into_iter()
+            .enumerate()
+        {
+            out(&mut c, cw, 10 * k as i32);
+            period(&mut c);
+        }
+        let (state, record, _) = drive(&c);
+        assert_eq!(state, State::OperationEnabled);
+        assert_eq!((record.sync_missed, record.sync_doubled), (0, 0));
+        let taken = record.targets;
+        assert!(taken >= 4, "{record:?}");
+        // Two frames in one period: the first is overwritten before SYNC0 takes it.
+        out(&mut c, 0x0F, 100);
+        out(&mut c, 0x0F, 110);
+        period(&mut c);
+        let (_, record, _) = drive(&c);
+        assert_eq!(record.sync_doubled, 1);
+        assert_eq!(record.targets, taken + 1, "one setpoint taken at the edge");
+        assert_eq!(
+            record.max_target_step_counts, 40,
+            "70 → 110: the first never taken"
+        );
+        assert_eq!(c.slaves()[0].sync_counters().cycle_time_too_small, 1);
+        // A period without a frame: one missed setpoint, 0x1C32:0B = 3, still Op.
+        period(&mut c);
+        let (_, record, _) = drive(&c);
+        assert_eq!(record.sync_missed, 1);
+        assert_eq!(c.slaves()[0].sync_counters().sm_event_missed, 3);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        // Three good periods bring the counter down to 0; then two misses in a row reach
+        // the limit: sync error, out of Op with 0x001A, the drive faults (0x8700).
+        for _ in 0..3 {
+            out(&mut c, 0x0F, 110);
+            period(&mut c);
+        }
+        assert_eq!(c.slaves()[0].sync_counters().sm_event_missed, 0);
+        period(&mut c);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00], "one miss is tolerated");
+        period(&mut c);
+        assert_eq!(al(&mut c), [0x14, 0x00, 0, 0, 0x1A, 0x00]);
+        assert!(c.slaves()[0].sync_counters().sync_error);
+        let (state, record, code) = drive(&c);
+        assert_eq!((state, code), (State::Fault, 0x8700));
+        assert_eq!(record.sync_missed, 3);
+        // The master reads them by SDO: 0x1C32:0B (SM event missed), :20 (sync error),
+        // :01 (sync type 2: SYNC0).
+        let upload = |c: &mut SlaveChain, sub: u8, counter: u8| {
+            let mut m = vec![0u8; 128];
+            m[0] = 10;
+            m[5] = crate::coe::MAILBOX_TYPE_COE | (counter << 4);
+            m[6..8].copy_from_slice(&(crate::coe::COE_SDO_REQUEST << 12).to_le_bytes());
+            m[8..12].copy_from_slice(&[0x40, 0x32, 0x1C, sub]);
+            assert_eq!(send(c, Command::Apwr, 0, 0x1000, &m).1, 1);
+            let (answer, wkc) = send(c, Command::Aprd, 0, 0x1080, &[0; 128]);
+            assert_eq!(wkc, 1);
+            assert_eq!(
+                &answer[8..12],
+                &[0x4B, 0x32, 0x1C, sub][..],
+                "2-byte upload"
+            );
+            u16::from_le_bytes([answer[12], answer[13]])
+        };
+        assert_eq!(upload(&mut c, 0x0B, 1), 6);
+        assert_eq!(upload(&mut c, 0x0C, 2), 1);
+        assert_eq!(upload(&mut c, 0x01, 3), 2);
+    }
+
+    #[test]
+    fn a_free_running_drive_takes_its_outputs_when_the_frame_wrote_them_and_only_in_op() {
+        use gantry_drives::cia402::State;
+        let mut c = servo_in_safeop(0);
+        let out = |c: &mut SlaveChain, cw: u16| {
+            let mut b = cw.to_le_bytes().to_vec();
+            b.extend(0i32.to_le_bytes());
+            send(c, Command::Apwr, 0, 0x1100, &b);
+        };
+        // SafeOp: ignored.
+        out(&mut c, 0x06);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+        // The inputs are valid in SafeOp: the statusword (0x0240 | ...) is there.
+        let (inputs, _) = send(&mut c, Command::Aprd, 0, 0x1400, &[0; 2]);
+        assert_ne!(inputs, vec![0, 0], "statusword published in SafeOp");
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        c.advance(5_000_000);
+        out(&mut c, 0x06);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        // Op: each frame's outputs are taken when it completes the buffer, no matter
+        // when the application's period falls; no SYNC0, nothing missed.
+        out(&mut c, 0x06);
+        c.tick(0.001);
+        out(&mut c, 0x07);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchedOn);
+        let (_, record, _) = drive(&c);
+        assert_eq!((record.sync_missed, record.sync_doubled), (0, 0));
+        // Back to SafeOp: the drive gets its safe outputs (controlword 0).
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+    }
+
     #[test]
     fn a_simple_terminal_in_device_emulation_mirrors_al_control_at_once() {
         use crate::catalog::{self, SwitchesOptions};

@@ -29,6 +29,7 @@
 //! init_to_preop_ms = 2
 //! preop_to_safeop_ms = 10
 //! safeop_to_op_ms = 5
+//! sync_error_limit = 4    # 0x10F1:02: two SYNC0 periods without outputs leave Op
 //!
 //! [[slave]]
 //! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
@@ -312,6 +313,11 @@ pub struct AlConfig {
     pub preop_to_safeop_ms: Option<f64>,
     /// SafeOp → Op.
     pub safeop_to_op_ms: Option<f64>,
+    /// 0x10F1:02 sync error counter limit (default 4: two SYNC0 periods in a row without
+    /// outputs take the drive out of Op with a sync error).
+    pub sync_error_limit: Option<u16>,
+    /// SafeOp → Op waits for valid outputs (default: a servo does, an I/O module not).
+    pub op_needs_outputs: Option<bool>,
 }
 
 /// Longest AL transition time accepted (ms): beyond, a master's state-transition timeout
@@ -341,6 +347,16 @@ impl AlConfig {
             v.is_some_and(|v| !(v.is_finite() && (0.0..=MAX_AL_TRANSITION_MS).contains(&v)))
         })
         .map(|(k, _)| k)
+    }
+
+    /// The firmware `base` with these settings.
+    pub fn firmware(&self, base: Firmware) -> Firmware {
+        Firmware {
+            times: self.times(base.times),
+            sync_error_limit: self.sync_error_limit.unwrap_or(base.sync_error_limit),
+            op_needs_outputs: self.op_needs_outputs.unwrap_or(base.op_needs_outputs),
+            ..base
+        }
     }
 }
 
@@ -414,6 +430,12 @@ impl SimConfig {
                             "must be 0 to 10000 ms",
                         ));
                     }
+                    if servo.al.sync_error_limit == Some(0) {
+                        return Err(invalid(
+                            format!("slave[{i}].al.sync_error_limit"),
+                            "must be at least 1",
+                        ));
+                    }
                     if let Err(e) = servo.params().check() {
                         // The TOML key of the velocity loop is `bandwidth_hz`.
                         let name = match e.name {
@@ -440,6 +462,12 @@ impl SimConfig {
                         return Err(invalid(
                             format!("slave[{i}].{key}"),
                             "must be 0 to 10000 ms",
+                        ));
+                    }
+                    if al.sync_error_limit == Some(0) {
+                        return Err(invalid(
+                            format!("slave[{i}].al.sync_error_limit"),
+                            "must be at least 1",
                         ));
                     }
                     if *counts_per_rev == 0 {
@@ -509,10 +537,7 @@ impl SimConfig {
                         serial,
                         start_counts: servo.start_position,
                         params: servo.params(),
-                        firmware: Firmware {
-                            times: servo.al.times(TransitionTimes::SERVO),
-                            ..Firmware::SERVO
-                        },
+                        firmware: servo.al.firmware(Firmware::SERVO),
                     })
                     .with_dc_drift_ppm(servo.dc_drift_ppm),
                     SlaveConfig::Encoder {
@@ -524,10 +549,7 @@ impl SimConfig {
                         counts_per_rev: *counts_per_rev,
                         shaft_speed_rev_s: *shaft_speed,
                     })
-                    .with_firmware(Firmware {
-                        times: al.times(TransitionTimes::INSTANT),
-                        ..Firmware::SIMPLE
-                    }),
+                    .with_firmware(al.firmware(Firmware::SIMPLE)),
                     SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
                         serial,
                         axis: *axis,
@@ -603,6 +625,21 @@ mod tests {
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = -1\n"),
             "sim.toml: slave[0].al.safeop_to_op_ms: must be 0 to 10000 ms"
+        );
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = 0\n"),
+            "sim.toml: slave[0].al.sync_error_limit: must be at least 1"
+        );
+        let limit = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = 40\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = limit.chain().unwrap();
+        assert_eq!(chain.slaves()[0].firmware().sync_error_limit, 40);
+        assert!(
+            chain.slaves()[0].firmware().op_needs_outputs,
+            "a servo's default"
         );
         let unknown = e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_op_ms = 1\n");
         assert!(unknown.contains("safeop_op_ms"), "{unknown}");

@@ -27,6 +27,10 @@ const DEVICE_EMULATION: u8 = 0x01;
 const DC_CYCLIC: u8 = 0x01;
 const DC_SYNC0: u8 = 0x02;
 const DC_SYNC1: u8 = 0x04;
+/// Object 0x1C32, SM output parameter (ETG.1020).
+pub const SM_OUTPUT_PARAMETER: u16 = 0x1C32;
+/// Object 0x10F1, error settings (sub 2: sync error counter limit).
+pub const ERROR_SETTINGS: u16 = 0x10F1;
 /// Smallest mailbox the firmware accepts (mailbox header, CoE header and an expedited
 /// SDO: the slave stack code's MIN_MBX_SIZE is 34 bytes).
 const MIN_MAILBOX_BYTES: u16 = 34;
@@ -90,6 +94,24 @@ pub struct Slave {
     sync0_at_safeop: u64,
     /// Completed output buffers the application reads (3-buffer mode).
     outputs: Vec<OutputBuffer>,
+    /// What the firmware counts of the outputs against SYNC0 (0x1C32).
+    sync: SyncCounters,
+}
+
+/// The SyncManager output parameters (object 0x1C32) a DC-synchronous device keeps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SyncCounters {
+    /// SYNC0 edges seen so far.
+    sync0_seen: u64,
+    /// Output buffers completed since the last SYNC0 edge.
+    buffers_since_sync0: u32,
+    /// 0x1C32:0B SM event missed counter (+3 per SYNC0 without outputs, −1 per buffer).
+    pub sm_event_missed: u16,
+    /// 0x1C32:0C cycle time too small: a second output buffer within one SYNC0 period
+    /// (the first was overwritten before the device took it).
+    pub cycle_time_too_small: u16,
+    /// 0x1C32:20 sync error: the SM event missed counter reached the limit.
+    pub sync_error: bool,
 }
 
 impl Slave {
@@ -125,7 +147,13 @@ impl Slave {
             dc_mode: false,
             sync0_at_safeop: 0,
             outputs: Vec::new(),
+            sync: SyncCounters::default(),
         }
+    }
+
+    /// What the firmware counted of the outputs against SYNC0 (object 0x1C32).
+    pub fn sync_counters(&self) -> &SyncCounters {
+        &self.sync
     }
 
     /// The same slave with this firmware behind its ESC (transition times and checks).
@@ -208,6 +236,13 @@ impl Slave {
         if let Some(dc) = self.dc.as_mut() {
             dc.advance(&mut self.memory, t);
         }
+        let edges = self.sync0_events().saturating_sub(self.sync.sync0_seen);
+        if edges > 0 {
+            self.sync.sync0_seen = self.sync0_events();
+            if self.dc_mode {
+                self.on_sync0(edges);
+            }
+        }
         if let Some(loaded) = self.sii.advance(&mut self.memory, t) {
             self.eeprom_loaded = loaded;
             self.set_ports(self.wired);
@@ -265,10 +300,20 @@ impl Slave {
     /// what a master is half-way through writing; reading clears the SyncManager's
     /// write event, writing the inputs clears its read event and names the new buffer.
     pub fn tick(&mut self, dt_s: f64) {
+        let state = AlState::from_bits(self.al_status());
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
         }
-        self.device.step(&mut self.memory, dt_s);
+        match (&mut self.device, state) {
+            // A drive takes its outputs at SYNC0 or when the frame wrote them, not here;
+            // its inputs are valid from SafeOp on (ETG.1000.6 §6.4.1), not before.
+            (DeviceModel::Servo(drive), AlState::SafeOp | AlState::Op) => {
+                drive.run(dt_s);
+                drive.publish_inputs(&mut self.memory);
+            }
+            (DeviceModel::Servo(drive), _) => drive.run(dt_s),
+            (device, _) => device.step(&mut self.memory, dt_s),
+        }
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
         }
@@ -393,6 +438,22 @@ impl Slave {
             }
         }
         self.outputs_received = true;
+        let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
+        if self.dc_mode {
+            // DC: the device takes the outputs at its next SYNC0 edge; a second buffer
+            // before that edge overwrites the first, which is never taken.
+            self.sync.buffers_since_sync0 = self.sync.buffers_since_sync0.saturating_add(1);
+            self.sync.sm_event_missed = self.sync.sm_event_missed.saturating_sub(1);
+            if self.sync.buffers_since_sync0 >= 2 && in_op {
+                self.sync.cycle_time_too_small = self.sync.cycle_time_too_small.wrapping_add(1);
+                if let Some(r) = self.device.record_mut() {
+                    r.sync_doubled = r.sync_doubled.saturating_add(1);
+                }
+            }
+        } else if in_op {
+            // Free run (SM-synchronous): the frame that completed the buffer is the event.
+            self.device.take_outputs(&self.memory);
+        }
     }
 
     /// Serves a register or RAM access by address (not through the FMMUs). Kept out of
@@ -483,6 +544,68 @@ impl Slave {
             }
         }
         served
+    }
+
+    /// `edges` SYNC0 pulses came (more than one when the chain caught up after a stall).
+    /// In Op the device takes the last completed output buffer at the first; an edge with
+    /// no buffer since the previous one is a missed setpoint (0x1C32:0B +3, the drive's
+    /// record); at the 0x10F1:02 limit it leaves Op with a sync error (0x001A) and the
+    /// drive faults (its fault reaction for a lost sync: 0x8700, sync controller).
+    fn on_sync0(&mut self, edges: u64) {
+        let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
+        let counting = in_op && self.outputs_received;
+        let mut missed = 0u64;
+        if self.sync.buffers_since_sync0 == 0 {
+            missed += 1;
+        } else if in_op {
+            for b in &mut self.outputs {
+                swap_buffer(&mut self.memory, b);
+            }
+            self.device.take_outputs(&self.memory);
+            for b in &mut self.outputs {
+                swap_buffer(&mut self.memory, b);
+            }
+        }
+        // Every further edge of a catch-up had no buffer before it.
+        missed += edges - 1;
+        self.sync.buffers_since_sync0 = 0;
+        if !counting || missed == 0 {
+            return;
+        }
+        if let Some(r) = self.device.record_mut() {
+            r.sync_missed = r
+                .sync_missed
+                .saturating_add(missed.min(u64::from(u32::MAX)) as u32);
+        }
+        let limit = self.firmware.sync_error_limit;
+        for _ in 0..missed.min(u64::from(limit)) {
+            if self.sync.sm_event_missed <= limit {
+                self.sync.sm_event_missed = self.sync.sm_event_missed.saturating_add(3);
+            }
+        }
+        if self.sync.sm_event_missed >= limit {
+            self.sync.sync_error = true;
+            self.set_al(
+                u16::from(AlState::SafeOp.raw()) | al::ERROR_BIT,
+                AlStatusCode::SyncError,
+            );
+            self.device.on_watchdog();
+        }
+    }
+
+    /// Leaving Op: the outputs are no longer taken; the device gets its safe state, all
+    /// outputs zero (a drive: controlword 0, disable voltage).
+    fn take_safe_outputs(&mut self) {
+        let Some(b) = self.outputs.first() else {
+            return;
+        };
+        let (start, len) = (b.start, b.data.len());
+        let Some(kept) = self.memory.raw(start, len).map(<[u8]>::to_vec) else {
+            return;
+        };
+        self.memory.pdi_write(start, &vec![0; len]);
+        self.device.take_outputs(&self.memory);
+        self.memory.pdi_write(start, &kept);
     }
 
     /// Bit n set when SyncManager n is enabled.
@@ -624,6 +747,7 @@ impl Slave {
     /// in the read mailbox and mark that full; the write mailbox is empty again once the
     /// firmware took the request.
     fn on_mailbox_write(&mut self, n: u16, s: SyncManager) {
+        self.publish_sync_objects();
         let Some(od) = self.od.as_mut() else { return };
         let mut request = vec![0u8; usize::from(s.length)];
         self.memory.ecat_read(s.start, &mut request, false);
@@ -650,6 +774,56 @@ impl Slave {
         self.memory.pdi_write(o.start, &area);
         sm::set_status(&mut self.memory, k, o.status | status::MAILBOX_FULL);
         self.answered = true;
+        // The master may have written the sync error counter limit.
+        if let Some(limit) = self
+            .od
+            .as_ref()
+            .and_then(|od| od.read(ERROR_SETTINGS, 2).ok())
+            .and_then(|v| <[u8; 2]>::try_from(v.get(..2)?).ok())
+            .map(u16::from_le_bytes)
+        {
+            self.firmware.sync_error_limit = limit.max(1);
+        }
+    }
+
+    /// Puts what the firmware counts into its object dictionary before the master reads
+    /// it by SDO: 0x1C32 SM output parameter (ETG.1020: :01 sync type, :02 cycle time,
+    /// :0B SM event missed, :0C cycle time too small, :20 sync error) and 0x10F1 error
+    /// settings (:02 sync error counter limit, writable).
+    fn publish_sync_objects(&mut self) {
+        let cycle = self
+            .memory
+            .read_u32(crate::esc::registers::DC_SYNC0_CYCLE_TIME);
+        let (sync, limit, dc_mode) = (self.sync, self.firmware.sync_error_limit, self.dc_mode);
+        let Some(od) = self.od.as_mut() else { return };
+        // Sync type: 2 synchronous with SYNC0, 1 synchronous with the SM2 event.
+        let sync_type: u16 = if dc_mode { 2 } else { 1 };
+        od.insert(SM_OUTPUT_PARAMETER, 0, &[0x20], false);
+        od.insert(SM_OUTPUT_PARAMETER, 0x01, &sync_type.to_le_bytes(), false);
+        od.insert(SM_OUTPUT_PARAMETER, 0x02, &cycle.to_le_bytes(), false);
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x0B,
+            &sync.sm_event_missed.to_le_bytes(),
+            false,
+        );
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x0C,
+            &sync.cycle_time_too_small.to_le_bytes(),
+            false,
+        );
+        od.insert(
+            SM_OUTPUT_PARAMETER,
+            0x20,
+            &[u8::from(sync.sync_error)],
+            false,
+        );
+        if od.read(ERROR_SETTINGS, 2).is_err() {
+            od.insert(ERROR_SETTINGS, 0, &[2], false);
+            od.insert(ERROR_SETTINGS, 1, &0u32.to_le_bytes(), false);
+            od.insert(ERROR_SETTINGS, 2, &limit.to_le_bytes(), true);
+        }
     }
 
     /// Writes AL status and AL status code. Leaving Op stops the output handler: the
@@ -659,6 +833,7 @@ impl Slave {
         let was_op = AlState::from_bits(self.al_status()) == AlState::Op;
         if was_op && AlState::from_bits(status) != AlState::Op {
             self.outputs_received = false;
+            self.take_safe_outputs();
         }
         self.memory.pdi_write(AL_STATUS, &status.to_le_bytes());
         self.memory
@@ -712,6 +887,10 @@ impl Slave {
         if (current, after) == (AlState::PreOp, AlState::SafeOp) {
             self.outputs_received = false;
             self.dc_mode = self.byte(DC_ACTIVATION) & DC_SYNC0 != 0;
+            self.sync = SyncCounters {
+                sync0_seen: self.sync0_events(),
+                ..SyncCounters::default()
+            };
         }
         self.pending = Some(Pending {
             from: current,
@@ -746,6 +925,11 @@ impl Slave {
             }
         }
         self.pending = None;
+        if p.to == AlState::Op {
+            // The output handler starts afresh: the sync supervision too.
+            self.sync.sm_event_missed = 0;
+            self.sync.sync_error = false;
+        }
         if (p.from, p.to) == (AlState::PreOp, AlState::SafeOp) {
             let layout = self
                 .od

@@ -201,7 +201,15 @@ pub struct Firmware {
     /// The device runs only synchronised to SYNC0 (PreOp → SafeOp without SYNC0 active:
     /// 0x0030).
     pub requires_dc: bool,
+    /// 0x10F1:02 sync error counter limit: the SM event missed counter (0x1C32:0B) goes
+    /// up by 3 for a SYNC0 without new outputs and down by 1 for each output buffer; at
+    /// the limit the device leaves Op with 0x001A (ETG.1020; the slave stack code's
+    /// default 4: two SYNC0 periods in a row without outputs).
+    pub sync_error_limit: u16,
 }
+
+/// The slave stack code's default 0x10F1:02.
+pub const DEFAULT_SYNC_ERROR_LIMIT: u16 = 4;
 
 impl Firmware {
     /// A CiA-402 servo drive.
@@ -209,12 +217,14 @@ impl Firmware {
         times: TransitionTimes::SERVO,
         op_needs_outputs: true,
         requires_dc: false,
+        sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
     };
     /// An I/O module without checks of its own beyond the standard's.
     pub const SIMPLE: Self = Self {
         times: TransitionTimes::INSTANT,
         op_needs_outputs: false,
         requires_dc: false,
+        sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
     };
 }
 
