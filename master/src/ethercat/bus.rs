@@ -535,7 +535,7 @@ impl CycleBus for EthercatBus {
                     states: &self.states,
                 });
             }
-            // No reply by the deadline, or ethercrab's own timeout.
+            // No reply by the deadline, or the frame could not be sent.
             Some(Err(_)) | None => health.record(Exchange::Lost),
         }
         if let Some((axis, recovery)) = self.recovery.as_mut() {

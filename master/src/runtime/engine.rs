@@ -42,13 +42,14 @@ pub enum LateReply {
     /// real time (`--no-rt`, tests on a busy machine): then it is the host that is late,
     /// not the bus, and a late reply is not a bus fault.
     Wait {
-        /// Longest wait for a reply (or for a slave's answer during a reset).
+        /// Longest wait for a reply (and for a reset's register access beside it).
         ns: u64,
     },
 }
 
 impl LateReply {
-    /// Waiting as long as ethercrab's own PDU timeout.
+    /// Waiting 30 ms, ethercrab's default PDU timeout (gantry gives ethercrab no timers
+    /// of its own: this deadline is the only one).
     pub const WAIT: Self = Self::Wait { ns: 30_000_000 };
 
     /// Until when the cycle that woke at `wake` waits for an answer to what it sends now.
