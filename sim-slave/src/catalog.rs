@@ -3,6 +3,8 @@
 //! `gantry-sim` binary emulate the same hardware.
 
 use crate::coe::od::ObjectDictionary;
+use crate::esc::al::Firmware;
+use crate::esc::sii::{config_area, PDI_DIGITAL_IO_DEVICE_EMULATION};
 use crate::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
 use crate::plant::encoder::{self, EncoderModule};
 use crate::plant::servo::ServoDrive;
@@ -59,6 +61,8 @@ pub struct ServoOptions {
     pub bandwidth_hz: f64,
     /// The motor's hidden commutation offset (counts), for commissioning to find.
     pub commutation_offset: i32,
+    /// Its firmware's transition times and checks.
+    pub firmware: Firmware,
 }
 
 impl Default for ServoOptions {
@@ -68,6 +72,7 @@ impl Default for ServoOptions {
             serial: 1,
             start_counts: 0,
             bandwidth_hz: 200.0,
+            firmware: Firmware::SERVO,
         }
     }
 }
@@ -117,6 +122,7 @@ pub fn servo(options: ServoOptions) -> Slave {
             options.serial,
         ))
         .with_device(DeviceModel::Servo(drive))
+        .with_firmware(options.firmware)
 }
 
 /// A SyncManager for process data, sized by the master from the PDOs.
@@ -264,5 +270,8 @@ pub fn switches_description(serial: u32) -> DeviceDescription {
 /// `options.axis` (the chain passes that servo's position along each tick).
 pub fn switches(options: SwitchesOptions) -> Result<Slave, CamError> {
     let module = SwitchesModule::new(SWITCHES_INPUTS_AT, options.axis, options.cams)?;
-    Ok(Slave::new(switches_description(options.serial)).with_device(DeviceModel::Switches(module)))
+    // A simple input terminal: no firmware, the ESC in device emulation mirrors AL control.
+    Ok(Slave::new(switches_description(options.serial))
+        .with_eeprom_word(config_area::PDI_CONTROL, PDI_DIGITAL_IO_DEVICE_EMULATION)
+        .with_device(DeviceModel::Switches(module)))
 }

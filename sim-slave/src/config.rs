@@ -10,6 +10,11 @@
 //! bandwidth_hz = 200      # position loop bandwidth
 //! dc_drift_ppm = 30       # its distributed clock runs 30 ppm fast (default 0)
 //!
+//! [slave.al]              # its firmware's AL transition times (defaults 2, 10, 5 ms)
+//! init_to_preop_ms = 2
+//! preop_to_safeop_ms = 10
+//! safeop_to_op_ms = 5
+//!
 //! [[slave]]
 //! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
 //! counts_per_rev = 4096   # counts per shaft revolution
@@ -36,6 +41,7 @@ use thiserror::Error;
 
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
+use crate::esc::al::{Firmware, TransitionTimes};
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
 /// A configuration that cannot be used, with where and why.
@@ -107,6 +113,9 @@ pub enum SlaveConfig {
         /// the network's reference, which the master's cycle has to follow.
         #[serde(default)]
         dc_drift_ppm: f64,
+        /// How long its firmware takes for each AL transition (`[slave.al]`).
+        #[serde(default)]
+        al: AlConfig,
     },
     /// An incremental encoder module.
     Encoder {
@@ -116,6 +125,9 @@ pub enum SlaveConfig {
         /// Speed at which the shaft turns by itself (rev/s).
         #[serde(default)]
         shaft_speed: f64,
+        /// How long its firmware takes for each AL transition (`[slave.al]`).
+        #[serde(default)]
+        al: AlConfig,
     },
     /// A digital-input module whose inputs are switch cams on a servo's travel.
     Switches {
@@ -156,6 +168,52 @@ impl From<CamConfig> for SwitchCam {
 
 fn default_counts_per_rev() -> u32 {
     4096
+}
+
+// AL transition times (`[slave.al]`).
+
+/// How long a device's firmware takes for each upward AL transition (ms); what is not
+/// given keeps the device's default (a servo: 2, 10 and 5 ms; an encoder module: 0). A
+/// digital-input module has no firmware: its ESC mirrors AL control at once.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AlConfig {
+    /// Init → PreOp.
+    pub init_to_preop_ms: Option<f64>,
+    /// PreOp → SafeOp.
+    pub preop_to_safeop_ms: Option<f64>,
+    /// SafeOp → Op.
+    pub safeop_to_op_ms: Option<f64>,
+}
+
+/// Longest AL transition time accepted (ms): beyond, a master's state-transition timeout
+/// (ethercrab: 5 s) has long given up.
+const MAX_AL_TRANSITION_MS: f64 = 10_000.0;
+
+impl AlConfig {
+    /// The times, with `defaults` for what is not given.
+    pub fn times(&self, defaults: TransitionTimes) -> TransitionTimes {
+        let ns = |ms: Option<f64>, default: u64| ms.map_or(default, |ms| (ms * 1e6).round() as u64);
+        TransitionTimes {
+            init_to_preop_ns: ns(self.init_to_preop_ms, defaults.init_to_preop_ns),
+            preop_to_safeop_ns: ns(self.preop_to_safeop_ms, defaults.preop_to_safeop_ns),
+            safeop_to_op_ns: ns(self.safeop_to_op_ms, defaults.safeop_to_op_ns),
+        }
+    }
+
+    /// The first key out of range, as `al.<key>`.
+    fn invalid_key(&self) -> Option<&'static str> {
+        [
+            ("al.init_to_preop_ms", self.init_to_preop_ms),
+            ("al.preop_to_safeop_ms", self.preop_to_safeop_ms),
+            ("al.safeop_to_op_ms", self.safeop_to_op_ms),
+        ]
+        .into_iter()
+        .find(|(_, v)| {
+            v.is_some_and(|v| !(v.is_finite() && (0.0..=MAX_AL_TRANSITION_MS).contains(&v)))
+        })
+        .map(|(k, _)| k)
+    }
 }
 
 /// Largest oscillator error of a simulated DC clock (ppm); real ones are within ±100.
@@ -228,8 +286,15 @@ impl SimConfig {
                 SlaveConfig::Servo {
                     bandwidth_hz,
                     dc_drift_ppm,
+                    al,
                     ..
                 } => {
+                    if let Some(key) = al.invalid_key() {
+                        return Err(invalid(
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
+                        ));
+                    }
                     if !(bandwidth_hz.is_finite() && *bandwidth_hz > 0.0 && *bandwidth_hz <= 5000.0)
                     {
                         return Err(invalid(
@@ -247,7 +312,14 @@ impl SimConfig {
                 SlaveConfig::Encoder {
                     counts_per_rev,
                     shaft_speed,
+                    al,
                 } => {
+                    if let Some(key) = al.invalid_key() {
+                        return Err(invalid(
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
+                        ));
+                    }
                     if *counts_per_rev == 0 {
                         return Err(invalid(
                             format!("slave[{i}].counts_per_rev"),
@@ -316,20 +388,30 @@ impl SimConfig {
                         bandwidth_hz,
                         commutation_offset,
                         dc_drift_ppm,
+                        al,
                     } => catalog::servo(ServoOptions {
                         serial,
                         start_counts: *start_position,
                         bandwidth_hz: *bandwidth_hz,
                         commutation_offset: *commutation_offset,
+                        firmware: Firmware {
+                            times: al.times(TransitionTimes::SERVO),
+                            ..Firmware::SERVO
+                        },
                     })
                     .with_dc_drift_ppm(*dc_drift_ppm),
                     SlaveConfig::Encoder {
                         counts_per_rev,
                         shaft_speed,
+                        al,
                     } => catalog::encoder(EncoderOptions {
                         serial,
                         counts_per_rev: *counts_per_rev,
                         shaft_speed_rev_s: *shaft_speed,
+                    })
+                    .with_firmware(Firmware {
+                        times: al.times(TransitionTimes::INSTANT),
+                        ..Firmware::SIMPLE
                     }),
                     SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
                         serial,
@@ -363,9 +445,50 @@ mod tests {
                 bandwidth_hz: 200.0,
                 commutation_offset: 0,
                 dc_drift_ppm: 0.0,
+                al: AlConfig::default(),
             }
         );
-        assert_eq!(c.chain().unwrap().slaves().len(), 2);
+        let chain = c.chain().unwrap();
+        assert_eq!(chain.slaves().len(), 2);
+        assert_eq!(chain.slaves()[0].firmware().times, TransitionTimes::SERVO);
+    }
+
+    #[test]
+    fn al_transition_times_are_per_device_with_defaults() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = 20\ninit_to_preop_ms = 0\n\
+             [[slave]]\nkind = \"encoder\"\n[slave.al]\npreop_to_safeop_ms = 1.5\n\
+             [[slave]]\nkind = \"servo\"\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = c.chain().unwrap();
+        let times = |i: usize| chain.slaves()[i].firmware().times;
+        assert_eq!(
+            times(0),
+            TransitionTimes {
+                init_to_preop_ns: 0,
+                preop_to_safeop_ns: 10_000_000,
+                safeop_to_op_ns: 20_000_000,
+            }
+        );
+        assert_eq!(
+            times(1),
+            TransitionTimes {
+                preop_to_safeop_ns: 1_500_000,
+                ..TransitionTimes::INSTANT
+            }
+        );
+        assert_eq!(times(2), TransitionTimes::SERVO);
+        assert!(chain.slaves()[0].firmware().op_needs_outputs);
+        assert!(!chain.slaves()[1].firmware().op_needs_outputs);
+        let e = |text: &str| SimConfig::parse(text, "sim.toml").unwrap_err().to_string();
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = -1\n"),
+            "sim.toml: slave[0].al.safeop_to_op_ms: must be 0 to 10000 ms"
+        );
+        let unknown = e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_op_ms = 1\n");
+        assert!(unknown.contains("safeop_op_ms"), "{unknown}");
     }
 
     #[test]
@@ -427,14 +550,16 @@ mod tests {
             c.slaves[1],
             SlaveConfig::Encoder {
                 counts_per_rev: 1024,
-                shaft_speed: -2.5
+                shaft_speed: -2.5,
+                al: AlConfig::default(),
             }
         );
         assert_eq!(
             c.slaves[3],
             SlaveConfig::Encoder {
                 counts_per_rev: 4096,
-                shaft_speed: 0.0
+                shaft_speed: 0.0,
+                al: AlConfig::default(),
             }
         );
         let SlaveConfig::Switches { axis, cams } = &c.slaves[2] else {

@@ -7,11 +7,13 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::transition;
 use ethercrab::std::ethercat_now;
-use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op, SafeOp};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
+use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
 use gantry_sim::config::SimConfig;
 use thiserror::Error;
@@ -244,10 +246,14 @@ impl EthercatBus {
                 .map_err(stalled("PDO mapping"))?
                 .map_err(|e| StartError::Setup(e.to_string()))?;
             let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
-            channels.push(
-                CspChannel::with_layout(scaling, &layout)
-                    .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?,
-            );
+            let mut channel = CspChannel::with_layout(scaling, &layout)
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            // A modulo period that cannot be counted is refused here, by name (the cycle
+            // would fault the axis).
+            channel
+                .set_modulo(a.modulo.and_then(Modulo::new))
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            channels.push(channel);
         }
         let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
         let dc_capable = group
@@ -436,7 +442,7 @@ fn dc_to_op(
         .map_err(|e| step_error("distributed clocks", e))?;
     runner
         .run_step(
-            move || group.into_op(md),
+            move || async move { to_op(group.into_safe_op(md).await?, md).await },
             replies,
             BRING_UP_SILENCE_NS,
             STEP_LIMIT_NS,
@@ -447,6 +453,17 @@ fn dc_to_op(
 
 /// PreOp to OP without distributed clocks (see [`dc_to_op`]).
 #[inline(never)]
+/// SafeOp to Op with the process data running, as drives need (see `transition`).
+async fn to_op<DC>(
+    group: SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
+    md: &MainDevice<'static>,
+) -> Result<
+    SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, DC>,
+    ethercrab::error::Error,
+> {
+    transition::into_op(group, md, transition::OP_TIMEOUT).await
+}
+
 fn plain_to_op(
     runner: &BlockOn,
     md: &MainDevice<'static>,
@@ -460,7 +477,7 @@ fn plain_to_op(
 ) -> Result<Group, StartError> {
     runner
         .run_step(
-            move || group.into_op(md),
+            move || async move { to_op(group.into_safe_op(md).await?, md).await },
             replies,
             BRING_UP_SILENCE_NS,
             2 * STEP_LIMIT_NS,

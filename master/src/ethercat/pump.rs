@@ -66,6 +66,21 @@ impl Link {
         }
     }
 
+    /// Nothing to send: a chain on the wall clock still lives on (its applications run,
+    /// its timers run, the process-data watchdog trips when the master went silent).
+    fn idle(&mut self) {
+        if let Link::Embedded {
+            chain,
+            wall_clock: Some(clock),
+            ..
+        } = self
+        {
+            if let Ok(mut c) = chain.lock() {
+                clock.catch_up(&mut c);
+            }
+        }
+    }
+
     /// The next reply into `buf`, if one is waiting (never blocks): its length.
     fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
         match self {
@@ -181,6 +196,7 @@ impl FramePump {
                     }
                     // Until ethercrab queues a frame, a reply arrives, or 1 ms passes.
                     bell.wait(link.fd(), Some(std::time::Duration::from_millis(1)));
+                    link.idle();
                 }
                 if let Some(c) = capture {
                     let _ = c.finish();

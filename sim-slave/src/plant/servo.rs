@@ -71,6 +71,10 @@ pub struct ServoDrive {
     target: i32,
     target_velocity: i32,
     target_torque: i16,
+    /// Last controlword received.
+    controlword: Controlword,
+    /// A touch probe function received, not yet applied.
+    pending_touch_probe: Option<u16>,
     mode: i8,
     touch_probe_function: u16,
     touch_probe_status: u16,
@@ -93,6 +97,8 @@ impl ServoDrive {
             target: start_counts,
             target_velocity: 0,
             target_torque: 0,
+            controlword: Controlword(0),
+            pending_touch_probe: None,
             mode: CSP,
             touch_probe_function: 0,
             touch_probe_status: 0,
@@ -207,46 +213,59 @@ impl ServoDrive {
         self.error_code
     }
 
-    /// One cycle: read outputs, step the state machine and the plant, write inputs.
+    /// One cycle: take the outputs, run the drive for `dt_s`, publish the inputs.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
+        self.take_outputs(mem);
+        self.run(dt_s);
+        self.publish_inputs(mem);
+    }
+
+    /// (a) Takes the outputs: reads the process data the master wrote (SM2's buffer in the
+    /// ESC RAM) into the drive's command: controlword, target values, mode, touch probe
+    /// function. A real drive does this at its SYNC0 edge (DC) or when the frame has
+    /// written SM2 (free run); the target taken is what [`DriveRecord`] judges the master by.
+    pub fn take_outputs(&mut self, mem: &Memory) {
         let mut out = [0u8; MAX_PDO_BYTES];
         let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
         if let Some(o) = out.get_mut(..n_out) {
             mem.ecat_read(self.outputs_at, o, false);
         }
-        let mut cw = Controlword(0);
-        let mut touch_probe = None;
         let mut at = 0;
         for o in &self.layout.outputs {
             let v = field(&out, at, o.kind.size());
             match o.index {
-                0x6040 => cw = Controlword(v as u16),
+                0x6040 => self.controlword = Controlword(v as u16),
                 0x607A => self.target = v as i32,
                 0x60FF => self.target_velocity = v as i32,
                 0x6071 => self.target_torque = v as i16,
-                0x60B8 => touch_probe = Some(v as u16),
+                0x60B8 => self.pending_touch_probe = Some(v as u16),
                 // A mode the drive does not have is not taken (the display keeps the old).
                 0x6060 if matches!(v as i8, CSP | CSV | CST) => self.mode = v as i8,
                 _ => {}
             }
             at += o.kind.size();
         }
-        if let Some(f) = touch_probe {
+        if self.state.state() == State::OperationEnabled && self.mode == CSP {
+            self.record.target(self.target);
+        }
+    }
+
+    /// (b) Runs the drive for `dt_s` seconds on the command last taken: the power state
+    /// machine, then the plant.
+    pub fn run(&mut self, dt_s: f64) {
+        if let Some(f) = self.pending_touch_probe.take() {
             self.set_touch_probe(f);
         }
         if self.state.state() == State::FaultReactionActive {
             self.state.fault_reaction_done();
         }
-        self.state.control(cw);
+        self.state.control(self.controlword);
         if self.state.state() != State::Fault {
             self.error_code = 0;
         }
         let before = self.position;
         let dt = dt_s.max(0.0);
         if self.state.state() == State::OperationEnabled {
-            if self.mode == CSP {
-                self.record.target(self.target);
-            }
             // A wrong commutation offset costs torque: cos of the electrical angle error.
             let gain = self.torque_efficiency();
             let lag =
@@ -279,6 +298,10 @@ impl ServoDrive {
             self.record.disabled();
         }
         self.watch_index(before, self.position);
+    }
+
+    /// (c) Publishes the inputs: writes the mapped input objects into SM3's buffer.
+    pub fn publish_inputs(&self, mem: &mut Memory) {
         let mut inp = [0u8; MAX_PDO_BYTES];
         let mut at = 0;
         for o in &self.layout.inputs {
