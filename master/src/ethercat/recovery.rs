@@ -40,9 +40,10 @@ pub const AL_STATE_OP: u16 = 0x08;
 pub const AL_STATE_MASK: u16 = 0x0F;
 /// AL control: acknowledge the error indicated in AL status; AL status: error indicator.
 pub const AL_ERROR_ACK: u16 = 0x10;
-/// How long a slave may take to acknowledge its error and reach OP: 10 s, the
-/// SafeOp→Op timeout device descriptions default to (ETG.2000, ESI
-/// `StateMachine/Timeout/SafeopOpTimeout`).
+/// How long a slave may take to acknowledge its error and reach OP: 10 s, longer than a
+/// slave waits itself for what OP needs (the slave stack code's SafeOp→Op timeout, 9 s,
+/// after which it refuses with a code), so that a slave that gives up says why before
+/// the master does.
 pub const RECOVERY_TIMEOUT_NS: u64 = 10_000_000_000;
 
 /// Why a slave did not come back. `Copy`: the cycle thread records it without allocating.

@@ -71,7 +71,7 @@ pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 pub fn start_cycle(
     config: &Config,
     real_time: bool,
-    log: &mut dyn Write,
+    log: &mut (dyn Write + Send),
 ) -> Result<(Engine<EthercatBus>, AppEnds), String> {
     if real_time {
         rt::enter(&config.rt).map_err(|e| e.to_string())?;
