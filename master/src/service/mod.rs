@@ -57,9 +57,9 @@ pub enum ServiceError {
 /// Name of the cycle thread (what `ps -L`, `top -H` and /proc show).
 pub const CYCLE_THREAD: &str = "gantry-cycle";
 
-/// Stack of the cycle thread: the bring-up runs in it, and ethercrab's bring-up futures
-/// are large (a debug build needs more than the 2 MiB a thread gets by default); the
-/// main thread's default. Locked with the rest of the memory (`rt.lock_memory`).
+/// Stack of the cycle thread: the main thread's default, room for the frames of
+/// ethercrab's futures it polls each cycle in a debug build (the bring-up's, larger, run
+/// in a thread of their own). Locked with the rest of the memory (`rt.lock_memory`).
 pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
