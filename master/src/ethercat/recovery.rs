@@ -10,8 +10,7 @@
 //! [`Recovery`], that issues at most one register access at a time and takes its answer:
 //! the cycle runs one access per cycle beside the process data, inside the cycle's reply
 //! deadline, so a recovery never stretches a cycle (the slave's watchdog keeps getting
-//! its process data meanwhile). The same machine runs to the end in one future,
-//! [`recover_slave`], where no cycle is running.
+//! its process data meanwhile — and a drive goes to Op only once it has valid outputs).
 //!
 //! The error is acknowledged first, in the slave's current state (AL control = state |
 //! acknowledge), and OP requested only once the error indicator is clear, as IgH's
@@ -24,8 +23,6 @@ use std::ops::Deref;
 use ethercrab::{SubDevice, SubDeviceRef};
 use gantry_kernel::axis::command::CommandError;
 use thiserror::Error;
-
-use crate::runtime::clock::now_ns;
 
 /// AL control register (ETG.1000.4 §6.4.1, Table 34).
 pub const AL_CONTROL: u16 = 0x0120;
@@ -377,24 +374,6 @@ where
             .register_write(AL_CONTROL, value)
             .await
             .map_or(Answer::None, |_| Answer::Written),
-    }
-}
-
-/// Brings `sd` back to OP in one future, access after access, giving up after
-/// [`RECOVERY_TIMEOUT_NS`] (for masters without a cycle running, e.g. lockstep tests).
-pub async fn recover_slave<S>(sd: &SubDeviceRef<'_, S>) -> Result<Recovered, RecoveryError>
-where
-    S: Deref<Target = SubDevice>,
-{
-    let mut recovery = Recovery::new(sd.configured_address(), now_ns(), RECOVERY_TIMEOUT_NS);
-    loop {
-        if let Some(outcome) = recovery.outcome() {
-            return outcome;
-        }
-        if let Some(next) = recovery.next_access() {
-            let answer = access(sd, next).await;
-            recovery.on_answer(answer, now_ns());
-        }
     }
 }
 
