@@ -419,7 +419,7 @@ impl EthercatBus {
 }
 
 /// Stack of the threads bring-up and shutdown run in.
-pub const BRING_UP_STACK_BYTES: usize = 32 << 20;
+pub const BRING_UP_STACK_BYTES: usize = 16 << 20;
 
 /// Runs `f` in a thread named `name` with a [`BRING_UP_STACK_BYTES`] stack, started from
 /// this one (so it inherits this thread's scheduling and CPU mask), and waits for it.
