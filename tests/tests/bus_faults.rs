@@ -12,19 +12,17 @@ use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeou
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, COMMUNICATION_FAULT};
-use gantry::ethercat::recovery::{recover_slave, Recovered};
+use gantry::ethercat::recovery::{access, Recovered, Recovery, RecoveryError, RECOVERY_TIMEOUT_NS};
 use gantry::ethercat::transition;
 use gantry_drives::cia402::error_code::describe_fault;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_sim::catalog::{self, ServoOptions};
-use gantry_sim::chain::SlaveChain;
-use gantry_sim::esc::al::{Firmware, TransitionTimes};
 use gantry_tests::ball_screw_5mm;
 use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
 use gantry_tests::lockstep::Lockstep;
+use gantry_tests::servo_chain;
 
 const DRIVES: usize = 3;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
@@ -42,26 +40,9 @@ struct Machine {
 impl Machine {
     fn new() -> Self {
         let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
-        // TEMPORARY (issue 10 §5): `recover_slave` reads AL status right after requesting
-        // Op, so a drive whose firmware takes its 5 ms and waits for fresh outputs is
-        // "refused". Until recovery polls to Op across cycles, these drives go to Op at
-        // once and without waiting for outputs; the strict default is tested in
-        // gantry-sim (safeop_to_op_waits_for_valid_outputs_and_refuses_without_them).
-        let chain = SlaveChain::new(
-            (1..=DRIVES as u32)
-                .map(|serial| {
-                    catalog::servo(ServoOptions {
-                        serial,
-                        firmware: Firmware {
-                            times: TransitionTimes::INSTANT,
-                            op_needs_outputs: false,
-                            ..Firmware::SERVO
-                        },
-                        ..ServoOptions::default()
-                    })
-                })
-                .collect(),
-        );
+        // Drives as the simulator makes them: their firmware takes 5 ms from SafeOp to Op
+        // and waits for valid outputs, so a reset polls across cycles (`recover`).
+        let chain = servo_chain(DRIVES as u32);
         let mut net = Lockstep::new(tx, rx, chain);
         let timeouts = Timeouts {
             pdu: Duration::from_millis(20),
@@ -119,6 +100,29 @@ impl Machine {
             Err(_) => self.health.record(Exchange::Lost),
         }
         self.net.chain.tick(1e-3);
+    }
+
+    /// Brings slave `i` back to OP as the engine does: one register access per cycle,
+    /// the process data running meanwhile (a drive goes to Op only with valid outputs),
+    /// time injected (1 ms per cycle).
+    fn recover(&mut self, i: usize) -> (Result<Recovered, RecoveryError>, u32) {
+        let address = self
+            .group
+            .subdevice(&self.md, i)
+            .unwrap()
+            .configured_address();
+        let mut recovery = Recovery::new(address, 0, RECOVERY_TIMEOUT_NS);
+        for cycles in 1.. {
+            let next = recovery.next_access().unwrap();
+            let sd = self.group.subdevice(&self.md, i).unwrap();
+            let answer = self.net.block_on(access(&sd, next));
+            self.cycle();
+            recovery.on_answer(answer, u64::from(cycles) * 1_000_000);
+            if let Some(outcome) = recovery.outcome() {
+                return (outcome, cycles);
+            }
+        }
+        unreachable!("the recovery times out")
     }
 
     fn run(&mut self, n: usize) {
@@ -210,9 +214,7 @@ fn lost_frames_and_a_lost_slave_stop_what_they_must_and_recover_on_reset() {
     // Reset: the slaves never left OP (5 ms < their 100 ms watchdog), the drives stayed
     // enabled: the axes are back at once and finish the move.
     for i in 0..DRIVES {
-        let sd = m.group.subdevice(&m.md, i).unwrap();
-        let r = m.net.block_on(recover_slave(&sd)).unwrap();
-        assert_eq!(r, Recovered::WasInOp);
+        assert_eq!(m.recover(i), (Ok(Recovered::WasInOp), 1));
     }
     m.health.clear();
     m.run(2);
@@ -250,11 +252,11 @@ fn lost_frames_and_a_lost_slave_stop_what_they_must_and_recover_on_reset() {
     }
     // Back on the wire, the slave is in SafeOp with its watchdog error, the drive faulted.
     assert_eq!(m.net.chain.slaves()[2].al_status(), 0x14);
-    let sd = m.group.subdevice(&m.md, 2).unwrap();
-    assert_eq!(
-        m.net.block_on(recover_slave(&sd)).unwrap(),
-        Recovered::BackInOp
-    );
+    let (outcome, cycles) = m.recover(2);
+    assert_eq!(outcome, Ok(Recovered::BackInOp));
+    // Read, acknowledge, read, request Op, then reads through the drive's 5 ms.
+    assert!(cycles >= 8, "back in Op after {cycles} cycles");
+    assert_eq!(m.net.chain.slaves()[2].al_status(), 0x08);
     m.health.clear();
     let reset = m.command(2, Command::Reset);
     m.run(20);

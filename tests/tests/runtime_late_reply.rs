@@ -1,7 +1,7 @@
 //! A frame that does not come back. With [`LateReply::Lost`] (what `gantry run` uses in
 //! real time) the cycle gives up on it at its reply deadline, just before the next cycle:
 //! one lost frame, the next cycle on time. With [`LateReply::WAIT`] (`--no-rt`) it waits
-//! for ethercrab's PDU timeout, 30 ms, and overruns instead.
+//! 30 ms (ethercrab's default PDU timeout, `LateReply::WAIT`) and overruns instead.
 
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
@@ -31,7 +31,7 @@ fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     // Generous for a busy, non-real-time host; the PDU timeout would be 29 ms more.
     assert!(over < 10_000_000, "{over} ns past the reply deadline");
 
-    // Without real time: the cycle waits for ethercrab's timeout.
+    // Without real time: the cycle waits up to 30 ms for it.
     engine.set_late_reply(LateReply::WAIT);
     chain.lock().unwrap().drop_frames(1);
     let wake = clock.wait();

@@ -1,5 +1,5 @@
 //! `gantry reset` of an axis whose slave left OP, through the engine on the in-process
-//! simulator: the reset waits while the bus brings the slave back — acknowledge its
+//! simulator, whose drives take 40 ms from SafeOp to Op: the reset waits while the bus brings the slave back — acknowledge its
 //! error, request OP, poll until it is there — doing one register access per cycle
 //! beside the process data, so no cycle carries more than the process-data frame and one
 //! access; then the axis' Reset follows. A slave that does not come back fails the reset
@@ -14,6 +14,8 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 
 const PERIOD_NS: u64 = 1_000_000;
+/// The simulated drives' SafeOp→Op time.
+const SAFEOP_TO_OP_MS: u64 = 40;
 
 struct Rig {
     engine: Engine<EthercatBus>,
@@ -24,7 +26,12 @@ struct Rig {
 
 impl Rig {
     fn new() -> Self {
-        let config = gantry_tests::sim_config(2, 1000);
+        // Drives whose firmware takes 40 ms from SafeOp to Op (the default is 5 ms).
+        let config = gantry_tests::sim_config_with(
+            2,
+            1000,
+            &format!("[slave.al]\nsafeop_to_op_ms = {SAFEOP_TO_OP_MS}\n"),
+        );
         let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
         let chain = bus.simulated_chain().unwrap();
         let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 16);
@@ -112,15 +119,25 @@ fn resets_of_a_lost_slave() {
 fn a_reset_brings_the_slave_back_one_access_per_cycle(rig: &mut Rig) {
     lose_slave_1(rig);
     let reset = rig.ctl.reset(1).unwrap();
+    let start = std::time::Instant::now();
     let (status, cycles, most) = rig.until_final(&reset);
-    eprintln!("reset: {status:?} after {cycles} cycles; at most {most} frames in a cycle");
+    let took = start.elapsed();
+    eprintln!(
+        "reset: {status:?} after {cycles} cycles, {took:?}; at most {most} frames in a cycle"
+    );
+    // The bug this guards: the AL status read once right after requesting Op called a
+    // slave still on its way "refused".
     assert_eq!(status, CommandStatus::Done, "the axis' Reset followed");
+    assert!(
+        took >= std::time::Duration::from_millis(SAFEOP_TO_OP_MS),
+        "waited for the drive's {SAFEOP_TO_OP_MS} ms to Op: {took:?}"
+    );
     assert_eq!(rig.al_status(1), 0x08, "back in OP");
     assert!(
         most <= 2,
         "a cycle carried {most} frames: the process data and one access at most"
     );
-    // Read, acknowledge, read, request OP, read: five cycles at least.
+    // Read, acknowledge, read, request OP, then reads until the drive is in Op.
     assert!(cycles >= 5);
     // The drive faulted with its slave: Disabled after the reset, enabled again it moves.
     assert_eq!(rig.state(1), AxisState::Disabled);

@@ -156,9 +156,22 @@ pub struct EthercatBus {
 impl EthercatBus {
     /// Brings the bus of `config` up to OP; returns it with the cycle (kernel + CiA-402
     /// channels) and the health monitor. Prints its steps to `out`.
+    ///
+    /// The steps run in a short-lived thread of their own with a large stack
+    /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
+    /// stack per level in debug builds), started from the calling thread so that it — and
+    /// the frame pump it starts — inherit the caller's scheduling and CPU.
     pub fn bring_up(
         config: &Config,
-        out: &mut dyn Write,
+        out: &mut (dyn Write + Send),
+    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+        on_large_stack("gantry-bring-up", || Self::bring_up_here(config, out))
+            .unwrap_or_else(|e| Err(StartError::Link(format!("a thread for the bring-up: {e}"))))
+    }
+
+    fn bring_up_here(
+        config: &Config,
+        out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
         let bus_error = |step: &'static str| {
             move |e: ethercrab::error::Error| StartError::Bus {
@@ -359,7 +372,14 @@ impl EthercatBus {
     }
 
     /// Takes the slaves down to PreOp and stops the link.
-    pub fn shut_down(mut self, out: &mut dyn Write) {
+    /// The transitions run in a thread of their own, as the bring-up's do.
+    pub fn shut_down(self, out: &mut (dyn Write + Send)) {
+        if let Err(e) = on_large_stack("gantry-shutdown", || self.shut_down_here(&mut *out)) {
+            let _ = writeln!(out, "bus: no thread to take the slaves to PreOp: {e}");
+        }
+    }
+
+    fn shut_down_here(mut self, out: &mut (dyn Write + Send)) {
         let md = &self.md;
         let group = std::mem::replace(&mut self.group, Groups::Plain(Group::default()));
         let result = self.runner.run_step(
@@ -396,6 +416,23 @@ impl EthercatBus {
             None => {}
         }
     }
+}
+
+/// Stack of the threads bring-up and shutdown run in.
+pub const BRING_UP_STACK_BYTES: usize = 16 << 20;
+
+/// Runs `f` in a thread named `name` with a [`BRING_UP_STACK_BYTES`] stack, started from
+/// this one (so it inherits this thread's scheduling and CPU mask), and waits for it.
+fn on_large_stack<T: Send>(name: &str, f: impl FnOnce() -> T + Send) -> std::io::Result<T> {
+    std::thread::scope(|scope| {
+        let handle = std::thread::Builder::new()
+            .name(name.into())
+            .stack_size(BRING_UP_STACK_BYTES)
+            .spawn_scoped(scope, f)?;
+        Ok(handle
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    })
 }
 
 /// An error of a bring-up step, with the step's name.
@@ -451,8 +488,6 @@ fn dc_to_op(
         .map_err(|e| step_error("to OP", e))
 }
 
-/// PreOp to OP without distributed clocks (see [`dc_to_op`]).
-#[inline(never)]
 /// SafeOp to Op with the process data running, as drives need (see `transition`).
 async fn to_op<DC>(
     group: SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
@@ -464,6 +499,8 @@ async fn to_op<DC>(
     transition::into_op(group, md, transition::OP_TIMEOUT).await
 }
 
+/// PreOp to OP without distributed clocks (see [`dc_to_op`]).
+#[inline(never)]
 fn plain_to_op(
     runner: &BlockOn,
     md: &MainDevice<'static>,
@@ -552,7 +589,7 @@ impl CycleBus for EthercatBus {
                     states: &self.states,
                 });
             }
-            // No reply by the deadline, or ethercrab's own timeout.
+            // No reply by the deadline, or the frame could not be sent.
             Some(Err(_)) | None => health.record(Exchange::Lost),
         }
         if let Some((axis, recovery)) = self.recovery.as_mut() {

@@ -10,8 +10,7 @@
 //! [`Recovery`], that issues at most one register access at a time and takes its answer:
 //! the cycle runs one access per cycle beside the process data, inside the cycle's reply
 //! deadline, so a recovery never stretches a cycle (the slave's watchdog keeps getting
-//! its process data meanwhile). The same machine runs to the end in one future,
-//! [`recover_slave`], where no cycle is running.
+//! its process data meanwhile — and a drive goes to Op only once it has valid outputs).
 //!
 //! The error is acknowledged first, in the slave's current state (AL control = state |
 //! acknowledge), and OP requested only once the error indicator is clear, as IgH's
@@ -24,8 +23,6 @@ use std::ops::Deref;
 use ethercrab::{SubDevice, SubDeviceRef};
 use gantry_kernel::axis::command::CommandError;
 use thiserror::Error;
-
-use crate::runtime::clock::now_ns;
 
 /// AL control register (ETG.1000.4 §6.4.1, Table 34).
 pub const AL_CONTROL: u16 = 0x0120;
@@ -40,9 +37,10 @@ pub const AL_STATE_OP: u16 = 0x08;
 pub const AL_STATE_MASK: u16 = 0x0F;
 /// AL control: acknowledge the error indicated in AL status; AL status: error indicator.
 pub const AL_ERROR_ACK: u16 = 0x10;
-/// How long a slave may take to acknowledge its error and reach OP: 10 s, the
-/// SafeOp→Op timeout device descriptions default to (ETG.2000, ESI
-/// `StateMachine/Timeout/SafeopOpTimeout`).
+/// How long a slave may take to acknowledge its error and reach OP: 10 s, longer than a
+/// slave waits itself for what OP needs (the slave stack code's SafeOp→Op timeout, 9 s,
+/// after which it refuses with a code), so that a slave that gives up says why before
+/// the master does.
 pub const RECOVERY_TIMEOUT_NS: u64 = 10_000_000_000;
 
 /// Why a slave did not come back. `Copy`: the cycle thread records it without allocating.
@@ -376,24 +374,6 @@ where
             .register_write(AL_CONTROL, value)
             .await
             .map_or(Answer::None, |_| Answer::Written),
-    }
-}
-
-/// Brings `sd` back to OP in one future, access after access, giving up after
-/// [`RECOVERY_TIMEOUT_NS`] (for masters without a cycle running, e.g. lockstep tests).
-pub async fn recover_slave<S>(sd: &SubDeviceRef<'_, S>) -> Result<Recovered, RecoveryError>
-where
-    S: Deref<Target = SubDevice>,
-{
-    let mut recovery = Recovery::new(sd.configured_address(), now_ns(), RECOVERY_TIMEOUT_NS);
-    loop {
-        if let Some(outcome) = recovery.outcome() {
-            return outcome;
-        }
-        if let Some(next) = recovery.next_access() {
-            let answer = access(sd, next).await;
-            recovery.on_answer(answer, now_ns());
-        }
     }
 }
 

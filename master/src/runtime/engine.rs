@@ -14,7 +14,7 @@ use super::phase::PhaseLock;
 use super::protocol::{
     DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
 };
-use super::stats::CycleStats;
+use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use crate::ethercat::cycle::CspCycle;
 use crate::ethercat::health::BusHealth;
 use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
@@ -23,8 +23,6 @@ use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
 const REQUESTS_PER_CYCLE: usize = 32;
 /// Cycles between snapshots.
 const PUBLISH_EVERY: u64 = 10;
-/// Cycles between recomputing the histogram summaries.
-const FIGURES_EVERY: u64 = 1000;
 /// Cycles a shutdown waits for the axes to stop and the drives to switch off.
 const SHUTDOWN_CYCLES: u32 = 5000;
 
@@ -44,13 +42,14 @@ pub enum LateReply {
     /// real time (`--no-rt`, tests on a busy machine): then it is the host that is late,
     /// not the bus, and a late reply is not a bus fault.
     Wait {
-        /// Longest wait for a reply (or for a slave's answer during a reset).
+        /// Longest wait for a reply (and for a reset's register access beside it).
         ns: u64,
     },
 }
 
 impl LateReply {
-    /// Waiting as long as ethercrab's own PDU timeout.
+    /// Waiting 30 ms, ethercrab's default PDU timeout (gantry gives ethercrab no timers
+    /// of its own: this deadline is the only one).
     pub const WAIT: Self = Self::Wait { ns: 30_000_000 };
 
     /// Until when the cycle that woke at `wake` waits for an answer to what it sends now.
@@ -85,6 +84,9 @@ pub struct AppEnds {
     pub snapshot: triple_buffer::Output<Snapshot>,
     /// Trace samples from the cycle.
     pub trace: rtrb::Consumer<TraceSample>,
+    /// Each cycle's durations, for the figures the application computes
+    /// (`stats::FigureBook`).
+    pub samples: rtrb::Consumer<CycleSample>,
 }
 
 /// Everything the cycle thread owns.
@@ -110,7 +112,6 @@ pub struct Engine<B: CycleBus> {
     answered: bool,
     phase: Phase,
     cycles: u64,
-    figures: super::stats::CycleFigures,
     /// Per axis: the id of a reset waiting for its slave to come back to OP.
     resets: Vec<Option<u64>>,
     /// The axis whose slave the bus is bringing back now.
@@ -134,6 +135,7 @@ impl<B: CycleBus> Engine<B> {
         let (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(cycle.len()));
         let (trace_tx, trace_rx) = rtrb::RingBuffer::new(trace_capacity.max(1));
         let axes = cycle.len();
+        let (stats, samples) = CycleStats::new();
         let engine = Self {
             bus,
             cycle,
@@ -141,7 +143,7 @@ impl<B: CycleBus> Engine<B> {
             requests: req_rx,
             snapshot: snap_in,
             trace: trace_tx,
-            stats: CycleStats::default(),
+            stats,
             tracked: vec![
                 Entry {
                     id: 0,
@@ -159,7 +161,6 @@ impl<B: CycleBus> Engine<B> {
             answered: false,
             phase: Phase::Running,
             cycles: 0,
-            figures: Default::default(),
             resets: vec![None; axes],
             recovering: None,
             next_reset: 0,
@@ -169,6 +170,7 @@ impl<B: CycleBus> Engine<B> {
             requests: req_tx,
             snapshot: snap_out,
             trace: trace_rx,
+            samples,
         };
         (engine, app)
     }
@@ -249,9 +251,6 @@ impl<B: CycleBus> Engine<B> {
         self.update_tracked();
         self.push_trace();
         self.advance_shutdown();
-        if self.cycles % FIGURES_EVERY == 0 {
-            self.figures = self.stats.figures();
-        }
         if self.cycles % PUBLISH_EVERY == 0 || self.phase == Phase::Ended {
             self.publish();
         }
@@ -478,7 +477,8 @@ impl<B: CycleBus> Engine<B> {
         }
         snap.lost_frames = self.health.lost_total;
         snap.working_counter_errors = self.health.wkc_total;
-        snap.figures = self.figures;
+        // Counters only: the percentiles are the application's work (FigureBook).
+        snap.figures = CycleFigures::from_counters(self.stats.counters());
         snap.dc_offset_ns = self.bus.dc_offset_ns();
         snap.dc_target_ns = self.phase_lock.map(|l| l.target_ns());
         for (dst, src) in snap.commands.iter_mut().zip(&self.tracked) {
@@ -503,8 +503,9 @@ impl<B: CycleBus> Engine<B> {
         self.bus
     }
 
-    /// The cycle figures so far (computed now).
-    pub fn figures(&self) -> super::stats::CycleFigures {
-        self.stats.figures()
+    /// The cycle's counters so far (the percentiles come from the samples, see
+    /// [`AppEnds::samples`]).
+    pub fn counters(&self) -> CycleCounters {
+        self.stats.counters()
     }
 }

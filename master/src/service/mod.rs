@@ -19,7 +19,7 @@ use crate::ethercat::bus::EthercatBus;
 use crate::runtime::controller::Controller;
 use crate::runtime::engine::{AppEnds, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
-use crate::runtime::stats::CycleFigures;
+use crate::runtime::stats::{CycleCounters, CycleFigures};
 
 /// How `gantry run` was asked to run.
 #[derive(Clone, Debug)]
@@ -57,9 +57,9 @@ pub enum ServiceError {
 /// Name of the cycle thread (what `ps -L`, `top -H` and /proc show).
 pub const CYCLE_THREAD: &str = "gantry-cycle";
 
-/// Stack of the cycle thread: the bring-up runs in it, and ethercrab's bring-up futures
-/// are large (a debug build needs more than the 2 MiB a thread gets by default); the
-/// main thread's default. Locked with the rest of the memory (`rt.lock_memory`).
+/// Stack of the cycle thread: the main thread's default, room for the frames of
+/// ethercrab's futures it polls each cycle in a debug build (the bring-up's, larger, run
+/// in a thread of their own). Locked with the rest of the memory (`rt.lock_memory`).
 pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
@@ -71,7 +71,7 @@ pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 pub fn start_cycle(
     config: &Config,
     real_time: bool,
-    log: &mut dyn Write,
+    log: &mut (dyn Write + Send),
 ) -> Result<(Engine<EthercatBus>, AppEnds), String> {
     if real_time {
         rt::enter(&config.rt).map_err(|e| e.to_string())?;
@@ -89,18 +89,19 @@ pub fn start_cycle(
 
 /// Starts the cycle thread ([`CYCLE_THREAD`]): [`start_cycle`], the application's ends
 /// (or why it could not start) sent to `ends`, then [`Engine::run`] every `period_ns`
-/// until `stop`, then the bus down to PreOp. Returns the cycle figures at the end.
+/// until `stop`, then the bus down to PreOp. Returns the cycle's counters at the end (the
+/// figures come from the controller, [`Controller::figures`]).
 pub fn spawn_cycle_thread(
     config: Config,
     real_time: bool,
     period_ns: u64,
     stop: Arc<AtomicBool>,
     ends: mpsc::Sender<Result<AppEnds, String>>,
-) -> Result<std::thread::JoinHandle<Option<CycleFigures>>, ServiceError> {
+) -> Result<std::thread::JoinHandle<Option<CycleCounters>>, ServiceError> {
     std::thread::Builder::new()
         .name(CYCLE_THREAD.into())
         .stack_size(CYCLE_STACK_BYTES)
-        .spawn(move || -> Option<CycleFigures> {
+        .spawn(move || -> Option<CycleCounters> {
             let mut log = std::io::stdout();
             let (engine, app) = match start_cycle(&config, real_time, &mut log) {
                 Ok(started) => started,
@@ -111,9 +112,9 @@ pub fn spawn_cycle_thread(
             };
             let _ = ends.send(Ok(app));
             let engine = engine.run(period_ns, &stop);
-            let figures = engine.figures();
+            let counters = engine.counters();
             engine.into_bus().shut_down(&mut log);
-            Some(figures)
+            Some(counters)
         })
         .map_err(|e| ServiceError::Start(e.to_string()))
 }
@@ -213,11 +214,12 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
         server.abort();
     });
     let _ = std::fs::remove_file(&args.socket);
-    let figures = cycle_thread
+    cycle_thread
         .join()
         .ok()
         .flatten()
         .ok_or_else(|| ServiceError::Start("the cycle thread failed".into()))?;
+    let figures = controller.figures();
     let _ = writeln!(
         out,
         "gantry: stopped after {} cycles; wake-up {}; compute {}; round trip {}; overruns {}",
