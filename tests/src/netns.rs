@@ -119,7 +119,9 @@ impl VethPair {
 
 impl Drop for VethPair {
     fn drop(&mut self) {
-        // Deleting a namespace deletes the veth end in it, and with it the peer.
+        // The pair first, here: deleting a namespace leaves its devices to a kernel worker
+        // (cleanup_net) that would still be tearing them down when the next test starts.
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
         for ns in [&self.master_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
@@ -192,6 +194,9 @@ impl RelayedVeth {
 
 impl Drop for RelayedVeth {
     fn drop(&mut self) {
+        // The pairs first (see `VethPair`'s drop).
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
+        let _ = ip(&["-n", &self.sim_ns, "link", "del", &self.sim_if]);
         for ns in [&self.master_ns, &self.relay_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
