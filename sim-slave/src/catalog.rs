@@ -3,9 +3,11 @@
 //! `gantry-sim` binary emulate the same hardware.
 
 use crate::coe::od::ObjectDictionary;
+use crate::esc::al::Firmware;
+use crate::esc::sii::{config_area, PDI_DIGITAL_IO_DEVICE_EMULATION};
 use crate::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
 use crate::plant::encoder::{self, EncoderModule};
-use crate::plant::servo::ServoDrive;
+use crate::plant::servo::{ServoDrive, ServoParams};
 use crate::plant::switches::{self, CamError, SwitchCam, SwitchesModule};
 use crate::plant::DeviceModel;
 use crate::slave::Slave;
@@ -55,19 +57,19 @@ pub struct ServoOptions {
     pub serial: u32,
     /// Absolute encoder value at power-up (counts).
     pub start_counts: i32,
-    /// Position loop bandwidth (Hz).
-    pub bandwidth_hz: f64,
-    /// The motor's hidden commutation offset (counts), for commissioning to find.
-    pub commutation_offset: i32,
+    /// The motor, load, tuning and object power-up values (default: a 400 W servo).
+    pub params: ServoParams,
+    /// Its firmware's transition times and checks.
+    pub firmware: Firmware,
 }
 
 impl Default for ServoOptions {
     fn default() -> Self {
         Self {
-            commutation_offset: 0,
             serial: 1,
             start_counts: 0,
-            bandwidth_hz: 200.0,
+            params: ServoParams::default(),
+            firmware: Firmware::SERVO,
         }
     }
 }
@@ -106,9 +108,8 @@ pub fn servo_description(serial: u32) -> DeviceDescription {
 
 /// A CiA-402 servo drive (CoE, CSP) as a slave.
 pub fn servo(options: ServoOptions) -> Slave {
-    let mut drive = ServoDrive::new(OUTPUTS_AT, INPUTS_AT, options.start_counts);
-    drive.bandwidth_hz = options.bandwidth_hz;
-    drive.commutation_offset = options.commutation_offset;
+    let drive =
+        ServoDrive::with_params(OUTPUTS_AT, INPUTS_AT, options.start_counts, options.params);
     Slave::new(servo_description(options.serial))
         .with_coe(ObjectDictionary::cia402_servo(
             VENDOR_ID,
@@ -117,6 +118,7 @@ pub fn servo(options: ServoOptions) -> Slave {
             options.serial,
         ))
         .with_device(DeviceModel::Servo(drive))
+        .with_firmware(options.firmware)
 }
 
 /// A SyncManager for process data, sized by the master from the PDOs.
@@ -264,5 +266,8 @@ pub fn switches_description(serial: u32) -> DeviceDescription {
 /// `options.axis` (the chain passes that servo's position along each tick).
 pub fn switches(options: SwitchesOptions) -> Result<Slave, CamError> {
     let module = SwitchesModule::new(SWITCHES_INPUTS_AT, options.axis, options.cams)?;
-    Ok(Slave::new(switches_description(options.serial)).with_device(DeviceModel::Switches(module)))
+    // A simple input terminal: no firmware, the ESC in device emulation mirrors AL control.
+    Ok(Slave::new(switches_description(options.serial))
+        .with_eeprom_word(config_area::PDI_CONTROL, PDI_DIGITAL_IO_DEVICE_EMULATION)
+        .with_device(DeviceModel::Switches(module)))
 }

@@ -7,8 +7,28 @@
 //! [[slave]]
 //! kind = "servo"          # a CiA-402 servo drive (CoE, CSP)
 //! start_position = 0      # absolute encoder value at power-up, counts
-//! bandwidth_hz = 200      # position loop bandwidth
+//! bandwidth_hz = 200      # velocity loop bandwidth, Hz
 //! dc_drift_ppm = 30       # its distributed clock runs 30 ppm fast (default 0)
+//! # The motor and load (defaults: a 400 W servo, 17-bit encoder, load 5x the rotor).
+//! counts_per_rev = 131072
+//! rated_torque_nm = 1.27
+//! peak_torque_nm = 3.8    # the current limit
+//! rotor_inertia_kgm2 = 0.26e-4
+//! load_inertia_ratio = 5.0
+//! coulomb_friction_nm = 0.03
+//! viscous_friction_nm_s = 1e-4  # N·m per rad/s
+//! max_speed_rpm = 6000    # power-up 0x607F max profile velocity
+//! # Power-up values of CiA 402 objects (the master may change them by SDO).
+//! following_error_window = 32768      # 0x6065, counts
+//! following_error_timeout_ms = 10     # 0x6066
+//! quick_stop_deceleration = 131072000 # 0x6085, counts/s²
+//! quick_stop_option_code = 2          # 0x605A: quick stop ramp, then switch on disabled
+//! fault_reaction_option_code = 2      # 0x605E: quick stop ramp
+//!
+//! [slave.al]              # its firmware's AL transition times (defaults 2, 10, 5 ms)
+//! init_to_preop_ms = 2
+//! preop_to_safeop_ms = 10
+//! safeop_to_op_ms = 5
 //!
 //! [[slave]]
 //! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
@@ -36,6 +56,8 @@ use thiserror::Error;
 
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
+use crate::esc::al::{Firmware, TransitionTimes};
+use crate::plant::servo::ServoParams;
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
 /// A configuration that cannot be used, with where and why.
@@ -92,22 +114,7 @@ fn default_cycle_us() -> u32 {
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum SlaveConfig {
     /// A CiA-402 servo drive.
-    Servo {
-        /// Absolute encoder value at power-up (counts).
-        #[serde(default)]
-        start_position: i32,
-        /// Position loop bandwidth (Hz).
-        #[serde(default = "default_bandwidth_hz")]
-        bandwidth_hz: f64,
-        /// The motor's hidden commutation offset (counts), for commissioning to find.
-        #[serde(default)]
-        commutation_offset: i32,
-        /// How fast its distributed clock's oscillator runs against true time (ppm;
-        /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
-        /// the network's reference, which the master's cycle has to follow.
-        #[serde(default)]
-        dc_drift_ppm: f64,
-    },
+    Servo(ServoConfig),
     /// An incremental encoder module.
     Encoder {
         /// Counts per shaft revolution.
@@ -116,6 +123,9 @@ pub enum SlaveConfig {
         /// Speed at which the shaft turns by itself (rev/s).
         #[serde(default)]
         shaft_speed: f64,
+        /// How long its firmware takes for each AL transition (`[slave.al]`).
+        #[serde(default)]
+        al: AlConfig,
     },
     /// A digital-input module whose inputs are switch cams on a servo's travel.
     Switches {
@@ -154,8 +164,184 @@ impl From<CamConfig> for SwitchCam {
     }
 }
 
+/// A `kind = "servo"` slave: where it starts, its clock, and its motor, tuning and object
+/// power-up values ([`ServoParams`]; every key defaults to the 400 W servo).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServoConfig {
+    /// Absolute encoder value at power-up (counts).
+    pub start_position: i32,
+    /// How fast its distributed clock's oscillator runs against true time (ppm;
+    /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
+    /// the network's reference, which the master's cycle has to follow.
+    pub dc_drift_ppm: f64,
+    /// The motor's hidden commutation offset (counts), for commissioning to find.
+    pub commutation_offset: i32,
+    /// Velocity loop bandwidth (Hz): the figure servo datasheets give as the drive's
+    /// "speed response".
+    pub bandwidth_hz: f64,
+    /// Position loop gain (1/s); default a fifth of the velocity loop's 2π·bandwidth.
+    pub position_gain: Option<f64>,
+    /// Encoder counts per motor revolution.
+    pub counts_per_rev: u32,
+    /// Rated torque (N·m).
+    pub rated_torque_nm: f64,
+    /// Peak torque (N·m), the current limit.
+    pub peak_torque_nm: f64,
+    /// Rotor inertia (kg·m²).
+    pub rotor_inertia_kgm2: f64,
+    /// Load inertia as a multiple of the rotor's.
+    pub load_inertia_ratio: f64,
+    /// Coulomb friction (N·m).
+    pub coulomb_friction_nm: f64,
+    /// Viscous friction (N·m per rad/s).
+    pub viscous_friction_nm_s: f64,
+    /// Top motor speed (rpm), the power-up 0x607F.
+    pub max_speed_rpm: f64,
+    /// Motor pole pairs.
+    pub pole_pairs: u32,
+    /// Index pulse position in the revolution (counts).
+    pub index_at: u32,
+    /// The drive's loop rate (Hz).
+    pub loop_rate_hz: f64,
+    /// Current loop bandwidth (Hz).
+    pub current_loop_hz: f64,
+    /// 0x6065 Following error window (counts; 4294967295: off).
+    pub following_error_window: u32,
+    /// 0x6066 Following error time out (ms).
+    pub following_error_timeout_ms: u16,
+    /// 0x6084 Profile deceleration (counts/s²).
+    pub profile_deceleration: u32,
+    /// 0x6085 Quick stop deceleration (counts/s²).
+    pub quick_stop_deceleration: u32,
+    /// 0x605A Quick stop option code (0…8).
+    pub quick_stop_option_code: i16,
+    /// 0x605B Shutdown option code (0, 1).
+    pub shutdown_option_code: i16,
+    /// 0x605C Disable operation option code (0, 1).
+    pub disable_operation_option_code: i16,
+    /// 0x605E Fault reaction option code (0…4).
+    pub fault_reaction_option_code: i16,
+    /// How long its firmware takes for each AL transition (`[slave.al]`).
+    pub al: AlConfig,
+}
+
+impl Default for ServoConfig {
+    fn default() -> Self {
+        let p = ServoParams::default();
+        Self {
+            start_position: 0,
+            dc_drift_ppm: 0.0,
+            commutation_offset: p.commutation_offset,
+            bandwidth_hz: p.velocity_loop_hz,
+            position_gain: None,
+            counts_per_rev: p.counts_per_rev,
+            rated_torque_nm: p.rated_torque_nm,
+            peak_torque_nm: p.peak_torque_nm,
+            rotor_inertia_kgm2: p.rotor_inertia_kgm2,
+            load_inertia_ratio: p.load_inertia_ratio,
+            coulomb_friction_nm: p.coulomb_friction_nm,
+            viscous_friction_nm_s: p.viscous_friction_nm_s,
+            max_speed_rpm: p.max_speed_rpm,
+            pole_pairs: p.pole_pairs,
+            index_at: p.index_at,
+            loop_rate_hz: p.loop_rate_hz,
+            current_loop_hz: p.current_loop_hz,
+            following_error_window: p.following_error_window,
+            following_error_timeout_ms: p.following_error_timeout_ms,
+            profile_deceleration: p.profile_deceleration,
+            quick_stop_deceleration: p.quick_stop_deceleration,
+            quick_stop_option_code: p.quick_stop_option_code,
+            shutdown_option_code: p.shutdown_option_code,
+            disable_operation_option_code: p.disable_operation_option_code,
+            fault_reaction_option_code: p.fault_reaction_option_code,
+            al: AlConfig::default(),
+        }
+    }
+}
+
+impl ServoConfig {
+    /// The servo these keys describe (not checked: see [`ServoParams::check`]).
+    pub fn params(&self) -> ServoParams {
+        let c = self;
+        ServoParams {
+            counts_per_rev: c.counts_per_rev,
+            rated_torque_nm: c.rated_torque_nm,
+            peak_torque_nm: c.peak_torque_nm,
+            rotor_inertia_kgm2: c.rotor_inertia_kgm2,
+            load_inertia_ratio: c.load_inertia_ratio,
+            coulomb_friction_nm: c.coulomb_friction_nm,
+            viscous_friction_nm_s: c.viscous_friction_nm_s,
+            max_speed_rpm: c.max_speed_rpm,
+            pole_pairs: c.pole_pairs,
+            index_at: c.index_at,
+            commutation_offset: c.commutation_offset,
+            loop_rate_hz: c.loop_rate_hz,
+            current_loop_hz: c.current_loop_hz,
+            velocity_loop_hz: c.bandwidth_hz,
+            position_gain: c
+                .position_gain
+                .unwrap_or(2.0 * core::f64::consts::PI * c.bandwidth_hz / 5.0),
+            following_error_window: c.following_error_window,
+            following_error_timeout_ms: c.following_error_timeout_ms,
+            profile_deceleration: c.profile_deceleration,
+            quick_stop_deceleration: c.quick_stop_deceleration,
+            quick_stop_option_code: c.quick_stop_option_code,
+            shutdown_option_code: c.shutdown_option_code,
+            disable_operation_option_code: c.disable_operation_option_code,
+            fault_reaction_option_code: c.fault_reaction_option_code,
+        }
+    }
+}
+
 fn default_counts_per_rev() -> u32 {
     4096
+}
+
+// AL transition times (`[slave.al]`).
+
+/// How long a device's firmware takes for each upward AL transition (ms); what is not
+/// given keeps the device's default (a servo: 2, 10 and 5 ms; an encoder module: 0). A
+/// digital-input module has no firmware: its ESC mirrors AL control at once.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AlConfig {
+    /// Init → PreOp.
+    pub init_to_preop_ms: Option<f64>,
+    /// PreOp → SafeOp.
+    pub preop_to_safeop_ms: Option<f64>,
+    /// SafeOp → Op.
+    pub safeop_to_op_ms: Option<f64>,
+}
+
+/// Longest AL transition time accepted (ms): beyond, a master's state-transition timeout
+/// (ethercrab: 5 s) has long given up.
+const MAX_AL_TRANSITION_MS: f64 = 10_000.0;
+
+impl AlConfig {
+    /// The times, with `defaults` for what is not given.
+    pub fn times(&self, defaults: TransitionTimes) -> TransitionTimes {
+        let ns = |ms: Option<f64>, default: u64| ms.map_or(default, |ms| (ms * 1e6).round() as u64);
+        TransitionTimes {
+            init_to_preop_ns: ns(self.init_to_preop_ms, defaults.init_to_preop_ns),
+            preop_to_safeop_ns: ns(self.preop_to_safeop_ms, defaults.preop_to_safeop_ns),
+            safeop_to_op_ns: ns(self.safeop_to_op_ms, defaults.safeop_to_op_ns),
+        }
+    }
+
+    /// The first key out of range, as `al.<key>`.
+    fn invalid_key(&self) -> Option<&'static str> {
+        [
+            ("al.init_to_preop_ms", self.init_to_preop_ms),
+            ("al.preop_to_safeop_ms", self.preop_to_safeop_ms),
+            ("al.safeop_to_op_ms", self.safeop_to_op_ms),
+        ]
+        .into_iter()
+        .find(|(_, v)| {
+            v.is_some_and(|v| !(v.is_finite() && (0.0..=MAX_AL_TRANSITION_MS).contains(&v)))
+        })
+        .map(|(k, _)| k)
+    }
 }
 
 /// Largest oscillator error of a simulated DC clock (ppm); real ones are within ±100.
@@ -163,10 +349,6 @@ const MAX_DC_DRIFT_PPM: f64 = 1000.0;
 
 /// Highest shaft speed of an encoder (rev/s).
 const MAX_SHAFT_SPEED: f64 = 1000.0;
-
-fn default_bandwidth_hz() -> f64 {
-    200.0
-}
 
 /// The line an error points at. For an unknown key inside a tagged table, TOML's span
 /// covers the whole table; the line of the key itself is what the user needs.
@@ -225,19 +407,24 @@ impl SimConfig {
         }
         for (i, s) in self.slaves.iter().enumerate() {
             match s {
-                SlaveConfig::Servo {
-                    bandwidth_hz,
-                    dc_drift_ppm,
-                    ..
-                } => {
-                    if !(bandwidth_hz.is_finite() && *bandwidth_hz > 0.0 && *bandwidth_hz <= 5000.0)
-                    {
+                SlaveConfig::Servo(servo) => {
+                    if let Some(key) = servo.al.invalid_key() {
                         return Err(invalid(
-                            format!("slave[{i}].bandwidth_hz"),
-                            "must be above 0 and at most 5000 Hz",
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
                         ));
                     }
-                    if !(dc_drift_ppm.is_finite() && dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM) {
+                    if let Err(e) = servo.params().check() {
+                        // The TOML key of the velocity loop is `bandwidth_hz`.
+                        let name = match e.name {
+                            "velocity_loop_hz" => "bandwidth_hz",
+                            n => n,
+                        };
+                        return Err(invalid(format!("slave[{i}].{name}"), &e.reason));
+                    }
+                    if !(servo.dc_drift_ppm.is_finite()
+                        && servo.dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM)
+                    {
                         return Err(invalid(
                             format!("slave[{i}].dc_drift_ppm"),
                             "must be -1000 to 1000 ppm",
@@ -247,7 +434,14 @@ impl SimConfig {
                 SlaveConfig::Encoder {
                     counts_per_rev,
                     shaft_speed,
+                    al,
                 } => {
+                    if let Some(key) = al.invalid_key() {
+                        return Err(invalid(
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
+                        ));
+                    }
                     if *counts_per_rev == 0 {
                         return Err(invalid(
                             format!("slave[{i}].counts_per_rev"),
@@ -270,7 +464,7 @@ impl SimConfig {
                                 &format!("there is no slave {axis} (the chain has {n})"),
                             ));
                         }
-                        Some(SlaveConfig::Servo { .. }) => {}
+                        Some(SlaveConfig::Servo(_)) => {}
                         Some(_) => {
                             return Err(invalid(
                                 format!("slave[{i}].axis"),
@@ -311,25 +505,28 @@ impl SimConfig {
             .map(|(i, s)| {
                 let serial = i as u32 + 1;
                 Ok(match s {
-                    SlaveConfig::Servo {
-                        start_position,
-                        bandwidth_hz,
-                        commutation_offset,
-                        dc_drift_ppm,
-                    } => catalog::servo(ServoOptions {
+                    SlaveConfig::Servo(servo) => catalog::servo(ServoOptions {
                         serial,
-                        start_counts: *start_position,
-                        bandwidth_hz: *bandwidth_hz,
-                        commutation_offset: *commutation_offset,
+                        start_counts: servo.start_position,
+                        params: servo.params(),
+                        firmware: Firmware {
+                            times: servo.al.times(TransitionTimes::SERVO),
+                            ..Firmware::SERVO
+                        },
                     })
-                    .with_dc_drift_ppm(*dc_drift_ppm),
+                    .with_dc_drift_ppm(servo.dc_drift_ppm),
                     SlaveConfig::Encoder {
                         counts_per_rev,
                         shaft_speed,
+                        al,
                     } => catalog::encoder(EncoderOptions {
                         serial,
                         counts_per_rev: *counts_per_rev,
                         shaft_speed_rev_s: *shaft_speed,
+                    })
+                    .with_firmware(Firmware {
+                        times: al.times(TransitionTimes::INSTANT),
+                        ..Firmware::SIMPLE
                     }),
                     SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
                         serial,
@@ -358,14 +555,57 @@ mod tests {
         assert_eq!(c.cycle_us, 500);
         assert_eq!(
             c.slaves[1],
-            SlaveConfig::Servo {
+            SlaveConfig::Servo(ServoConfig {
                 start_position: -7,
-                bandwidth_hz: 200.0,
-                commutation_offset: 0,
-                dc_drift_ppm: 0.0,
+                ..ServoConfig::default()
+            })
+        );
+        assert_eq!(
+            ServoConfig::default().params(),
+            ServoParams::default(),
+            "the keys' defaults are the 400 W servo's"
+        );
+        let chain = c.chain().unwrap();
+        assert_eq!(chain.slaves().len(), 2);
+        assert_eq!(chain.slaves()[0].firmware().times, TransitionTimes::SERVO);
+    }
+
+    #[test]
+    fn al_transition_times_are_per_device_with_defaults() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = 20\ninit_to_preop_ms = 0\n\
+             [[slave]]\nkind = \"encoder\"\n[slave.al]\npreop_to_safeop_ms = 1.5\n\
+             [[slave]]\nkind = \"servo\"\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = c.chain().unwrap();
+        let times = |i: usize| chain.slaves()[i].firmware().times;
+        assert_eq!(
+            times(0),
+            TransitionTimes {
+                init_to_preop_ns: 0,
+                preop_to_safeop_ns: 10_000_000,
+                safeop_to_op_ns: 20_000_000,
             }
         );
-        assert_eq!(c.chain().unwrap().slaves().len(), 2);
+        assert_eq!(
+            times(1),
+            TransitionTimes {
+                preop_to_safeop_ns: 1_500_000,
+                ..TransitionTimes::INSTANT
+            }
+        );
+        assert_eq!(times(2), TransitionTimes::SERVO);
+        assert!(chain.slaves()[0].firmware().op_needs_outputs);
+        assert!(!chain.slaves()[1].firmware().op_needs_outputs);
+        let e = |text: &str| SimConfig::parse(text, "sim.toml").unwrap_err().to_string();
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = -1\n"),
+            "sim.toml: slave[0].al.safeop_to_op_ms: must be 0 to 10000 ms"
+        );
+        let unknown = e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_op_ms = 1\n");
+        assert!(unknown.contains("safeop_op_ms"), "{unknown}");
     }
 
     #[test]
@@ -384,7 +624,7 @@ mod tests {
         assert!(ty.starts_with("sim.toml:1:"), "{ty}");
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\nbandwidth_hz = -1\n"),
-            "sim.toml: slave[0].bandwidth_hz: must be above 0 and at most 5000 Hz"
+            "sim.toml: slave[0].bandwidth_hz: -1 is not within 1 to 800"
         );
         assert_eq!(
             e("[[slave]]\nkind = \"servo\"\ndc_drift_ppm = 5000\n"),
@@ -427,14 +667,16 @@ mod tests {
             c.slaves[1],
             SlaveConfig::Encoder {
                 counts_per_rev: 1024,
-                shaft_speed: -2.5
+                shaft_speed: -2.5,
+                al: AlConfig::default(),
             }
         );
         assert_eq!(
             c.slaves[3],
             SlaveConfig::Encoder {
                 counts_per_rev: 4096,
-                shaft_speed: 0.0
+                shaft_speed: 0.0,
+                al: AlConfig::default(),
             }
         );
         let SlaveConfig::Switches { axis, cams } = &c.slaves[2] else {

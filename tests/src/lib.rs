@@ -2,11 +2,13 @@
 //! `tests/tests/`; what they share lives here and in the master (`gantry::ethercat`).
 
 pub mod dc_phase;
+pub mod invariant;
 pub mod lockstep;
 pub mod netns;
 pub mod rig;
 pub mod seccomp;
 pub mod slave_loss;
+pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 
@@ -22,6 +24,19 @@ pub fn ball_screw_5mm() -> Scaling {
         invert: false,
     })
     .expect("a valid scaling")
+}
+
+/// ethercrab's timeouts for a chain on lockstep time (`EmbeddedBus::start`, [`lockstep`]).
+/// There the chain's time moves only by each frame's time on the wire, so a device that
+/// is busy for a while (an EEPROM read: 250 µs of chain time, ~37 polls) is polled by
+/// dozens of frames, each a round trip between threads on the host. ethercrab's timeouts
+/// are host time: its EEPROM one (10 ms, sized for a real network's microsecond round
+/// trips) gets the slack of a loaded host; the others stay as they are.
+pub fn lockstep_timeouts() -> ethercrab::Timeouts {
+    ethercrab::Timeouts {
+        eeprom: std::time::Duration::from_millis(500),
+        ..ethercrab::Timeouts::default()
+    }
 }
 
 /// A chain of `n` catalog servos with serial numbers 1…n.

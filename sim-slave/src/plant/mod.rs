@@ -11,6 +11,8 @@ pub mod switches;
 use crate::esc::memory::Memory;
 
 /// The application of a slave.
+// A servo's model is larger than the others'; each slave holds one, built once.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, Default)]
 pub enum DeviceModel {
     /// No application (an ESC alone, e.g. a coupler).
@@ -44,11 +46,32 @@ impl DeviceModel {
         }
     }
 
-    /// Runs `dt_s` seconds of the application against the slave's memory.
+    /// Runs `dt_s` seconds of the application against the slave's memory: takes the
+    /// outputs, runs, publishes the inputs.
     pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
+        self.take_outputs(mem);
+        self.run_and_publish(mem, dt_s);
+    }
+
+    /// Takes the outputs the master wrote, as a drive does at its SYNC0 edge (DC) or when
+    /// the frame has written them (free run). Only a servo samples them apart from its
+    /// run; the other modules read their outputs as they run.
+    pub fn take_outputs(&mut self, mem: &Memory) {
+        match self {
+            DeviceModel::Servo(s) => s.take_outputs(mem),
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => {}
+        }
+    }
+
+    /// Runs `dt_s` seconds of the application on the outputs last taken and publishes its
+    /// inputs.
+    pub fn run_and_publish(&mut self, mem: &mut Memory, dt_s: f64) {
         match self {
             DeviceModel::None => {}
-            DeviceModel::Servo(s) => s.step(mem, dt_s),
+            DeviceModel::Servo(s) => {
+                s.run(dt_s);
+                s.publish_inputs(mem);
+            }
             DeviceModel::Encoder(e) => e.step(mem, dt_s),
             DeviceModel::Switches(s) => s.step(mem),
         }
@@ -58,7 +81,7 @@ impl DeviceModel {
     /// devices coupled to it: a servo's position actual value.
     pub fn axis_position(&self) -> Option<i64> {
         match self {
-            DeviceModel::Servo(s) => Some(i64::from(s.actual_counts())),
+            DeviceModel::Servo(s) => Some(s.position_counts()),
             DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
         }
     }

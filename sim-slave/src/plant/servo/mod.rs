@@ -1,0 +1,805 @@
+//! A CiA-402 servo drive in cyclic synchronous position, velocity and torque modes (CSP,
+//! CSV, CST): the device side of the power state machine from `gantry-drives` (the same
+//! table the master uses), and a motor and load with inertia, friction and a torque limit,
+//! moved by cascaded loops at the drive's own loop rate (see [`motor`]). It is as strict
+//! as a real drive:
+//!
+//! - **Following error** (CiA 402-2 §12.4, objects 0x6065/0x6066): in CSP, when the
+//!   position demand and the actual position are further apart than the window for longer
+//!   than the time out, the drive faults with 0x8611.
+//! - **Setpoint step** (0x607F max profile velocity): a CSP target that moved further since
+//!   the last one than the motor can go at its maximum speed in that time (plus one count)
+//!   faults at once with [`ERROR_SETPOINT_STEP`]. Real drives have this monitor (Bosch
+//!   Rexroth IndraDrive: F2037 "Excessive position command difference") because without it
+//!   the loops lunge at peak torque for the whole following-error time out before 0x8611
+//!   stops them. The code is manufacturer-specific, as theirs is: CiA 402 has no standard
+//!   code for it, and 0x8611 would tell the user the axis could not keep up when the
+//!   master asked for the impossible.
+//! - **Stops** decelerate as the option codes say (CiA 402-2 §8.4): quick stop 0x605A on
+//!   0x6084/0x6085 or at the current limit, staying in Quick stop active (5…8) or going to
+//!   Switch on disabled (1…4) once stopped; shutdown 0x605B and disable operation 0x605C
+//!   (0: the power stage goes off and the load coasts, 1: slow down on 0x6084 first, the
+//!   state changing once stopped); fault reaction 0x605E (the drive shows Fault reaction
+//!   active while it brakes, then Fault).
+//! - **Actual values** are the model's: velocity 0x606C, torque 0x6077 (per mille of the
+//!   rated torque 0x6076, from the current: what accelerates the inertia plus friction),
+//!   following error 0x60F4.
+//! - **32-bit positions wrap** as CSP drives count: the position actual value is the low
+//!   half of the drive's position, and a target is taken the short way from the last one.
+//!
+//! A CSP target is interpolated linearly over the setpoint period (the time between two
+//! setpoints taken), with the velocity feed-forward its slope; a period without a new
+//! setpoint continues along the last slope.
+//!
+//! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
+//! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
+//! inputs `0x6041 statusword: u16, 0x6064 position actual value: i32`.
+//!
+//! Each application period is three calls, so that the ESC side can sample the outputs
+//! at the drive's SYNC0 edge: [`ServoDrive::take_outputs`], [`ServoDrive::run`],
+//! [`ServoDrive::publish_inputs`] ([`ServoDrive::step`] does all three).
+
+pub mod motor;
+pub mod params;
+
+use gantry_drives::cia402::controlword::Command;
+use gantry_drives::cia402::objects::{self, ObjectId};
+use gantry_drives::cia402::pdo::PdoLayout;
+use gantry_drives::cia402::state::transition;
+use gantry_drives::cia402::statusword;
+use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
+
+use crate::esc::memory::Memory;
+use crate::plant::record::DriveRecord;
+use motor::{Drive, Gains, Motor};
+pub use params::{ParamError, ServoParams};
+
+/// Most process data bytes per direction the model handles.
+const MAX_PDO_BYTES: usize = 64;
+
+/// Error code (0x603F) of a fault by process-data watchdog: CiA 301 0x8700 "sync
+/// controller" family, which EtherCAT drives use for a lost SyncManager watchdog.
+pub const ERROR_SYNC_WATCHDOG: u16 = 0x8700;
+/// Error code of a following error beyond 0x6065 for longer than 0x6066 (CiA 402-2).
+pub const ERROR_FOLLOWING: u16 = 0x8611;
+/// Error code of a CSP setpoint that stepped further than the motor can move in the
+/// setpoint period (manufacturer-specific, CiA 301 0xFF00…0xFFFF; see the module doc).
+pub const ERROR_SETPOINT_STEP: u16 = 0xFF01;
+
+/// Most loop substeps in one run (bounded work): 100 ms at 16 kHz, the longest
+/// application period the simulator allows. A longer run takes longer substeps.
+const MAX_SUBSTEPS: usize = 1600;
+
+/// Modes of operation: cyclic synchronous position, velocity, torque.
+const CSP: i8 = 8;
+const CSV: i8 = 9;
+const CST: i8 = 10;
+
+/// Touch probe function bits (CiA 402 0x60B8): enable probe 1; continuous (else first
+/// event only); trigger on the encoder's zero impulse (else the probe input); sample the
+/// positive edge.
+mod tp {
+    pub const ENABLE_1: u16 = 1 << 0;
+    pub const CONTINUOUS_1: u16 = 1 << 1;
+    pub const ZERO_IMPULSE_1: u16 = 1 << 2;
+    pub const POSITIVE_EDGE_1: u16 = 1 << 4;
+    /// Touch probe status (0x60B9): probe 1 enabled; positive edge value stored.
+    pub const STATUS_ENABLED_1: u16 = 1 << 0;
+    pub const STATUS_STORED_1: u16 = 1 << 1;
+}
+
+/// How the drive brakes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Brake {
+    /// Power stage off at once; the load coasts.
+    Coast,
+    /// Along a ramp of this deceleration (counts/s²).
+    Ramp(f64),
+    /// At the current (torque) limit.
+    CurrentLimit,
+}
+
+/// Why the drive brakes, and what follows once it stands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum StopCause {
+    /// Quick stop (transition 11); `stay`: remain in Quick stop active (codes 5…8), else
+    /// transition 12 to Switch on disabled.
+    QuickStop { stay: bool },
+    /// Shutdown or disable operation with a slow-down (transitions 8 and 5, option 1):
+    /// the transition completes with this controlword once the load stands.
+    Transition(Controlword),
+    /// The fault reaction (transition 14 follows).
+    FaultReaction,
+}
+
+/// A stop in progress.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Braking {
+    brake: Brake,
+    why: StopCause,
+    /// The ramp's velocity (counts/s).
+    ramp: f64,
+}
+
+/// The SDO-visible settings of the drive (CiA 402 objects), power-up values from
+/// [`ServoParams`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Settings {
+    following_error_window: u32,
+    following_error_timeout_ms: u16,
+    max_profile_velocity: u32,
+    profile_deceleration: u32,
+    quick_stop_deceleration: u32,
+    max_torque: u16,
+    quick_stop_option_code: i16,
+    shutdown_option_code: i16,
+    disable_operation_option_code: i16,
+    fault_reaction_option_code: i16,
+}
+
+impl Settings {
+    fn of(p: &ServoParams) -> Self {
+        Self {
+            following_error_window: p.following_error_window,
+            following_error_timeout_ms: p.following_error_timeout_ms,
+            max_profile_velocity: p.max_speed_counts().min(f64::from(u32::MAX)) as u32,
+            profile_deceleration: p.profile_deceleration,
+            quick_stop_deceleration: p.quick_stop_deceleration,
+            max_torque: (p.peak_torque_nm / p.rated_torque_nm * 1000.0).round() as u16,
+            quick_stop_option_code: p.quick_stop_option_code,
+            shutdown_option_code: p.shutdown_option_code,
+            disable_operation_option_code: p.disable_operation_option_code,
+            fault_reaction_option_code: p.fault_reaction_option_code,
+        }
+    }
+}
+
+/// A servo drive model.
+#[derive(Clone, Debug)]
+pub struct ServoDrive {
+    /// Where the output process data lies in the ESC's RAM (SM2).
+    pub outputs_at: u16,
+    /// Where the input process data lies (SM3).
+    pub inputs_at: u16,
+    /// The motor, load and tuning.
+    pub params: ServoParams,
+    /// The commutation offset the drive was told (counts); the motor's true one is
+    /// `params.commutation_offset`.
+    pub commutation_setting: i32,
+    settings: Settings,
+    state: DeviceStateMachine,
+    error_code: u16,
+    motor: Motor,
+    /// Last controlword taken, and the one before (for the fault reset edge).
+    controlword: Controlword,
+    last_controlword: Controlword,
+    /// Last target position taken (the drive's 32-bit value).
+    target: i32,
+    target_velocity: i32,
+    target_torque: i16,
+    mode: i8,
+    /// A touch probe function received, not yet applied.
+    pending_touch_probe: Option<u16>,
+    /// A setpoint was taken since the last run.
+    fresh: bool,
+    /// Run time since the last setpoint was taken (s).
+    since_take: f64,
+    /// Time between the last two setpoints taken (s).
+    setpoint_period: Option<f64>,
+    /// The last CSP target, unwrapped to the drive's full position (counts).
+    target_abs: Option<f64>,
+    /// Interpolation segment: start, slope (the velocity feed-forward, counts/s), time in.
+    seg_start: f64,
+    slope: f64,
+    seg_t: f64,
+    seg_len: f64,
+    /// Position demand value (counts): the interpolated target.
+    demand: f64,
+    /// Mean torque (N·m) and velocity (counts/s) over the last run: the actual values
+    /// reported, as drives average them over the cycle (sampled at the cycle's end they
+    /// would show the loops' ripple at the setpoint steps, not the load's torque).
+    torque_mean: f64,
+    velocity_mean: f64,
+    /// How long the following error has been beyond the window (s).
+    following_time: f64,
+    braking: Option<Braking>,
+    /// Where the drive holds the load in Quick stop active once stopped.
+    hold: f64,
+    touch_probe_function: u16,
+    touch_probe_status: u16,
+    touch_probe_pos1: i32,
+    layout: PdoLayout,
+    record: DriveRecord,
+}
+
+impl ServoDrive {
+    /// The default servo ([`ServoParams::default`]) at position `start_counts` (the
+    /// absolute encoder's value at power-up).
+    pub fn new(outputs_at: u16, inputs_at: u16, start_counts: i32) -> Self {
+        Self::with_params(outputs_at, inputs_at, start_counts, ServoParams::default())
+    }
+
+    /// A servo with `params` at position `start_counts`.
+    pub fn with_params(
+        outputs_at: u16,
+        inputs_at: u16,
+        start_counts: i32,
+        params: ServoParams,
+    ) -> Self {
+        let p = f64::from(start_counts);
+        Self {
+            outputs_at,
+            inputs_at,
+            params,
+            commutation_setting: 0,
+            settings: Settings::of(&params),
+            state: DeviceStateMachine::ready(),
+            error_code: 0,
+            motor: Motor::at(p),
+            controlword: Controlword(0),
+            last_controlword: Controlword(0),
+            target: start_counts,
+            target_velocity: 0,
+            target_torque: 0,
+            mode: CSP,
+            pending_touch_probe: None,
+            fresh: false,
+            since_take: 0.0,
+            setpoint_period: None,
+            target_abs: None,
+            seg_start: p,
+            slope: 0.0,
+            seg_t: 0.0,
+            seg_len: 0.0,
+            demand: p,
+            torque_mean: 0.0,
+            velocity_mean: 0.0,
+            following_time: 0.0,
+            braking: None,
+            hold: p,
+            touch_probe_function: 0,
+            touch_probe_status: 0,
+            touch_probe_pos1: 0,
+            layout: PdoLayout::csp_minimal(),
+            record: DriveRecord::default(),
+        }
+    }
+
+    /// cos of the electrical angle by which the commutation setting misses the motor's
+    /// true offset: 1 when commissioned, 0 at 90° electrical (no torque at all).
+    pub fn torque_efficiency(&self) -> f64 {
+        let p = &self.params;
+        let error = f64::from(p.commutation_offset) - f64::from(self.commutation_setting);
+        let electrical = 2.0 * core::f64::consts::PI * f64::from(p.pole_pairs) * error
+            / f64::from(p.counts_per_rev.max(1));
+        electrical.cos()
+    }
+
+    fn set_touch_probe(&mut self, function: u16) {
+        if function & tp::ENABLE_1 == 0 {
+            self.touch_probe_status = 0;
+        } else if self.touch_probe_function & tp::ENABLE_1 == 0 {
+            // Rising edge of the enable: arm, nothing stored yet.
+            self.touch_probe_status = tp::STATUS_ENABLED_1;
+        }
+        self.touch_probe_function = function;
+    }
+
+    /// The index pulse: once per revolution at `index_at`. Touch probe 1, armed on the zero
+    /// impulse with the positive edge, stores the exact position where it was crossed.
+    fn watch_index(&mut self, from: f64, to: f64) {
+        let f = self.touch_probe_function;
+        let armed = f & tp::ENABLE_1 != 0
+            && f & tp::ZERO_IMPULSE_1 != 0
+            && f & tp::POSITIVE_EDGE_1 != 0
+            && (f & tp::CONTINUOUS_1 != 0 || self.touch_probe_status & tp::STATUS_STORED_1 == 0);
+        if !armed || from == to {
+            return;
+        }
+        let rev = f64::from(self.params.counts_per_rev.max(1));
+        let at = f64::from(self.params.index_at);
+        // The first index position passed going from `from` to `to`.
+        let crossed = if to > from {
+            let k = ((from - at) / rev).floor() + 1.0;
+            let p = at + k * rev;
+            (p <= to).then_some(p)
+        } else {
+            let k = ((from - at) / rev).ceil() - 1.0;
+            let p = at + k * rev;
+            (p >= to).then_some(p)
+        };
+        if let Some(p) = crossed {
+            self.touch_probe_pos1 = wrap32(p);
+            self.touch_probe_status |= tp::STATUS_STORED_1;
+        }
+    }
+
+    /// Uses the layout the master mapped (at PreOp → SafeOp).
+    pub fn configure(&mut self, layout: PdoLayout) {
+        self.layout = layout;
+    }
+
+    /// The process data layout in use.
+    pub fn layout(&self) -> &PdoLayout {
+        &self.layout
+    }
+
+    /// Power state.
+    pub fn state(&self) -> State {
+        self.state.state()
+    }
+
+    /// Load position (counts, the drive's full position, not wrapped).
+    pub fn position(&self) -> f64 {
+        self.motor.position
+    }
+
+    /// Load velocity now (counts/s; 0x606C reports its mean over the last period).
+    pub fn velocity(&self) -> f64 {
+        self.motor.velocity
+    }
+
+    /// Torque the motor delivers now (N·m), from its current (0x6077 reports its mean
+    /// over the last period).
+    pub fn torque_nm(&self) -> f64 {
+        self.motor.torque
+    }
+
+    /// Position demand value (counts): the interpolated CSP target the loops follow.
+    pub fn demand(&self) -> f64 {
+        self.demand
+    }
+
+    /// Position actual value (0x6064): the load position rounded to whole counts, its
+    /// low 32 bits (the value wraps, as CSP drives count).
+    pub fn actual_counts(&self) -> i32 {
+        wrap32(self.motor.position)
+    }
+
+    /// The load position rounded to whole counts, not wrapped (what switch cams on this
+    /// axis see).
+    pub fn position_counts(&self) -> i64 {
+        round_i64(self.motor.position)
+    }
+
+    /// The master stopped sending process data: a drive with power on faults and stops
+    /// as its fault reaction option code (0x605E) says.
+    pub fn on_watchdog(&mut self) {
+        if matches!(
+            self.state.state(),
+            State::OperationEnabled | State::SwitchedOn | State::QuickStopActive
+        ) {
+            self.fault(ERROR_SYNC_WATCHDOG);
+        }
+    }
+
+    /// What the drive recorded of the setpoints it took.
+    pub fn record(&self) -> &DriveRecord {
+        &self.record
+    }
+
+    /// Last fault's error code (0x603F), 0 when none.
+    pub fn error_code(&self) -> u16 {
+        self.error_code
+    }
+
+    /// One cycle: take the outputs, run the drive for `dt_s`, publish the inputs.
+    pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
+        self.take_outputs(mem);
+        self.run(dt_s);
+        self.publish_inputs(mem);
+    }
+
+    /// (a) Takes the outputs: reads the process data the master wrote (SM2's buffer in the
+    /// ESC RAM) into the drive's command: controlword, target values, mode, touch probe
+    /// function. A real drive does this at its SYNC0 edge (DC) or when the frame has
+    /// written SM2 (free run); the target taken is what [`DriveRecord`] judges the master
+    /// by. Call it once per new setpoint: a run without one is a missed setpoint, and the
+    /// time between two calls is the setpoint period the target is interpolated over.
+    pub fn take_outputs(&mut self, mem: &Memory) {
+        let mut out = [0u8; MAX_PDO_BYTES];
+        let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
+        if let Some(o) = out.get_mut(..n_out) {
+            mem.ecat_read(self.outputs_at, o, false);
+        }
+        let mut at = 0;
+        for o in &self.layout.outputs {
+            let v = field(&out, at, o.kind.size());
+            match o.index {
+                0x6040 => self.controlword = Controlword(v as u16),
+                0x607A => self.target = v as i32,
+                0x60FF => self.target_velocity = v as i32,
+                0x6071 => self.target_torque = v as i16,
+                0x60B8 => self.pending_touch_probe = Some(v as u16),
+                // A mode the drive does not have is not taken (the display keeps the old).
+                0x6060 if matches!(v as i8, CSP | CSV | CST) => self.mode = v as i8,
+                _ => {}
+            }
+            at += o.kind.size();
+        }
+        if self.since_take > 0.0 {
+            self.setpoint_period = Some(self.since_take);
+        }
+        self.since_take = 0.0;
+        self.fresh = true;
+        if self.following() && self.mode == CSP {
+            self.record.target(self.target);
+        }
+    }
+
+    /// Whether the drive follows its command values (Operation enabled, not braking).
+    fn following(&self) -> bool {
+        self.state.state() == State::OperationEnabled && self.braking.is_none()
+    }
+
+    /// (b) Runs the drive for `dt_s` seconds on the command last taken: the power state
+    /// machine, then the loops and the plant at the drive's loop rate.
+    pub fn run(&mut self, dt_s: f64) {
+        let dt = if dt_s.is_finite() { dt_s.max(0.0) } else { 0.0 };
+        if let Some(f) = self.pending_touch_probe.take() {
+            self.set_touch_probe(f);
+        }
+        self.apply_controlword();
+        if !matches!(
+            self.state.state(),
+            State::Fault | State::FaultReactionActive
+        ) {
+            self.error_code = 0;
+        }
+        let fresh = core::mem::take(&mut self.fresh);
+        if fresh && self.following() && self.mode == CSP {
+            self.new_setpoint(dt);
+        }
+        if self.state.state() != State::OperationEnabled {
+            self.record.disabled();
+        }
+        let before = self.motor.position;
+        if dt > 0.0 {
+            let n = ((dt * self.params.loop_rate_hz).ceil() as usize).clamp(1, MAX_SUBSTEPS);
+            let g = Gains::of(&self.params, dt / n as f64);
+            let mut torque = 0.0;
+            for _ in 0..n {
+                self.substep(&g);
+                torque += self.motor.torque;
+            }
+            self.torque_mean = torque / n as f64;
+            self.velocity_mean = (self.motor.position - before) / dt;
+        }
+        if self.following() && self.mode == CSP && fresh && (self.seg_t - self.seg_len).abs() < 1e-9
+        {
+            // The segment is done: the demand is the target, without rounding residue.
+            if let Some(t) = self.target_abs {
+                self.demand = t;
+            }
+        }
+        self.since_take += dt;
+        self.watch_index(before, self.motor.position);
+    }
+
+    /// The controlword taken acts on the state machine: transitions that stop the motor
+    /// first brake as their option codes say (CiA 402-2 §8.4.4 ff.).
+    fn apply_controlword(&mut self) {
+        let cw = self.controlword;
+        if let Some(Braking {
+            why: StopCause::Transition(started),
+            ..
+        }) = self.braking
+        {
+            if cw == started {
+                return;
+            }
+            // The master changed its mind while the drive slowed down: take the new
+            // command from Operation enabled.
+            self.braking = None;
+        }
+        let from = self.state.state();
+        if from == State::OperationEnabled {
+            let cmd = cw.command(self.last_controlword);
+            let slow = match transition(from, cmd) {
+                State::SwitchedOn => self.settings.disable_operation_option_code == 1,
+                State::ReadyToSwitchOn => self.settings.shutdown_option_code == 1,
+                _ => false,
+            };
+            if slow {
+                self.last_controlword = cw;
+                let decel = f64::from(self.settings.profile_deceleration);
+                self.start_braking(Brake::Ramp(decel), StopCause::Transition(cw));
+                return;
+            }
+        }
+        self.state.control(cw);
+        self.last_controlword = cw;
+        let to = self.state.state();
+        if from == State::OperationEnabled && to == State::QuickStopActive {
+            let code = self.settings.quick_stop_option_code;
+            let brake = match code {
+                0 => Brake::Coast,
+                1 | 5 => Brake::Ramp(f64::from(self.settings.profile_deceleration)),
+                2 | 6 => Brake::Ramp(f64::from(self.settings.quick_stop_deceleration)),
+                // 3, 7: current limit; 4, 8 (voltage limit) brake as hard: the model has
+                // no DC link to limit.
+                _ => Brake::CurrentLimit,
+            };
+            self.start_braking(brake, StopCause::QuickStop { stay: code >= 5 });
+        }
+        if to != State::QuickStopActive && from == State::QuickStopActive {
+            // Transition 12 by the master: the power stage goes off.
+            self.braking = None;
+        }
+        if to == State::OperationEnabled && from != State::OperationEnabled {
+            self.on_enable();
+        }
+    }
+
+    /// Operation enabled was entered: the demand starts where the load is.
+    fn on_enable(&mut self) {
+        let p = self.motor.position;
+        self.demand = p;
+        self.seg_start = p;
+        self.slope = 0.0;
+        self.seg_t = 0.0;
+        self.seg_len = 0.0;
+        self.target_abs = None;
+        self.following_time = 0.0;
+        self.motor.reset_loops();
+    }
+
+    fn start_braking(&mut self, brake: Brake, why: StopCause) {
+        self.braking = Some(Braking {
+            brake,
+            why,
+            ramp: self.motor.velocity,
+        });
+        if brake == Brake::Coast {
+            self.finish_braking();
+        }
+    }
+
+    /// The load stands (or coasts, for option 0): the stop's transition follows.
+    fn finish_braking(&mut self) {
+        let Some(b) = self.braking.take() else {
+            return;
+        };
+        match b.why {
+            StopCause::QuickStop { stay: true } if b.brake != Brake::Coast => {
+                self.hold = self.motor.position;
+            }
+            // Transition 12 by the drive itself: Switch on disabled. (A controlword
+            // "disable voltage" is the table's way there; the fault-reset edge it clears
+            // does not matter outside Fault.)
+            StopCause::QuickStop { .. } => {
+                self.state.control(Controlword::of(Command::DisableVoltage));
+            }
+            StopCause::Transition(cw) => {
+                self.state.control(cw);
+            }
+            StopCause::FaultReaction => self.state.fault_reaction_done(),
+        }
+    }
+
+    /// A fault: Fault reaction active, braking as 0x605E says, then Fault.
+    fn fault(&mut self, code: u16) {
+        let s = self.state.state();
+        if matches!(s, State::Fault | State::FaultReactionActive) {
+            return;
+        }
+        let moving = matches!(s, State::OperationEnabled | State::QuickStopActive);
+        self.state.fault();
+        self.error_code = code;
+        self.record.fault(code);
+        if code == ERROR_FOLLOWING {
+            self.record.following_error_faults += 1;
+        }
+        self.braking = None;
+        if moving {
+            let brake = match self.settings.fault_reaction_option_code {
+                0 => Brake::Coast,
+                1 => Brake::Ramp(f64::from(self.settings.profile_deceleration)),
+                2 => Brake::Ramp(f64::from(self.settings.quick_stop_deceleration)),
+                _ => Brake::CurrentLimit,
+            };
+            self.start_braking(brake, StopCause::FaultReaction);
+        } else {
+            self.state.fault_reaction_done();
+        }
+    }
+
+    /// A new CSP setpoint: unwrapped the short way from the last one, checked against
+    /// what the motor can move in the setpoint period, and interpolated over it.
+    fn new_setpoint(&mut self, dt: f64) {
+        let period = self.setpoint_period.filter(|p| *p > 0.0).unwrap_or(dt);
+        let reference = self.target_abs.unwrap_or(self.demand);
+        let r = round_i64(reference);
+        let t = r as f64 + f64::from(self.target.wrapping_sub(r as i32));
+        let step = (t - reference).abs();
+        let limit = f64::from(self.settings.max_profile_velocity) * period + 1.0;
+        if step > limit {
+            self.fault(ERROR_SETPOINT_STEP);
+            return;
+        }
+        self.target_abs = Some(t);
+        self.seg_start = self.demand;
+        self.seg_t = 0.0;
+        self.seg_len = period;
+        if period > 0.0 {
+            self.slope = (t - self.demand) / period;
+        } else {
+            self.slope = 0.0;
+            self.demand = t;
+            self.seg_start = t;
+        }
+    }
+
+    /// Torque limit (N·m): the power stage's peak, or 0x6072 Max torque if lower.
+    fn torque_limit(&self) -> f64 {
+        let p = &self.params;
+        (f64::from(self.settings.max_torque) / 1000.0 * p.rated_torque_nm).min(p.peak_torque_nm)
+    }
+
+    /// Speed at which a stop counts as done (counts/s): 0.1 % of the top speed.
+    fn standstill(&self) -> f64 {
+        0.001 * self.params.max_speed_counts()
+    }
+
+    /// One period of the drive's loops.
+    fn substep(&mut self, g: &Gains) {
+        let kp = self.params.position_gain;
+        let vmax = self.params.max_speed_counts();
+        let drive = if let Some(b) = self.braking.as_mut() {
+            match b.brake {
+                Brake::Coast => Drive::Off,
+                Brake::Ramp(d) => {
+                    let dv = d * g.h;
+                    b.ramp = if b.ramp.abs() <= dv {
+                        0.0
+                    } else {
+                        b.ramp - dv * b.ramp.signum()
+                    };
+                    Drive::Velocity(b.ramp)
+                }
+                Brake::CurrentLimit => Drive::Velocity(0.0),
+            }
+        } else {
+            match self.state.state() {
+                State::OperationEnabled => match self.mode {
+                    CSP => {
+                        self.seg_t += g.h;
+                        self.demand = self.seg_start + self.slope * self.seg_t;
+                        let v = kp * (self.demand - self.motor.position) + self.slope;
+                        Drive::Velocity(v.clamp(-vmax, vmax))
+                    }
+                    CSV => {
+                        let v = f64::from(self.target_velocity);
+                        let limit = f64::from(self.settings.max_profile_velocity).min(vmax);
+                        Drive::Velocity(v.clamp(-limit, limit))
+                    }
+                    CST => Drive::Torque(
+                        f64::from(self.target_torque) / 1000.0 * self.params.rated_torque_nm,
+                    ),
+                    _ => Drive::Off,
+                },
+                State::QuickStopActive => {
+                    Drive::Velocity((kp * (self.hold - self.motor.position)).clamp(-vmax, vmax))
+                }
+                _ => Drive::Off,
+            }
+        };
+        let limit = self.torque_limit();
+        let efficiency = self.torque_efficiency();
+        self.motor.substep(g, drive, limit, efficiency);
+        if let Some(b) = self.braking {
+            let ramp_done = !matches!(b.brake, Brake::Ramp(_)) || b.ramp == 0.0;
+            if ramp_done && self.motor.velocity.abs() < self.standstill() {
+                self.finish_braking();
+            }
+        } else if self.following() && self.mode == CSP {
+            self.watch_following_error(g.h);
+        }
+    }
+
+    /// 0x6065/0x6066: a following error beyond the window for longer than the time out
+    /// faults the drive (CiA 402-2 §12.4.3; `u32::MAX` switches the check off).
+    fn watch_following_error(&mut self, h: f64) {
+        let window = self.settings.following_error_window;
+        if window == u32::MAX {
+            self.following_time = 0.0;
+            return;
+        }
+        if (self.demand - self.motor.position).abs() <= f64::from(window) {
+            self.following_time = 0.0;
+            return;
+        }
+        self.following_time += h;
+        let timeout = f64::from(self.settings.following_error_timeout_ms) * 1e-3;
+        if self.following_time > timeout + 1e-12 {
+            self.fault(ERROR_FOLLOWING);
+        }
+    }
+
+    /// (c) Publishes the inputs: writes the mapped input objects into SM3's buffer.
+    pub fn publish_inputs(&self, mem: &mut Memory) {
+        let mut inp = [0u8; MAX_PDO_BYTES];
+        let mut at = 0;
+        for o in &self.layout.inputs {
+            let v = self.input_value(o);
+            put(&mut inp, at, o.kind.size(), v);
+            at += o.kind.size();
+        }
+        if let Some(i) = inp.get(..at.min(MAX_PDO_BYTES)) {
+            mem.pdi_write(self.inputs_at, i);
+        }
+    }
+
+    /// 0x6041: the state, remote, bit 12 (CSP/CSV/CST: the drive follows the command
+    /// value) and bit 11 (internal limit active: the torque limit clips).
+    fn statusword(&self) -> u16 {
+        let mut sw = self.state.statusword().0 | statusword::REMOTE;
+        if self.following() {
+            sw |= statusword::MODE_SPECIFIC_12;
+        }
+        if self.motor.limited && self.state.state() != State::SwitchOnDisabled {
+            sw |= statusword::INTERNAL_LIMIT_ACTIVE;
+        }
+        sw
+    }
+
+    /// 0x60F4: position demand less position actual (CSP; 0 in the other modes).
+    fn following_error(&self) -> i64 {
+        if self.mode == CSP && self.state.state() == State::OperationEnabled {
+            round_i64(self.demand - self.motor.position)
+        } else {
+            0
+        }
+    }
+
+    /// 0x6077: torque actual in per mille of the rated torque.
+    fn torque_per_mille(&self) -> i64 {
+        round_i64(self.torque_mean / self.params.rated_torque_nm * 1000.0)
+    }
+
+    fn input_value(&self, o: &ObjectId) -> i64 {
+        match *o {
+            objects::STATUSWORD => i64::from(self.statusword()),
+            objects::POSITION_ACTUAL_VALUE => i64::from(self.actual_counts()),
+            objects::VELOCITY_ACTUAL_VALUE => round_i64(self.velocity_mean),
+            objects::TORQUE_ACTUAL_VALUE => self.torque_per_mille(),
+            objects::ERROR_CODE => i64::from(self.error_code),
+            objects::MODES_OF_OPERATION_DISPLAY => i64::from(self.mode),
+            objects::FOLLOWING_ERROR_ACTUAL_VALUE => self.following_error(),
+            objects::TOUCH_PROBE_STATUS => i64::from(self.touch_probe_status),
+            objects::TOUCH_PROBE_POS1_POS_VALUE => i64::from(self.touch_probe_pos1),
+            objects::DIGITAL_INPUTS => 0,
+            _ => 0,
+        }
+    }
+}
+
+/// `x` rounded to a whole count (saturating far beyond any real position).
+fn round_i64(x: f64) -> i64 {
+    x.round() as i64
+}
+
+/// The low 32 bits of `x` rounded: a 32-bit position register that wraps.
+fn wrap32(x: f64) -> i32 {
+    round_i64(x) as i32
+}
+
+/// A little-endian field of `size` bytes at `at`, sign-extended.
+fn field(buf: &[u8], at: usize, size: usize) -> i64 {
+    let mut b = [0u8; 8];
+    if let (Some(dst), Some(src)) = (b.get_mut(..size), buf.get(at..at + size)) {
+        dst.copy_from_slice(src);
+    }
+    let shift = 64 - 8 * size.clamp(1, 8) as u32;
+    (i64::from_le_bytes(b) << shift) >> shift
+}
+
+/// Writes the low `size` bytes of `v` at `at`.
+fn put(buf: &mut [u8], at: usize, size: usize, v: i64) {
+    if let (Some(dst), Some(src)) = (buf.get_mut(at..at + size), v.to_le_bytes().get(..size)) {
+        dst.copy_from_slice(src);
+    }
+}
+
+#[cfg(test)]
+mod tests;

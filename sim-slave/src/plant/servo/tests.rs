@@ -1,0 +1,635 @@
+//! Behaviour of the servo model, through its process data as a master sees it. Lockstep:
+//! each `cycle` is one 1 ms application period.
+
+use super::*;
+use crate::esc::registers::PROCESS_RAM;
+use gantry_drives::cia402::Statusword;
+use objects::*;
+
+const DT: f64 = 0.001;
+const OUT: [ObjectId; 6] = [
+    CONTROLWORD,
+    MODES_OF_OPERATION,
+    TARGET_POSITION,
+    TARGET_VELOCITY,
+    TARGET_TORQUE,
+    TOUCH_PROBE_FUNCTION,
+];
+const IN: [ObjectId; 9] = [
+    STATUSWORD,
+    POSITION_ACTUAL_VALUE,
+    VELOCITY_ACTUAL_VALUE,
+    TORQUE_ACTUAL_VALUE,
+    ERROR_CODE,
+    MODES_OF_OPERATION_DISPLAY,
+    FOLLOWING_ERROR_ACTUAL_VALUE,
+    TOUCH_PROBE_STATUS,
+    TOUCH_PROBE_POS1_POS_VALUE,
+];
+
+/// What the master reads.
+#[derive(Clone, Copy, Debug)]
+struct Inputs {
+    sw: Statusword,
+    position: i32,
+    velocity: i32,
+    torque: i16,
+    error: u16,
+    mode: i8,
+    following: i32,
+    tp_status: u16,
+    tp_pos1: i32,
+}
+
+/// A drive with every object mapped, and what the master writes to it.
+struct Rig {
+    d: ServoDrive,
+    mem: Memory,
+    cw: u16,
+    mode: i8,
+    target: i32,
+    velocity: i32,
+    torque: i16,
+    tp: u16,
+}
+
+impl Rig {
+    fn new(start: i32, params: ServoParams) -> Self {
+        let mut d = ServoDrive::with_params(PROCESS_RAM, PROCESS_RAM + 0x100, start, params);
+        d.configure(PdoLayout {
+            outputs: OUT.to_vec(),
+            inputs: IN.to_vec(),
+        });
+        Self {
+            d,
+            mem: Memory::new(),
+            cw: 0,
+            mode: CSP,
+            target: start,
+            velocity: 0,
+            torque: 0,
+            tp: 0,
+        }
+    }
+
+    /// Enabled in `mode` (target = actual, as a master enables).
+    fn enabled(start: i32, params: ServoParams, mode: i8) -> Self {
+        let mut r = Self::new(start, params);
+        r.mode = mode;
+        for cw in [0x06, 0x07, 0x0F, 0x0F] {
+            r.cw = cw;
+            r.cycle();
+        }
+        assert_eq!(r.d.state(), State::OperationEnabled);
+        r
+    }
+
+    fn cycle(&mut self) -> Inputs {
+        let mut b = [0u8; 15];
+        b[0..2].copy_from_slice(&self.cw.to_le_bytes());
+        b[2] = self.mode as u8;
+        b[3..7].copy_from_slice(&self.target.to_le_bytes());
+        b[7..11].copy_from_slice(&self.velocity.to_le_bytes());
+        b[11..13].copy_from_slice(&self.torque.to_le_bytes());
+        b[13..15].copy_from_slice(&self.tp.to_le_bytes());
+        self.mem.pdi_write(PROCESS_RAM, &b);
+        self.d.step(&mut self.mem, DT);
+        self.inputs()
+    }
+
+    fn cycles(&mut self, n: usize) -> Inputs {
+        for _ in 1..n {
+            self.cycle();
+        }
+        self.cycle()
+    }
+
+    fn inputs(&self) -> Inputs {
+        let mut b = [0u8; 25];
+        self.mem.ecat_read(PROCESS_RAM + 0x100, &mut b, false);
+        let i32_at = |at: usize| i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+        Inputs {
+            sw: Statusword(u16::from_le_bytes([b[0], b[1]])),
+            position: i32_at(2),
+            velocity: i32_at(6),
+            torque: i16::from_le_bytes([b[10], b[11]]),
+            error: u16::from_le_bytes([b[12], b[13]]),
+            mode: b[14] as i8,
+            following: i32_at(15),
+            tp_status: u16::from_le_bytes([b[19], b[20]]),
+            tp_pos1: i32_at(21),
+        }
+    }
+}
+
+fn p() -> ServoParams {
+    ServoParams::default()
+}
+
+/// Counts per second at `rpm`.
+fn rpm(rpm: f64) -> f64 {
+    rpm / 60.0 * f64::from(p().counts_per_rev)
+}
+
+/// Torque (N·m) for acceleration `a` (counts/s²) of the default servo's inertia.
+fn torque_for(a: f64) -> f64 {
+    let p = p();
+    p.inertia() * a * 2.0 * core::f64::consts::PI / f64::from(p.counts_per_rev)
+}
+
+#[test]
+fn enables_through_the_state_machine_and_holds_without_moving_before() {
+    let mut r = Rig::new(1000, p());
+    r.target = 5000;
+    for cw in [0x06, 0x07] {
+        r.cw = cw;
+        let i = r.cycle();
+        assert_eq!(i.position, 1000, "does not move before Operation enabled");
+    }
+    r.cw = 0x0F;
+    r.target = 1000;
+    r.cycles(2);
+    let i = r.cycles(100);
+    assert_eq!(i.sw.state(), Some(State::OperationEnabled));
+    assert_eq!(i.position, 1000);
+    assert_ne!(
+        i.sw.0 & statusword::MODE_SPECIFIC_12,
+        0,
+        "follows the target"
+    );
+    assert_eq!((i.following, i.mode), (0, CSP));
+}
+
+#[test]
+fn a_one_count_step_settles_and_stays() {
+    let mut r = Rig::enabled(0, p(), CSP);
+    r.target = 1;
+    let i = r.cycles(50);
+    assert_eq!((i.position, i.following), (1, 0), "{i:?}");
+    // It stays: every later cycle reads 1 with no motion left.
+    for _ in 0..200 {
+        let i = r.cycle();
+        assert_eq!(i.position, 1);
+        assert!(i.velocity.abs() < 100, "{i:?}");
+    }
+    assert!((r.d.position() - 1.0).abs() < 0.5);
+}
+
+#[test]
+fn a_smooth_move_is_followed_with_a_small_following_error() {
+    // A cycloidal move of 10 turns in 0.4 s: 50 rev/s (3000 rpm) top speed, 393 rev/s²
+    // peak acceleration, as a ball-screw axis moves at 250 mm/s.
+    let params = p();
+    let rev = f64::from(params.counts_per_rev);
+    let (d, t_move) = (10.0 * rev, 0.4);
+    let mut r = Rig::enabled(0, params, CSP);
+    let mut worst = 0;
+    let mut peak_torque = 0;
+    for k in 1..=500 {
+        let t = (k as f64 * DT).min(t_move);
+        let x = t / t_move;
+        let s = d * (x - (2.0 * core::f64::consts::PI * x).sin() / (2.0 * core::f64::consts::PI));
+        r.target = s.round() as i32;
+        let i = r.cycle();
+        worst = worst.max(i.following.abs());
+        peak_torque = peak_torque.max(i.torque.abs());
+    }
+    assert_eq!(r.inputs().position, r.target);
+    assert_eq!(r.d.record().faults, 0);
+    // Figures: the worst following error, and the torque the acceleration needs
+    // (J · 2π · 393 rev/s² ≈ 0.39 N·m ≈ 300 ‰ plus friction).
+    eprintln!("worst following error {worst} counts, peak torque {peak_torque} ‰");
+    // Measured 418 counts (1.1° of the motor, 16 µm on a 5 mm screw): the velocity PI
+    // lagging the acceleration, as without torque feed-forward.
+    assert!(worst > 0 && worst < 600, "{worst} counts");
+    assert!((300..400).contains(&peak_torque), "{peak_torque} ‰");
+}
+
+#[test]
+fn a_large_step_saturates_the_torque_limit_and_is_limited_by_it() {
+    let params = p();
+    let mut r = Rig::enabled(0, params, CSP);
+    // 10 000 counts in one cycle: under the setpoint step limit (0x607F · 1 ms = 13 107
+    // counts), far more than the inertia can follow in one cycle.
+    let step = 10_000;
+    r.target = step;
+    let i = r.cycle();
+    assert_ne!(i.sw.0 & statusword::INTERNAL_LIMIT_ACTIVE, 0, "{i:?}");
+    let peak = (params.peak_torque_nm / params.rated_torque_nm * 1000.0).round() as i16;
+    // The first period's mean includes the current loop's rise; the second is all peak.
+    assert!(i.torque > peak / 2, "{i:?}");
+    let i = r.cycle();
+    assert!(i.torque > peak - 10, "torque at the limit: {i:?}");
+    // Bang-bang at peak torque is the fastest possible move: 2·√(d/a).
+    let a_peak = (params.peak_torque_nm - params.coulomb_friction_nm) / torque_for(1.0);
+    let fastest = 2.0 * (f64::from(step) / a_peak).sqrt();
+    let mut settled_at = None;
+    for n in 3..200 {
+        let i = r.cycle();
+        if settled_at.is_none() && (i.position - step).abs() <= 10 {
+            settled_at = Some(n as f64 * DT);
+        }
+    }
+    let t = settled_at.expect("settles");
+    assert!(
+        t >= fastest,
+        "{t} s, physics allows no less than {fastest} s"
+    );
+    assert!(t < 0.05, "{t} s: the loops bring it in");
+    assert_eq!(r.inputs().position, step);
+    assert_eq!(r.d.record().faults, 0);
+}
+
+#[test]
+fn following_error_faults_with_0x8611_after_the_window_time() {
+    // A motor that gives no torque (commutation 90° electrical off) cannot follow.
+    let mut params = p();
+    params.counts_per_rev = 20_000;
+    params.commutation_offset = (params.counts_per_rev / params.pole_pairs / 4) as i32;
+    params.following_error_window = 1000;
+    params.following_error_timeout_ms = 10;
+    let mut r = Rig::enabled(0, params, CSP);
+    assert!(r.d.torque_efficiency().abs() < 1e-9);
+    // A ramp of 100 counts per cycle: beyond the window after the 10th cycle.
+    let mut beyond_at = None;
+    let mut fault_at = None;
+    for n in 1..=40 {
+        r.target += 100;
+        let i = r.cycle();
+        if beyond_at.is_none() && i.following > 1000 {
+            beyond_at = Some(n);
+        }
+        if fault_at.is_none() && i.error != 0 {
+            fault_at = Some(n);
+            assert_eq!(i.error, ERROR_FOLLOWING);
+        }
+    }
+    let (beyond, fault) = (beyond_at.unwrap(), fault_at.unwrap());
+    // Beyond the window during cycle 11; faults once 10 ms more have passed.
+    assert_eq!(beyond, 11);
+    assert!(
+        fault == beyond + 10 || fault == beyond + 11,
+        "{beyond} {fault}"
+    );
+    assert_eq!(r.inputs().sw.state(), Some(State::Fault));
+    assert_eq!(r.d.record().following_error_faults, 1);
+    assert_eq!(r.d.record().last_fault_code, ERROR_FOLLOWING);
+    // The window at u32::MAX switches the check off.
+    params.following_error_window = u32::MAX;
+    let mut r = Rig::enabled(0, params, CSP);
+    for _ in 0..40 {
+        r.target += 100;
+        r.cycle();
+    }
+    assert_eq!(r.d.state(), State::OperationEnabled);
+}
+
+#[test]
+fn an_impossible_setpoint_step_faults_at_once() {
+    let params = p();
+    let limit = params.max_speed_counts() * DT;
+    let mut r = Rig::enabled(0, params, CSP);
+    // Just within what the motor can move in a cycle (plus one count): taken.
+    r.target = limit as i32;
+    r.cycle();
+    assert_eq!(r.d.state(), State::OperationEnabled);
+    // A full motor turn and more per cycle back (the modulo bug's jump): refused.
+    r.target -= 10 * params.counts_per_rev as i32;
+    let i = r.cycle();
+    assert_eq!(i.error, ERROR_SETPOINT_STEP, "{i:?}");
+    assert_eq!(r.d.record().last_fault_code, ERROR_SETPOINT_STEP);
+    assert_eq!(r.d.record().following_error_faults, 0);
+    // It brakes (fault reaction: quick stop ramp), not towards the bad target.
+    assert!(matches!(
+        i.sw.state(),
+        Some(State::FaultReactionActive | State::Fault)
+    ));
+    let i = r.cycles(100);
+    assert_eq!(i.sw.state(), Some(State::Fault));
+    assert!(i.position > 0, "never lunged back to the bad target: {i:?}");
+    // 0x607F lower: the same step is now too much.
+    let mut r = Rig::enabled(0, params, CSP);
+    r.d.settings.max_profile_velocity = 1_000_000;
+    r.target = 1002;
+    assert_eq!(r.cycle().error, ERROR_SETPOINT_STEP);
+}
+
+#[test]
+fn positions_wrap_at_32_bits_and_targets_are_taken_the_short_way() {
+    let mut r = Rig::enabled(i32::MAX - 50_000, p(), CSP);
+    // 1000 counts per cycle (1 m counts/s) across +2³¹.
+    for _ in 0..100 {
+        r.target = r.target.wrapping_add(1000);
+        r.cycle();
+    }
+    let i = r.cycles(50);
+    assert_eq!(r.d.record().faults, 0);
+    assert_eq!(i.position, (i32::MAX - 50_000).wrapping_add(100_000));
+    assert!(i.position < 0, "wrapped");
+    assert_eq!(r.d.position_counts(), i64::from(i32::MAX) + 50_000);
+}
+
+/// CSV at `v` counts/s until steady, then a controlword; what it reads after.
+fn moving(params: ServoParams, v: i32) -> Rig {
+    let mut r = Rig::enabled(0, params, CSV);
+    r.velocity = v;
+    let i = r.cycles(300);
+    assert!((i.velocity - v).abs() < 2000, "{i:?}");
+    r
+}
+
+/// Cycles until the velocity is 0 or `max` cycles; the deceleration measured between 80 %
+/// and 20 % of `v0`, and the states seen.
+fn brake(r: &mut Rig, v0: f64, max: usize) -> (f64, Vec<State>) {
+    let mut states = vec![];
+    let (mut t80, mut t20, mut t) = (None, None, 0.0);
+    for _ in 0..max {
+        let i = r.cycle();
+        t += DT;
+        let s = i.sw.state().unwrap();
+        if states.last() != Some(&s) {
+            states.push(s);
+        }
+        let v = f64::from(i.velocity);
+        if t80.is_none() && v < 0.8 * v0 {
+            t80 = Some(t);
+        }
+        if t20.is_none() && v < 0.2 * v0 {
+            t20 = Some(t);
+        }
+    }
+    let decel = match (t80, t20) {
+        (Some(a), Some(b)) if b > a => 0.6 * v0 / (b - a),
+        _ => 0.0,
+    };
+    (decel, states)
+}
+
+#[test]
+fn quick_stop_decelerates_as_0x605a_says() {
+    use State::*;
+    let v0 = rpm(3000.0);
+    let qs = f64::from(p().quick_stop_deceleration);
+    let slow = f64::from(p().profile_deceleration);
+    // Code 2: quick stop ramp, then Switch on disabled.
+    let mut r = moving(p(), v0 as i32);
+    r.cw = 0x02;
+    let i = r.cycle();
+    assert_eq!(i.sw.state(), Some(QuickStopActive));
+    assert_eq!(
+        i.sw.0 & statusword::QUICK_STOP,
+        0,
+        "bit 5 low: quick stop active"
+    );
+    let (decel, states) = brake(&mut r, v0, 500);
+    assert!((decel - qs).abs() < 0.05 * qs, "{decel} vs {qs}");
+    assert_eq!(states, [QuickStopActive, SwitchOnDisabled]);
+    // Stopped in v²/2a (plus what the loop lag adds).
+    let travel = r.d.position() - 0.0;
+    assert!(travel > 0.0);
+    // Code 6: quick stop ramp, stays in Quick stop active holding the position.
+    let mut params = p();
+    params.quick_stop_option_code = 6;
+    let mut r = moving(params, v0 as i32);
+    r.cw = 0x02;
+    let (decel, states) = brake(&mut r, v0, 500);
+    assert!((decel - qs).abs() < 0.05 * qs, "{decel}");
+    assert_eq!(states, [QuickStopActive]);
+    let held = r.inputs().position;
+    assert_eq!(r.cycles(100).position, held, "holds");
+    // Code 5: slow down ramp (0x6084).
+    params.quick_stop_option_code = 5;
+    let mut r = moving(params, v0 as i32);
+    r.cw = 0x02;
+    let (decel, _) = brake(&mut r, v0, 800);
+    assert!((decel - slow).abs() < 0.05 * slow, "{decel} vs {slow}");
+    // Code 3: at the current limit: the peak torque's deceleration.
+    params.quick_stop_option_code = 3;
+    let mut r = moving(params, v0 as i32);
+    r.cw = 0x02;
+    let (decel, states) = brake(&mut r, v0, 300);
+    let a_peak = params.peak_torque_nm / torque_for(1.0);
+    assert!(
+        decel > 0.8 * a_peak && decel < 1.2 * a_peak,
+        "{decel} vs {a_peak}"
+    );
+    assert_eq!(states, [QuickStopActive, SwitchOnDisabled]);
+    // Code 0: power off at once; only friction slows the load.
+    params.quick_stop_option_code = 0;
+    let mut r = moving(params, v0 as i32);
+    r.cw = 0x02;
+    let i = r.cycle();
+    assert_eq!(i.sw.state(), Some(SwitchOnDisabled));
+    assert_eq!(i.torque, 0);
+    let i = r.cycles(10);
+    assert!(f64::from(i.velocity) > 0.9 * v0, "coasts: {i:?}");
+}
+
+#[test]
+fn fault_reaction_brakes_as_0x605e_says_then_faults() {
+    use State::*;
+    let v0 = rpm(3000.0);
+    let qs = f64::from(p().quick_stop_deceleration);
+    // Default 2: quick stop ramp, Fault reaction active meanwhile.
+    let mut r = moving(p(), v0 as i32);
+    r.d.on_watchdog();
+    let (decel, states) = brake(&mut r, v0, 500);
+    assert!((decel - qs).abs() < 0.05 * qs, "{decel}");
+    assert_eq!(states, [FaultReactionActive, Fault]);
+    assert_eq!(r.inputs().error, ERROR_SYNC_WATCHDOG);
+    assert_eq!(r.d.record().faults, 1);
+    // 0: the power stage goes off: Fault at once and the load coasts.
+    let mut params = p();
+    params.fault_reaction_option_code = 0;
+    let mut r = moving(params, v0 as i32);
+    r.d.on_watchdog();
+    let i = r.cycles(10);
+    assert_eq!(i.sw.state(), Some(Fault));
+    assert!(f64::from(i.velocity) > 0.9 * v0, "coasts: {i:?}");
+    // A fault reset brings it to Switch on disabled with the code cleared.
+    r.cw = 0x80;
+    let i = r.cycle();
+    assert_eq!((i.sw.state(), i.error), (Some(SwitchOnDisabled), 0));
+}
+
+#[test]
+fn disable_operation_slows_down_first_and_shutdown_lets_it_coast() {
+    use State::*;
+    let v0 = rpm(1500.0);
+    let slow = f64::from(p().profile_deceleration);
+    // 0x605C = 1: stays in Operation enabled on the slow down ramp, then Switched on.
+    let mut r = moving(p(), v0 as i32);
+    r.cw = 0x07;
+    let i = r.cycle();
+    assert_eq!(i.sw.state(), Some(OperationEnabled));
+    assert_eq!(
+        i.sw.0 & statusword::MODE_SPECIFIC_12,
+        0,
+        "no longer follows"
+    );
+    let (decel, states) = brake(&mut r, v0, 600);
+    assert!((decel - slow).abs() < 0.05 * slow, "{decel}");
+    assert_eq!(states, [OperationEnabled, SwitchedOn]);
+    // 0x605B = 0: shutdown switches the power stage off at once.
+    let mut r = moving(p(), v0 as i32);
+    r.cw = 0x06;
+    let i = r.cycle();
+    assert_eq!((i.sw.state(), i.torque), (Some(ReadyToSwitchOn), 0));
+    assert!(f64::from(r.cycles(5).velocity) > 0.9 * v0, "coasts");
+}
+
+#[test]
+fn torque_actual_is_inertia_times_acceleration_plus_friction() {
+    let params = p();
+    // CSP on a constant-acceleration parabola: a1 then a2; in each, the torque is
+    // J·a + friction, so the difference is the inertia's alone.
+    let (a1, a2) = (rpm(30_000.0), rpm(90_000.0));
+    let torque_during = |a: f64| {
+        let mut r = Rig::enabled(0, params, CSP);
+        let mut sum = 0.0;
+        let mut n = 0.0;
+        for k in 1..=50 {
+            let t = k as f64 * DT;
+            r.target = (0.5 * a * t * t).round() as i32;
+            let i = r.cycle();
+            if k > 25 {
+                sum += f64::from(i.torque);
+                n += 1.0;
+            }
+        }
+        assert_eq!(r.d.record().faults, 0);
+        sum / n
+    };
+    // 500 and 1500 rev/s² (from 30 000 and 90 000 rpm/s); 75 rev/s at the end.
+    let (t1, t2) = (torque_during(a1), torque_during(a2));
+    let expected = torque_for(a2 - a1) / params.rated_torque_nm * 1000.0;
+    assert!(
+        ((t2 - t1) - expected).abs() < 0.05 * expected,
+        "{t1} ‰, {t2} ‰: difference {} vs J·Δa = {expected}",
+        t2 - t1
+    );
+    assert!(t1 > 0.0 && t2 > t1);
+}
+
+#[test]
+fn at_constant_speed_the_torque_is_the_friction() {
+    let params = p();
+    let v = rpm(3000.0);
+    let mut r = moving(params, v as i32);
+    let i = r.cycles(200);
+    let w = 3000.0 / 60.0 * 2.0 * core::f64::consts::PI;
+    let friction = params.coulomb_friction_nm + params.viscous_friction_nm_s * w;
+    let expected = friction / params.rated_torque_nm * 1000.0;
+    assert!(
+        (f64::from(i.torque) - expected).abs() < 2.0,
+        "{} ‰ vs {expected} ‰",
+        i.torque
+    );
+}
+
+#[test]
+fn csv_follows_the_target_velocity_and_cst_accelerates_with_torque() {
+    let mut r = Rig::enabled(0, p(), CSV);
+    r.velocity = 10_000;
+    let i = r.cycles(1000);
+    // 1 s at 10 000 counts/s, less the time the velocity loop took to get there.
+    let pos = r.d.position();
+    assert!((9_980.0..10_000.0).contains(&pos), "CSV: {pos}");
+    assert_eq!(i.mode, CSV, "mode display");
+    // An unsupported mode (homing, 6) is not taken.
+    r.mode = 6;
+    assert_eq!(r.cycle().mode, CSV);
+    // CST: 10 % torque accelerates; a = (T − Tc)/J.
+    r.mode = CST;
+    r.velocity = 0;
+    r.torque = 100;
+    let v0 = r.cycle().velocity;
+    let v1 = r.cycles(50).velocity;
+    let params = p();
+    let a = (0.1 * params.rated_torque_nm - params.coulomb_friction_nm) / torque_for(1.0);
+    let measured = f64::from(v1 - v0) / (50.0 * DT);
+    assert!((measured - a).abs() < 0.05 * a, "{measured} vs {a}");
+    assert_eq!(r.cycle().torque, 100, "torque actual = target");
+    // A wrong commutation offset (90° electrical) gives no torque: it stands.
+    let mut params = p();
+    params.counts_per_rev = 20_000;
+    params.commutation_offset = (params.counts_per_rev / params.pole_pairs / 4) as i32;
+    let mut r = Rig::enabled(0, params, CST);
+    assert!(r.d.torque_efficiency().abs() < 1e-9);
+    r.torque = 100;
+    let i = r.cycles(100);
+    assert_eq!(r.d.position(), 0.0, "no torque at 90° electrical");
+    assert_eq!(i.torque, 100, "though the current flows");
+    r.d.commutation_setting = r.d.params.commutation_offset;
+    assert!(
+        (r.d.torque_efficiency() - 1.0).abs() < 1e-12,
+        "commissioned"
+    );
+    r.cycles(10);
+    assert!(r.d.position() > 0.0);
+}
+
+#[test]
+fn touch_probe_latches_the_index_pulse_exactly() {
+    let mut r = Rig::enabled(0, p(), CSP);
+    // Armed (enable, zero impulse, positive edge), single event.
+    r.tp = 0x0015;
+    let i = r.cycle();
+    assert_eq!(
+        (i.tp_status, i.tp_pos1),
+        (0x0001, 0),
+        "enabled, nothing stored"
+    );
+    // Move past two index positions (1000 and 1000 + 2^17) at 2000 counts per cycle:
+    // the first is stored.
+    let rev = p().counts_per_rev as i32;
+    while r.target < 200_000 {
+        r.target += 2000;
+        r.cycle();
+    }
+    let i = r.cycles(50);
+    assert_eq!((i.tp_status, i.tp_pos1), (0x0003, 1000));
+    // Re-arm (enable off, on) and come back: the crossing going down is stored too.
+    r.tp = 0;
+    r.cycle();
+    r.tp = 0x0015;
+    while r.target > 0 {
+        r.target -= 2000;
+        r.cycle();
+    }
+    let i = r.cycles(50);
+    assert_eq!((i.tp_status, i.tp_pos1), (0x0003, 1000 + rev));
+    assert_eq!(r.d.record().faults, 0);
+}
+
+#[test]
+fn the_minimal_mapping_still_works() {
+    // The power-up mapping: controlword + target / statusword + position actual.
+    let mut mem = Memory::new();
+    let mut d = ServoDrive::new(PROCESS_RAM, PROCESS_RAM + 0x100, 1000);
+    let out = |mem: &mut Memory, cw: u16, target: i32| {
+        let mut b = [0u8; 6];
+        b[0..2].copy_from_slice(&cw.to_le_bytes());
+        b[2..6].copy_from_slice(&target.to_le_bytes());
+        mem.pdi_write(PROCESS_RAM, &b);
+    };
+    for cw in [0x06, 0x07, 0x0F, 0x0F] {
+        out(&mut mem, cw, 1000);
+        d.step(&mut mem, DT);
+    }
+    for k in 1..=100 {
+        out(&mut mem, 0x0F, 1000 + 10 * k);
+        d.step(&mut mem, DT);
+    }
+    for _ in 0..50 {
+        d.step(&mut mem, DT);
+    }
+    let mut inp = [0u8; 6];
+    mem.ecat_read(PROCESS_RAM + 0x100, &mut inp, false);
+    let sw = Statusword(u16::from_le_bytes([inp[0], inp[1]]));
+    assert_eq!(sw.state(), Some(State::OperationEnabled));
+    assert_eq!(i32::from_le_bytes([inp[2], inp[3], inp[4], inp[5]]), 2000);
+    // Taken in Operation enabled: the 4th enabling cycle's, 100 moving, 50 standing.
+    assert_eq!(d.record().targets, 151);
+    assert_eq!(d.record().max_target_step_counts, 10);
+}
