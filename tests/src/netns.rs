@@ -39,6 +39,10 @@ fn ip(args: &[&str]) -> Result<(), String> {
 /// few ms measured on a non-preemptible kernel): waiting for it keeps that work out of the
 /// real-time part of a test.
 fn bring_up(ends: &[(&str, &str)]) -> Result<(), String> {
+    // Dirty pages (the build that just wrote the binaries) are written back by kernel
+    // workers that, on a kernel without preemption, hold a CPU for milliseconds (traced on
+    // the CI VM: writeback work items of 10–80 ms); flush them before real time starts.
+    let _ = Command::new("sync").status();
     for (ns, link) in ends {
         let sysctl = format!("net.ipv6.conf.{link}.disable_ipv6=1");
         // A kernel without IPv6 has nothing to turn off: its failure is no error.
@@ -115,7 +119,9 @@ impl VethPair {
 
 impl Drop for VethPair {
     fn drop(&mut self) {
-        // Deleting a namespace deletes the veth end in it, and with it the peer.
+        // The pair first, here: deleting a namespace leaves its devices to a kernel worker
+        // (cleanup_net) that would still be tearing them down when the next test starts.
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
         for ns in [&self.master_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
@@ -188,6 +194,9 @@ impl RelayedVeth {
 
 impl Drop for RelayedVeth {
     fn drop(&mut self) {
+        // The pairs first (see `VethPair`'s drop).
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
+        let _ = ip(&["-n", &self.sim_ns, "link", "del", &self.sim_if]);
         for ns in [&self.master_ns, &self.relay_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
@@ -246,10 +255,23 @@ impl Drop for Reaped {
     }
 }
 
-/// A running `gantry-sim` whose summary can be read when it is stopped.
+/// A running `gantry-sim` whose summary can be read when it is stopped. Dropped without
+/// [`SimProcess::stop`] (a test failed), it is stopped the same way and its summary goes to
+/// stderr, so a failed run still shows the gaps the drives saw.
 pub struct SimProcess {
     child: Reaped,
-    stdout: std::io::BufReader<std::process::ChildStdout>,
+    stdout: Option<std::io::BufReader<std::process::ChildStdout>>,
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        if self.stdout.is_some() {
+            match self.finish() {
+                Ok(summary) => eprintln!("{}", summary.line),
+                Err(e) => eprintln!("gantry-sim: {e}"),
+            }
+        }
+    }
 }
 
 /// What `gantry-sim` said when it stopped.
@@ -267,7 +289,12 @@ impl SimProcess {
     /// Stops it with SIGTERM and reads its summary (killed and reaped on drop if this is
     /// not called).
     pub fn stop(mut self) -> Result<SimSummary, String> {
+        self.finish()
+    }
+
+    fn finish(&mut self) -> Result<SimSummary, String> {
         use std::io::Read;
+        let mut stdout = self.stdout.take().ok_or("already stopped")?;
         let pid = self.child.child().id() as i32;
         nix::sys::signal::kill(
             nix::unistd::Pid::from_raw(pid),
@@ -275,7 +302,7 @@ impl SimProcess {
         )
         .map_err(|e| format!("SIGTERM to gantry-sim: {e}"))?;
         let mut rest = String::new();
-        self.stdout
+        stdout
             .read_to_string(&mut rest)
             .map_err(|e| format!("gantry-sim's output: {e}"))?;
         let status = self.child.take().wait().map_err(|e| e.to_string())?;
@@ -324,7 +351,10 @@ pub fn start_gantry_sim_reporting(
         first.contains(&format!("{slaves} slaves")),
         "gantry-sim started: {first:?}"
     );
-    SimProcess { child, stdout }
+    SimProcess {
+        child,
+        stdout: Some(stdout),
+    }
 }
 
 fn spawn_gantry_sim(ns: &str, iface: &str, config: &std::path::Path) -> Reaped {
@@ -345,5 +375,10 @@ fn spawn_gantry_sim(ns: &str, iface: &str, config: &std::path::Path) -> Reaped {
 /// `config`, and waits until it has bound its socket (its first line, which must name
 /// `slaves` slaves).
 pub fn start_gantry_sim(ns: &str, iface: &str, config: &std::path::Path, slaves: usize) -> Reaped {
-    start_gantry_sim_reporting(ns, iface, config, slaves).child
+    let mut sim = start_gantry_sim_reporting(ns, iface, config, slaves);
+    // Nobody reads its summary: the simulator's last line then goes nowhere (it ignores
+    // a closed pipe), and it is killed on drop.
+    sim.stdout = None;
+    let child = sim.child.take();
+    Reaped::new(child)
 }
