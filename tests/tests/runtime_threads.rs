@@ -46,7 +46,15 @@ fn only_the_cycle_and_the_pump_run_in_real_time_and_ethercrab_starts_no_reactor(
             })
             .collect();
         for m in moves {
-            assert_eq!(m.wait(Duration::from_secs(5)).unwrap(), CommandStatus::Done);
+            let status = m.wait(Duration::from_secs(5)).unwrap();
+            let snap = ctl.snapshot();
+            assert_eq!(
+                status,
+                CommandStatus::Done,
+                "{:?} {:?}",
+                snap.axes.iter().map(|a| a.error).collect::<Vec<_>>(),
+                snap.drives
+            );
         }
         let reset = ctl.reset(round % 2).unwrap();
         assert_eq!(
