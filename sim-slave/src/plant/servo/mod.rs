@@ -633,7 +633,9 @@ impl ServoDrive {
     }
 
     /// (b) Runs the drive for `dt_s` seconds on the command last taken: the power state
-    /// machine, then the loops and the plant at the drive's loop rate.
+    /// machine, then the loops and the plant at the drive's loop rate. Call it once per
+    /// application period (the simulator allows at most 100 ms): a longer run takes
+    /// longer substeps, beyond what the loops are tuned for.
     pub fn run(&mut self, dt_s: f64) {
         let dt = if dt_s.is_finite() { dt_s.max(0.0) } else { 0.0 };
         if let Some(f) = self.pending_touch_probe.take() {
@@ -942,7 +944,8 @@ impl ServoDrive {
     }
 
     /// 0x6041: the state, remote, bit 12 (CSP/CSV/CST: the drive follows the command
-    /// value) and bit 11 (internal limit active: the torque limit clips).
+    /// value), bit 11 (internal limit active: the torque limit clips) and bit 13 (CSP:
+    /// following error).
     fn statusword(&self) -> u16 {
         let mut sw = self.state.statusword().0 | statusword::REMOTE;
         if self.following() {
@@ -950,6 +953,15 @@ impl ServoDrive {
         }
         if self.motor.limited && self.state.state() != State::SwitchOnDisabled {
             sw |= statusword::INTERNAL_LIMIT_ACTIVE;
+        }
+        // Bit 13 in CSP: the following error is beyond the window (its time out running),
+        // or it faulted the drive.
+        let faulted = matches!(
+            self.state.state(),
+            State::FaultReactionActive | State::Fault
+        ) && self.error_code == ERROR_FOLLOWING;
+        if self.mode == CSP && (self.following_time > 0.0 || faulted) {
+            sw |= statusword::MODE_SPECIFIC_13;
         }
         sw
     }

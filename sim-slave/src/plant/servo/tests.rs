@@ -259,6 +259,12 @@ fn following_error_faults_with_0x8611_after_the_window_time() {
         if beyond_at.is_none() && i.following > 1000 {
             beyond_at = Some(n);
         }
+        // Bit 13 shows the following error once it is beyond the window, not before.
+        assert_eq!(
+            i.sw.0 & statusword::MODE_SPECIFIC_13 != 0,
+            beyond_at.is_some(),
+            "cycle {n}: {i:?}"
+        );
         if fault_at.is_none() && i.error != 0 {
             fault_at = Some(n);
             assert_eq!(i.error, ERROR_FOLLOWING);
