@@ -741,3 +741,62 @@ fn reset_of_a_drive_fault_asks_the_drive_and_waits_for_it() {
     assert!(!k.step(&fb(false, Some(0x2310)))[0].reset_fault);
     assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
 }
+
+/// The drive-frame set position `turns · period + position` of a real modulo axis moves
+/// by exactly what the set position moves, also when a SetPosition offset carries the
+/// drive position across a period boundary the axis position has not crossed: the drive
+/// layer counts `turns` exactly, so turns that belonged to the axis frame would make the
+/// drive step a full period (issue 10 §1).
+#[test]
+fn drive_setpoint_turns_belong_to_the_drive_position_under_a_set_position_offset() {
+    use gantry_kernel::axis::command::PowerCommand;
+    let mut cfg = rotary("c");
+    cfg.kind = AxisKind::Real;
+    cfg.max.vmax = 720.0;
+    cfg.max.amax = 7200.0;
+    cfg.max.dmax = 7200.0;
+    let mut k = Kernel::new(DT, vec![cfg]).unwrap();
+    let unwrapped = |sp: &gantry_kernel::axis::AxisSetpoint| sp.turns as f64 * 360.0 + sp.position;
+    // The drive stands at 10° (drive frame); the user declares it 350°: offset 340°.
+    let fb = |p, on| drive_at(p, on, None);
+    k.step(&fb(10.0, false));
+    k.command(0, Command::Power(PowerCommand::Enable)).unwrap();
+    k.step(&fb(10.0, true));
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 350.0,
+            relative: false,
+        },
+    )
+    .unwrap();
+    let mut last = k.step(&fb(10.0, true))[0];
+    assert!(
+        (unwrapped(&last) - 10.0).abs() < 1e-9,
+        "the drive frame keeps 10°: {last:?}"
+    );
+    // Move +720° (two turns) at 360°/s: the axis wraps at 360 while the drive wraps at
+    // 20° past it; the drive-frame position must never step more than v·T.
+    k.command(
+        0,
+        Command::MovePtp(
+            MovePtp::new(PositioningMode::RelTarget, 720.0)
+                .speed(360.0)
+                .accel(3600.0, 3600.0),
+        ),
+    )
+    .unwrap();
+    let mut max_step: f64 = 0.0;
+    for _ in 0..4000 {
+        let drive = (unwrapped(&last)).rem_euclid(360.0);
+        let sp = k.step(&fb(drive, true))[0];
+        max_step = max_step.max((unwrapped(&sp) - unwrapped(&last)).abs());
+        assert!((0.0..360.0).contains(&sp.position), "{sp:?}");
+        last = sp;
+    }
+    assert!(max_step <= 360.0 * DT + 1e-6, "largest step {max_step}°");
+    assert!(
+        (unwrapped(&last) - 730.0).abs() < 1e-6,
+        "drive frame ends at 10° + 720°: {last:?}"
+    );
+}

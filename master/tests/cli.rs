@@ -135,9 +135,20 @@ fn demo_runs_and_prints_where_its_files_are() {
 #[test]
 fn ethercat_demo_moves_simulated_drives_over_the_in_process_network() {
     let dir = std::env::temp_dir().join(format!("gantry-cli-ecat-{}", std::process::id()));
+    // The demo exits with an error when a drive saw the invariant broken (issue 10 §6),
+    // which `demo` turns into a failure here; it says so when it holds.
     let text = demo(&dir, &["--bus", "ethercat"]);
     assert!(text.contains("found 2 EtherCAT slaves"), "{text}");
     assert!(text.contains("moves done"), "{text}");
+    assert!(text.contains(">> drive invariant holds"), "{text}");
+    // The drives' own records are written beside the trace.
+    let records = json(&std::fs::read(dir.join("drive-records.json")).unwrap());
+    let records = records.as_array().unwrap();
+    assert_eq!(records.len(), 2);
+    for r in records {
+        assert!(r["targets"].as_u64().unwrap() > 1000, "{r}");
+        assert_eq!(r["following_error_faults"], 0, "{r}");
+    }
     // The trace: both axes end where they started (0 mm), set and actual.
     let csv = std::fs::read_to_string(dir.join("ethercat-trace.csv")).unwrap();
     let last: Vec<f64> = csv

@@ -118,17 +118,10 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     std::fs::create_dir_all(&dir).unwrap();
     std::os::unix::fs::chown(&dir, Some(NOBODY), Some(NOBODY)).unwrap();
     let socket = dir.join("gantry.sock");
-    // The example configuration, with more lost frames in a row allowed: without PM QoS
-    // (the unit's ExecStartPre, not run here) and without PREEMPT_RT, this VM's CPUs
-    // sometimes wake a cycle late enough to miss three replies running.
+    // The example configuration as shipped (its bus.faults limits included).
     let example = std::fs::read_to_string(deploy("examples/sim-4-axes.toml")).unwrap();
-    assert!(example.contains("lost_frames_limit = 3"));
     let config = dir.join("gantry.toml");
-    std::fs::write(
-        &config,
-        example.replace("lost_frames_limit = 3", "lost_frames_limit = 20"),
-    )
-    .unwrap();
+    std::fs::write(&config, example).unwrap();
     std::fs::copy(
         deploy("examples/sim-4-servos.toml"),
         dir.join("sim-4-servos.toml"),
@@ -189,6 +182,8 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     cli(&["set-position", "x", "--position", "0"]);
     let moved = cli(&["move", "x", "--to", "10"]);
     let status: serde_json::Value = serde_json::from_str(&cli(&["status", "--json"])).unwrap();
+    // The figures of this run: lost frames, overruns, latencies.
+    eprintln!("{}", cli(&["status"]));
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(service.child().id() as i32),
         nix::sys::signal::Signal::SIGTERM,

@@ -3,6 +3,8 @@
 //! `gantry-sim` binary emulate the same hardware.
 
 use crate::coe::od::ObjectDictionary;
+use crate::esc::al::Firmware;
+use crate::esc::sii::{config_area, PDI_DIGITAL_IO_DEVICE_EMULATION};
 use crate::esc::sii::{DeviceDescription, PdoDescription, PdoEntry, SmDescription};
 use crate::plant::encoder::{self, EncoderModule};
 use crate::plant::servo::{ServoDrive, ServoParams};
@@ -49,7 +51,7 @@ const FMMU_INPUTS: u8 = 2;
 const MAILBOX_COE: u16 = 0x0004;
 
 /// How a simulated servo is set up.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ServoOptions {
     /// Serial number (object 0x1018:4 and the EEPROM).
     pub serial: u32,
@@ -57,6 +59,19 @@ pub struct ServoOptions {
     pub start_counts: i32,
     /// The motor, load, tuning and object power-up values (default: a 400 W servo).
     pub params: ServoParams,
+    /// Its firmware's transition times and checks.
+    pub firmware: Firmware,
+}
+
+impl Default for ServoOptions {
+    fn default() -> Self {
+        Self {
+            serial: 1,
+            start_counts: 0,
+            params: ServoParams::default(),
+            firmware: Firmware::SERVO,
+        }
+    }
 }
 
 /// The servo's EEPROM: CoE mailbox on SM0/SM1, process data on SM2/SM3 (sized from the
@@ -100,6 +115,7 @@ pub fn servo(options: ServoOptions) -> Slave {
     Slave::new(servo_description(options.serial))
         .with_coe(od)
         .with_device(DeviceModel::Servo(drive))
+        .with_firmware(options.firmware)
 }
 
 /// A SyncManager for process data, sized by the master from the PDOs.
@@ -247,5 +263,8 @@ pub fn switches_description(serial: u32) -> DeviceDescription {
 /// `options.axis` (the chain passes that servo's position along each tick).
 pub fn switches(options: SwitchesOptions) -> Result<Slave, CamError> {
     let module = SwitchesModule::new(SWITCHES_INPUTS_AT, options.axis, options.cams)?;
-    Ok(Slave::new(switches_description(options.serial)).with_device(DeviceModel::Switches(module)))
+    // A simple input terminal: no firmware, the ESC in device emulation mirrors AL control.
+    Ok(Slave::new(switches_description(options.serial))
+        .with_eeprom_word(config_area::PDI_CONTROL, PDI_DIGITAL_IO_DEVICE_EMULATION)
+        .with_device(DeviceModel::Switches(module)))
 }

@@ -8,6 +8,7 @@
 
 use thiserror::Error;
 
+use crate::esc::command::Served;
 use crate::esc::datagram::{self, DatagramError};
 use crate::esc::dc::Arrival;
 use crate::esc::frame::{Frame, FrameError};
@@ -54,6 +55,26 @@ impl Default for WireTiming {
     }
 }
 
+/// Nanoseconds one byte occupies a 100BASE-TX wire.
+pub const BYTE_NS: u64 = 80;
+/// Bytes of a frame on the wire around what the chain sees: preamble and start delimiter
+/// (8), frame check sequence (4) and the inter-frame gap (12) (IEEE 802.3 §3.1, §4.4).
+pub const FRAME_OVERHEAD_BYTES: u64 = 24;
+/// Shortest Ethernet frame without its check sequence (shorter frames are padded).
+pub const MIN_FRAME_BYTES: u64 = 60;
+
+/// How long a frame of `len` bytes (without check sequence) occupies the wire: the
+/// network's time moves on by as much while it passes.
+pub const fn frame_ns(len: usize) -> u64 {
+    let len = len as u64;
+    let len = if len < MIN_FRAME_BYTES {
+        MIN_FRAME_BYTES
+    } else {
+        len
+    };
+    (len + FRAME_OVERHEAD_BYTES) * BYTE_NS
+}
+
 impl WireTiming {
     /// When a frame sent at `sent` passes slave `i` of `n`.
     pub fn arrival(&self, sent: u64, i: usize, n: usize) -> Arrival {
@@ -89,6 +110,8 @@ pub struct SlaveChain {
     /// The network's time (ns).
     now_ns: u64,
     timing: WireTiming,
+    /// Per slave: logical datagrams that wrote its process data.
+    process_data_writes: Vec<u64>,
 }
 
 impl SlaveChain {
@@ -104,6 +127,7 @@ impl SlaveChain {
             faults: Faults::default(),
             now_ns: 0,
             timing: WireTiming::default(),
+            process_data_writes: vec![0; n],
         }
     }
 
@@ -121,6 +145,12 @@ impl SlaveChain {
         for (i, s) in self.slaves.iter_mut().enumerate() {
             s.set_ports([i < reachable, i + 1 < reachable, false, false]);
         }
+    }
+
+    /// Slave `k` stops exchanging process data (`None`: it resumes): it passes logical
+    /// datagrams on without serving or counting them, see [`Faults::no_process_data`].
+    pub fn stop_process_data(&mut self, k: Option<usize>) {
+        self.faults.no_process_data = k;
     }
 
     /// The faults in force.
@@ -156,6 +186,12 @@ impl SlaveChain {
         for s in &mut self.slaves {
             s.advance_to(self.now_ns);
         }
+    }
+
+    /// Per slave, how many logical datagrams (LWR, LRW) wrote its process data: what restarts its process-data watchdog. A real-time host compares
+    /// these between frames to see the gaps each drive saw.
+    pub fn process_data_writes(&self) -> &[u64] {
+        &self.process_data_writes
     }
 
     /// The slaves.
@@ -220,8 +256,17 @@ impl SlaveChain {
         self.slaves.get_mut(i)
     }
 
-    /// Passes `frame` (a whole Ethernet frame) through every slave in place.
+    /// Passes `frame` (a whole Ethernet frame) through every slave in place. The frame is
+    /// sent at the network's current time; the time then moves on by as long as it
+    /// occupies the wire ([`frame_ns`]), lost or not: a master's next frame cannot start
+    /// earlier, and a device's timers (EEPROM, AL transitions) run while the master polls.
     pub fn process(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
+        let result = self.pass(frame);
+        self.advance_clocks(frame_ns(frame.len()));
+        result
+    }
+
+    fn pass(&mut self, frame: &mut [u8]) -> Result<(), ChainError> {
         // Check the whole frame before any slave touches it: a frame that is malformed
         // half-way must not be half processed.
         datagram::validate(Frame::new_checked(&*frame)?.payload())?;
@@ -244,9 +289,19 @@ impl SlaveChain {
         // slave would (and is what the wire does: a long frame's first datagram reaches
         // the next slave before its last has left this one); each datagram is decoded
         // once, not once per slave.
+        let (faults, writes) = (self.faults, &mut self.process_data_writes);
         datagram::for_each_mut(f.payload_mut(), |mut d| {
-            for slave in slaves.iter_mut() {
-                slave.serve(&mut d);
+            let logical = d.command().is_logical();
+            for (i, slave) in slaves.iter_mut().enumerate() {
+                if logical && !faults.exchanges_process_data(i) {
+                    continue;
+                }
+                let served = slave.serve(&mut d);
+                if logical && matches!(served, Served::Written | Served::ReadWritten) {
+                    if let Some(n) = writes.get_mut(i) {
+                        *n += 1;
+                    }
+                }
             }
         })?;
         if reachable > 0 {
@@ -334,6 +389,14 @@ mod tests {
         c.process(&mut f).unwrap();
         let mut f = frame(Command::Fpwr, 0x1002, 0x0502, &control::READ.to_le_bytes());
         c.process(&mut f).unwrap();
+        // The EEPROM interface is busy (0x0502 bit 15) until the read is done.
+        let mut f = frame(Command::Fprd, 0x1002, 0x0502, &[0; 2]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0[1] & 0x80, 0x80, "busy");
+        c.advance(crate::esc::sii::READ_NS);
+        let mut f = frame(Command::Fprd, 0x1002, 0x0502, &[0; 2]);
+        c.process(&mut f).unwrap();
+        assert_eq!(reply(&f).0[1] & 0x80, 0, "done");
         let mut f = frame(Command::Fprd, 0x1002, 0x0508, &[0; 8]);
         c.process(&mut f).unwrap();
         let (data, wkc) = reply(&f);
@@ -405,6 +468,9 @@ mod tests {
         c.process(&mut f).unwrap();
         assert_eq!(reply(&f).0, vec![0x0C, 0x01], "OR of the feature bits");
         assert_eq!(c.slaves()[1].memory().read_u16(FEATURES) & 0x010C, 0);
+        // Each frame moves the network's time on by its time on the wire.
+        assert_eq!(c.now_ns(), 5_000 + frame_ns(f.len()));
+        let sent = c.now_ns();
         let mut f = frame(Command::Bwr, 0, DC_RECEIVE_TIME_PORT0, &[0; 4]);
         c.process(&mut f).unwrap();
         assert_eq!(reply(&f).1, 2, "the slave without DC does not answer");
@@ -414,7 +480,7 @@ mod tests {
         assert_eq!(wkc, 1);
         let p0 = u32::from_le_bytes(data[0..4].try_into().unwrap());
         let p1 = u32::from_le_bytes(data[4..8].try_into().unwrap());
-        assert_eq!(p0, 1_000_000 + 5_100);
+        assert_eq!(p0, 1_000_000 + sent as u32 + 100);
         // Two hops out (link + processing), the turn in the last slave, one forwarding and
         // two links back.
         assert_eq!(p1 - p0, 2 * 280 + 180 + 140 + 2 * 100);
@@ -539,15 +605,18 @@ mod tests {
             let mut f = frame_of(&all);
             let mut by_slave = f.clone();
             let mut slaves = c.slaves().to_vec();
+            let sent = c.now_ns();
             c.process(&mut f).unwrap();
             let payload = &mut by_slave[16..];
             for (i, s) in slaves.iter_mut().enumerate() {
-                s.frame_arrives(c.timing().arrival(c.now_ns(), i, 3));
+                s.frame_arrives(c.timing().arrival(sent, i, 3));
                 datagram::for_each_mut(payload, |mut d| {
                     s.serve(&mut d);
                 })
                 .unwrap();
+                s.advance_to(sent + frame_ns(f.len()));
             }
+            proptest::prop_assert_eq!(c.now_ns(), sent + frame_ns(f.len()));
             Frame::new_unchecked(&mut by_slave[..]).mark_forwarded();
             proptest::prop_assert_eq!(f, by_slave);
             for (a, b) in c.slaves().iter().zip(&slaves) {
@@ -631,33 +700,483 @@ mod tests {
         assert_eq!(c.process(&mut f), Err(ChainError::Lost));
     }
 
-    #[test]
-    fn safeop_is_refused_when_the_syncmanagers_do_not_match_the_mapping() {
+    /// Sends one datagram to the chain; returns (data, WKC) of the reply.
+    fn send(c: &mut SlaveChain, cmd: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        let mut f = frame(cmd, adp, ado, data);
+        c.process(&mut f).unwrap();
+        reply(&f)
+    }
+
+    /// AL status and AL status code of the first slave, as the master reads them.
+    fn al(c: &mut SlaveChain) -> [u8; 6] {
+        let (data, wkc) = send(c, Command::Aprd, 0, AL_STATUS, &[0; 6]);
+        assert_eq!(wkc, 1);
+        data.try_into().unwrap()
+    }
+
+    /// The servo's mailbox SyncManagers as its EEPROM describes them (SM0 receive, SM1
+    /// send, 128 bytes each, mailbox mode).
+    const MAILBOX_SMS: [u8; 16] = [
+        0x00, 0x10, 0x80, 0x00, 0x26, 0x00, 0x01, 0x00, //
+        0x80, 0x10, 0x80, 0x00, 0x22, 0x00, 0x01, 0x00,
+    ];
+
+    /// A servo taken to PreOp the way a master does it.
+    fn servo_in_preop() -> SlaveChain {
         use crate::catalog::{self, ServoOptions};
         use crate::esc::registers::SM0;
         let mut c = SlaveChain::new(vec![catalog::servo(ServoOptions::default())]);
-        let send = |c: &mut SlaveChain, ado: u16, data: &[u8]| {
-            let mut f = frame(Command::Apwr, 0, ado, data);
-            c.process(&mut f).unwrap();
-        };
-        send(&mut c, AL_CONTROL, &[2, 0]);
-        // SM2 one byte short of the mapped 6 output bytes; SM3 right.
-        send(&mut c, SM0 + 16, &[0x00, 0x11, 5, 0, 0x64, 0, 1, 0]);
-        send(&mut c, SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
-        send(&mut c, AL_CONTROL, &[4, 0]);
-        assert_eq!(c.slaves()[0].al_status(), 0x12);
-        assert_eq!(c.slaves()[0].al_status_code().raw(), 0x001D);
-        send(&mut c, SM0 + 16, &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
-        send(&mut c, SM0 + 24, &[0x00, 0x14, 4, 0, 0x20, 0, 1, 0]);
-        send(&mut c, AL_CONTROL, &[0x14, 0]);
-        assert_eq!(
-            c.slaves()[0].al_status_code().raw(),
-            0x001E,
-            "now the inputs"
+        send(&mut c, Command::Apwr, 0, SM0, &MAILBOX_SMS);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[2, 0]);
+        c.advance(2_000_000);
+        assert_eq!(al(&mut c)[..2], [0x02, 0x00]);
+        c
+    }
+
+    #[test]
+    fn init_to_preop_needs_the_mailbox_and_takes_its_time() {
+        use crate::catalog::{self, ServoOptions};
+        use crate::esc::registers::SM0;
+        let mut c = SlaveChain::new(vec![catalog::servo(ServoOptions::default())]);
+        // No mailbox set up: refused at once, 0x0016 invalid mailbox configuration (PreOp).
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[2, 0]);
+        assert_eq!(al(&mut c), [0x11, 0x00, 0, 0, 0x16, 0x00]);
+        // The receive mailbox in the master-reads direction (control 0x22): still 0x0016.
+        let mut wrong = MAILBOX_SMS;
+        wrong[4] = 0x22;
+        send(&mut c, Command::Apwr, 0, SM0, &wrong);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x12, 0]);
+        assert_eq!(al(&mut c), [0x11, 0x00, 0, 0, 0x16, 0x00]);
+        // Set up as the EEPROM says: accepted, the error cleared, the state still Init
+        // until the firmware is done (2 ms).
+        send(&mut c, Command::Apwr, 0, SM0, &MAILBOX_SMS);
+        let asked = c.now_ns();
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x12, 0]);
+        assert_eq!(al(&mut c), [0x01, 0x00, 0, 0, 0x00, 0x00]);
+        c.advance(asked + 2_000_000 - 1 - c.now_ns());
+        assert_eq!(al(&mut c)[0], 0x01, "1 ns before 2 ms: Init");
+        c.advance(1);
+        assert_eq!(al(&mut c), [0x02, 0x00, 0, 0, 0x00, 0x00], "PreOp at 2 ms");
+    }
+
+    #[test]
+    fn syncmanagers_that_overlap_are_an_invalid_syncmanager_configuration() {
+        use crate::esc::registers::SM0;
+        let mut c = servo_in_preop();
+        // SM2 buffered: its three buffers (3 × 6 bytes from 0x1100) run into SM3 at 0x1110.
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
         );
-        send(&mut c, SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
-        send(&mut c, AL_CONTROL, &[0x14, 0]);
-        assert_eq!(c.slaves()[0].al_status(), 0x04, "SafeOp");
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x10, 0x11, 6, 0, 0x20, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x17, 0x00]);
+    }
+
+    #[test]
+    fn safeop_is_refused_when_the_syncmanagers_do_not_match_the_mapping() {
+        use crate::esc::registers::SM0;
+        let mut c = servo_in_preop();
+        // SM2 one byte short of the mapped 6 output bytes; SM3 right.
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 5, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x1D, 0x00]);
+        // Right length, but the master-reads direction (control 0x60): outputs again.
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x60, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(al(&mut c)[4], 0x1D);
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 4, 0, 0x20, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(al(&mut c)[4], 0x1E, "now the inputs");
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(al(&mut c), [0x02, 0x00, 0, 0, 0, 0], "accepted, on its way");
+        c.advance(10_000_000);
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00], "SafeOp after 10 ms");
+    }
+
+    /// A servo in SafeOp with process data at 0x1100 (outputs) and 0x1400 (inputs).
+    fn servo_in_safeop(activation: u8) -> SlaveChain {
+        use crate::esc::registers::{
+            DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME, SM0,
+        };
+        let mut c = servo_in_preop();
+        // SYNC0 (if activated) starts in 100 s.
+        let start = (c.now_ns() + 100_000_000_000).to_le_bytes();
+        send(&mut c, Command::Apwr, 0, DC_START_TIME_CYCLIC, &start);
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            DC_SYNC0_CYCLE_TIME,
+            &1_000_000u32.to_le_bytes(),
+        );
+        send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[activation]);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        c.advance(10_000_000);
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00]);
+        c
+    }
+
+    #[test]
+    fn safeop_to_op_waits_for_valid_outputs_and_refuses_without_them() {
+        let mut c = servo_in_safeop(0);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        c.advance(5_000_000);
+        assert_eq!(
+            al(&mut c)[..2],
+            [0x04, 0x00],
+            "no outputs yet: still SafeOp"
+        );
+        // Half the output buffer is not valid outputs.
+        send(&mut c, Command::Apwr, 0, 0x1100, &[0x06, 0x00, 0x00]);
+        c.advance(1_000_000);
+        assert_eq!(
+            al(&mut c),
+            [0x04, 0x00, 0, 0, 0, 0],
+            "a partial buffer does not count"
+        );
+        // The rest, to the buffer's last byte: the buffer is complete, the drive goes on.
+        send(&mut c, Command::Apwr, 0, 0x1103, &[0x00, 0x00, 0x00]);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00], "Op");
+        // A drive that never gets outputs refuses after SafeopOpTimeout: 0x001B.
+        let mut c = servo_in_safeop(0);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        // (The request's frame left 100 µs of margin for the frames' own time.)
+        c.advance(crate::esc::al::SAFEOP_OP_TIMEOUT_NS - 100_000);
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00]);
+        c.advance(100_000);
+        assert_eq!(al(&mut c), [0x14, 0x00, 0, 0, 0x1B, 0x00]);
+    }
+
+    #[test]
+    fn dc_mode_waits_for_sync0_and_a_bad_activation_is_an_invalid_dc_configuration() {
+        use crate::esc::registers::{DC_ACTIVATION, SM0};
+        // Cyclic unit on, no SYNC signal: 0x0030 at PreOp → SafeOp.
+        let mut c = servo_in_preop();
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[0x01]);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x30, 0x00]);
+        // SYNC0 on, but its start time is far ahead: with outputs, Op waits for SYNC0 and
+        // gives up with 0x002D (no sync error).
+        let mut c = servo_in_safeop(0x03);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        send(&mut c, Command::Apwr, 0, 0x1100, &[0; 6]);
+        c.advance(10_000_000);
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00], "waiting for SYNC0");
+        c.advance(crate::esc::al::SAFEOP_OP_TIMEOUT_NS);
+        assert_eq!(al(&mut c), [0x14, 0x00, 0, 0, 0x2D, 0x00]);
+        // SYNC0 pulsing (start time 0, already passed): Op once outputs came.
+        let mut c = servo_in_preop();
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        // The slave's system time is its local time (offset 0, drift 0): chain time.
+        let start = c.now_ns().to_le_bytes();
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            crate::esc::registers::DC_START_TIME_CYCLIC,
+            &start,
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            crate::esc::registers::DC_SYNC0_CYCLE_TIME,
+            &1_000_000u32.to_le_bytes(),
+        );
+        send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[0x03]);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        c.advance(10_000_000);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        send(&mut c, Command::Apwr, 0, 0x1100, &[0; 6]);
+        c.advance(5_000_000);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+    }
+
+    /// The servo's drive state and record.
+    fn drive(
+        c: &SlaveChain,
+    ) -> (
+        gantry_drives::cia402::State,
+        crate::plant::record::DriveRecord,
+        u16,
+    ) {
+        match c.slaves()[0].device() {
+            crate::plant::DeviceModel::Servo(s) => (s.state(), *s.record(), s.error_code()),
+            other => panic!("not a servo: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_dc_drive_takes_its_outputs_at_sync0_and_counts_missed_and_doubled_setpoints() {
+        use crate::esc::registers::{
+            DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME, SM0,
+        };
+        use gantry_drives::cia402::State;
+        let mut c = servo_in_preop();
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
+        );
+        // SYNC0 every 1 ms from half a period on: frames sent right after each whole
+        // period arrive mid-period (each frame's wire time moves them 7 µs a period).
+        let start = (c.now_ns() + 500_000).to_le_bytes();
+        send(&mut c, Command::Apwr, 0, DC_START_TIME_CYCLIC, &start);
+        send(
+            &mut c,
+            Command::Apwr,
+            0,
+            DC_SYNC0_CYCLE_TIME,
+            &1_000_000u32.to_le_bytes(),
+        );
+        send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[0x03]);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        let period = |c: &mut SlaveChain| {
+            let t = c.now_ns();
+            c.advance(1_000_000 - (t % 1_000_000));
+        };
+        for _ in 0..11 {
+            period(&mut c);
+        }
+        assert_eq!(al(&mut c)[..2], [0x04, 0x00]);
+        let out = |c: &mut SlaveChain, cw: u16, target: i32| {
+            let mut b = cw.to_le_bytes().to_vec();
+            b.extend(target.to_le_bytes());
+            assert_eq!(send(c, Command::Apwr, 0, 0x1100, &b).1, 1);
+        };
+        // SafeOp: outputs are ignored (safe state), the drive stays where it is.
+        out(&mut c, 0x06, 0);
+        period(&mut c);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+        // To Op with outputs every period; then enable (6, 7, 15) and move.
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        for _ in 0..6 {
+            out(&mut c, 0x06, 0);
+            period(&mut c);
+        }
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        for (k, cw) in [0x06u16, 0x07, 0x0F, 0x0F, 0x0F, 0x0F, 0x0F, 0x0F]
+            .into_iter()
+            .enumerate()
+        {
+            out(&mut c, cw, 10 * k as i32);
+            period(&mut c);
+        }
+        let (state, record, _) = drive(&c);
+        assert_eq!(state, State::OperationEnabled);
+        assert_eq!((record.sync_missed, record.sync_doubled), (0, 0));
+        let taken = record.targets;
+        assert!(taken >= 4, "{record:?}");
+        // Two frames in one period: the first is overwritten before SYNC0 takes it.
+        out(&mut c, 0x0F, 100);
+        out(&mut c, 0x0F, 110);
+        period(&mut c);
+        let (_, record, _) = drive(&c);
+        assert_eq!(record.sync_doubled, 1);
+        assert_eq!(record.targets, taken + 1, "one setpoint taken at the edge");
+        assert_eq!(
+            record.max_target_step_counts, 40,
+            "70 → 110: the first never taken"
+        );
+        assert_eq!(c.slaves()[0].sync_counters().cycle_time_too_small, 1);
+        // A period without a frame: one missed setpoint, 0x1C32:0B = 3, still Op.
+        period(&mut c);
+        let (_, record, _) = drive(&c);
+        assert_eq!(record.sync_missed, 1);
+        assert_eq!(c.slaves()[0].sync_counters().sm_event_missed, 3);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        // Three good periods bring the counter down to 0; then two misses in a row reach
+        // the limit: sync error, out of Op with 0x001A, the drive faults (0x8700).
+        for _ in 0..3 {
+            out(&mut c, 0x0F, 110);
+            period(&mut c);
+        }
+        assert_eq!(c.slaves()[0].sync_counters().sm_event_missed, 0);
+        period(&mut c);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00], "one miss is tolerated");
+        period(&mut c);
+        assert_eq!(al(&mut c), [0x14, 0x00, 0, 0, 0x1A, 0x00]);
+        assert!(c.slaves()[0].sync_counters().sync_error);
+        let (state, record, code) = drive(&c);
+        assert_eq!((state, code), (State::Fault, 0x8700));
+        assert_eq!(record.sync_missed, 3);
+        // The master reads them by SDO: 0x1C32:0B (SM event missed), :20 (sync error),
+        // :01 (sync type 2: SYNC0).
+        let upload = |c: &mut SlaveChain, sub: u8, counter: u8| {
+            let mut m = vec![0u8; 128];
+            m[0] = 10;
+            m[5] = crate::coe::MAILBOX_TYPE_COE | (counter << 4);
+            m[6..8].copy_from_slice(&(crate::coe::COE_SDO_REQUEST << 12).to_le_bytes());
+            m[8..12].copy_from_slice(&[0x40, 0x32, 0x1C, sub]);
+            assert_eq!(send(c, Command::Apwr, 0, 0x1000, &m).1, 1);
+            let (answer, wkc) = send(c, Command::Aprd, 0, 0x1080, &[0; 128]);
+            assert_eq!(wkc, 1);
+            assert_eq!(
+                &answer[8..12],
+                &[0x4B, 0x32, 0x1C, sub][..],
+                "2-byte upload"
+            );
+            u16::from_le_bytes([answer[12], answer[13]])
+        };
+        assert_eq!(upload(&mut c, 0x0B, 1), 6);
+        assert_eq!(upload(&mut c, 0x0C, 2), 1);
+        assert_eq!(upload(&mut c, 0x01, 3), 2);
+    }
+
+    #[test]
+    fn a_free_running_drive_takes_its_outputs_when_the_frame_wrote_them_and_only_in_op() {
+        use gantry_drives::cia402::State;
+        let mut c = servo_in_safeop(0);
+        let out = |c: &mut SlaveChain, cw: u16| {
+            let mut b = cw.to_le_bytes().to_vec();
+            b.extend(0i32.to_le_bytes());
+            send(c, Command::Apwr, 0, 0x1100, &b);
+        };
+        // SafeOp: ignored.
+        out(&mut c, 0x06);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+        // The inputs are valid in SafeOp: the statusword (0x0240 | ...) is there.
+        let (inputs, _) = send(&mut c, Command::Aprd, 0, 0x1400, &[0; 2]);
+        assert_ne!(inputs, vec![0, 0], "statusword published in SafeOp");
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[8, 0]);
+        c.advance(5_000_000);
+        out(&mut c, 0x06);
+        assert_eq!(al(&mut c)[..2], [0x08, 0x00]);
+        // Op: each frame's outputs are taken when it completes the buffer, no matter
+        // when the application's period falls; no SYNC0, nothing missed.
+        out(&mut c, 0x06);
+        c.tick(0.001);
+        out(&mut c, 0x07);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchedOn);
+        let (_, record, _) = drive(&c);
+        assert_eq!((record.sync_missed, record.sync_doubled), (0, 0));
+        // Back to SafeOp: the drive gets its safe outputs (controlword 0).
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        c.tick(0.001);
+        assert_eq!(drive(&c).0, State::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn a_simple_terminal_in_device_emulation_mirrors_al_control_at_once() {
+        use crate::catalog::{self, SwitchesOptions};
+        let mut c = SlaveChain::new(vec![catalog::switches(SwitchesOptions::default()).unwrap()]);
+        let (data, _) = send(
+            &mut c,
+            Command::Aprd,
+            0,
+            crate::esc::registers::PDI_CONTROL,
+            &[0; 2],
+        );
+        assert_eq!(
+            data,
+            [0x04, 0x01],
+            "digital I/O, device emulation (from the EEPROM)"
+        );
+        for state in [2u8, 4, 8, 1] {
+            send(&mut c, Command::Apwr, 0, AL_CONTROL, &[state, 0]);
+            assert_eq!(al(&mut c)[..2], [state, 0x00]);
+        }
     }
 
     #[test]

@@ -25,6 +25,12 @@
 //! quick_stop_option_code = 2          # 0x605A: quick stop ramp, then switch on disabled
 //! fault_reaction_option_code = 2      # 0x605E: quick stop ramp
 //!
+//! [slave.al]              # its firmware's AL transition times (defaults 2, 10, 5 ms)
+//! init_to_preop_ms = 2
+//! preop_to_safeop_ms = 10
+//! safeop_to_op_ms = 5
+//! sync_error_limit = 4    # 0x10F1:02: two SYNC0 periods without outputs leave Op
+//!
 //! [[slave]]
 //! kind = "encoder"        # an incremental encoder module (like an EL5101), no CoE
 //! counts_per_rev = 4096   # counts per shaft revolution
@@ -51,6 +57,7 @@ use thiserror::Error;
 
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
+use crate::esc::al::{Firmware, TransitionTimes};
 use crate::plant::servo::ServoParams;
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
@@ -117,6 +124,9 @@ pub enum SlaveConfig {
         /// Speed at which the shaft turns by itself (rev/s).
         #[serde(default)]
         shaft_speed: f64,
+        /// How long its firmware takes for each AL transition (`[slave.al]`).
+        #[serde(default)]
+        al: AlConfig,
     },
     /// A digital-input module whose inputs are switch cams on a servo's travel.
     Switches {
@@ -213,6 +223,8 @@ pub struct ServoConfig {
     pub disable_operation_option_code: i16,
     /// 0x605E Fault reaction option code (0…4).
     pub fault_reaction_option_code: i16,
+    /// How long its firmware takes for each AL transition (`[slave.al]`).
+    pub al: AlConfig,
 }
 
 impl Default for ServoConfig {
@@ -244,6 +256,7 @@ impl Default for ServoConfig {
             shutdown_option_code: p.shutdown_option_code,
             disable_operation_option_code: p.disable_operation_option_code,
             fault_reaction_option_code: p.fault_reaction_option_code,
+            al: AlConfig::default(),
         }
     }
 }
@@ -284,6 +297,67 @@ impl ServoConfig {
 
 fn default_counts_per_rev() -> u32 {
     4096
+}
+
+// AL transition times (`[slave.al]`).
+
+/// How long a device's firmware takes for each upward AL transition (ms); what is not
+/// given keeps the device's default (a servo: 2, 10 and 5 ms; an encoder module: 0). A
+/// digital-input module has no firmware: its ESC mirrors AL control at once.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AlConfig {
+    /// Init → PreOp.
+    pub init_to_preop_ms: Option<f64>,
+    /// PreOp → SafeOp.
+    pub preop_to_safeop_ms: Option<f64>,
+    /// SafeOp → Op.
+    pub safeop_to_op_ms: Option<f64>,
+    /// 0x10F1:02 sync error counter limit (default 4: two SYNC0 periods in a row without
+    /// outputs take the drive out of Op with a sync error).
+    pub sync_error_limit: Option<u16>,
+    /// SafeOp → Op waits for valid outputs (default: a servo does, an I/O module not).
+    pub op_needs_outputs: Option<bool>,
+}
+
+/// Longest AL transition time accepted (ms): beyond, a master's state-transition timeout
+/// (ethercrab: 5 s) has long given up.
+const MAX_AL_TRANSITION_MS: f64 = 10_000.0;
+
+impl AlConfig {
+    /// The times, with `defaults` for what is not given.
+    pub fn times(&self, defaults: TransitionTimes) -> TransitionTimes {
+        let ns = |ms: Option<f64>, default: u64| ms.map_or(default, |ms| (ms * 1e6).round() as u64);
+        TransitionTimes {
+            init_to_preop_ns: ns(self.init_to_preop_ms, defaults.init_to_preop_ns),
+            preop_to_safeop_ns: ns(self.preop_to_safeop_ms, defaults.preop_to_safeop_ns),
+            safeop_to_op_ns: ns(self.safeop_to_op_ms, defaults.safeop_to_op_ns),
+        }
+    }
+
+    /// The first key out of range, as `al.<key>`.
+    fn invalid_key(&self) -> Option<&'static str> {
+        [
+            ("al.init_to_preop_ms", self.init_to_preop_ms),
+            ("al.preop_to_safeop_ms", self.preop_to_safeop_ms),
+            ("al.safeop_to_op_ms", self.safeop_to_op_ms),
+        ]
+        .into_iter()
+        .find(|(_, v)| {
+            v.is_some_and(|v| !(v.is_finite() && (0.0..=MAX_AL_TRANSITION_MS).contains(&v)))
+        })
+        .map(|(k, _)| k)
+    }
+
+    /// The firmware `base` with these settings.
+    pub fn firmware(&self, base: Firmware) -> Firmware {
+        Firmware {
+            times: self.times(base.times),
+            sync_error_limit: self.sync_error_limit.unwrap_or(base.sync_error_limit),
+            op_needs_outputs: self.op_needs_outputs.unwrap_or(base.op_needs_outputs),
+            ..base
+        }
+    }
 }
 
 /// Largest oscillator error of a simulated DC clock (ppm); real ones are within ±100.
@@ -350,6 +424,18 @@ impl SimConfig {
         for (i, s) in self.slaves.iter().enumerate() {
             match s {
                 SlaveConfig::Servo(servo) => {
+                    if let Some(key) = servo.al.invalid_key() {
+                        return Err(invalid(
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
+                        ));
+                    }
+                    if servo.al.sync_error_limit == Some(0) {
+                        return Err(invalid(
+                            format!("slave[{i}].al.sync_error_limit"),
+                            "must be at least 1",
+                        ));
+                    }
                     if let Err(e) = servo.params().check() {
                         // The TOML key of the velocity loop is `bandwidth_hz`.
                         let name = match e.name {
@@ -370,7 +456,20 @@ impl SimConfig {
                 SlaveConfig::Encoder {
                     counts_per_rev,
                     shaft_speed,
+                    al,
                 } => {
+                    if let Some(key) = al.invalid_key() {
+                        return Err(invalid(
+                            format!("slave[{i}].{key}"),
+                            "must be 0 to 10000 ms",
+                        ));
+                    }
+                    if al.sync_error_limit == Some(0) {
+                        return Err(invalid(
+                            format!("slave[{i}].al.sync_error_limit"),
+                            "must be at least 1",
+                        ));
+                    }
                     if *counts_per_rev == 0 {
                         return Err(invalid(
                             format!("slave[{i}].counts_per_rev"),
@@ -438,16 +537,19 @@ impl SimConfig {
                         serial,
                         start_counts: servo.start_position,
                         params: servo.params(),
+                        firmware: servo.al.firmware(Firmware::SERVO),
                     })
                     .with_dc_drift_ppm(servo.dc_drift_ppm),
                     SlaveConfig::Encoder {
                         counts_per_rev,
                         shaft_speed,
+                        al,
                     } => catalog::encoder(EncoderOptions {
                         serial,
                         counts_per_rev: *counts_per_rev,
                         shaft_speed_rev_s: *shaft_speed,
-                    }),
+                    })
+                    .with_firmware(al.firmware(Firmware::SIMPLE)),
                     SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
                         serial,
                         axis: *axis,
@@ -485,7 +587,62 @@ mod tests {
             ServoParams::default(),
             "the keys' defaults are the 400 W servo's"
         );
-        assert_eq!(c.chain().unwrap().slaves().len(), 2);
+        let chain = c.chain().unwrap();
+        assert_eq!(chain.slaves().len(), 2);
+        assert_eq!(chain.slaves()[0].firmware().times, TransitionTimes::SERVO);
+    }
+
+    #[test]
+    fn al_transition_times_are_per_device_with_defaults() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = 20\ninit_to_preop_ms = 0\n\
+             [[slave]]\nkind = \"encoder\"\n[slave.al]\npreop_to_safeop_ms = 1.5\n\
+             [[slave]]\nkind = \"servo\"\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = c.chain().unwrap();
+        let times = |i: usize| chain.slaves()[i].firmware().times;
+        assert_eq!(
+            times(0),
+            TransitionTimes {
+                init_to_preop_ns: 0,
+                preop_to_safeop_ns: 10_000_000,
+                safeop_to_op_ns: 20_000_000,
+            }
+        );
+        assert_eq!(
+            times(1),
+            TransitionTimes {
+                preop_to_safeop_ns: 1_500_000,
+                ..TransitionTimes::INSTANT
+            }
+        );
+        assert_eq!(times(2), TransitionTimes::SERVO);
+        assert!(chain.slaves()[0].firmware().op_needs_outputs);
+        assert!(!chain.slaves()[1].firmware().op_needs_outputs);
+        let e = |text: &str| SimConfig::parse(text, "sim.toml").unwrap_err().to_string();
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_to_op_ms = -1\n"),
+            "sim.toml: slave[0].al.safeop_to_op_ms: must be 0 to 10000 ms"
+        );
+        assert_eq!(
+            e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = 0\n"),
+            "sim.toml: slave[0].al.sync_error_limit: must be at least 1"
+        );
+        let limit = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = 40\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = limit.chain().unwrap();
+        assert_eq!(chain.slaves()[0].firmware().sync_error_limit, 40);
+        assert!(
+            chain.slaves()[0].firmware().op_needs_outputs,
+            "a servo's default"
+        );
+        let unknown = e("[[slave]]\nkind = \"servo\"\n[slave.al]\nsafeop_op_ms = 1\n");
+        assert!(unknown.contains("safeop_op_ms"), "{unknown}");
     }
 
     #[test]
@@ -547,14 +704,16 @@ mod tests {
             c.slaves[1],
             SlaveConfig::Encoder {
                 counts_per_rev: 1024,
-                shaft_speed: -2.5
+                shaft_speed: -2.5,
+                al: AlConfig::default(),
             }
         );
         assert_eq!(
             c.slaves[3],
             SlaveConfig::Encoder {
                 counts_per_rev: 4096,
-                shaft_speed: 0.0
+                shaft_speed: 0.0,
+                al: AlConfig::default(),
             }
         );
         let SlaveConfig::Switches { axis, cams } = &c.slaves[2] else {

@@ -9,9 +9,10 @@ use std::cell::RefCell;
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::ball_screw_5mm;
@@ -47,11 +48,19 @@ fn setup() -> Bench {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let chain = servo_chain(DRIVES as u32);
     let mut net = Lockstep::new(tx, rx, chain);
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<DRIVES, 512>(ethercat_now))
         .unwrap();
-    let group = net.block_on(group.into_op(&md)).unwrap();
+    let group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     let mut cycle = CspCycle::new(kernel(), vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
     for i in 0..DRIVES {
         cycle

@@ -32,6 +32,45 @@ fn ip(args: &[&str]) -> Result<(), String> {
     }
 }
 
+/// Sets the links up and waits until the kernel has them operationally up. An EtherCAT
+/// wire carries no IP: IPv6 is off on it, so the kernel sends no router solicitations or
+/// multicast reports into the process data and runs no address work for it. The kernel
+/// turns a link up in a work item (linkwatch, within a second, holding RTNL for up to a
+/// few ms measured on a non-preemptible kernel): waiting for it keeps that work out of the
+/// real-time part of a test.
+fn bring_up(ends: &[(&str, &str)]) -> Result<(), String> {
+    // Dirty pages (the build that just wrote the binaries) are written back by kernel
+    // workers that, on a kernel without preemption, hold a CPU for milliseconds (traced on
+    // the CI VM: writeback work items of 10–80 ms); flush them before real time starts.
+    let _ = Command::new("sync").status();
+    for (ns, link) in ends {
+        let sysctl = format!("net.ipv6.conf.{link}.disable_ipv6=1");
+        // A kernel without IPv6 has nothing to turn off: its failure is no error.
+        Command::new("ip")
+            .args(["netns", "exec", ns, "sysctl", "-q", "-w", &sysctl])
+            .output()
+            .map_err(|e| format!("sysctl in {ns}: {e}"))?;
+        ip(&["-n", ns, "link", "set", link, "up"])?;
+    }
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    for (ns, link) in ends {
+        loop {
+            let out = Command::new("ip")
+                .args(["-n", ns, "-o", "link", "show", link])
+                .output()
+                .map_err(|e| format!("ip link show {link}: {e}"))?;
+            if String::from_utf8_lossy(&out.stdout).contains("state UP") {
+                break;
+            }
+            if std::time::Instant::now() > end {
+                return Err(format!("{link} in {ns} is not up after 5 s"));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    }
+    Ok(())
+}
+
 impl VethPair {
     /// Creates the namespaces and the pair; names carry `tag` and the process ID so
     /// parallel runs do not collide.
@@ -60,12 +99,11 @@ impl VethPair {
             "netns",
             &pair.sim_ns,
         ])?;
-        for (ns, link) in [
-            (&pair.master_ns, &pair.master_if),
-            (&pair.sim_ns, &pair.sim_if),
-        ] {
-            ip(&["-n", ns, "link", "set", link, "up"])?;
-        }
+        let ends = [
+            (pair.master_ns.as_str(), pair.master_if.as_str()),
+            (pair.sim_ns.as_str(), pair.sim_if.as_str()),
+        ];
+        bring_up(&ends)?;
         Ok(pair)
     }
 
@@ -81,7 +119,9 @@ impl VethPair {
 
 impl Drop for VethPair {
     fn drop(&mut self) {
-        // Deleting a namespace deletes the veth end in it, and with it the peer.
+        // The pair first, here: deleting a namespace leaves its devices to a kernel worker
+        // (cleanup_net) that would still be tearing them down when the next test starts.
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
         for ns in [&self.master_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
@@ -142,20 +182,21 @@ impl RelayedVeth {
                 "-n", ns, "link", "add", a, "type", "veth", "peer", "name", b, "netns", peer_ns,
             ])?;
         }
-        for (ns, link) in [
-            (&line.master_ns, &line.master_if),
-            (&line.relay_ns, &line.relay_master_if),
-            (&line.relay_ns, &line.relay_sim_if),
-            (&line.sim_ns, &line.sim_if),
-        ] {
-            ip(&["-n", ns, "link", "set", link, "up"])?;
-        }
+        bring_up(&[
+            (line.master_ns.as_str(), line.master_if.as_str()),
+            (line.relay_ns.as_str(), line.relay_master_if.as_str()),
+            (line.relay_ns.as_str(), line.relay_sim_if.as_str()),
+            (line.sim_ns.as_str(), line.sim_if.as_str()),
+        ])?;
         Ok(line)
     }
 }
 
 impl Drop for RelayedVeth {
     fn drop(&mut self) {
+        // The pairs first (see `VethPair`'s drop).
+        let _ = ip(&["-n", &self.master_ns, "link", "del", &self.master_if]);
+        let _ = ip(&["-n", &self.sim_ns, "link", "del", &self.sim_if]);
         for ns in [&self.master_ns, &self.relay_ns, &self.sim_ns] {
             let _ = ip(&["netns", "del", ns]);
         }
@@ -214,12 +255,110 @@ impl Drop for Reaped {
     }
 }
 
-/// Starts `gantry-sim` (SCHED_FIFO 70) on `iface` in namespace `ns` with the chain in
-/// `config`, and waits until it has bound its socket (its first line, which must name
-/// `slaves` slaves).
-pub fn start_gantry_sim(ns: &str, iface: &str, config: &std::path::Path, slaves: usize) -> Reaped {
+/// A running `gantry-sim` whose summary can be read when it is stopped. Dropped without
+/// [`SimProcess::stop`] (a test failed), it is stopped the same way and its summary goes to
+/// stderr, so a failed run still shows the gaps the drives saw.
+pub struct SimProcess {
+    child: Reaped,
+    stdout: Option<std::io::BufReader<std::process::ChildStdout>>,
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        if self.stdout.is_some() {
+            match self.finish() {
+                Ok(summary) => eprintln!("{}", summary.line),
+                Err(e) => eprintln!("gantry-sim: {e}"),
+            }
+        }
+    }
+}
+
+/// What `gantry-sim` said when it stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimSummary {
+    /// Its summary line.
+    pub line: String,
+    /// The largest gap between two frames (µs).
+    pub frame_gap_us: u64,
+    /// Per slave, the largest gap between two writes of its process data (µs).
+    pub write_gaps_us: Vec<u64>,
+}
+
+impl SimProcess {
+    /// Stops it with SIGTERM and reads its summary (killed and reaped on drop if this is
+    /// not called).
+    pub fn stop(mut self) -> Result<SimSummary, String> {
+        self.finish()
+    }
+
+    fn finish(&mut self) -> Result<SimSummary, String> {
+        use std::io::Read;
+        let mut stdout = self.stdout.take().ok_or("already stopped")?;
+        let pid = self.child.child().id() as i32;
+        nix::sys::signal::kill(
+            nix::unistd::Pid::from_raw(pid),
+            nix::sys::signal::Signal::SIGTERM,
+        )
+        .map_err(|e| format!("SIGTERM to gantry-sim: {e}"))?;
+        let mut rest = String::new();
+        stdout
+            .read_to_string(&mut rest)
+            .map_err(|e| format!("gantry-sim's output: {e}"))?;
+        let status = self.child.take().wait().map_err(|e| e.to_string())?;
+        let line = rest
+            .lines()
+            .find(|l| l.contains("served"))
+            .ok_or_else(|| format!("gantry-sim ended ({status}) without a summary: {rest:?}"))?
+            .to_string();
+        let number = |after: &str| -> Option<&str> { line.split(after).nth(1) };
+        let frame_gap_us = number("largest gap between frames ")
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|n| n.parse().ok())
+            .ok_or_else(|| format!("no frame gap in {line:?}"))?;
+        let write_gaps_us = number("per slave [")
+            .and_then(|r| r.split(']').next())
+            .map(|list| {
+                list.split(',')
+                    .filter_map(|n| n.trim().parse().ok())
+                    .collect()
+            })
+            .ok_or_else(|| format!("no process-data gaps in {line:?}"))?;
+        Ok(SimSummary {
+            line,
+            frame_gap_us,
+            write_gaps_us,
+        })
+    }
+}
+
+/// Starts `gantry-sim` like [`start_gantry_sim`], keeping its output for
+/// [`SimProcess::stop`].
+pub fn start_gantry_sim_reporting(
+    ns: &str,
+    iface: &str,
+    config: &std::path::Path,
+    slaves: usize,
+) -> SimProcess {
     use std::io::BufRead;
-    let mut sim = Reaped::new(
+    let mut child = spawn_gantry_sim(ns, iface, config);
+    let mut stdout = std::io::BufReader::new(child.child().stdout.take().expect("piped"));
+    let mut first = String::new();
+    stdout
+        .read_line(&mut first)
+        .expect("gantry-sim's first line");
+    assert!(
+        first.contains(&format!("{slaves} slaves")),
+        "gantry-sim started: {first:?}"
+    );
+    SimProcess {
+        child,
+        stdout: Some(stdout),
+    }
+}
+
+fn spawn_gantry_sim(ns: &str, iface: &str, config: &std::path::Path) -> Reaped {
+    Reaped::new(
         Command::new("ip")
             .args(["netns", "exec", ns])
             .arg(gantry_sim_binary().expect("gantry-sim is built"))
@@ -229,14 +368,17 @@ pub fn start_gantry_sim(ns: &str, iface: &str, config: &std::path::Path, slaves:
             .stdout(std::process::Stdio::piped())
             .spawn()
             .expect("start gantry-sim"),
-    );
-    let mut first = String::new();
-    std::io::BufReader::new(sim.child().stdout.take().expect("piped"))
-        .read_line(&mut first)
-        .expect("gantry-sim's first line");
-    assert!(
-        first.contains(&format!("{slaves} slaves")),
-        "gantry-sim started: {first:?}"
-    );
-    sim
+    )
+}
+
+/// Starts `gantry-sim` (SCHED_FIFO 70) on `iface` in namespace `ns` with the chain in
+/// `config`, and waits until it has bound its socket (its first line, which must name
+/// `slaves` slaves).
+pub fn start_gantry_sim(ns: &str, iface: &str, config: &std::path::Path, slaves: usize) -> Reaped {
+    let mut sim = start_gantry_sim_reporting(ns, iface, config, slaves);
+    // Nobody reads its summary: the simulator's last line then goes nowhere (it ignores
+    // a closed pipe), and it is killed on drop.
+    sim.stdout = None;
+    let child = sim.child.take();
+    Reaped::new(child)
 }

@@ -4,7 +4,8 @@
 //! errors.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::catalog;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::coe::od::ObjectDictionary;
@@ -31,7 +32,11 @@ fn ethercrab_maps_pdos_and_uses_sdos_through_the_simulated_mailbox() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
     let chain = bus.chain.clone();
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
         let sd = group.subdevice(&maindevice, 0)?;
@@ -41,7 +46,12 @@ fn ethercrab_maps_pdos_and_uses_sdos_through_the_simulated_mailbox() {
         let mode_after: i8 = sd.sdo_read(0x6060, 0).await?;
         let missing = sd.sdo_read::<u32>(0x2000, 0).await.is_err();
         let read_only = sd.sdo_write(0x1000, 0, 0u32).await.is_err();
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let sd = group.subdevice(&maindevice, 0)?;
         let sizes = (sd.inputs_raw().len(), sd.outputs_raw().len());
         Ok::<_, ethercrab::error::Error>((product, mode, mode_after, missing, read_only, sizes))

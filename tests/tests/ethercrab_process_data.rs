@@ -3,7 +3,8 @@
 //! its outputs into the slave's memory and the slave's inputs into its image.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::sii::DeviceDescription;
@@ -27,11 +28,20 @@ fn outputs_reach_the_slave_and_inputs_reach_the_master() {
     let chain = SlaveChain::new(vec![Slave::new(io_device())]);
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let chain = bus.chain.clone();
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let sd = group.subdevice(&maindevice, 0)?;
         let (in_len, out_len) = (sd.inputs_raw().len(), sd.outputs_raw().len());
         sd.io_raw_mut()

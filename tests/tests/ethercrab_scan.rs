@@ -3,7 +3,8 @@
 //! identity and names from the emulated EEPROM, and walks them through the AL states to OP.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::ethercat::transition;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::esc::sii::DeviceDescription;
 use gantry_sim::slave::Slave;
@@ -39,7 +40,11 @@ fn ethercrab_scans_the_simulated_chain() {
     ]);
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let bus = EmbeddedBus::start(tx, rx, chain);
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let result = futures_lite::future::block_on(async {
         let group = maindevice.init_single_group::<8, 64>(ethercat_now).await?;
         let mut seen = Vec::new();
@@ -55,7 +60,12 @@ fn ethercrab_scans_the_simulated_chain() {
                     .unwrap_or_default(),
             ));
         }
-        let group = group.into_op(&maindevice).await?;
+        let group = transition::into_op(
+            group.into_safe_op(&maindevice).await?,
+            &maindevice,
+            transition::OP_TIMEOUT,
+        )
+        .await?;
         let mut all_op = true;
         for sd in group.iter(&maindevice) {
             let (state, _code) = sd.status().await?;

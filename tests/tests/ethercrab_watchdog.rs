@@ -6,9 +6,10 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_drives::cia402::State;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -51,11 +52,19 @@ fn silent_master_trips_the_watchdog_and_the_master_recovers() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let chain = SlaveChain::new(vec![catalog::servo(ServoOptions::default())]);
     let mut net = Lockstep::new(tx, rx, chain);
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<2, 64>(ethercat_now))
         .unwrap();
-    let group: Group = net.block_on(group.into_op(&md)).unwrap();
+    let group: Group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     let kernel = Kernel::new(1e-3, vec![AxisConfig::new("x", AxisKind::Real)]).unwrap();
     let mut c = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm())]);
     c.kernel
@@ -102,7 +111,23 @@ fn silent_master_trips_the_watchdog_and_the_master_recovers() {
     let sd = group.subdevice(&md, 0).unwrap();
     net.block_on(sd.register_write(AL_CONTROL, AL_OP_WITH_ACK))
         .unwrap();
+    // The error is acknowledged at once; Op takes the firmware's 5 ms and fresh outputs
+    // (leaving Op invalidated the old ones), which the cycles bring.
+    assert_eq!(
+        net.chain.slaves()[0].al_status(),
+        0x04,
+        "acknowledged, on its way"
+    );
+    let mut cycles_to_op = 0;
+    while net.chain.slaves()[0].al_status() != 0x08 && cycles_to_op < 20 {
+        cycle(&mut net, &md, &group, &mut c);
+        cycles_to_op += 1;
+    }
     assert_eq!(net.chain.slaves()[0].al_status(), 0x08, "back in OP");
+    assert!(
+        (5..=6).contains(&cycles_to_op),
+        "{cycles_to_op} cycles of 1 ms"
+    );
     // MC_Reset: the kernel asks for the drive's fault reset and waits for it.
     let reset = c.kernel.command(0, Command::Reset).unwrap();
     for _ in 0..20 {

@@ -10,9 +10,10 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_drives::cia402::State;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -24,6 +25,7 @@ use gantry_sim::plant::encoder::{control, status};
 use gantry_sim::plant::switches::SwitchCam;
 use gantry_sim::plant::DeviceModel;
 use gantry_tests::ball_screw_5mm;
+use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
 use gantry_tests::lockstep::Lockstep;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
@@ -161,11 +163,19 @@ struct SwitchLog {
 fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let mut net = Lockstep::new(tx, rx, chain());
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<16, 256>(ethercat_now))
         .unwrap();
-    let group: Group = net.block_on(group.into_op(&md)).unwrap();
+    let group: Group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     assert_eq!(group.len(), 10);
     for i in 0..10 {
         let sd = group.subdevice(&md, i).unwrap();
@@ -409,4 +419,11 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
         "moves done after {done_at} cycles; switch flips (before, at, level): {:?}",
         log.flips
     );
+    let drives = DriveUnderTest::of_kernel(&c.kernel, |_| ball_screw_5mm());
+    // Lockstep: one exchange per drive cycle, so no setpoint may be missed or doubled.
+    let locked = TestConditions {
+        phase_locked: true,
+        ..TestConditions::default()
+    };
+    assert_drive_invariants(&net.chain, &drives, DT, locked);
 }

@@ -13,6 +13,7 @@ use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
+use gantry::ethercat::transition;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::lockstep::Lockstep;
 use gantry_tests::{ball_screw_5mm, servo_chain};
@@ -70,13 +71,17 @@ fn garbled_replies_never_panic_the_master_and_the_exchange_recovers() {
         // Lost replies cost one timeout each; long enough that a descheduled test thread
         // (a loaded CI machine) does not lose a clean one.
         pdu: Duration::from_millis(10),
-        ..Timeouts::default()
+        ..gantry_tests::lockstep_timeouts()
     };
     let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
     let group = net
         .block_on(md.init_single_group::<4, 64>(ethercat_now))
         .unwrap();
-    let group: Group = net.block_on(group.into_op(&md)).unwrap();
+    let group: Group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     let axes = vec![
         AxisConfig::new("x", AxisKind::Real),
         AxisConfig::new("y", AxisKind::Real),

@@ -6,10 +6,11 @@
 //! abort, by object.
 
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::mapping::map_pdos;
+use gantry::ethercat::transition;
 use gantry_drives::cia402::error_code::describe_fault;
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
@@ -26,7 +27,11 @@ static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 fn the_master_maps_pdos_in_preop_and_the_drives_exchange_them() {
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
     let mut net = Lockstep::new(tx, rx, servo_chain(2));
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let md = MainDevice::new(
+        pdu_loop,
+        gantry_tests::lockstep_timeouts(),
+        MainDeviceConfig::default(),
+    );
     let group = net
         .block_on(md.init_single_group::<4, 128>(ethercat_now))
         .unwrap();
@@ -51,7 +56,11 @@ fn the_master_maps_pdos_in_preop_and_the_drives_exchange_them() {
         let sd = group.subdevice(&md, i).unwrap();
         net.block_on(map_pdos(&sd, &layout)).unwrap();
     }
-    let group = net.block_on(group.into_op(&md)).unwrap();
+    let group = net
+        .block_on(async {
+            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
+        })
+        .unwrap();
     for i in 0..2 {
         let sd = group.subdevice(&md, i).unwrap();
         assert_eq!(sd.outputs_raw().len(), layout.output_bytes());

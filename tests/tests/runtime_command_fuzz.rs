@@ -92,8 +92,15 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
                 },
             );
             let _ = ctl.command(i, Command::Release);
-            ctl.reset(i).unwrap();
-            run(3);
+            // A reset whose slave left OP waits for it to come back (its firmware takes
+            // milliseconds): enable once the reset is through.
+            let reset = ctl.reset(i).unwrap();
+            for _ in 0..1500 {
+                run(10);
+                if reset.status().is_some_and(|s| s.is_final()) {
+                    break;
+                }
+            }
             ctl.command(i, Command::Power(PowerCommand::Enable))
                 .unwrap();
             ctl.command(i, Command::SetHomed(true)).unwrap();

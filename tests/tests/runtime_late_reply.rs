@@ -1,7 +1,13 @@
 //! A frame that does not come back. With [`LateReply::Lost`] (what `gantry run` uses in
 //! real time) the cycle gives up on it at its reply deadline, just before the next cycle:
 //! one lost frame, the next cycle on time. With [`LateReply::WAIT`] (`--no-rt`) it waits
-//! for ethercrab's PDU timeout, 30 ms, and overruns instead.
+//! 30 ms (gantry's own deadline, `LateReply::WAIT`) and overruns instead.
+//!
+//! This runs on an ordinary thread: its wake-ups carry the scheduler's timer slack and
+//! this host's noise, so the lost frame is asserted to cost at most the cycle it was lost
+//! in (measured on the shared VM, 30 runs: the cycle ended 72–124 µs after its reply
+//! deadline). That the next cycle starts on time, as README says, is asserted where
+//! `gantry run` runs the cycle, in a real-time thread: `runtime_late_reply_rt.rs`.
 
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
@@ -28,10 +34,10 @@ fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     let over = now_ns().saturating_sub(wake.reply_by_ns);
     assert_eq!(engine.health.lost_total, lost_before + 1);
     eprintln!("Lost: the cycle ended {over} ns after its reply deadline");
-    // Generous for a busy, non-real-time host; the PDU timeout would be 29 ms more.
-    assert!(over < 10_000_000, "{over} ns past the reply deadline");
+    // Within the period it was lost in; the PDU timeout would be 29 ms more.
+    assert!(over < PERIOD_NS, "{over} ns past the reply deadline");
 
-    // Without real time: the cycle waits for ethercrab's timeout.
+    // Without real time: the cycle waits up to 30 ms for it.
     engine.set_late_reply(LateReply::WAIT);
     chain.lock().unwrap().drop_frames(1);
     let wake = clock.wait();

@@ -1,7 +1,9 @@
 //! The cycle thread takes no lock: run under a seccomp filter that kills the process on
 //! any `futex` call — what every lock, condition variable or parker does to wait or to
-//! wake a waiter — the engine serves 3000 cycles at 1 kHz while the application hammers
-//! it and the bus loses frames and a cable is pulled and plugged back. Two controls show
+//! wake a waiter — the cycle thread, started as `gantry run` starts it (SCHED_FIFO, late
+//! replies lost, `Engine::run` with its phase lock to SYNC0), runs ~3 s at 1 kHz while
+//! the application hammers it and the bus loses frames and a cable is pulled and plugged
+//! back, a slave recovered by a reset inside the filtered cycles. Needs root (real time). Two controls show
 //! the filter catches a contended `Mutex` and a parking executor (`futures_lite::block_on`,
 //! what the cycle used before the doorbell). The runs are child processes
 //! (`cycle-under-seccomp`), since the filter ends the process it catches.
@@ -47,13 +49,28 @@ fn the_cycle_thread_never_enters_a_futex() {
     assert!(out.status.success(), "{}", text(&out));
     let report = String::from_utf8_lossy(&out.stdout).into_owned();
     eprintln!("{report}");
-    assert_eq!(figure(&report, "cycles"), 3000);
+    // About 3 s at 1 kHz; a loaded host skips some cycles (overruns).
+    assert!(figure(&report, "cycles") >= 2000, "{report}");
+    assert!(
+        report.contains("dc true"),
+        "SYNC0 ran (phase lock): {report}"
+    );
     assert!(
         figure(&report, "done") >= 8,
         "moves ran to the end: {report}"
     );
-    assert!(figure(&report, "resets") >= 4, "{report}");
+    assert!(
+        figure(&report, "resets 20 done") >= 12,
+        "resets came back, recoveries of the unplugged slaves included: {report}"
+    );
     assert!(figure(&report, "lost frames") >= 2, "{report}");
+    // No thread runs in real time but the cycle and the pump, and async-io's reactor
+    // (which ethercrab's timers would start from the cycle thread) never started.
+    assert!(
+        report.contains("real-time threads [ethercat-pump gantry-cycle]"),
+        "{report}"
+    );
+    assert!(report.contains("async-io reactor false"), "{report}");
 }
 
 #[test]

@@ -1,33 +1,31 @@
-//! Real time, two processes: the master in this process and `gantry-sim` as its own
-//! process, on the two ends of a veth pair in two network namespaces. Four CiA-402
-//! servos at 1 kHz for 10 s, each moving back and forth the whole time; the test reports
-//! the cycle figures (wake-up latency, compute, bus round trip) and checks that every
-//! frame came back with the right working counter and every move finished.
+//! Real time, two processes: gantry's engine — `Engine::run` in a real-time cycle thread
+//! (SCHED_FIFO 80, memory locked, PM QoS; LateReply::Lost; phase-locked to SYNC0), as
+//! `gantry run` runs it — in this process, and `gantry-sim` as its own process, on the two
+//! ends of a veth pair in two network namespaces. Four CiA-402 servos at 1 kHz for 10 s,
+//! each moving back and forth the whole time through the controller; the test reports the
+//! engine's cycle figures (wake-up latency, compute, bus round trip, overruns), the frames
+//! lost, the largest following error, and the largest gaps the drives saw between
+//! process-data writes.
 //!
 //! Needs root for the namespaces; `deploy/test.sh` runs it (`--include-ignored`).
 
-use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
-use gantry::ethercat::raw::RawBus;
-use gantry::runtime::clock::{now_ns, CycleClock};
-use gantry::runtime::histogram::{Histogram, Summary};
-use gantry_kernel::axis::command::{
-    Command as AxisCommand, MovePtp, PositioningMode, PowerCommand,
-};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
+
+use gantry::ethercat::bus::EthercatBus;
+use gantry::ethercat::health::COMMUNICATION_FAULT;
+use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::engine::{Engine, LateReply};
+use gantry::runtime::protocol::TraceSample;
+use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::profile::{Limits, RampType};
-use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_tests::ball_screw_5mm;
-use gantry_tests::netns::{start_gantry_sim, VethPair};
+use gantry_kernel::axis::status::AxisFault;
+use gantry_tests::netns::{start_gantry_sim_reporting, VethPair};
 
 const DRIVES: usize = 4;
-const CYCLES: u64 = 10_000;
 const PERIOD_NS: u64 = 1_000_000;
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
-static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+const SECONDS: u64 = 10;
 
 const SIM_CONFIG: &str = r#"
 cycle_us = 1000
@@ -44,210 +42,234 @@ kind = "servo"
 bandwidth_hz = 150
 "#;
 
-fn axis(i: usize) -> AxisConfig {
-    let mut c = AxisConfig::new(&format!("a{i}"), AxisKind::Real);
-    c.max = Limits {
-        vmax: 250.0,
-        amax: 2500.0,
-        dmax: 2500.0,
-        jmax: 50_000.0,
-    };
-    c.defaults.speed = 200.0;
-    c.defaults.acceleration = 2000.0;
-    c.defaults.deceleration = 2000.0;
-    c.defaults.jerk = 40_000.0;
-    c.defaults.ramp = RampType::SCurve;
-    c
-}
-
-#[derive(Debug, Default)]
-struct Report {
-    wake: Summary,
-    compute: Summary,
-    round_trip: Summary,
-    overruns: u64,
-    bus_errors: u64,
-    wkc_errors: u64,
-    expected_wkc: u16,
-    moves_done: [u32; DRIVES],
-    max_following_mm: f64,
-    enabled_after: u64,
-    realtime: String,
-}
-
-/// SCHED_FIFO for this thread (threads it creates, like the frame pump, inherit it).
-fn realtime(priority: u8) -> String {
-    use thread_priority::*;
-    let p = ThreadPriority::Crossplatform(priority.try_into().unwrap());
-    match set_thread_priority_and_policy(
-        thread_native_id(),
-        p,
-        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
-    ) {
-        Ok(()) => format!("SCHED_FIFO {priority}"),
-        Err(e) => format!("not real time ({e:?})"),
-    }
-}
-
-fn run_master(pair: &VethPair) -> Result<Report, String> {
-    pair.enter_master_ns()?;
-    let mut report = Report {
-        realtime: realtime(80),
-        ..Report::default()
-    };
-    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().map_err(|_| "PDU storage")?;
-    let bus = RawBus::open(&pair.master_if, tx, rx, None).map_err(|e| e.to_string())?;
-    let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
-    let result = futures_lite::future::block_on(async {
-        let group = md
-            .init_single_group::<8, 128>(ethercat_now)
-            .await
-            .map_err(|e| format!("scan: {e}"))?;
-        if group.len() != DRIVES {
-            return Err(format!("found {} slaves, expected {DRIVES}", group.len()));
-        }
-        let group = group
-            .into_op(&md)
-            .await
-            .map_err(|e| format!("to OP: {e}"))?;
-        let kernel =
-            Kernel::new(1e-3, (0..DRIVES).map(axis).collect()).map_err(|e| e.to_string())?;
-        let mut cycle = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
-        for i in 0..DRIVES {
-            cycle
-                .kernel
-                .command(i, AxisCommand::Power(PowerCommand::Enable))
-                .map_err(|e| e.to_string())?;
-        }
-        // LRW: each slave with inputs and outputs counts 3.
-        report.expected_wkc = 3 * DRIVES as u16;
-        let (mut wake, mut compute, mut rtt) = (
-            Histogram::new(10_000),
-            Histogram::new(10_000),
-            Histogram::new(10_000),
+/// The master's configuration: the example's bus and real-time settings on this pair.
+fn gantry_config(interface: &str) -> String {
+    let mut text = format!(
+        "[bus]\nkind = \"ethercat\"\ninterface = {interface:?}\ncycle_us = 1000\ndc = true\n\
+         [rt]\npriority = 80\nlock_memory = true\noverrun_limit = 10\n"
+    );
+    for i in 0..DRIVES {
+        text += &format!(
+            "[[axis]]\nname = \"a{i}\"\ndrive = {i}\n\
+             scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+             max = {{ speed = 250.0, acceleration = 2500.0, jerk = 50000.0 }}\n\
+             defaults = {{ speed = 200.0, acceleration = 2000.0, deceleration = 2000.0, \
+             jerk = 40000.0, ramp = \"scurve\" }}\n"
         );
-        let mut moves: [Option<_>; DRIVES] = [None; DRIVES];
-        let mut homed = [false; DRIVES];
-        let mut clock = CycleClock::start(PERIOD_NS);
-        for n in 0..CYCLES {
-            let w = clock.wait();
-            wake.record(w.latency_ns);
-            report.overruns += u64::from(w.overrun);
-            let t0 = now_ns();
-            for i in 0..DRIVES {
-                let sd = group.subdevice(&md, i).map_err(|e| e.to_string())?;
-                cycle
-                    .read_inputs(i, &sd.inputs_raw())
-                    .map_err(|e| e.to_string())?;
-            }
-            cycle.step();
-            for i in 0..DRIVES {
-                let sd = group.subdevice(&md, i).map_err(|e| e.to_string())?;
-                cycle
-                    .write_outputs(i, sd.io_raw_mut().outputs())
-                    .map_err(|e| e.to_string())?;
-                let s = *cycle.kernel.axis_status(i).ok_or("status")?;
-                if let Some(h) = moves[i] {
-                    report.max_following_mm = report
-                        .max_following_mm
-                        .max((s.set.p - s.actual_position).abs());
-                    match cycle.kernel.command_status(h) {
-                        CommandStatus::Done => {
-                            report.moves_done[i] += 1;
-                            moves[i] = None;
-                        }
-                        CommandStatus::Error(e) => return Err(format!("axis {i}: {e}")),
-                        CommandStatus::Aborted => return Err(format!("axis {i}: move aborted")),
-                        _ => {}
-                    }
-                }
-                if moves[i].is_none() && s.state == AxisState::Standstill {
-                    if !homed[i] {
-                        // The absolute encoders power up anywhere: call here 0.
-                        report.enabled_after = report.enabled_after.max(n);
-                        let home = AxisCommand::SetPosition {
-                            position: 0.0,
-                            relative: false,
-                        };
-                        cycle.kernel.command(i, home).map_err(|e| e.to_string())?;
-                        homed[i] = true;
-                        continue;
-                    }
-                    let to = if report.moves_done[i] % 2 == 0 {
-                        20.0 + 5.0 * i as f64
-                    } else {
-                        -10.0
-                    };
-                    let h = cycle
-                        .kernel
-                        .command(
-                            i,
-                            AxisCommand::MovePtp(MovePtp::new(PositioningMode::AbsNormal, to)),
-                        )
-                        .map_err(|e| e.to_string())?;
-                    moves[i] = Some(h);
-                }
-            }
-            let t1 = now_ns();
-            compute.record(t1 - t0);
-            match group.tx_rx(&md).await {
-                Ok(r) if r.working_counter != report.expected_wkc => report.wkc_errors += 1,
-                Ok(_) => {}
-                Err(_) => report.bus_errors += 1,
-            }
-            rtt.record(now_ns() - t1);
-        }
-        report.wake = wake.summary();
-        report.compute = compute.summary();
-        report.round_trip = rtt.summary();
-        Ok(report)
-    });
-    bus.stop();
-    result
+    }
+    text
+}
+
+/// What the cycle thread hands back at the end.
+#[derive(Debug)]
+struct Ended {
+    lost: u64,
+    wkc_errors: u64,
 }
 
 #[test]
 #[ignore = "needs root (network namespaces) and the gantry-sim binary; deploy/test.sh runs it"]
-fn four_drives_at_1khz_for_10_s_over_veth() {
+fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
     let pair = VethPair::create("rt").expect("veth pair in two namespaces");
     let dir = std::env::temp_dir().join(format!("gantry-veth-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let config = dir.join("sim.toml");
-    std::fs::write(&config, SIM_CONFIG).unwrap();
-    let sim = start_gantry_sim(&pair.sim_ns, &pair.sim_if, &config, 4);
+    let sim_path = dir.join("sim.toml");
+    std::fs::write(&sim_path, SIM_CONFIG).unwrap();
+    let sim = start_gantry_sim_reporting(&pair.sim_ns, &pair.sim_if, &sim_path, DRIVES);
+    let config =
+        gantry::config::Config::parse(&gantry_config(&pair.master_if), "veth-realtime.toml")
+            .expect("valid configuration");
+    gantry::runtime::rt::check(&config.rt, true).expect("root may run in real time");
 
-    let report = std::thread::scope(|s| s.spawn(|| run_master(&pair)).join().unwrap());
-    drop(sim);
+    // The cycle thread, as `gantry run` makes it.
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel();
+    let cycle_thread = {
+        let (stop, config) = (stop.clone(), config.clone());
+        let netns = format!("/run/netns/{}", pair.master_ns);
+        std::thread::Builder::new()
+            .name("gantry-cycle".into())
+            .spawn(move || -> Result<Ended, String> {
+                let ns = std::fs::File::open(&netns).map_err(|e| e.to_string())?;
+                nix::sched::setns(ns, nix::sched::CloneFlags::CLONE_NEWNET)
+                    .map_err(|e| e.to_string())?;
+                gantry::runtime::rt::enter(&config.rt).map_err(|e| e.to_string())?;
+                let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink())
+                    .map_err(|e| e.to_string())?;
+                let (mut engine, ends) =
+                    Engine::new(bus, cycle, health, config.rt.overrun_limit, 1 << 16);
+                engine.set_late_reply(LateReply::Lost);
+                tx.send(ends).map_err(|e| e.to_string())?;
+                let engine = engine.run(PERIOD_NS, &stop);
+                let ended = Ended {
+                    lost: engine.health.lost_total,
+                    wkc_errors: engine.health.wkc_total,
+                };
+                engine.into_bus().shut_down(&mut std::io::sink());
+                Ok(ended)
+            })
+            .unwrap()
+    };
+    let Ok(ends) = rx.recv_timeout(Duration::from_secs(30)) else {
+        panic!("bring-up: {:?}", cycle_thread.join());
+    };
+    let ctl = Controller::new(ends, (0..DRIVES).map(|i| format!("a{i}")).collect());
+
+    // The application: enable, call the position 0, then move each axis back and forth.
+    let wait = |h: CommandHandle| {
+        h.wait(Duration::from_secs(5)).unwrap_or_else(|e| {
+            let s = ctl.snapshot();
+            panic!(
+                "{e}: cycle {} drives {:?} axes {:?}",
+                s.cycle, s.drives, s.axes
+            )
+        })
+    };
+    for i in 0..DRIVES {
+        assert_eq!(
+            wait(
+                ctl.command(i, Command::Power(PowerCommand::Enable))
+                    .unwrap()
+            ),
+            CommandStatus::Done
+        );
+        let home = Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        };
+        assert_eq!(wait(ctl.command(i, home).unwrap()), CommandStatus::Done);
+    }
+    let mut trace: Vec<TraceSample> = Vec::with_capacity(20_000);
+    ctl.drain_trace(&mut trace);
+    trace.clear();
+    let mut moves: [Option<CommandHandle>; DRIVES] = Default::default();
+    let mut done = [0u32; DRIVES];
+    // Moves that ended otherwise than Done, with the axis' error then; and every reason
+    // the bus gave for stopping an axis.
+    let mut stops = Vec::new();
+    let mut reasons = std::collections::BTreeSet::new();
+    let end = Instant::now() + Duration::from_secs(SECONDS);
+    let mut max_following_mm = 0.0f64;
+    let mut samples = Vec::with_capacity(1024);
+    while Instant::now() < end {
+        for (i, slot) in moves.iter_mut().enumerate() {
+            let start = match slot.as_ref().map(CommandHandle::status) {
+                None => true,
+                Some(Some(CommandStatus::Done)) => {
+                    done[i] += 1;
+                    true
+                }
+                Some(Some(s)) if s.is_final() => {
+                    // The axis stopped: record why, reset it as an operator would, and
+                    // go on (a drive that lost power needs enabling again).
+                    let snap = ctl.snapshot();
+                    if let Some(f) = snap.drives[i].bus_fault {
+                        reasons.insert(f.to_string());
+                    }
+                    stops.push((i, s, snap.axes[i].error));
+                    std::thread::sleep(Duration::from_millis(20));
+                    let _ = ctl.reset(i).map(|h| h.wait(Duration::from_secs(2)));
+                    std::thread::sleep(Duration::from_millis(20));
+                    let enable = Command::Power(PowerCommand::Enable);
+                    let _ = ctl
+                        .command(i, enable)
+                        .map(|h| h.wait(Duration::from_secs(2)));
+                    true
+                }
+                // Queued, busy or active.
+                Some(_) => false,
+            };
+            if start {
+                let to = if done[i] % 2 == 0 {
+                    20.0 + 5.0 * i as f64
+                } else {
+                    -10.0
+                };
+                let cmd = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, to));
+                *slot = Some(ctl.command(i, cmd).unwrap());
+            }
+        }
+        for d in &ctl.snapshot().drives {
+            if let Some(f) = d.bus_fault {
+                reasons.insert(f.to_string());
+            }
+        }
+        samples.clear();
+        ctl.drain_trace(&mut samples);
+        for s in &samples {
+            for i in 0..DRIVES {
+                max_following_mm = max_following_mm.max((s.set[i] - s.actual[i]).abs());
+            }
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    stop.store(true, Ordering::Relaxed);
+    let ended = cycle_thread.join().unwrap().expect("the cycle thread");
+    let gaps = sim.stop().expect("gantry-sim's summary");
     std::fs::remove_dir_all(&dir).unwrap();
-    let report = report.unwrap();
+    // The percentiles are computed on the application's side, from every cycle.
+    let f = ctl.figures();
     eprintln!(
-        "veth, {DRIVES} drives, 1 kHz, {CYCLES} cycles, master {}:\n  wake-up latency {}\n  compute         {}\n  bus round trip  {}\n  overruns {}, lost frames {}, wrong working counters {} (expected {})\n  moves done {:?}, largest following error {:.3} mm, drives enabled after {} cycles",
-        report.realtime,
-        report.wake,
-        report.compute,
-        report.round_trip,
-        report.overruns,
-        report.bus_errors,
-        report.wkc_errors,
-        report.expected_wkc,
-        report.moves_done,
-        report.max_following_mm,
-        report.enabled_after,
+        "veth, {DRIVES} drives, 1 kHz, gantry's engine (SCHED_FIFO 80, LateReply::Lost, \
+         phase lock), {} cycles:\n  wake-up latency {}\n  compute         {}\n  bus round trip  \
+         {}\n  overruns {} (longest run {}), lost frames {}, wrong working counters {}\n  \
+         moves done {done:?}, largest following error {max_following_mm:.3} mm\n  \
+         axes stopped {} times: {stops:?}, reasons {reasons:?}\n  {}",
+        f.cycles,
+        f.wake,
+        f.compute,
+        f.round_trip,
+        f.overruns,
+        f.worst_overrun_run,
+        ended.lost,
+        ended.wkc_errors,
+        stops.len(),
+        gaps.line
     );
-    // Generous bounds: this runs on shared, software-emulated CI machines. The figures
-    // above are the result; these only catch a broken exchange.
-    assert_eq!(report.bus_errors, 0, "every frame came back");
-    assert_eq!(report.wkc_errors, 0, "every working counter was right");
-    for (i, done) in report.moves_done.iter().enumerate() {
-        assert!(*done >= 10, "axis {i} moved back and forth: {done} moves");
+    // Generous bounds: this is a shared VM whose kernel does not preempt (an RT thread
+    // waits for kernel work of other tasks on its CPU: 2–10 ms measured), so frames are
+    // lost now and then, three in a row at times, which stops the axes (the example's
+    // limit). The figures above are the result; what must hold is that every stop was
+    // the bus' lost frames (never a wrong working counter, a following error or a drive
+    // fault), and that the exchange is right when frames arrive.
+    for (axis, status, error) in &stops {
+        assert_eq!(
+            *error,
+            Some(AxisFault::Drive {
+                code: COMMUNICATION_FAULT
+            }),
+            "axis {axis} stopped ({status:?}) by something else than the bus: {stops:?}"
+        );
+    }
+    for reason in &reasons {
+        assert!(reason.contains("frames lost in a row"), "{reasons:?}");
+    }
+    assert_eq!(ended.wkc_errors, 0, "every working counter was right");
+    assert!(
+        ended.lost * 100 <= f.cycles,
+        "{} frames lost in {} cycles",
+        ended.lost,
+        f.cycles
+    );
+    for (i, n) in done.iter().enumerate() {
+        assert!(*n >= 10, "axis {i} moved back and forth: {n} moves");
     }
     // 0.3–1 mm in a quiet run (servo lag plus a cycle's transport at 200 mm/s); a stall of
-    // the simulator's process longer than four periods skips plant time (as the ESC's
-    // application would miss cycles), so this VM's 5–10 ms stalls can add a few mm. A
-    // broken exchange (wrong or stale setpoints) gives tens.
-    assert!(report.max_following_mm < 5.0, "drives followed: {report:?}");
+    // the simulator's process longer than four periods skips plant time, so this VM's
+    // 5–10 ms stalls can add a few mm. A broken exchange gives tens.
     assert!(
-        report.overruns < CYCLES / 4,
-        "the cycle mostly kept its deadline: {report:?}"
+        max_following_mm < 5.0,
+        "following error {max_following_mm} mm"
+    );
+    assert!(
+        f.overruns < f.cycles / 4,
+        "overruns {} of {}",
+        f.overruns,
+        f.cycles
+    );
+    assert!(
+        f.cycles >= SECONDS * 900,
+        "{} cycles in {SECONDS} s",
+        f.cycles
     );
 }

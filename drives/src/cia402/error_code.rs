@@ -20,6 +20,10 @@ const KNOWN: &[(u16, &str)] = &[
         0x6100,
         "internal software (gantry stops the axes with it after too many cycle overruns in a row)",
     ),
+    (
+        0x6320,
+        "parameter error (gantry stops the axis: its set position has no 64-bit drive count; check the scaling and the travel)",
+    ),
     (0x7121, "motor blocked"),
     (0x7300, "sensor (encoder) error"),
     (0x7305, "incremental sensor 1 fault"),

@@ -621,6 +621,39 @@ pub enum CommandError {
         /// The index given.
         axis: usize,
     },
+    /// Reset: the bus slave of the axis' drive did not return to operation (EtherCAT: AL
+    /// state OP). Filled by the master, which knows the bus; the kernel only carries it.
+    #[error(
+        "Reset: bus slave {address:#06x} is not back in operation: {problem}{}",
+        AlDetail(*.al_status, *.al_status_code, .code_text)
+    )]
+    SlaveNotOperational {
+        /// The slave's station address.
+        address: u16,
+        /// What went wrong (refused, timed out, no answer).
+        problem: &'static str,
+        /// Its last AL status register (0 if it never answered).
+        al_status: u16,
+        /// Its AL status code (ETG.1000.6 Table 11).
+        al_status_code: u16,
+        /// The code's text.
+        code_text: &'static str,
+    },
+}
+
+/// The AL registers a slave last answered with, or nothing if it never did (both 0).
+struct AlDetail<'a>(u16, u16, &'a str);
+
+impl core::fmt::Display for AlDetail<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            AlDetail(0, 0, _) => Ok(()),
+            AlDetail(status, code, text) => write!(
+                f,
+                " (AL status {status:#06x}, AL status code {code:#06x}: {text})"
+            ),
+        }
+    }
 }
 
 impl CommandError {

@@ -282,9 +282,12 @@ pub const DRIVE_RESET_TICKS: u64 = 1000;
 /// Set values of one axis for the drive layer.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AxisSetpoint {
-    /// Set position (units; wrapped into the period on modulo axes).
+    /// Set position in the drive's frame (units: the axis' set position minus its
+    /// SetPosition offset; wrapped into the period on modulo axes).
     pub position: f64,
-    /// Whole modulo periods (so the drive layer can count exactly; 0 on normal axes).
+    /// Whole modulo periods of that drive-frame position, so the drive layer can count
+    /// `turns · period + position` exactly (0 on normal axes). They can differ by one from
+    /// the axis' own turns ([`AxisStatus::turns`]) when an offset is set.
     pub turns: i64,
     /// Set velocity (units/s), for velocity feed-forward.
     pub velocity: f64,
@@ -447,19 +450,49 @@ impl Axis {
             self.normalise_frame();
         }
         self.refresh_status();
-        let drive_position = match self.cfg.mechanics.modulo {
-            Some(m) if self.position_offset != 0.0 => {
-                m.wrap(self.status.set.p - self.position_offset)
-            }
-            _ => self.status.set.p - self.position_offset,
-        };
+        let (drive_position, drive_turns) = self.drive_set_position();
         AxisSetpoint {
             position: drive_position,
-            turns: self.status.turns,
+            turns: drive_turns,
             velocity: self.status.set.v,
             acceleration: self.status.set.a,
             enable: self.powered,
             reset_fault: self.reset_pending.is_some(),
+        }
+    }
+
+    /// The set position in the drive's frame (the axis frame minus the SetPosition
+    /// offset): on modulo axes the position within the period and the whole periods *of
+    /// that position*, so that `turns · period + position` is the drive's unwrapped set
+    /// position. The axis' own turns would be off by one whenever the offset carries the
+    /// drive position across a period boundary the axis position has not crossed (axis at
+    /// 10° with an offset of 20°: the drive stands at −10° = 350° one period lower), and
+    /// the drive layer, which counts `turns` exactly, would step a full period.
+    fn drive_set_position(&self) -> (f64, i64) {
+        let set = self.status.set.p;
+        match self.period() {
+            None => (set - self.position_offset, 0),
+            Some(_) if self.position_offset == 0.0 => (set, self.status.turns),
+            Some(period) => {
+                // `set` is in [0, period); the offset may be many periods (SetPositions add up).
+                let x = set - self.position_offset;
+                let n = (x / period).floor();
+                let mut w = x - n * period;
+                let mut n = n as i64;
+                if w >= period {
+                    w -= period;
+                    n += 1;
+                }
+                if w < 0.0 {
+                    w += period;
+                    n -= 1;
+                    if w >= period {
+                        w = 0.0;
+                        n += 1;
+                    }
+                }
+                (w + 0.0, self.status.turns.saturating_add(n))
+            }
         }
     }
 

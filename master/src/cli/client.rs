@@ -219,7 +219,7 @@ pub fn status(
         )
     };
     let figures = if c["wake"]["count"].as_u64().unwrap_or(0) == 0 {
-        "cycle: figures after the first 1000 cycles".to_string()
+        "cycle: no cycle recorded yet".to_string()
     } else {
         format!(
             "cycle: wake-up {}; compute {}; round trip {}; overruns {}",

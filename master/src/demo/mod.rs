@@ -95,6 +95,10 @@ pub enum DemoError {
     /// The EtherCAT network failed.
     #[error("EtherCAT: {0}")]
     Bus(String),
+    /// A simulated drive saw the master break the drive invariant (issue 10 §6): a target
+    /// step beyond `vmax · T`, a following-error fault, a missed or doubled setpoint.
+    #[error("drive invariant broken: {0}")]
+    Invariant(String),
     /// Creating the output folder or writing the plot failed.
     #[error("cannot write {path}: {source}")]
     Io {

@@ -3,28 +3,33 @@
 //! network interface or the in-process simulator.
 
 use std::io::Write;
+use std::sync::atomic::AtomicU64;
+use std::sync::Arc;
 use std::time::Duration;
 
+use super::transition;
 use ethercrab::std::ethercat_now;
-use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op, SafeOp};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
+use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
 use gantry_sim::config::SimConfig;
 use thiserror::Error;
 
 use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
-use super::doorbell::BlockOn;
+use super::doorbell::{BlockOn, StepStalled};
 use super::embedded::EmbeddedBus;
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::mapping::map_pdos;
 use super::raw::RawBus;
-use super::recovery::{recover_slave, Recovered, RecoveryError};
+use super::recovery::{access, Answer, Recovered, Recovery, RecoveryError};
 use crate::config::Config;
 use crate::pcap::PcapWriter;
 use crate::runtime::bus::CycleBus;
+use crate::runtime::clock::now_ns;
 
 /// Most slaves on one bus.
 pub const MAX_SLAVES: usize = 64;
@@ -32,6 +37,36 @@ pub const MAX_SLAVES: usize = 64;
 pub const MAX_PDI: usize = 4096;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+
+/// ethercrab's timeouts as gantry sets them: none. ethercrab times its frames and waits
+/// with async-io's `Timer`, whose first use starts async-io's reactor thread — from the
+/// thread that polls, here the real-time cycle thread, so it would inherit SCHED_FIFO and
+/// the CPU — and whose insertions go through a bounded queue that, when full, the
+/// inserting thread drains under the reactor's mutex (async-io 2.6 `Reactor::insert_timer`).
+/// gantry bounds every exchange itself (the doorbell's deadlines: the cycle's reply
+/// deadline, and [`BRING_UP_SILENCE_NS`] and a limit per step during bring-up), so it asks
+/// for timeouts that never fire: `Instant::now() + Duration::MAX` overflows, for which
+/// async-io makes a timer that never registers with the reactor (`Timer::after` →
+/// `Timer::never`), and a wait-loop delay of zero is ready when first polled. No frame,
+/// no wait loop of ethercrab's ever touches the reactor, and its thread never starts.
+pub const NO_TIMERS: Timeouts = Timeouts {
+    state_transition: Duration::MAX,
+    pdu: Duration::MAX,
+    eeprom: Duration::MAX,
+    wait_loop_delay: Duration::ZERO,
+    mailbox_echo: Duration::MAX,
+    mailbox_response: Duration::MAX,
+};
+
+/// During bring-up, frames in flight with no reply for this long mean no slave answers
+/// (ethercrab's own PDU timeout is 30 ms; a slave answers in microseconds, a loaded
+/// non-real-time host may stall tens of milliseconds).
+pub const BRING_UP_SILENCE_NS: u64 = 200_000_000;
+/// Longest a bring-up step may take while slaves keep answering: discovery (which reads
+/// every EEPROM and measures the DC delays) and each state transition (ETG.2000's default
+/// SafeOp→Op timeout is 10 s).
+const DISCOVERY_LIMIT_NS: u64 = 60_000_000_000;
+const STEP_LIMIT_NS: u64 = 10_000_000_000;
 
 type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op>;
 type GroupDc = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, HasDc>;
@@ -108,19 +143,44 @@ pub struct EthercatBus {
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
     link: Option<Link>,
+    /// The pump's count of replies (bring-up and shutdown watch it for silence).
+    replies: Arc<AtomicU64>,
     /// Runs ethercrab's futures in the cycle thread without a lock.
     runner: BlockOn,
+    /// The slave being brought back to OP: the axis that asked, and the machine.
+    recovery: Option<(usize, Recovery)>,
+    /// A finished recovery, until the engine takes it.
+    recovered: Option<(usize, Result<Recovered, RecoveryError>)>,
 }
 
 impl EthercatBus {
     /// Brings the bus of `config` up to OP; returns it with the cycle (kernel + CiA-402
     /// channels) and the health monitor. Prints its steps to `out`.
+    ///
+    /// The steps run in a short-lived thread of their own with a large stack
+    /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
+    /// stack per level in debug builds), started from the calling thread so that it — and
+    /// the frame pump it starts — inherit the caller's scheduling and CPU.
     pub fn bring_up(
         config: &Config,
-        out: &mut dyn Write,
+        out: &mut (dyn Write + Send),
+    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+        on_large_stack("gantry-bring-up", || Self::bring_up_here(config, out))
+            .unwrap_or_else(|e| Err(StartError::Link(format!("a thread for the bring-up: {e}"))))
+    }
+
+    fn bring_up_here(
+        config: &Config,
+        out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
         let bus_error = |step: &'static str| {
             move |e: ethercrab::error::Error| StartError::Bus {
+                step,
+                reason: e.to_string(),
+            }
+        };
+        let stalled = |step: &'static str| {
+            move |e: StepStalled| StartError::Bus {
                 step,
                 reason: e.to_string(),
             }
@@ -152,11 +212,23 @@ impl EthercatBus {
             }
             (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
         };
-        let md = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+        let replies = match &link {
+            Link::Raw(r) => r.replies(),
+            Link::Embedded(e) => e.replies(),
+        };
+        let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
         let runner =
             BlockOn::new().map_err(|e| StartError::Link(format!("the cycle's eventfd: {e}")))?;
+        // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
+        let silence = BRING_UP_SILENCE_NS;
         let group = runner
-            .run(md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now))
+            .run_step(
+                || md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now),
+                &replies,
+                silence,
+                DISCOVERY_LIMIT_NS,
+            )
+            .map_err(stalled("discovery"))?
             .map_err(bus_error("discovery"))?;
         let _ = writeln!(out, "found {} EtherCAT slaves", group.len());
         for (i, sd) in group.iter(&md).enumerate() {
@@ -183,13 +255,18 @@ impl EthercatBus {
                 .subdevice(&md, a.drive)
                 .map_err(bus_error("addressing"))?;
             runner
-                .run(map_pdos(&sd, &layout))
+                .run_step(|| map_pdos(&sd, &layout), &replies, silence, STEP_LIMIT_NS)
+                .map_err(stalled("PDO mapping"))?
                 .map_err(|e| StartError::Setup(e.to_string()))?;
             let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
-            channels.push(
-                CspChannel::with_layout(scaling, &layout)
-                    .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?,
-            );
+            let mut channel = CspChannel::with_layout(scaling, &layout)
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            // A modulo period that cannot be counted is refused here, by name (the cycle
+            // would fault the axis).
+            channel
+                .set_modulo(a.modulo.and_then(Modulo::new))
+                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+            channels.push(channel);
         }
         let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
         let dc_capable = group
@@ -210,14 +287,7 @@ impl EthercatBus {
                     sd.set_dc_sync(ethercrab::DcSync::Sync0);
                 }
             }
-            // The process data first (SyncManagers, FMMUs), then the clocks.
-            let group = runner
-                .run(group.into_pre_op_pdi(&md))
-                .map_err(bus_error("process data set-up"))?;
-            let group = runner
-                .run(group.configure_dc_sync(&md, dc))
-                .map_err(bus_error("distributed clocks"))?;
-            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = dc_to_op(&runner, &md, group, dc, &replies)?;
             let _ = writeln!(
                 out,
                 "distributed clocks: SYNC0 every {} µs",
@@ -225,7 +295,7 @@ impl EthercatBus {
             );
             Groups::Dc(group)
         } else {
-            let group = runner.run(group.into_op(&md)).map_err(bus_error("to OP"))?;
+            let group = plain_to_op(&runner, &md, group, &replies)?;
             if config.bus.dc {
                 let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
             }
@@ -269,11 +339,20 @@ impl EthercatBus {
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves),
                 link: Some(link),
+                replies,
                 runner,
+                recovery: None,
+                recovered: None,
             },
             CspCycle::new(kernel, channels),
             health,
         ))
+    }
+
+    /// Replies the slaves sent back so far (every frame: process data, register
+    /// accesses), as the pump counted them.
+    pub fn replies(&self) -> u64 {
+        self.replies.load(std::sync::atomic::Ordering::Acquire)
     }
 
     /// Distributed clocks as of the last exchange.
@@ -293,20 +372,35 @@ impl EthercatBus {
     }
 
     /// Takes the slaves down to PreOp and stops the link.
-    pub fn shut_down(mut self, out: &mut dyn Write) {
+    /// The transitions run in a thread of their own, as the bring-up's do.
+    pub fn shut_down(self, out: &mut (dyn Write + Send)) {
+        if let Err(e) = on_large_stack("gantry-shutdown", || self.shut_down_here(&mut *out)) {
+            let _ = writeln!(out, "bus: no thread to take the slaves to PreOp: {e}");
+        }
+    }
+
+    fn shut_down_here(mut self, out: &mut (dyn Write + Send)) {
         let md = &self.md;
         let group = std::mem::replace(&mut self.group, Groups::Plain(Group::default()));
-        let result = self.runner.run(async {
-            with_group!(group, g => g
-                .into_safe_op(md)
-                .await?
-                .into_pre_op(md)
-                .await
-                .map(|_| ()))
-        });
+        let result = self.runner.run_step(
+            || async {
+                with_group!(group, g => g
+                    .into_safe_op(md)
+                    .await?
+                    .into_pre_op(md)
+                    .await
+                    .map(|_| ()))
+            },
+            &self.replies,
+            BRING_UP_SILENCE_NS,
+            2 * STEP_LIMIT_NS,
+        );
         match result {
-            Ok(()) => {
+            Ok(Ok(())) => {
                 let _ = writeln!(out, "bus: slaves in PreOp");
+            }
+            Ok(Err(e)) => {
+                let _ = writeln!(out, "bus: could not take the slaves to PreOp: {e}");
             }
             Err(e) => {
                 let _ = writeln!(out, "bus: could not take the slaves to PreOp: {e}");
@@ -322,6 +416,111 @@ impl EthercatBus {
             None => {}
         }
     }
+}
+
+/// Stack of the threads bring-up and shutdown run in.
+pub const BRING_UP_STACK_BYTES: usize = 16 << 20;
+
+/// Runs `f` in a thread named `name` with a [`BRING_UP_STACK_BYTES`] stack, started from
+/// this one (so it inherits this thread's scheduling and CPU mask), and waits for it.
+fn on_large_stack<T: Send>(name: &str, f: impl FnOnce() -> T + Send) -> std::io::Result<T> {
+    std::thread::scope(|scope| {
+        let handle = std::thread::Builder::new()
+            .name(name.into())
+            .stack_size(BRING_UP_STACK_BYTES)
+            .spawn_scoped(scope, f)?;
+        Ok(handle
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    })
+}
+
+/// An error of a bring-up step, with the step's name.
+fn step_error(step: &'static str, reason: impl std::fmt::Display) -> StartError {
+    StartError::Bus {
+        step,
+        reason: reason.to_string(),
+    }
+}
+
+/// PreOp to OP with distributed clocks: process data (SyncManagers, FMMUs) first, then
+/// the clocks. Its own function (never inlined) so that these large futures do not
+/// share the stack frame of the rest of the bring-up.
+#[inline(never)]
+fn dc_to_op(
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    group: SubDeviceGroup<
+        MAX_SLAVES,
+        MAX_PDI,
+        ethercrab::DefaultLock,
+        ethercrab::subdevice_group::PreOp,
+    >,
+    dc: DcConfiguration,
+    replies: &AtomicU64,
+) -> Result<GroupDc, StartError> {
+    let group = runner
+        .run_step(
+            move || group.into_pre_op_pdi(md),
+            replies,
+            BRING_UP_SILENCE_NS,
+            STEP_LIMIT_NS,
+        )
+        .map_err(|e| step_error("process data set-up", e))?
+        .map_err(|e| step_error("process data set-up", e))?;
+    let group = runner
+        .run_step(
+            move || group.configure_dc_sync(md, dc),
+            replies,
+            BRING_UP_SILENCE_NS,
+            STEP_LIMIT_NS,
+        )
+        .map_err(|e| step_error("distributed clocks", e))?
+        .map_err(|e| step_error("distributed clocks", e))?;
+    runner
+        .run_step(
+            move || async move { to_op(group.into_safe_op(md).await?, md).await },
+            replies,
+            BRING_UP_SILENCE_NS,
+            STEP_LIMIT_NS,
+        )
+        .map_err(|e| step_error("to OP", e))?
+        .map_err(|e| step_error("to OP", e))
+}
+
+/// SafeOp to Op with the process data running, as drives need (see `transition`).
+async fn to_op<DC>(
+    group: SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
+    md: &MainDevice<'static>,
+) -> Result<
+    SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, DC>,
+    ethercrab::error::Error,
+> {
+    transition::into_op(group, md, transition::OP_TIMEOUT).await
+}
+
+/// PreOp to OP without distributed clocks (see [`dc_to_op`]).
+#[inline(never)]
+fn plain_to_op(
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    group: SubDeviceGroup<
+        MAX_SLAVES,
+        MAX_PDI,
+        ethercrab::DefaultLock,
+        ethercrab::subdevice_group::PreOp,
+    >,
+    replies: &AtomicU64,
+) -> Result<Group, StartError> {
+    runner
+        .run_step(
+            move || async move { to_op(group.into_safe_op(md).await?, md).await },
+            replies,
+            BRING_UP_SILENCE_NS,
+            2 * STEP_LIMIT_NS,
+        )
+        .map_err(|e| step_error("to OP", e))?
+        .map_err(|e| step_error("to OP", e))
 }
 
 impl CycleBus for EthercatBus {
@@ -349,16 +548,33 @@ impl CycleBus for EthercatBus {
     }
 
     fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64) {
-        let answer = match &self.group {
-            Groups::Plain(g) => self
-                .runner
-                .run_until(g.tx_rx(&self.md), deadline_ns)
-                .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, None))),
+        // A recovery in progress does one register access beside the process data,
+        // under the same deadline.
+        let (md, runner) = (&self.md, &self.runner);
+        let pending = self.recovery.as_ref().and_then(|(axis, r)| {
+            let drive = self.drives.get(*axis).copied()?;
+            Some((drive, r.next_access()?))
+        });
+        let (answer, accessed) = match &self.group {
+            Groups::Plain(g) => {
+                let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
+                let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
+                let (answer, accessed) =
+                    runner.run_both_until(g.tx_rx(md), access_fut, deadline_ns);
+                let answer =
+                    answer.map(|r| r.map(|r| (r.working_counter, r.subdevice_states, None)));
+                (answer, accessed)
+            }
             // With DC the frame also carries the reference clock's time to the others.
-            Groups::Dc(g) => self
-                .runner
-                .run_until(g.tx_rx_dc(&self.md), deadline_ns)
-                .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, Some(r.extra)))),
+            Groups::Dc(g) => {
+                let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
+                let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
+                let (answer, accessed) =
+                    runner.run_both_until(g.tx_rx_dc(md), access_fut, deadline_ns);
+                let answer = answer
+                    .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, Some(r.extra))));
+                (answer, accessed)
+            }
         };
         match answer {
             Some(Ok((working_counter, states, info))) => {
@@ -373,23 +589,43 @@ impl CycleBus for EthercatBus {
                     states: &self.states,
                 });
             }
-            // No reply by the deadline, or ethercrab's own timeout.
+            // No reply by the deadline, or the frame could not be sent.
             Some(Err(_)) | None => health.record(Exchange::Lost),
+        }
+        if let Some((axis, recovery)) = self.recovery.as_mut() {
+            recovery.on_answer(accessed.unwrap_or(Answer::None), now_ns());
+            if let Some(outcome) = recovery.outcome() {
+                self.recovered = Some((*axis, outcome));
+                self.recovery = None;
+            }
         }
     }
 
-    fn recover(&mut self, axis: usize, deadline_ns: u64) -> Result<Recovered, RecoveryError> {
-        let drive = self.drive_of(axis);
-        with_group!(&self.group, g => {
-            let sd = g
-                .subdevice(&self.md, drive)
-                .map_err(|source| RecoveryError::NoAnswer { address: 0, source })?;
-            self.runner
-                .run_until(recover_slave(&sd), deadline_ns)
-                .unwrap_or(Err(RecoveryError::TooSlow {
-                    address: sd.configured_address(),
-                }))
-        })
+    fn start_recovery(&mut self, axis: usize, now_ns: u64, timeout_ns: u64) -> bool {
+        if self.recovery.is_some() {
+            return false;
+        }
+        let address = with_group!(&self.group, g => g
+            .subdevice(&self.md, self.drive_of(axis))
+            .map(|sd| sd.configured_address()));
+        match address {
+            Ok(address) => self.recovery = Some((axis, Recovery::new(address, now_ns, timeout_ns))),
+            // No such slave: it cannot come back.
+            Err(_) => {
+                self.recovered = Some((
+                    axis,
+                    Err(RecoveryError::NoAnswer {
+                        address: 0,
+                        waited_ms: 0,
+                    }),
+                ))
+            }
+        }
+        true
+    }
+
+    fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)> {
+        self.recovered.take()
     }
 
     fn drive_of(&self, axis: usize) -> usize {

@@ -49,8 +49,15 @@ pub struct CspCycle {
 }
 
 impl CspCycle {
-    /// A cycle for `kernel`'s axes on these channels.
-    pub fn new(kernel: Kernel, channels: Vec<CspChannel>) -> Self {
+    /// A cycle for `kernel`'s axes on these channels. Each channel counts its axis'
+    /// modulo period, taken from the kernel's configuration; a channel whose period cannot
+    /// be counted faults its axis (check [`CspChannel::set_modulo`] first to refuse such a
+    /// configuration with a message).
+    pub fn new(kernel: Kernel, mut channels: Vec<CspChannel>) -> Self {
+        for (channel, axis) in channels.iter_mut().zip(kernel.axes()) {
+            // An error stays in the channel, which faults the axis.
+            let _ = channel.set_modulo(axis.config().mechanics.modulo);
+        }
         let n = channels.len();
         Self {
             kernel,
@@ -72,6 +79,11 @@ impl CspCycle {
     }
 
     /// The channel of drive `i`.
+    pub fn channel(&self, i: usize) -> Option<&CspChannel> {
+        self.channels.get(i)
+    }
+
+    /// The channel of drive `i`, to change.
     pub fn channel_mut(&mut self, i: usize) -> Option<&mut CspChannel> {
         self.channels.get_mut(i)
     }
@@ -83,7 +95,7 @@ impl CspCycle {
 
     /// Takes drive `i`'s inputs from the process image.
     pub fn read_inputs(&mut self, i: usize, bytes: &[u8]) -> Result<(), CycleError> {
-        let channel = self.channels.get(i).ok_or(CycleError::NoDrive(i))?;
+        let channel = self.channels.get_mut(i).ok_or(CycleError::NoDrive(i))?;
         let decoded = channel.decode(bytes).ok_or(CycleError::ShortInputs {
             drive: i,
             got: bytes.len(),
@@ -146,5 +158,90 @@ impl CspCycle {
         let (cw, target) = channel.outputs(sp, inputs);
         encode_outputs(&channel.offsets, bytes, cw, target);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ethercat::cyclic::COUNT_RANGE_FAULT;
+    use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity, PowerCommand};
+    use gantry_kernel::axis::state::AxisState;
+    use gantry_kernel::axis::status::AxisFault;
+    use gantry_kernel::mechanics::{Scaling, ScalingConfig};
+    use gantry_kernel::{AxisConfig, AxisKind};
+
+    /// A drive that is Operation enabled at `position` counts (minimal mapping).
+    fn enabled_at(position: i32) -> [u8; 6] {
+        let mut b = [0u8; 6];
+        b[0..2].copy_from_slice(&0x0637u16.to_le_bytes());
+        b[2..6].copy_from_slice(&position.to_le_bytes());
+        b
+    }
+
+    /// An axis whose counts overflow 64 bits within a second of motion (2^62 counts per
+    /// unit: 2 units is beyond `i64`) faults with [`COUNT_RANGE_FAULT`] through the
+    /// drive-fault path: ErrorStop, the reason readable, and the drive's target is never
+    /// a substitute — it stays where the last representable set position put it.
+    #[test]
+    fn a_set_position_beyond_64_bit_counts_stops_the_axis_with_its_reason() {
+        let mut cfg = AxisConfig::new("w", AxisKind::Real);
+        cfg.homing_required = false;
+        cfg.max.vmax = 4.0;
+        cfg.defaults.speed = 4.0;
+        let kernel = Kernel::new(1e-3, vec![cfg]).unwrap();
+        let scaling = Scaling::new(ScalingConfig {
+            counts_per_motor_rev: 1 << 31,
+            motor_revs: 1 << 31,
+            load_revs: 1,
+            units_per_load_rev: 1.0,
+            invert: false,
+        })
+        .unwrap();
+        let mut c = CspCycle::new(kernel, vec![CspChannel::new(scaling)]);
+        c.kernel
+            .command(0, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        let mut out = [0u8; 6];
+        let cycle = |c: &mut CspCycle, out: &mut [u8; 6]| {
+            c.read_inputs(0, &enabled_at(0)).unwrap();
+            c.step();
+            c.write_outputs(0, out).unwrap();
+            i32::from_le_bytes([out[2], out[3], out[4], out[5]])
+        };
+        for _ in 0..3 {
+            cycle(&mut c, &mut out);
+        }
+        c.kernel
+            .command(
+                0,
+                Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 4.0)),
+            )
+            .unwrap();
+        let mut sent = Vec::new();
+        for _ in 0..2000 {
+            sent.push(cycle(&mut c, &mut out));
+            if c.kernel.axis_status(0).unwrap().state == AxisState::ErrorStop {
+                break;
+            }
+        }
+        let status = *c.kernel.axis_status(0).unwrap();
+        assert_eq!(status.state, AxisState::ErrorStop, "{status:?}");
+        assert_eq!(
+            status.error,
+            Some(AxisFault::Drive {
+                code: COUNT_RANGE_FAULT
+            })
+        );
+        assert_eq!(
+            gantry_drives::cia402::error_code::describe_fault(&status.error.unwrap()),
+            "drive fault 0x6320: parameter error (gantry stops the axis: its set position has \
+             no 64-bit drive count; check the scaling and the travel)"
+        );
+        // The cycle that could not count repeated the last target; then the axis holds
+        // where the drive stands (its actual, 0).
+        let n = sent.len();
+        assert!(n > 10, "moved a while first: {n} cycles");
+        assert_eq!(sent[n - 2], sent[n - 3], "held, not substituted");
     }
 }

@@ -2,6 +2,21 @@
 //! into kernel feedback, and turn the kernel's set values into its outputs — the
 //! controlword from the shared CiA-402 table, the target position in counts.
 //!
+//! # Counts
+//!
+//! Inside gantry a drive position is a 64-bit count. A CSP drive counts in 32 bits and
+//! wraps (0x607A/0x6064 are INTEGER32; with the position range limit 0x607B at its
+//! default, CiA 402-2, a position past 2³¹−1 continues at −2³¹), so
+//! the target sent is the low half of the 64-bit count and the 32-bit position actual
+//! value is extended by the difference to the last one ([`CountExtender`]): crossing
+//! ±2³¹ is no event for either side. A modulo axis' set position comes from the kernel as
+//! whole periods and the position within ([`AxisSetpoint::turns`]); [`ModuloCounts`]
+//! turns that into counts exactly however many periods it has turned, and the channel
+//! keeps the number of periods between the kernel's frame and the drive's counter, taken
+//! where the drive stands when it is enabled. A set position whose count does not fit 64
+//! bits is sent nowhere: the drive keeps its last target and the axis faults
+//! ([`COUNT_RANGE_FAULT`]).
+//!
 //! Where each object sits comes from the drive's PDO layout (mapped by SDO in PreOp, see
 //! `mapping`); a drive left with its power-up mapping exchanges the minimal CSP set:
 //! outputs `0x6040 controlword: u16, 0x607A target position: i32`; inputs `0x6041
@@ -11,12 +26,17 @@ use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
 use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
-use gantry_kernel::mechanics::Scaling;
+use gantry_kernel::mechanics::{CountExtender, MechanicsError, Modulo, ModuloCounts, Scaling};
 use thiserror::Error;
 
 /// Error code reported for a faulted drive whose 0x603F error code is not in the process
 /// data (CiA 301 generic error 0xFF00 "device specific"); the real code needs an SDO read.
 pub const FAULT_CODE_NOT_MAPPED: u16 = 0xFF00;
+
+/// Error code an axis faults with when its set position has no 64-bit count (CiA 301
+/// 0x6320 "parameter error": the axis' scaling and travel ask for more than a drive
+/// position can hold). The drive keeps its last target.
+pub const COUNT_RANGE_FAULT: u16 = 0x6320;
 
 /// Modes of operation: cyclic synchronous position.
 pub const MODE_CSP: i8 = 8;
@@ -148,7 +168,42 @@ pub struct CspChannel {
     pub scaling: Scaling,
     /// Where the objects sit in the drive's process data.
     pub offsets: CspOffsets,
+    /// Whole periods ⇄ counts on a modulo axis.
+    modulo: Option<ModuloCounts>,
     last_cw: Controlword,
+    /// The drive's 32-bit position actual value, extended. Fresh with the channel (the bus
+    /// brought up), and deliberately not reset when a lost slave comes back: a drive
+    /// that kept its power kept counting, and extending by the difference to the last
+    /// value seen is right for any motion under 2³¹ counts while it was unseen, where
+    /// starting over would move a linear axis past ±2³¹ by 2³² counts. A modulo axis is
+    /// aligned again when it is next enabled either way.
+    extender: CountExtender,
+    /// The extended position actual value of the last inputs (counts).
+    actual: i64,
+    /// Modulo axes: whole periods of the drive's counter at `actual`.
+    actual_turns: i64,
+    /// Modulo axes: the drive's periods minus the kernel's, fixed while the drive is
+    /// driven (taken at the cycle it is enabled).
+    turn_offset: i64,
+    /// The drive took set positions last cycle.
+    driving: bool,
+    /// The last target sent (64-bit counts).
+    last_target: i64,
+    /// The last set position had no 64-bit count: the axis faults.
+    count_error: Option<CountError>,
+    /// The axis' modulo period cannot be counted (see [`CspChannel::set_modulo`]): the
+    /// drive is never driven and the axis faults.
+    unusable: Option<MechanicsError>,
+}
+
+/// A set position with no 64-bit count.
+#[derive(Clone, Copy, Debug, Error, PartialEq)]
+#[error("set position {position} (+ {turns} periods) has no 64-bit drive count")]
+pub struct CountError {
+    /// Position (units; within the period on modulo axes).
+    pub position: f64,
+    /// Whole periods in the drive's count space (0 on normal axes).
+    pub turns: i64,
 }
 
 impl CspChannel {
@@ -157,7 +212,16 @@ impl CspChannel {
         Self {
             scaling,
             offsets: CspOffsets::minimal(),
+            modulo: None,
             last_cw: Controlword(0),
+            extender: CountExtender::new(),
+            actual: 0,
+            actual_turns: 0,
+            turn_offset: 0,
+            driving: false,
+            last_target: 0,
+            count_error: None,
+            unusable: None,
         }
     }
 
@@ -169,32 +233,120 @@ impl CspChannel {
         })
     }
 
+    /// Makes the channel count a modulo axis of `modulo` (`None`: a normal axis). Fails
+    /// when a period is less than one count or its count ratio does not fit 126 bits.
+    /// A channel that failed stays unusable (its axis faults with
+    /// [`COUNT_RANGE_FAULT`] and its drive is not driven) until a call succeeds: counting
+    /// a modulo axis as a normal one would step a period at every wrap.
+    pub fn set_modulo(&mut self, modulo: Option<Modulo>) -> Result<(), MechanicsError> {
+        match modulo
+            .map(|m| ModuloCounts::new(self.scaling, m))
+            .transpose()
+        {
+            Ok(mc) => {
+                self.modulo = mc;
+                self.unusable = None;
+                Ok(())
+            }
+            Err(e) => {
+                self.unusable = Some(e);
+                Err(e)
+            }
+        }
+    }
+
+    /// Why the channel cannot drive its axis at all, if it cannot.
+    pub fn unusable(&self) -> Option<MechanicsError> {
+        self.unusable
+    }
+
+    /// The modulo period the channel counts, if any.
+    pub fn modulo(&self) -> Option<Modulo> {
+        self.modulo.map(|m| m.modulo())
+    }
+
+    /// The extended position actual value of the last inputs (64-bit counts).
+    pub fn actual_counts(&self) -> i64 {
+        self.actual
+    }
+
+    /// Why the last set position was not sent, if it was not.
+    pub fn count_error(&self) -> Option<CountError> {
+        self.count_error
+    }
+
     /// Decodes this drive's inputs.
     pub fn decode(&self, bytes: &[u8]) -> Option<CspInputs> {
         CspInputs::decode(&self.offsets, bytes)
     }
 
-    /// Kernel feedback from the drive's inputs.
-    pub fn feedback(&self, inputs: &CspInputs) -> AxisFeedback {
+    /// Kernel feedback from the drive's inputs; extends the position actual value.
+    pub fn feedback(&mut self, inputs: &CspInputs) -> AxisFeedback {
         let state = inputs.statusword.state();
-        AxisFeedback {
-            position: self.scaling.counts_to_units(i64::from(inputs.position)),
-            velocity: inputs.velocity.map_or(0.0, |v| {
-                self.scaling.counts_to_units(i64::from(v)) - self.scaling.counts_to_units(0)
-            }),
-            operation_enabled: state == Some(State::OperationEnabled),
-            fault: matches!(state, Some(State::Fault | State::FaultReactionActive)).then_some(
+        self.actual = self.extender.update(inputs.position);
+        let position = match self.modulo {
+            Some(mc) => {
+                let (turns, within) = mc.to_position(self.actual);
+                self.actual_turns = turns;
+                within
+            }
+            None => self.scaling.counts_to_units(self.actual),
+        };
+        let drive_fault = matches!(state, Some(State::Fault | State::FaultReactionActive))
+            .then_some(
                 inputs
                     .error_code
                     .filter(|c| *c != 0)
                     .unwrap_or(FAULT_CODE_NOT_MAPPED),
-            ),
+            );
+        AxisFeedback {
+            position,
+            velocity: inputs.velocity.map_or(0.0, |v| {
+                self.scaling.counts_to_units(i64::from(v)) - self.scaling.counts_to_units(0)
+            }),
+            operation_enabled: state == Some(State::OperationEnabled),
+            fault: drive_fault.or((self.count_error.is_some() || self.unusable.is_some())
+                .then_some(COUNT_RANGE_FAULT)),
         }
     }
 
+    /// The drive's count of `sp` (64 bits), in the drive's count space.
+    fn target_counts(&self, sp: &AxisSetpoint) -> Result<i64, CountError> {
+        let turns = sp.turns.checked_add(self.turn_offset);
+        let err = CountError {
+            position: sp.position,
+            turns: turns.unwrap_or(sp.turns),
+        };
+        match self.modulo {
+            Some(mc) => mc
+                .try_to_counts(turns.ok_or(err)?, sp.position)
+                .map_err(|_| err),
+            None => self
+                .scaling
+                .try_units_to_counts(sp.position)
+                .map_err(|_| err),
+        }
+    }
+
+    /// Modulo axes: the periods between the kernel's frame and the drive's counter, so
+    /// that `sp` counts to where the drive stands (the nearest period: `sp` and the
+    /// actual differ by far less than half a period when the drive is taken over).
+    fn align(&mut self, sp: &AxisSetpoint) {
+        let Some(mc) = self.modulo else { return };
+        let (_, within) = mc.to_position(self.actual);
+        let period = mc.modulo().period();
+        let fraction = ((within - sp.position) / period).round();
+        // `fraction` is −1, 0 or 1 (both positions lie in one period); NaN gives 0.
+        self.turn_offset = self
+            .actual_turns
+            .saturating_sub(sp.turns)
+            .saturating_add(fraction as i64);
+    }
+
     /// The outputs for this cycle: one step of the power state machine towards what the
-    /// kernel wants, and the set position — or the actual position while the drive is not
-    /// enabled, so that enabling never jumps.
+    /// kernel wants, and the target — the set position in the drive's counts while the
+    /// drive is enabled, its actual position otherwise, so that enabling never jumps. The
+    /// target is the low 32 bits of the 64-bit count (the drive's counter wraps).
     pub fn outputs(&mut self, sp: &AxisSetpoint, inputs: &CspInputs) -> (Controlword, i32) {
         let state = inputs
             .statusword
@@ -208,12 +360,27 @@ impl CspChannel {
         // Fault resets are sent only when the axis asks (its Reset).
         let cmd = next_command(state, target, sp.reset_fault, self.last_cw);
         self.last_cw = Controlword::of(cmd);
-        let position = if state == State::OperationEnabled && sp.enable {
-            i32::try_from(self.scaling.units_to_counts(sp.position)).unwrap_or(inputs.position)
-        } else {
-            inputs.position
-        };
-        (self.last_cw, position)
+        if !(state == State::OperationEnabled && sp.enable) || self.unusable.is_some() {
+            self.driving = false;
+            self.count_error = None;
+            self.last_target = self.actual;
+            return (self.last_cw, inputs.position);
+        }
+        if !self.driving {
+            // Taken over this cycle: the kernel's set position is where the drive stands.
+            self.align(sp);
+            self.driving = true;
+            self.last_target = self.actual;
+        }
+        match self.target_counts(sp) {
+            Ok(counts) => {
+                self.count_error = None;
+                self.last_target = counts;
+            }
+            Err(e) => self.count_error = Some(e),
+        }
+        // The low half, as the drive counts (its counter wraps, see the module doc).
+        (self.last_cw, self.last_target as i32)
     }
 }
 
@@ -280,7 +447,7 @@ mod tests {
     #[test]
     fn a_full_layout_carries_mode_velocity_and_the_error_code() {
         let layout = PdoLayout::csp();
-        let ch = CspChannel::with_layout(channel().scaling, &layout).unwrap();
+        let mut ch = CspChannel::with_layout(channel().scaling, &layout).unwrap();
         let mut out = [0u8; 7];
         encode_outputs(&ch.offsets, &mut out, Controlword(0x0F), 1);
         assert_eq!(out, [0x0F, 0, 1, 0, 0, 0, 8], "mode CSP in the last byte");
@@ -306,5 +473,175 @@ mod tests {
                 .to_string(),
             "the PDO layout lacks 0x607a Target position, which CSP needs"
         );
+    }
+
+    const ENABLED: Statusword = Statusword(0x0637);
+
+    fn enabled_at(position: i32) -> CspInputs {
+        CspInputs {
+            statusword: ENABLED,
+            position,
+            ..CspInputs::default()
+        }
+    }
+
+    /// 10 000 counts per motor turn through 7:3: 23 333⅓ counts per 360°.
+    fn geared_rotary() -> CspChannel {
+        let mut ch = CspChannel::new(
+            Scaling::new(ScalingConfig {
+                counts_per_motor_rev: 10_000,
+                motor_revs: 7,
+                load_revs: 3,
+                units_per_load_rev: 360.0,
+                invert: false,
+            })
+            .unwrap(),
+        );
+        ch.set_modulo(Modulo::new(360.0)).unwrap();
+        ch
+    }
+
+    fn sp(turns: i64, position: f64) -> AxisSetpoint {
+        AxisSetpoint {
+            position,
+            turns,
+            enable: true,
+            ..AxisSetpoint::default()
+        }
+    }
+
+    #[test]
+    fn a_modulo_axis_takes_over_where_the_drive_stands_and_counts_on_across_wraps() {
+        // The drive powers up 214.3 periods into its counter; the kernel's frame has its
+        // own turn count (here −4) and sees only the position within the period.
+        for start in [5_000_000, -3_000_001, i32::MAX - 20_000, i32::MIN + 7] {
+            let mut ch = geared_rotary();
+            let fb = ch.feedback(&enabled_at(start));
+            assert!((0.0..360.0).contains(&fb.position), "{fb:?}");
+            let (mut turns, mut within) = (-4i64, fb.position);
+            let (_, target) = ch.outputs(&sp(turns, within), &enabled_at(start));
+            assert_eq!(target, start, "the first target is the actual position");
+            // 30 periods forward at 7.3° per cycle, then 60 back: every step is the
+            // cycle's travel in counts (±1 for rounding) also when the kernel wraps and
+            // the drive's 32-bit counter wraps.
+            let counts_per_degree = 10_000.0 * 7.0 / 3.0 / 360.0;
+            let (mut last, mut actual) = (target, start);
+            let mut total = 0.0;
+            for (cycles, step) in [(1480, 7.3), (2960, -7.3)] {
+                for _ in 0..cycles {
+                    within += step;
+                    total += step;
+                    if within >= 360.0 {
+                        within -= 360.0;
+                        turns += 1;
+                    } else if within < 0.0 {
+                        within += 360.0;
+                        turns -= 1;
+                    }
+                    ch.feedback(&enabled_at(actual));
+                    let (_, t) = ch.outputs(&sp(turns, within), &enabled_at(actual));
+                    let d = f64::from(t.wrapping_sub(last));
+                    assert!(
+                        (d - step * counts_per_degree).abs() <= 1.0,
+                        "step {d} counts at turns {turns} within {within} (start {start})"
+                    );
+                    last = t;
+                    actual = t;
+                }
+            }
+            let travelled = i64::from(last.wrapping_sub(start));
+            let expect = (total * counts_per_degree).round() as i64;
+            assert!((travelled - expect).abs() <= 1, "{travelled} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn the_drive_counter_wraps_at_2_pow_31_and_the_feedback_extends_past_it() {
+        let mut ch = channel();
+        // 1000 counts per unit.
+        let fb = ch.feedback(&enabled_at(i32::MAX - 5));
+        assert_eq!(fb.position, f64::from(i32::MAX - 5) / 1000.0);
+        ch.outputs(&sp(0, fb.position), &enabled_at(i32::MAX - 5));
+        // The drive went 11 counts on: its counter reads −2³¹ + 5; gantry's count 2³¹ + 5.
+        let fb = ch.feedback(&enabled_at(i32::MIN + 5));
+        assert_eq!(ch.actual_counts(), (1i64 << 31) + 5);
+        assert_eq!(fb.position, ((1i64 << 31) + 5) as f64 / 1000.0);
+        // A target 3·2³¹ counts out is sent as its low half.
+        let far = 3.0 * f64::from(1u32 << 31) / 1000.0 + 0.002;
+        let (_, t) = ch.outputs(&sp(0, far), &enabled_at(i32::MIN + 5));
+        assert_eq!(t, ((3i64 << 31) + 2) as i32);
+        assert_eq!(t, i32::MIN + 2);
+        assert_eq!(ch.count_error(), None);
+        // And back below −2³¹.
+        let mut ch = channel();
+        ch.feedback(&enabled_at(i32::MIN + 1));
+        ch.feedback(&enabled_at(i32::MAX));
+        assert_eq!(ch.actual_counts(), -(1i64 << 31) - 1);
+    }
+
+    #[test]
+    fn a_set_position_with_no_64_bit_count_faults_the_axis_and_sends_nothing_new() {
+        // 2^32 · 2^32 counts per 1e-6 unit: one unit is ~1.8e25 counts.
+        let mut ch = CspChannel::new(
+            Scaling::new(ScalingConfig {
+                counts_per_motor_rev: u32::MAX,
+                motor_revs: u32::MAX,
+                load_revs: 1,
+                units_per_load_rev: 1e-6,
+                invert: false,
+            })
+            .unwrap(),
+        );
+        let fb = ch.feedback(&enabled_at(100));
+        assert_eq!(fb.fault, None);
+        assert_eq!(ch.outputs(&sp(0, fb.position), &enabled_at(100)).1, 100);
+        let (_, t) = ch.outputs(&sp(0, 1.0), &enabled_at(100));
+        assert_eq!(t, 100, "the drive keeps its last target");
+        assert_eq!(
+            ch.count_error().unwrap().to_string(),
+            "set position 1 (+ 0 periods) has no 64-bit drive count"
+        );
+        let fb = ch.feedback(&enabled_at(100));
+        assert_eq!(fb.fault, Some(COUNT_RANGE_FAULT));
+        assert!(
+            gantry_drives::cia402::error_code::describe(COUNT_RANGE_FAULT)
+                .contains("no 64-bit drive count")
+        );
+        // The drive's own fault comes first.
+        let faulted = CspInputs {
+            statusword: Statusword(0x0218),
+            error_code: Some(0x8611),
+            ..enabled_at(100)
+        };
+        assert_eq!(ch.feedback(&faulted).fault, Some(0x8611));
+        // Back in range, the axis is no longer faulted by the channel.
+        ch.outputs(&sp(0, fb.position), &enabled_at(100));
+        assert_eq!(ch.count_error(), None);
+        assert_eq!(ch.feedback(&enabled_at(100)).fault, None);
+    }
+
+    #[test]
+    fn a_period_of_less_than_a_count_makes_the_channel_unusable() {
+        // 10 counts per 360°: a 1° period is 1/36 count.
+        let mut ch = CspChannel::new(
+            Scaling::new(ScalingConfig {
+                counts_per_motor_rev: 10,
+                motor_revs: 1,
+                load_revs: 1,
+                units_per_load_rev: 360.0,
+                invert: false,
+            })
+            .unwrap(),
+        );
+        assert!(ch.set_modulo(Modulo::new(1.0)).is_err());
+        assert!(ch.unusable().is_some());
+        assert_eq!(ch.feedback(&enabled_at(7)).fault, Some(COUNT_RANGE_FAULT));
+        assert_eq!(
+            ch.outputs(&sp(0, 0.5), &enabled_at(7)).1,
+            7,
+            "held at the actual"
+        );
+        ch.set_modulo(Modulo::new(360.0)).unwrap();
+        assert_eq!(ch.feedback(&enabled_at(7)).fault, None);
     }
 }

@@ -8,6 +8,7 @@ use std::future::Future;
 use std::io;
 use std::os::fd::{AsFd, BorrowedFd};
 use std::pin::pin;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::task::{Context, Poll, Wake, Waker};
 use std::time::Duration;
@@ -98,6 +99,109 @@ impl BlockOn {
     }
 }
 
+impl BlockOn {
+    /// Polls `a` and, if given, `b` side by side until both are ready or CLOCK_MONOTONIC
+    /// reaches `deadline_ns`; returns what finished (an unfinished future is dropped, see
+    /// [`BlockOn::run_until`]). The cycle's process data and a recovery's register access
+    /// share one deadline this way, and one finishing does not wait for the other.
+    pub fn run_both_until<A: Future, B: Future>(
+        &self,
+        a: A,
+        b: Option<B>,
+        deadline_ns: u64,
+    ) -> (Option<A::Output>, Option<B::Output>) {
+        let mut a = pin!(a);
+        let mut b = pin!(b);
+        let mut cx = Context::from_waker(&self.waker);
+        let (mut out_a, mut out_b) = (None, None);
+        loop {
+            if out_a.is_none() {
+                if let Poll::Ready(out) = a.as_mut().poll(&mut cx) {
+                    out_a = Some(out);
+                }
+            }
+            if let (None, Some(b)) = (&out_b, b.as_mut().as_pin_mut()) {
+                if let Poll::Ready(out) = b.poll(&mut cx) {
+                    out_b = Some(out);
+                }
+            }
+            let b_done = out_b.is_some() || b.is_none();
+            if out_a.is_some() && b_done {
+                return (out_a, out_b);
+            }
+            let Some(left) = deadline_ns.checked_sub(now_ns()).filter(|&ns| ns > 0) else {
+                return (out_a, out_b);
+            };
+            self.bell.wait(None, Some(Duration::from_nanos(left)));
+        }
+    }
+}
+
+/// Why a bring-up step ([`BlockOn::run_step`]) gave up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum StepStalled {
+    /// Frames were in flight and no reply came for this long: nothing answers.
+    #[error("no reply for {ms} ms (is a slave connected and powered?)")]
+    Silent {
+        /// The silence (ms).
+        ms: u64,
+    },
+    /// Replies kept coming but the step did not finish in time.
+    #[error("not finished within {s} s")]
+    TooLong {
+        /// The step's limit (s).
+        s: u64,
+    },
+}
+
+impl BlockOn {
+    /// Runs a step of the bring-up (many frames): gives up when `replies` (the pump's count
+    /// of replies handed to ethercrab) stands still for `silence_ns` — ethercrab's futures
+    /// only wait for frames, so that is a frame nobody answered, ethercrab's PDU timeout
+    /// done here — or when the whole step takes longer than `limit_ns`.
+    ///
+    /// The future is made by `make` here and kept on the heap: ethercrab's bring-up
+    /// futures are large (hundreds of kB in debug builds), and made in the caller's frame
+    /// each step would stay on the stack for the whole bring-up. A step runs once,
+    /// outside the cycle.
+    #[inline(never)]
+    pub fn run_step<F: Future>(
+        &self,
+        make: impl FnOnce() -> F,
+        replies: &AtomicU64,
+        silence_ns: u64,
+        limit_ns: u64,
+    ) -> Result<F::Output, StepStalled> {
+        let mut future = Box::pin(make());
+        let mut cx = Context::from_waker(&self.waker);
+        let start = now_ns();
+        let (mut seen, mut quiet_since) = (replies.load(Ordering::Acquire), start);
+        loop {
+            if let Poll::Ready(out) = future.as_mut().poll(&mut cx) {
+                return Ok(out);
+            }
+            let now = now_ns();
+            let count = replies.load(Ordering::Acquire);
+            if count != seen {
+                (seen, quiet_since) = (count, now);
+            }
+            let (silent_at, end_at) = (quiet_since + silence_ns, start + limit_ns);
+            if now >= end_at {
+                return Err(StepStalled::TooLong {
+                    s: limit_ns / 1_000_000_000,
+                });
+            }
+            if now >= silent_at {
+                return Err(StepStalled::Silent {
+                    ms: silence_ns / 1_000_000,
+                });
+            }
+            let left = silent_at.min(end_at) - now;
+            self.bell.wait(None, Some(Duration::from_nanos(left)));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,6 +232,64 @@ mod tests {
             runner.run_until(rx, start),
             Some(3),
             "ready before the deadline"
+        );
+    }
+
+    #[test]
+    fn a_step_gives_up_on_silence_and_on_its_limit() {
+        let runner = BlockOn::new().unwrap();
+        let replies = AtomicU64::new(0);
+        let (_tx, rx) = one_shot();
+        assert_eq!(
+            runner.run_step(|| rx, &replies, 5_000_000, 1_000_000_000),
+            Err(StepStalled::Silent { ms: 5 })
+        );
+        // Replies keep coming (another thread counts them), the step never ends.
+        let replies = Arc::new(AtomicU64::new(0));
+        let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let (r, s) = (replies.clone(), stop.clone());
+        let counter = std::thread::spawn(move || {
+            while !s.load(Ordering::Relaxed) {
+                r.fetch_add(1, Ordering::Release);
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        });
+        let (_tx, rx) = one_shot();
+        let start = now_ns();
+        assert_eq!(
+            runner.run_step(|| rx, &replies, 200_000_000, 1_000_000_000),
+            Err(StepStalled::TooLong { s: 1 })
+        );
+        assert!(now_ns() - start >= 1_000_000_000);
+        stop.store(true, Ordering::Relaxed);
+        counter.join().unwrap();
+        let (tx, rx) = one_shot();
+        tx.send(4).unwrap();
+        assert_eq!(runner.run_step(|| rx, &replies, 1, 1), Ok(4));
+    }
+
+    #[test]
+    fn two_futures_share_a_deadline_and_keep_what_finished() {
+        let runner = BlockOn::new().unwrap();
+        let (tx, a) = one_shot();
+        let (_never, b) = one_shot();
+        tx.send(1).unwrap();
+        let start = now_ns();
+        assert_eq!(
+            runner.run_both_until(a, Some(b), start + 3_000_000),
+            (Some(1), None),
+            "the first is kept though the second never came"
+        );
+        let (tx, a) = one_shot();
+        let (ty, b) = one_shot();
+        tx.send(1).unwrap();
+        ty.send(2).unwrap();
+        assert_eq!(runner.run_both_until(a, Some(b), 0), (Some(1), Some(2)));
+        let (tx, a) = one_shot();
+        tx.send(5).unwrap();
+        assert_eq!(
+            runner.run_both_until(a, None::<OneShot>, 0),
+            (Some(5), None)
         );
     }
 

@@ -69,6 +69,11 @@ impl EmbeddedBus {
         Self { pump, chain }
     }
 
+    /// Replies handed to ethercrab so far.
+    pub fn replies(&self) -> Arc<std::sync::atomic::AtomicU64> {
+        self.pump.replies()
+    }
+
     /// Stops the thread; returns how many frames went through the chain.
     pub fn stop(self) -> u64 {
         self.pump.stop().received

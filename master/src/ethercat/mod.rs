@@ -12,3 +12,4 @@ pub mod mapping;
 pub mod pump;
 pub mod raw;
 pub mod recovery;
+pub mod transition;

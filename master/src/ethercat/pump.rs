@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 use std::io;
 use std::os::fd::{AsRawFd, BorrowedFd};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Wake, Waker};
 use std::thread::JoinHandle;
@@ -66,6 +66,21 @@ impl Link {
         }
     }
 
+    /// Nothing to send: a chain on the wall clock still lives on (its applications run,
+    /// its timers run, the process-data watchdog trips when the master went silent).
+    fn idle(&mut self) {
+        if let Link::Embedded {
+            chain,
+            wall_clock: Some(clock),
+            ..
+        } = self
+        {
+            if let Ok(mut c) = chain.lock() {
+                clock.catch_up(&mut c);
+            }
+        }
+    }
+
     /// The next reply into `buf`, if one is waiting (never blocks): its length.
     fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
         match self {
@@ -89,6 +104,9 @@ impl Link {
     }
 }
 
+/// Name of the pump thread.
+pub const PUMP_THREAD: &str = "ethercat-pump";
+
 /// Largest frame we receive (jumbo frames included).
 const RECV_BYTES: usize = 9100;
 
@@ -106,6 +124,7 @@ pub struct PumpStats {
 /// A running pump thread.
 pub struct FramePump {
     stop: Arc<AtomicBool>,
+    replies: Arc<AtomicU64>,
     doorbell: Arc<Doorbell>,
     thread: Option<JoinHandle<PumpStats>>,
 }
@@ -120,27 +139,34 @@ impl FramePump {
     ) -> io::Result<Self> {
         let doorbell = Doorbell::new()?;
         let stop = Arc::new(AtomicBool::new(false));
-        let (stop_io, bell) = (stop.clone(), doorbell.clone());
+        let replies = Arc::new(AtomicU64::new(0));
+        let (stop_io, bell, replied) = (stop.clone(), doorbell.clone(), replies.clone());
         let thread = std::thread::Builder::new()
-            .name("ethercat-pump".into())
+            .name(PUMP_THREAD.into())
             .spawn(move || {
                 let waker = Waker::from(bell.clone());
                 let started = Instant::now();
                 let mut stats = PumpStats::default();
                 let mut buf = vec![0u8; RECV_BYTES];
-                let record = |capture: &mut Option<PcapWriter<_>>, frame: &[u8]| {
+                let record = |capture: &mut Option<PcapWriter<_>>, at_us: u64, frame: &[u8]| {
                     if let Some(c) = capture.as_mut() {
-                        let _ = c.frame(started.elapsed().as_micros() as u64, frame);
+                        let _ = c.frame(at_us, frame);
                     }
                 };
                 while !stop_io.load(Ordering::Relaxed) {
                     tx.replace_waker(&waker);
                     while let Some(frame) = tx.next_sendable_frame() {
                         let sent = frame.send_blocking(|bytes| {
-                            record(&mut capture, bytes);
-                            link.send(bytes)
+                            // The frame goes on the wire first, the capture after it
+                            // (a file write must not delay the frame); stamped with
+                            // the time it was sent.
+                            let at_us = started.elapsed().as_micros() as u64;
+                            let sent = link
+                                .send(bytes)
                                 .map(|()| bytes.len())
-                                .map_err(|_| ethercrab::error::Error::SendFrame)
+                                .map_err(|_| ethercrab::error::Error::SendFrame);
+                            record(&mut capture, at_us, bytes);
+                            sent
                         });
                         match sent {
                             Ok(_) => stats.sent += 1,
@@ -151,10 +177,15 @@ impl FramePump {
                         match link.recv(&mut buf) {
                             Ok(Some(n)) => {
                                 let frame = buf.get(..n).unwrap_or_default();
-                                record(&mut capture, frame);
+                                let at_us = started.elapsed().as_micros() as u64;
+                                // Counted before ethercrab sees it (and wakes the
+                                // cycle), so a cycle that got its reply also sees the
+                                // count. Then the reply to ethercrab, then the capture.
+                                replied.fetch_add(1, Ordering::Release);
                                 if rx.receive_frame(frame).is_ok() {
                                     stats.received += 1;
                                 }
+                                record(&mut capture, at_us, frame);
                             }
                             Ok(None) => break,
                             Err(_) => {
@@ -165,6 +196,7 @@ impl FramePump {
                     }
                     // Until ethercrab queues a frame, a reply arrives, or 1 ms passes.
                     bell.wait(link.fd(), Some(std::time::Duration::from_millis(1)));
+                    link.idle();
                 }
                 if let Some(c) = capture {
                     let _ = c.finish();
@@ -173,9 +205,16 @@ impl FramePump {
             })?;
         Ok(Self {
             stop,
+            replies,
             doorbell,
             thread: Some(thread),
         })
+    }
+
+    /// Frames that came back from the link so far (counted as they come, before
+    /// ethercrab sees them: bring-up watches it to tell a silent bus from a slow step).
+    pub fn replies(&self) -> Arc<AtomicU64> {
+        self.replies.clone()
     }
 
     /// Stops the thread; returns what it counted.

@@ -31,6 +31,11 @@ impl RawBus {
         Ok(Self { pump })
     }
 
+    /// Replies handed to ethercrab so far.
+    pub fn replies(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
+        self.pump.replies()
+    }
+
     /// Stops the pump; returns what it counted.
     pub fn stop(self) -> PumpStats {
         self.pump.stop()

@@ -16,9 +16,13 @@ pub trait CycleBus {
     /// (CLOCK_MONOTONIC) at most; records the outcome in `health` (no reply by then is a
     /// lost frame).
     fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64);
-    /// Brings the slave of `axis` back to OP if it left (a few round trips), giving up at
-    /// `deadline_ns` (CLOCK_MONOTONIC).
-    fn recover(&mut self, axis: usize, deadline_ns: u64) -> Result<Recovered, RecoveryError>;
+    /// Starts bringing the slave of `axis` back to OP if it left: from the next exchange
+    /// on, each exchange also runs one register access of it (`ethercat::recovery`)
+    /// under the same deadline, until it is back, refuses, or `timeout_ns` after `now_ns`
+    /// passes. False (nothing started) while another recovery is running.
+    fn start_recovery(&mut self, axis: usize, now_ns: u64, timeout_ns: u64) -> bool;
+    /// A finished recovery: the axis that asked and the outcome (taken once).
+    fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)>;
     /// The chain position of `axis`' drive.
     fn drive_of(&self, axis: usize) -> usize;
     /// With distributed clocks: where in the SYNC0 period the last frame reached the

@@ -13,6 +13,7 @@ use thiserror::Error;
 
 use super::engine::AppEnds;
 use super::protocol::{Request, Snapshot, TraceSample};
+use super::stats::{CycleCounters, CycleFigures, FigureBook};
 
 /// Why a request did not reach the cycle.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
@@ -32,6 +33,7 @@ struct Shared {
     requests: Mutex<rtrb::Producer<Request>>,
     snapshot: Mutex<triple_buffer::Output<Snapshot>>,
     trace: Mutex<rtrb::Consumer<TraceSample>>,
+    figures: Mutex<FigureBook>,
     next_id: AtomicU64,
     axes: Vec<String>,
 }
@@ -55,6 +57,7 @@ impl Controller {
                 requests: Mutex::new(ends.requests),
                 snapshot: Mutex::new(ends.snapshot),
                 trace: Mutex::new(ends.trace),
+                figures: Mutex::new(FigureBook::new(ends.samples)),
                 next_id: AtomicU64::new(1),
                 axes,
             }),
@@ -103,9 +106,19 @@ impl Controller {
             .map_err(|_| ControlError::QueueFull)
     }
 
-    /// The latest snapshot.
+    /// The latest snapshot, its figures' percentiles computed here from every cycle's
+    /// durations (at most every 100 ms; see [`FigureBook`]).
     pub fn snapshot(&self) -> Snapshot {
-        lock(&self.shared.snapshot).read().clone()
+        let mut snap = lock(&self.shared.snapshot).read().clone();
+        snap.figures = lock(&self.shared.figures).figures(counters(&snap.figures), false);
+        snap
+    }
+
+    /// The cycle figures now, every duration the cycle recorded so far included (e.g.
+    /// after it ended).
+    pub fn figures(&self) -> CycleFigures {
+        let published = lock(&self.shared.snapshot).read().figures;
+        lock(&self.shared.figures).figures(counters(&published), true)
     }
 
     /// Trace samples since the last call.
@@ -118,6 +131,15 @@ impl Controller {
 
     fn status_of(&self, id: u64) -> Option<CommandStatus> {
         lock(&self.shared.snapshot).read().status_of(id)
+    }
+}
+
+fn counters(f: &CycleFigures) -> CycleCounters {
+    CycleCounters {
+        cycles: f.cycles,
+        overruns: f.overruns,
+        worst_overrun_run: f.worst_overrun_run,
+        samples_dropped: f.samples_dropped,
     }
 }
 

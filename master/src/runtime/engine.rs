@@ -4,7 +4,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
+use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
@@ -14,16 +14,15 @@ use super::phase::PhaseLock;
 use super::protocol::{
     DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
 };
-use super::stats::CycleStats;
+use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use crate::ethercat::cycle::CspCycle;
-use crate::ethercat::health::{BusHealth, COMMUNICATION_FAULT};
+use crate::ethercat::health::BusHealth;
+use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
 const REQUESTS_PER_CYCLE: usize = 32;
 /// Cycles between snapshots.
 const PUBLISH_EVERY: u64 = 10;
-/// Cycles between recomputing the histogram summaries.
-const FIGURES_EVERY: u64 = 1000;
 /// Cycles a shutdown waits for the axes to stop and the drives to switch off.
 const SHUTDOWN_CYCLES: u32 = 5000;
 
@@ -43,13 +42,14 @@ pub enum LateReply {
     /// real time (`--no-rt`, tests on a busy machine): then it is the host that is late,
     /// not the bus, and a late reply is not a bus fault.
     Wait {
-        /// Longest wait for a reply (or for a slave's answer during a reset).
+        /// Longest wait for a reply (and for a reset's register access beside it).
         ns: u64,
     },
 }
 
 impl LateReply {
-    /// Waiting as long as ethercrab's own PDU timeout.
+    /// Waiting 30 ms, ethercrab's default PDU timeout (gantry gives ethercrab no timers
+    /// of its own: this deadline is the only one).
     pub const WAIT: Self = Self::Wait { ns: 30_000_000 };
 
     /// Until when the cycle that woke at `wake` waits for an answer to what it sends now.
@@ -84,6 +84,9 @@ pub struct AppEnds {
     pub snapshot: triple_buffer::Output<Snapshot>,
     /// Trace samples from the cycle.
     pub trace: rtrb::Consumer<TraceSample>,
+    /// Each cycle's durations, for the figures the application computes
+    /// (`stats::FigureBook`).
+    pub samples: rtrb::Consumer<CycleSample>,
 }
 
 /// Everything the cycle thread owns.
@@ -109,7 +112,14 @@ pub struct Engine<B: CycleBus> {
     answered: bool,
     phase: Phase,
     cycles: u64,
-    figures: super::stats::CycleFigures,
+    /// Per axis: the id of a reset waiting for its slave to come back to OP.
+    resets: Vec<Option<u64>>,
+    /// The axis whose slave the bus is bringing back now.
+    recovering: Option<usize>,
+    /// Where the search for the next waiting reset starts (round robin).
+    next_reset: usize,
+    /// How long a slave may take to come back before its reset fails.
+    recovery_timeout_ns: u64,
 }
 
 impl<B: CycleBus> Engine<B> {
@@ -124,6 +134,8 @@ impl<B: CycleBus> Engine<B> {
         let (req_tx, req_rx) = rtrb::RingBuffer::new(1024);
         let (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(cycle.len()));
         let (trace_tx, trace_rx) = rtrb::RingBuffer::new(trace_capacity.max(1));
+        let axes = cycle.len();
+        let (stats, samples) = CycleStats::new();
         let engine = Self {
             bus,
             cycle,
@@ -131,7 +143,7 @@ impl<B: CycleBus> Engine<B> {
             requests: req_rx,
             snapshot: snap_in,
             trace: trace_tx,
-            stats: CycleStats::default(),
+            stats,
             tracked: vec![
                 Entry {
                     id: 0,
@@ -149,14 +161,24 @@ impl<B: CycleBus> Engine<B> {
             answered: false,
             phase: Phase::Running,
             cycles: 0,
-            figures: Default::default(),
+            resets: vec![None; axes],
+            recovering: None,
+            next_reset: 0,
+            recovery_timeout_ns: RECOVERY_TIMEOUT_NS,
         };
         let app = AppEnds {
             requests: req_tx,
             snapshot: snap_out,
             trace: trace_rx,
+            samples,
         };
         (engine, app)
+    }
+
+    /// How long a reset waits for its slave to return to OP before it fails (default
+    /// [`RECOVERY_TIMEOUT_NS`]).
+    pub fn set_recovery_timeout(&mut self, timeout_ns: u64) {
+        self.recovery_timeout_ns = timeout_ns;
     }
 
     /// Sets what happens to a reply that is late (default [`LateReply::Lost`]).
@@ -202,7 +224,7 @@ impl<B: CycleBus> Engine<B> {
     /// One cycle; false once the engine has ended.
     pub fn step(&mut self, wake: Wake) -> bool {
         let t0 = now_ns();
-        self.take_requests(self.late_reply.reply_by(&wake, t0));
+        self.take_requests();
         let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
         if self.overrun_stop {
             for axis in 0..self.cycle.len() {
@@ -213,9 +235,11 @@ impl<B: CycleBus> Engine<B> {
         let _ = self.bus.write_outputs(&mut self.cycle);
         let t1 = now_ns();
         let reply_by = self.late_reply.reply_by(&wake, t1);
+        self.start_recovery(t1);
         let lost_before = self.health.lost_total;
         self.bus.exchange(&mut self.health, reply_by);
         self.answered = self.health.lost_total == lost_before;
+        self.finish_recovery();
         let t2 = now_ns();
         let in_a_row = self
             .stats
@@ -227,16 +251,13 @@ impl<B: CycleBus> Engine<B> {
         self.update_tracked();
         self.push_trace();
         self.advance_shutdown();
-        if self.cycles % FIGURES_EVERY == 0 {
-            self.figures = self.stats.figures();
-        }
         if self.cycles % PUBLISH_EVERY == 0 || self.phase == Phase::Ended {
             self.publish();
         }
         self.phase != Phase::Ended
     }
 
-    fn take_requests(&mut self, reply_by_ns: u64) {
+    fn take_requests(&mut self) {
         for _ in 0..REQUESTS_PER_CYCLE {
             let Ok(request) = self.requests.pop() else {
                 return;
@@ -258,7 +279,7 @@ impl<B: CycleBus> Engine<B> {
                     self.track(entry);
                 }
                 Request::Reset { id, axis } => {
-                    let entry = self.reset(id, axis, reply_by_ns);
+                    let entry = self.reset(id, axis);
                     self.track(entry);
                 }
                 Request::Shutdown => self.begin_shutdown(),
@@ -266,31 +287,94 @@ impl<B: CycleBus> Engine<B> {
         }
     }
 
-    /// A reset: the slave back to OP if it left, the bus faults forgotten (they come
-    /// back next cycle if they are still there), then the axis' Reset. The slave gets
-    /// until this cycle's reply deadline to answer, so a reset costs at most one cycle.
-    fn reset(&mut self, id: u64, axis: usize, reply_by_ns: u64) -> Entry {
-        let error = |e| Entry {
-            id,
-            handle: None,
-            status: CommandStatus::Error(e),
-        };
+    /// A reset. With the bus in fault, the axis' slave first goes back to OP (if it left):
+    /// the reset waits (Busy) while the bus does one register access per cycle beside the
+    /// process data, inside the cycle's reply deadline, so no cycle is stretched; once the
+    /// slave is back, the bus faults are forgotten (they come back next cycle if they are
+    /// still there) and the axis' Reset follows. Without a bus fault, the axis' Reset at
+    /// once. A second reset of the same axis while one waits replaces it (the first is
+    /// Aborted).
+    fn reset(&mut self, id: u64, axis: usize) -> Entry {
         self.overrun_stop = false;
         if self.health.any_fault() {
-            if self.bus.recover(axis, reply_by_ns).is_err() {
-                return error(CommandError::DriveResetFailed {
-                    code: COMMUNICATION_FAULT,
-                });
+            if let Some(slot) = self.resets.get_mut(axis) {
+                if let Some(replaced) = slot.replace(id) {
+                    self.set_status(replaced, CommandStatus::Aborted);
+                }
+                return Entry {
+                    id,
+                    handle: None,
+                    status: CommandStatus::Busy,
+                };
             }
-            self.health.clear();
         }
+        self.axis_reset(id, axis)
+    }
+
+    /// The kernel's Reset of `axis`, for request `id`.
+    fn axis_reset(&mut self, id: u64, axis: usize) -> Entry {
         match self.cycle.kernel.command(axis, Command::Reset) {
             Ok(h) => Entry {
                 id,
                 handle: Some(h),
                 status: self.cycle.kernel.command_status(h),
             },
-            Err(e) => error(e),
+            Err(e) => Entry {
+                id,
+                handle: None,
+                status: CommandStatus::Error(e),
+            },
+        }
+    }
+
+    /// Hands the next waiting reset's slave to the bus, if the bus is free.
+    fn start_recovery(&mut self, now_ns: u64) {
+        if self.recovering.is_some() {
+            return;
+        }
+        let n = self.resets.len();
+        for k in 0..n {
+            let axis = (self.next_reset + k) % n;
+            if self.resets.get(axis).is_some_and(Option::is_some)
+                && self
+                    .bus
+                    .start_recovery(axis, now_ns, self.recovery_timeout_ns)
+            {
+                self.recovering = Some(axis);
+                self.next_reset = (axis + 1) % n;
+                return;
+            }
+        }
+    }
+
+    /// Takes a finished recovery: the reset goes on to the axis, or fails with the reason.
+    fn finish_recovery(&mut self) {
+        let Some((axis, outcome)) = self.bus.take_recovered() else {
+            return;
+        };
+        self.recovering = None;
+        let Some(id) = self.resets.get_mut(axis).and_then(Option::take) else {
+            return;
+        };
+        let entry = match outcome {
+            Ok(_) => {
+                self.health.clear();
+                self.axis_reset(id, axis)
+            }
+            Err(e) => Entry {
+                id,
+                handle: None,
+                status: CommandStatus::Error(e.command_error()),
+            },
+        };
+        if let Some(slot) = self.tracked.iter_mut().find(|e| e.id == id) {
+            *slot = entry;
+        }
+    }
+
+    fn set_status(&mut self, id: u64, status: CommandStatus) {
+        if let Some(e) = self.tracked.iter_mut().find(|e| e.id == id) {
+            e.status = status;
         }
     }
 
@@ -393,7 +477,8 @@ impl<B: CycleBus> Engine<B> {
         }
         snap.lost_frames = self.health.lost_total;
         snap.working_counter_errors = self.health.wkc_total;
-        snap.figures = self.figures;
+        // Counters only: the percentiles are the application's work (FigureBook).
+        snap.figures = CycleFigures::from_counters(self.stats.counters());
         snap.dc_offset_ns = self.bus.dc_offset_ns();
         snap.dc_target_ns = self.phase_lock.map(|l| l.target_ns());
         for (dst, src) in snap.commands.iter_mut().zip(&self.tracked) {
@@ -418,8 +503,9 @@ impl<B: CycleBus> Engine<B> {
         self.bus
     }
 
-    /// The cycle figures so far (computed now).
-    pub fn figures(&self) -> super::stats::CycleFigures {
-        self.stats.figures()
+    /// The cycle's counters so far (the percentiles come from the samples, see
+    /// [`AppEnds::samples`]).
+    pub fn counters(&self) -> CycleCounters {
+        self.stats.counters()
     }
 }

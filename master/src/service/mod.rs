@@ -19,7 +19,7 @@ use crate::ethercat::bus::EthercatBus;
 use crate::runtime::controller::Controller;
 use crate::runtime::engine::{AppEnds, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
-use crate::runtime::stats::CycleFigures;
+use crate::runtime::stats::{CycleCounters, CycleFigures};
 
 /// How `gantry run` was asked to run.
 #[derive(Clone, Debug)]
@@ -54,6 +54,71 @@ pub enum ServiceError {
     },
 }
 
+/// Name of the cycle thread (what `ps -L`, `top -H` and /proc show).
+pub const CYCLE_THREAD: &str = "gantry-cycle";
+
+/// Stack of the cycle thread: the main thread's default, room for the frames of
+/// ethercrab's futures it polls each cycle in a debug build (the bring-up's, larger, run
+/// in a thread of their own). Locked with the rest of the memory (`rt.lock_memory`).
+pub const CYCLE_STACK_BYTES: usize = 8 << 20;
+
+/// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
+/// pinned, memory locked) unless `real_time` is false, then the bus up to OP — its frame
+/// pump is started from here, so it inherits this thread's scheduling and CPU — and the
+/// engine with the late-reply policy of the mode (lost at the deadline in real time;
+/// waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
+/// SCHED_FIFO (ethercrab's timers are off, see `ethercat::bus::NO_TIMERS`).
+pub fn start_cycle(
+    config: &Config,
+    real_time: bool,
+    log: &mut (dyn Write + Send),
+) -> Result<(Engine<EthercatBus>, AppEnds), String> {
+    if real_time {
+        rt::enter(&config.rt).map_err(|e| e.to_string())?;
+    }
+    let (bus, cycle, health) = EthercatBus::bring_up(config, log).map_err(|e| e.to_string())?;
+    let (mut engine, ends) = Engine::new(bus, cycle, health, config.rt.overrun_limit, 1 << 16);
+    // Without real time a late reply is the host's fault, not the bus'.
+    engine.set_late_reply(if real_time {
+        LateReply::Lost
+    } else {
+        LateReply::WAIT
+    });
+    Ok((engine, ends))
+}
+
+/// Starts the cycle thread ([`CYCLE_THREAD`]): [`start_cycle`], the application's ends
+/// (or why it could not start) sent to `ends`, then [`Engine::run`] every `period_ns`
+/// until `stop`, then the bus down to PreOp. Returns the cycle's counters at the end (the
+/// figures come from the controller, [`Controller::figures`]).
+pub fn spawn_cycle_thread(
+    config: Config,
+    real_time: bool,
+    period_ns: u64,
+    stop: Arc<AtomicBool>,
+    ends: mpsc::Sender<Result<AppEnds, String>>,
+) -> Result<std::thread::JoinHandle<Option<CycleCounters>>, ServiceError> {
+    std::thread::Builder::new()
+        .name(CYCLE_THREAD.into())
+        .stack_size(CYCLE_STACK_BYTES)
+        .spawn(move || -> Option<CycleCounters> {
+            let mut log = std::io::stdout();
+            let (engine, app) = match start_cycle(&config, real_time, &mut log) {
+                Ok(started) => started,
+                Err(e) => {
+                    let _ = ends.send(Err(e));
+                    return None;
+                }
+            };
+            let _ = ends.send(Ok(app));
+            let engine = engine.run(period_ns, &stop);
+            let counters = engine.counters();
+            engine.into_bus().shut_down(&mut log);
+            Some(counters)
+        })
+        .map_err(|e| ServiceError::Start(e.to_string()))
+}
+
 /// Runs the service until shut down.
 pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures, ServiceError> {
     let config = Config::load(&args.config)?;
@@ -69,40 +134,7 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel::<Result<AppEnds, String>>();
-    let cycle_config = config.clone();
-    let cycle_stop = stop.clone();
-    let cycle_thread = std::thread::Builder::new()
-        .name("gantry-cycle".into())
-        .spawn(move || -> Option<CycleFigures> {
-            if real_time {
-                if let Err(e) = rt::enter(&cycle_config.rt) {
-                    let _ = tx.send(Err(e.to_string()));
-                    return None;
-                }
-            }
-            let mut log = std::io::stdout();
-            let (bus, cycle, health) = match EthercatBus::bring_up(&cycle_config, &mut log) {
-                Ok(up) => up,
-                Err(e) => {
-                    let _ = tx.send(Err(e.to_string()));
-                    return None;
-                }
-            };
-            let (mut engine, ends) =
-                Engine::new(bus, cycle, health, cycle_config.rt.overrun_limit, 1 << 16);
-            // Without real time a late reply is the host's fault, not the bus'.
-            engine.set_late_reply(if real_time {
-                LateReply::Lost
-            } else {
-                LateReply::WAIT
-            });
-            let _ = tx.send(Ok(ends));
-            let engine = engine.run(period_ns, &cycle_stop);
-            let figures = engine.figures();
-            engine.into_bus().shut_down(&mut log);
-            Some(figures)
-        })
-        .map_err(|e| ServiceError::Start(e.to_string()))?;
+    let cycle_thread = spawn_cycle_thread(config.clone(), real_time, period_ns, stop.clone(), tx)?;
     let ends = match rx.recv() {
         Ok(Ok(ends)) => ends,
         Ok(Err(e)) => {
@@ -182,11 +214,12 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
         server.abort();
     });
     let _ = std::fs::remove_file(&args.socket);
-    let figures = cycle_thread
+    cycle_thread
         .join()
         .ok()
         .flatten()
         .ok_or_else(|| ServiceError::Start("the cycle thread failed".into()))?;
+    let figures = controller.figures();
     let _ = writeln!(
         out,
         "gantry: stopped after {} cycles; wake-up {}; compute {}; round trip {}; overruns {}",

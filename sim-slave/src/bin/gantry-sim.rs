@@ -3,14 +3,28 @@
 //!
 //! ```text
 //! gantry-sim --interface veth-sim --config sim.toml [--seconds 10] [--priority 80]
+//!            [--record records.json]
 //! ```
+//!
+//! On SIGTERM or SIGINT (within one period) or after `--seconds` it prints a summary and
+//! exits: frames served and dropped, and the largest gaps the drives saw — between frames,
+//! and per slave between writes of its process data (its watchdog and setpoints depend on
+//! them). With `--record FILE` it also writes what each drive recorded of the setpoints it took
+//! (`gantry_sim::plant::record::DriveRecord`) to FILE as a JSON array, one entry per chain
+//! position, `null` for devices that are no drive: the test that started it judges the
+//! master by it (`gantry_tests::invariant::assert_record_invariants`).
 
+use std::io::Write;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use gantry_sim::chain::SlaveChain;
 use gantry_sim::config::SimConfig;
-use gantry_sim::realtime::WallClock;
+use gantry_sim::plant::record::DriveRecord;
+use gantry_sim::realtime::{Gaps, WallClock};
 use gantry_sim::transport::raw_socket::RawSocket;
 
 /// The simulated EtherCAT network on a network interface.
@@ -29,6 +43,59 @@ struct Args {
     /// Run under SCHED_FIFO at this priority (1–99; needs CAP_SYS_NICE).
     #[arg(long)]
     priority: Option<i32>,
+    /// Write the drives' records here (JSON) on exit.
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// Set by SIGTERM/SIGINT: the loop ends, the summary is printed and the records are
+/// written.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_stop_signal(_: libc::c_int) {
+    // Only an atomic store: async-signal-safe.
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// SIGTERM and SIGINT set [`STOP`] instead of ending the process.
+fn catch_stop_signals() -> Result<(), String> {
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        // SAFETY: a zeroed sigaction with a handler that only stores an atomic; the
+        // pointers are valid for the call.
+        let ok = unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = on_stop_signal as *const () as libc::sighandler_t;
+            libc::sigemptyset(&mut action.sa_mask);
+            libc::sigaction(signal, &action, std::ptr::null_mut()) == 0
+        };
+        if !ok {
+            return Err(format!(
+                "signal {signal}: {}",
+                std::io::Error::last_os_error()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// What each device of `chain` recorded (`None` for devices that are no drive).
+fn records(chain: &SlaveChain) -> Vec<Option<DriveRecord>> {
+    chain
+        .slaves()
+        .iter()
+        .map(|s| s.device().record().copied())
+        .collect()
+}
+
+/// Writes the records of `chain` to `path` as JSON (through a temporary file, so a reader
+/// never sees half of it).
+fn write_records(chain: &SlaveChain, path: &Path) -> Result<(), String> {
+    let text =
+        serde_json::to_string_pretty(&records(chain)).map_err(|e| format!("drive records: {e}"))?;
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| format!("cannot write the drive records to {}: {e}", path.display()))
 }
 
 fn main() -> ExitCode {
@@ -49,6 +116,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     if let Some(priority) = args.priority {
         set_fifo(priority)?;
     }
+    catch_stop_signals()?;
     println!(
         "gantry-sim: {} slaves on {}, applications every {} µs",
         chain.slaves().len(),
@@ -64,27 +132,43 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let clock = WallClock::start(&chain, period);
     let mut buf = vec![0u8; 9100];
     let (mut served, mut dropped) = (0u64, 0u64);
-    loop {
-        if end.is_some_and(|end| Instant::now() >= end) {
-            break;
-        }
-        let wait = clock.until_next_period(&chain);
-        if let Some(n) = socket.recv(&mut buf, Some(wait))? {
-            let frame = buf.get_mut(..n).unwrap_or_default();
-            clock.catch_up(&mut chain);
-            match chain.process(frame) {
-                Ok(()) => {
-                    socket.send(frame)?;
-                    served += 1;
-                }
-                // A real network drops what it cannot parse; so do we, and count it.
-                Err(_) => dropped += 1,
+    let mut gaps = Gaps::new(chain.slaves().len());
+    let mut serve = || -> std::io::Result<()> {
+        loop {
+            if end.is_some_and(|end| Instant::now() >= end) || STOP.load(Ordering::SeqCst) {
+                return Ok(());
             }
+            let wait = clock.until_next_period(&chain);
+            if let Some(n) = socket.recv(&mut buf, Some(wait))? {
+                let frame = buf.get_mut(..n).unwrap_or_default();
+                clock.catch_up(&mut chain);
+                match chain.process(frame) {
+                    Ok(()) => {
+                        socket.send(frame)?;
+                        served += 1;
+                        gaps.frame(Instant::now(), &chain);
+                    }
+                    // A real network drops what it cannot parse; so do we, and count it.
+                    Err(_) => dropped += 1,
+                }
+            }
+            // After a stall the applications catch up a few periods, not all of it.
+            clock.catch_up(&mut chain);
         }
-        // After a stall the applications catch up a few periods, not all of it.
-        clock.catch_up(&mut chain);
+    };
+    let served_result = serve();
+    // Whoever started us may have stopped reading: a summary nobody reads is no error.
+    let _ = writeln!(
+        std::io::stdout(),
+        "gantry-sim: served {served} frames, dropped {dropped} malformed; {gaps}"
+    );
+    // The records are written however the loop ended: a test wants them most when the
+    // network failed.
+    if let Some(path) = &args.record {
+        write_records(&chain, path)?;
+        println!("gantry-sim: drive records written to {}", path.display());
     }
-    println!("gantry-sim: served {served} frames, dropped {dropped} malformed");
+    served_result?;
     Ok(())
 }
 
@@ -109,4 +193,45 @@ fn set_fifo(priority: i32) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_records_file_has_one_entry_per_chain_position() {
+        let config = SimConfig::parse(
+            "cycle_us = 1000\n[[slave]]\nkind = \"servo\"\n[[slave]]\nkind = \"servo\"\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let chain = config.chain().unwrap();
+        let dir = std::env::temp_dir().join(format!("gantry-sim-record-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("records.json");
+        write_records(&chain, &path).unwrap();
+        let back: Vec<Option<DriveRecord>> =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(back, vec![Some(DriveRecord::default()); 2]);
+        assert!(!path.with_extension("tmp").exists());
+        let err = write_records(&chain, &dir.join("missing/records.json")).unwrap_err();
+        assert!(
+            err.starts_with("cannot write the drive records to "),
+            "{err}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn sigterm_asks_the_loop_to_stop() {
+        catch_stop_signals().unwrap();
+        assert!(!STOP.load(Ordering::SeqCst));
+        // SAFETY: raising a signal whose handler was just installed.
+        assert_eq!(unsafe { libc::raise(libc::SIGTERM) }, 0);
+        assert!(
+            STOP.load(Ordering::SeqCst),
+            "the process lives on and the flag is set"
+        );
+    }
 }

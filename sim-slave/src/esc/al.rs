@@ -60,12 +60,18 @@ pub enum AlStatusCode {
     InvalidMailboxConfigPreOp,
     /// 0x0017 invalid sync manager configuration.
     InvalidSyncManagerConfig,
+    /// 0x001A synchronization error (too many SM events missed in a row).
+    SyncError,
     /// 0x001B sync manager watchdog.
     SyncManagerWatchdog,
     /// 0x001D invalid output configuration.
     InvalidOutputConfig,
     /// 0x001E invalid input configuration.
     InvalidInputConfig,
+    /// 0x002C fatal sync error (SYNC0 stopped in Op).
+    FatalSyncError,
+    /// 0x002D no sync error (no SYNC0 arrived while the device waited for it to go to Op).
+    NoSyncError,
     /// 0x0030 invalid DC SYNC configuration.
     InvalidDcSyncConfig,
     /// Anything else.
@@ -82,9 +88,12 @@ impl AlStatusCode {
             Self::BootstrapNotSupported => 0x0013,
             Self::InvalidMailboxConfigPreOp => 0x0016,
             Self::InvalidSyncManagerConfig => 0x0017,
+            Self::SyncError => 0x001A,
             Self::SyncManagerWatchdog => 0x001B,
             Self::InvalidOutputConfig => 0x001D,
             Self::InvalidInputConfig => 0x001E,
+            Self::FatalSyncError => 0x002C,
+            Self::NoSyncError => 0x002D,
             Self::InvalidDcSyncConfig => 0x0030,
             Self::Other(v) => v,
         }
@@ -99,9 +108,12 @@ impl AlStatusCode {
             0x0013 => Self::BootstrapNotSupported,
             0x0016 => Self::InvalidMailboxConfigPreOp,
             0x0017 => Self::InvalidSyncManagerConfig,
+            0x001A => Self::SyncError,
             0x001B => Self::SyncManagerWatchdog,
             0x001D => Self::InvalidOutputConfig,
             0x001E => Self::InvalidInputConfig,
+            0x002C => Self::FatalSyncError,
+            0x002D => Self::NoSyncError,
             0x0030 => Self::InvalidDcSyncConfig,
             v => Self::Other(v),
         }
@@ -116,9 +128,12 @@ impl AlStatusCode {
             Self::BootstrapNotSupported => "bootstrap not supported",
             Self::InvalidMailboxConfigPreOp => "invalid mailbox configuration (PreOp)",
             Self::InvalidSyncManagerConfig => "invalid sync manager configuration",
+            Self::SyncError => "synchronization error",
             Self::SyncManagerWatchdog => "sync manager watchdog",
             Self::InvalidOutputConfig => "invalid output configuration",
             Self::InvalidInputConfig => "invalid input configuration",
+            Self::FatalSyncError => "fatal sync error",
+            Self::NoSyncError => "no sync error",
             Self::InvalidDcSyncConfig => "invalid DC SYNC configuration",
             Self::Other(_) => "unknown AL status code",
         }
@@ -127,6 +142,97 @@ impl AlStatusCode {
 
 /// Bit 4 of AL status: error indicator; of AL control: error acknowledge.
 pub const ERROR_BIT: u16 = 0x10;
+
+/// How long a device's firmware takes to complete each upward transition once the master
+/// requested it (chain time, ns). Until then AL status shows the old state: a slave
+/// reports a state when it is in it (ETG.1000.6 §6.4.1), and starting mailbox, input and
+/// output handlers takes a drive's firmware milliseconds. Downward transitions and error
+/// acknowledges are taken at once (the firmware stops its handlers in the AL event).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TransitionTimes {
+    /// Init → PreOp (and Init → Boot): the mailbox handler starts.
+    pub init_to_preop_ns: u64,
+    /// PreOp → SafeOp: the mapping is checked and the input handler starts.
+    pub preop_to_safeop_ns: u64,
+    /// SafeOp → Op: the output handler starts.
+    pub safeop_to_op_ns: u64,
+}
+
+impl TransitionTimes {
+    /// A servo drive's firmware: 2 ms, 10 ms, 5 ms.
+    pub const SERVO: Self = Self {
+        init_to_preop_ns: 2_000_000,
+        preop_to_safeop_ns: 10_000_000,
+        safeop_to_op_ns: 5_000_000,
+    };
+    /// An I/O terminal with no firmware to run: at once.
+    pub const INSTANT: Self = Self {
+        init_to_preop_ns: 0,
+        preop_to_safeop_ns: 0,
+        safeop_to_op_ns: 0,
+    };
+
+    /// How long `from` → `to` takes.
+    pub const fn of(&self, from: AlState, to: AlState) -> u64 {
+        match (from, to) {
+            (AlState::Init, AlState::PreOp | AlState::Boot) => self.init_to_preop_ns,
+            (AlState::PreOp, AlState::SafeOp) => self.preop_to_safeop_ns,
+            (AlState::SafeOp, AlState::Op) => self.safeop_to_op_ns,
+            _ => 0,
+        }
+    }
+}
+
+/// How long a device in SafeOp waits, once Op was requested, for what it needs to go
+/// there (valid outputs, SYNC0 in DC mode) before it refuses: the slave stack code's
+/// SAFEOP2OPTIMEOUT (9 s, the ESI default `SafeopOpTimeout`, less the 50 ms it keeps to
+/// answer before the master gives up).
+pub const SAFEOP_OP_TIMEOUT_NS: u64 = 8_950_000_000;
+
+/// What the firmware behind an ESC requires of a transition, besides the standard's rules.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Firmware {
+    /// How long each upward transition takes.
+    pub times: TransitionTimes,
+    /// SafeOp → Op waits for the outputs: the output SyncManager's buffer completed at
+    /// least once since SafeOp (a drive must not enable on undefined outputs; ETG.1000.6
+    /// §6.4.1 "valid outputs", the slave stack code's OP_PD_REQUIRED). On timeout: 0x001B.
+    pub op_needs_outputs: bool,
+    /// The device runs only synchronised to SYNC0 (PreOp → SafeOp without SYNC0 active:
+    /// 0x0030).
+    pub requires_dc: bool,
+    /// 0x10F1:02 sync error counter limit: the SM event missed counter (0x1C32:0B) goes
+    /// up by 3 for a SYNC0 without new outputs and down by 1 for each output buffer; at
+    /// the limit the device leaves Op with 0x001A (ETG.1020; the slave stack code's
+    /// default 4: two SYNC0 periods in a row without outputs).
+    pub sync_error_limit: u16,
+}
+
+/// The slave stack code's default 0x10F1:02.
+pub const DEFAULT_SYNC_ERROR_LIMIT: u16 = 4;
+
+impl Firmware {
+    /// A CiA-402 servo drive.
+    pub const SERVO: Self = Self {
+        times: TransitionTimes::SERVO,
+        op_needs_outputs: true,
+        requires_dc: false,
+        sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
+    };
+    /// An I/O module without checks of its own beyond the standard's.
+    pub const SIMPLE: Self = Self {
+        times: TransitionTimes::INSTANT,
+        op_needs_outputs: false,
+        requires_dc: false,
+        sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
+    };
+}
+
+impl Default for Firmware {
+    fn default() -> Self {
+        Self::SIMPLE
+    }
+}
 
 /// What the AL state machine decided.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

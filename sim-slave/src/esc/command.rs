@@ -49,8 +49,8 @@ pub enum Access {
     Logical,
 }
 
-/// Decodes `d`'s address for this slave. Auto-increment commands have their position
-/// incremented here, as every slave does on the way, addressed or not.
+/// Decodes `d`'s address for this slave. Auto-increment and broadcast commands have
+/// their position incremented here, as every slave does on the way, addressed or not.
 #[inline]
 pub fn address(mem: &Memory, d: &mut Datagram<&mut [u8]>) -> Access {
     let cmd = d.command();
@@ -79,9 +79,21 @@ pub fn address(mem: &Memory, d: &mut Datagram<&mut [u8]>) -> Access {
                 _ => Access::None,
             }
         }
-        Command::Brd => Access::Read { or: true },
-        Command::Bwr => Access::Write,
-        Command::Brw => Access::BroadcastReadWrite,
+        // Broadcasts: every slave increments the position field too (ETG.1000.4 §5.4.1.2,
+        // Table 4: "ADP ... incremented by each slave"), so a master can count the slaves
+        // from the returned ADP as well as from the working counter.
+        Command::Brd => {
+            d.set_adp(adp.wrapping_add(1));
+            Access::Read { or: true }
+        }
+        Command::Bwr => {
+            d.set_adp(adp.wrapping_add(1));
+            Access::Write
+        }
+        Command::Brw => {
+            d.set_adp(adp.wrapping_add(1));
+            Access::BroadcastReadWrite
+        }
         Command::Lrd | Command::Lwr | Command::Lrw => Access::Logical,
         Command::Nop | Command::Unknown(_) => Access::None,
     }
@@ -216,6 +228,23 @@ mod tests {
         let d = Datagram::new_unchecked(&buf[..]);
         assert_eq!(d.wkc(), 3);
         assert_eq!(d.data(), &[0x11, 0x00]);
+    }
+
+    #[test]
+    fn broadcasts_increment_the_position_in_every_slave() {
+        for cmd in [Command::Brd, Command::Bwr, Command::Brw] {
+            let mut c = chain(3);
+            let mut buf = dg(cmd, 0, 0x0F80, &[0, 0]);
+            pass(&mut c, &mut buf);
+            // Byte level: ADP is bytes 2..4 of the datagram header.
+            assert_eq!(&buf[2..4], &[3, 0], "{cmd:?}: three slaves passed");
+            // Unmapped address: nothing counted, the position still moved.
+            assert_eq!(Datagram::new_unchecked(&buf[..]).wkc(), 0, "{cmd:?}");
+        }
+        let mut c = chain(2);
+        let mut buf = dg(Command::Brd, 0xFFFF, TYPE, &[0]);
+        pass(&mut c, &mut buf);
+        assert_eq!(Datagram::new_unchecked(&buf[..]).adp(), 1, "wraps");
     }
 
     #[test]

@@ -61,6 +61,34 @@ impl Fmmu {
     }
 }
 
+/// Whether a logical write of `[addr, addr + len)` reaches physical byte `phys` through an
+/// active write FMMU (how a SyncManager learns that an LWR/LRW completed its buffer).
+pub fn writes_byte(mem: &Memory, addr: u32, len: usize, phys: u16) -> bool {
+    (0..COUNT).any(|n| {
+        let f = Fmmu::read_from(mem, n);
+        f.active
+            && f.write
+            && f.overlap(addr, len).is_some_and(|(_, start, count)| {
+                u32::from(start) <= u32::from(phys)
+                    && u32::from(phys) < u32::from(start) + count as u32
+            })
+    })
+}
+
+/// Whether a logical read of `[addr, addr + len)` reaches physical byte `phys` through an
+/// active read FMMU (how a SyncManager learns that an LRD/LRW completed reading a buffer).
+pub fn reads_byte(mem: &Memory, addr: u32, len: usize, phys: u16) -> bool {
+    (0..COUNT).any(|n| {
+        let f = Fmmu::read_from(mem, n);
+        f.active
+            && f.read
+            && f.overlap(addr, len).is_some_and(|(_, start, count)| {
+                u32::from(start) <= u32::from(phys)
+                    && u32::from(phys) < u32::from(start) + count as u32
+            })
+    })
+}
+
 /// Serves a logical datagram (LRD/LWR/LRW) through the active FMMUs.
 pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
     let cmd = d.command();
@@ -93,7 +121,12 @@ pub fn serve(mem: &mut Memory, d: &mut Datagram<&mut [u8]>) -> Served {
             }
         }
     }
-    let add = u16::from(did_read) + 2 * u16::from(did_write);
+    // ETG.1000.4 §5.4.3 (Table 4, working counter): LRD and LWR add 1 when the slave read
+    // or wrote at least one byte; LRW adds 1 for the read and 2 for the write (3 for both).
+    let add = match cmd {
+        Command::Lrw => u16::from(did_read) + 2 * u16::from(did_write),
+        _ => u16::from(did_read || did_write),
+    };
     if add > 0 {
         let w = d.wkc();
         d.set_wkc(w.wrapping_add(add));
@@ -148,6 +181,50 @@ mod tests {
         let mut out = [0u8; 4];
         mem.ecat_read(PROCESS_RAM, &mut out, false);
         assert_eq!(out, [1, 2, 3, 4]);
+    }
+
+    fn logical(cmd: Command, addr: u32, data: &[u8]) -> Vec<u8> {
+        let mut buf = lrw(addr, data);
+        Datagram::new_unchecked(&mut buf[..]).set_command(cmd);
+        buf
+    }
+
+    #[test]
+    fn lwr_counts_one_per_slave_written() {
+        // Two slaves, each with 4 output bytes at consecutive logical addresses.
+        let mut slaves = [Memory::new(), Memory::new()];
+        configure(&mut slaves[0], 0, 0x0001_0000, 4, PROCESS_RAM, 2);
+        configure(&mut slaves[1], 0, 0x0001_0004, 4, PROCESS_RAM, 2);
+        let mut buf = logical(Command::Lwr, 0x0001_0000, &[1, 2, 3, 4, 5, 6, 7, 8]);
+        for m in &mut slaves {
+            assert_eq!(
+                serve(m, &mut Datagram::new_unchecked(&mut buf[..])),
+                Served::Written
+            );
+        }
+        let d = Datagram::new_unchecked(&buf[..]);
+        assert_eq!(d.wkc(), 2, "LWR: one per slave written, not two");
+        // Byte level: the WKC field is the last two bytes of the datagram.
+        assert_eq!(&buf[buf.len() - 2..], &[2, 0]);
+        let mut out = [0u8; 4];
+        slaves[1].ecat_read(PROCESS_RAM, &mut out, false);
+        assert_eq!(out, [5, 6, 7, 8]);
+    }
+
+    #[test]
+    fn lrd_counts_one_and_lrw_three_per_slave() {
+        let mut mem = Memory::new();
+        configure(&mut mem, 0, 0x100, 2, PROCESS_RAM, 2);
+        configure(&mut mem, 1, 0x102, 2, PROCESS_RAM + 0x400, 1);
+        let mut buf = logical(Command::Lrd, 0x100, &[0; 4]);
+        serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..]));
+        assert_eq!(Datagram::new_unchecked(&buf[..]).wkc(), 1);
+        let mut buf = logical(Command::Lwr, 0x100, &[0; 4]);
+        serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..]));
+        assert_eq!(Datagram::new_unchecked(&buf[..]).wkc(), 1);
+        let mut buf = logical(Command::Lrw, 0x100, &[0; 4]);
+        serve(&mut mem, &mut Datagram::new_unchecked(&mut buf[..]));
+        assert_eq!(Datagram::new_unchecked(&buf[..]).wkc(), 3);
     }
 
     #[test]

@@ -9,7 +9,40 @@
 //! 0x3F version; categories from 0x40: type, size in words, data; 0xFFFF ends the list.
 
 use super::memory::Memory;
-use super::registers::SII;
+use super::registers::{DC_SYNC_PULSE_LENGTH, PDI_CONTROL, SII, STATION_ALIAS};
+
+/// Words of the ESC configuration area (ETG.2010 Table 2), which the ESC loads into its
+/// registers after reset and on a reload command.
+pub mod config_area {
+    /// Word 0: PDI control (low byte, to 0x0140) and ESC configuration (high byte, 0x0141).
+    pub const PDI_CONTROL: usize = 0;
+    /// Word 1: PDI configuration (0x0150).
+    pub const PDI_CONFIGURATION: usize = 1;
+    /// Word 2: pulse length of SYNC signals (0x0982, 10 ns units).
+    pub const SYNC_IMPULSE_LENGTH: usize = 2;
+    /// Word 3: extended PDI configuration (0x0152).
+    pub const EXTENDED_PDI_CONFIGURATION: usize = 3;
+    /// Word 4: configured station alias (0x0012).
+    pub const STATION_ALIAS: usize = 4;
+    /// Word 7: checksum (low byte) over words 0–6.
+    pub const CHECKSUM: usize = 7;
+    /// Words in the area.
+    pub const WORDS: usize = 8;
+}
+
+/// PDI control a device with a microcontroller behind the ESC has (0x05: SPI slave).
+pub const PDI_SPI: u16 = 0x0005;
+/// PDI control of a simple I/O terminal (0x04: digital I/O) with ESC configuration bit 0,
+/// device emulation, set (0x0141 bit 0: the ESC itself copies AL control to AL status).
+pub const PDI_DIGITAL_IO_DEVICE_EMULATION: u16 = 0x0104;
+
+/// How long one EEPROM access keeps the interface busy (chain time, ns). A read is about
+/// 110 I²C clock cycles (ESC datasheet section I, 11.3.3.2, Table 45: control byte, word
+/// address, repeated start, 8 data bytes, each with its acknowledge) at the few hundred
+/// kHz of the ESC's EEPROM clock (11.3.4 gives the read access time).
+pub const READ_NS: u64 = 250_000;
+/// How long a reload of the configuration area (8 words) keeps it busy.
+pub const RELOAD_NS: u64 = 500_000;
 
 /// Category types used here (ETG.2010 Table 3).
 pub mod category {
@@ -171,10 +204,10 @@ impl DeviceDescription {
     /// The EEPROM image (words).
     pub fn image(&self) -> Vec<u16> {
         let mut w = vec![0u16; 0x40];
-        // Word 0 is loaded into PDI control (0x0140) at power-up: the value the register
-        // table resets to.
+        // The configuration area: what the ESC loads at reset (PDI control, alias…).
+        set(&mut w, config_area::PDI_CONTROL, PDI_SPI);
         let cks = config_checksum(&w);
-        set(&mut w, 7, u16::from(cks));
+        set(&mut w, config_area::CHECKSUM, u16::from(cks));
         let put32 = |w: &mut Vec<u16>, at: usize, v: u32| {
             set(w, at, v as u16);
             set(w, at + 1, (v >> 16) as u16);
@@ -261,22 +294,44 @@ pub mod control {
     pub const WRITE: u16 = 1 << 9;
     /// Reload command.
     pub const RELOAD: u16 = 1 << 10;
+    /// Checksum error in the ESC configuration area (it was not loaded).
+    pub const CHECKSUM_ERROR: u16 = 1 << 11;
+    /// EEPROM loading status: 1 = not loaded (device information not available).
+    pub const NOT_LOADED: u16 = 1 << 12;
     /// Error: command error (unknown or several commands at once).
     pub const COMMAND_ERROR: u16 = 1 << 13;
     /// Busy.
     pub const BUSY: u16 = 1 << 15;
 }
 
+/// An access the interface is busy with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pending {
+    /// Reading 4 words from this word address.
+    Read(usize),
+    /// Reloading the configuration area.
+    Reload,
+}
+
 /// The EEPROM and its interface state.
 #[derive(Clone, Debug)]
 pub struct Sii {
     words: Vec<u16>,
+    /// The access in progress and when (chain time, ns) it completes.
+    busy: Option<(Pending, u64)>,
+    /// The read-only bits of 0x0502 the interface keeps whatever the master writes:
+    /// the 8-byte read capability and the load status of the configuration area.
+    status: u16,
 }
 
 impl Sii {
     /// An EEPROM holding `words`.
     pub fn new(words: Vec<u16>) -> Self {
-        Self { words }
+        Self {
+            words,
+            busy: None,
+            status: control::READ_8_BYTES,
+        }
     }
 
     /// The word at `addr` (0xFFFF past the end, as an erased EEPROM reads).
@@ -284,32 +339,107 @@ impl Sii {
         self.words.get(addr).copied().unwrap_or(0xFFFF)
     }
 
-    /// Sets the read-8-bytes capability bit after reset.
-    pub fn reset(&self, mem: &mut Memory) {
-        mem.pdi_write(reg::CONTROL, &control::READ_8_BYTES.to_le_bytes());
+    /// Sets word `addr` and, when it lies in the configuration area, its checksum (as a
+    /// programming tool does); the ESC sees it at the next reset or reload.
+    pub fn program(&mut self, addr: usize, value: u16) {
+        if let Some(w) = self.words.get_mut(addr) {
+            *w = value;
+        }
+        if addr < config_area::CHECKSUM {
+            let crc = config_checksum(&self.words);
+            let keep = self.word(config_area::CHECKSUM) & 0xFF00;
+            if let Some(w) = self.words.get_mut(config_area::CHECKSUM) {
+                *w = keep | u16::from(crc);
+            }
+        }
     }
 
-    /// Acts on a master's write to the control register (a command in bits 8–10): reads
-    /// fill the data register with 4 words from the address register. The command
-    /// completes at once (the busy bit is never seen set). Writes and reloads are
-    /// refused with the command-error bit, as a write-protected EEPROM does.
-    pub fn on_control_write(&self, mem: &mut Memory) {
-        let ctrl = mem.read_u16(reg::CONTROL);
-        let cmd = ctrl & (control::READ | control::WRITE | control::RELOAD);
+    /// Power-up: the interface is idle and the ESC loads its configuration area (ESC
+    /// datasheet section I, 11.2: PDI control, PDI configuration, SYNC pulse length and
+    /// station alias) when its checksum is right; otherwise it sets the checksum-error
+    /// and not-loaded bits and leaves the registers at their reset values. Returns whether
+    /// it loaded (DL status bit 0, "PDI operational / EEPROM loaded", follows).
+    pub fn reset(&mut self, mem: &mut Memory) -> bool {
+        self.busy = None;
+        self.load(mem)
+    }
+
+    fn load(&mut self, mem: &mut Memory) -> bool {
+        let area: Vec<u16> = (0..config_area::WORDS).map(|i| self.word(i)).collect();
+        let ok = self.word(config_area::CHECKSUM) as u8 == config_checksum(&area);
         let mut status = control::READ_8_BYTES;
+        if ok {
+            let pdi = self.word(config_area::PDI_CONTROL);
+            mem.pdi_write(PDI_CONTROL, &pdi.to_le_bytes());
+            let pulse = self.word(config_area::SYNC_IMPULSE_LENGTH);
+            mem.pdi_write(DC_SYNC_PULSE_LENGTH, &pulse.to_le_bytes());
+            let alias = self.word(config_area::STATION_ALIAS);
+            mem.pdi_write(STATION_ALIAS, &alias.to_le_bytes());
+        } else {
+            status |= control::CHECKSUM_ERROR | control::NOT_LOADED;
+        }
+        self.status = status;
+        mem.pdi_write(reg::CONTROL, &status.to_le_bytes());
+        ok
+    }
+
+    /// Whether an access is in progress.
+    pub fn busy(&self) -> bool {
+        self.busy.is_some()
+    }
+
+    /// Acts on a master's write to the control register at chain time `now` (a command
+    /// in bits 8–10). A read starts an access that keeps the busy bit set for
+    /// [`READ_NS`]; the data register gets the 4 words when it completes
+    /// ([`Sii::advance`]). A reload re-reads the configuration area. While busy, a new
+    /// command is ignored (the register keeps its busy status). Writes are refused with
+    /// the command-error bit, as a write-protected EEPROM does.
+    pub fn on_control_write(&mut self, mem: &mut Memory, now: u64) {
+        let ctrl = mem.read_u16(reg::CONTROL);
+        let kept = self.status;
+        if self.busy.is_some() {
+            mem.pdi_write(reg::CONTROL, &(kept | control::BUSY).to_le_bytes());
+            return;
+        }
+        let cmd = ctrl & (control::READ | control::WRITE | control::RELOAD);
+        let mut status = kept;
         match cmd {
             0 => {}
             control::READ => {
                 let addr = mem.read_u32(reg::ADDRESS) as usize;
-                let mut data = [0u8; 8];
-                for (i, chunk) in data.chunks_mut(2).enumerate() {
-                    chunk.copy_from_slice(&self.word(addr + i).to_le_bytes());
-                }
-                mem.pdi_write(reg::DATA, &data);
+                self.busy = Some((Pending::Read(addr), now.saturating_add(READ_NS)));
+                status |= control::READ | control::BUSY;
+            }
+            control::RELOAD => {
+                self.busy = Some((Pending::Reload, now.saturating_add(RELOAD_NS)));
+                status |= control::RELOAD | control::BUSY;
             }
             _ => status |= control::COMMAND_ERROR,
         }
         mem.pdi_write(reg::CONTROL, &status.to_le_bytes());
+    }
+
+    /// The chain's time is `now`: an access due by then completes (data in 0x0508, busy
+    /// and command bits cleared). Returns whether a reload completed and what it loaded
+    /// (DL status follows).
+    pub fn advance(&mut self, mem: &mut Memory, now: u64) -> Option<bool> {
+        let (pending, due) = self.busy?;
+        if now < due {
+            return None;
+        }
+        self.busy = None;
+        match pending {
+            Pending::Read(addr) => {
+                let mut data = [0u8; 8];
+                for (i, chunk) in data.chunks_mut(2).enumerate() {
+                    chunk.copy_from_slice(&self.word(addr.saturating_add(i)).to_le_bytes());
+                }
+                mem.pdi_write(reg::DATA, &data);
+                mem.pdi_write(reg::CONTROL, &self.status.to_le_bytes());
+                None
+            }
+            Pending::Reload => Some(self.load(mem)),
+        }
     }
 }
 
@@ -420,11 +550,18 @@ mod tests {
         assert_eq!(rx[6] >> 8, 16, "bit length");
     }
 
+    /// 0x0502 as the master reads it (2 bytes, little-endian).
+    fn control_bytes(mem: &Memory) -> [u8; 2] {
+        let mut b = [0u8; 2];
+        assert!(mem.ecat_read(reg::CONTROL, &mut b, false));
+        b
+    }
+
     #[test]
     fn reads_through_the_interface_return_four_words() {
-        let sii = Sii::new(drive().image());
+        let mut sii = Sii::new(drive().image());
         let mut mem = Memory::new();
-        sii.reset(&mut mem);
+        assert!(sii.reset(&mut mem));
         assert_eq!(
             mem.read_u16(reg::CONTROL) & control::READ_8_BYTES,
             control::READ_8_BYTES
@@ -432,7 +569,8 @@ mod tests {
         assert!(mem.ecat_write(reg::ADDRESS, &0x08u32.to_le_bytes()));
         assert!(mem.ecat_write(reg::CONTROL, &control::READ.to_le_bytes()));
         assert!(touches_control(reg::CONTROL, 2));
-        sii.on_control_write(&mut mem);
+        sii.on_control_write(&mut mem, 1_000);
+        sii.advance(&mut mem, 1_000 + READ_NS);
         let mut data = [0u8; 8];
         assert!(mem.ecat_read(reg::DATA, &mut data, false));
         assert_eq!(u32::from_le_bytes(data[0..4].try_into().unwrap()), 0x0A5A);
@@ -443,11 +581,74 @@ mod tests {
     }
 
     #[test]
+    fn a_read_keeps_the_interface_busy_until_the_data_is_there() {
+        let mut sii = Sii::new(drive().image());
+        let mut mem = Memory::new();
+        sii.reset(&mut mem);
+        mem.ecat_write(reg::DATA, &[0xEE; 8]);
+        mem.ecat_write(reg::ADDRESS, &0x08u32.to_le_bytes());
+        mem.ecat_write(reg::CONTROL, &control::READ.to_le_bytes());
+        sii.on_control_write(&mut mem, 5_000);
+        // Busy (bit 15) with the read command (bit 8) and the 8-byte capability (bit 6).
+        assert_eq!(control_bytes(&mem), [0x40, 0x81]);
+        sii.advance(&mut mem, 5_000 + READ_NS - 1);
+        assert_eq!(control_bytes(&mem), [0x40, 0x81], "still busy 1 ns before");
+        let mut data = [0u8; 8];
+        mem.ecat_read(reg::DATA, &mut data, false);
+        assert_ne!(&data[0..2], &[0x5A, 0x0A], "no data while busy");
+        // A second command while busy is ignored.
+        mem.ecat_write(reg::ADDRESS, &0x0Au32.to_le_bytes());
+        mem.ecat_write(reg::CONTROL, &control::READ.to_le_bytes());
+        sii.on_control_write(&mut mem, 5_100);
+        sii.advance(&mut mem, 5_000 + READ_NS);
+        assert_eq!(control_bytes(&mem), [0x40, 0x00], "idle");
+        mem.ecat_read(reg::DATA, &mut data, false);
+        assert_eq!(
+            &data[0..2],
+            &[0x5A, 0x0A],
+            "word 8 (vendor id), not word 10"
+        );
+    }
+
+    #[test]
+    fn reset_loads_alias_and_pdi_control_from_the_configuration_area() {
+        use crate::esc::registers::{ESC_CONFIG, PDI_CONTROL, STATION_ALIAS};
+        let mut sii = Sii::new(drive().image());
+        sii.program(config_area::STATION_ALIAS, 0x1234);
+        sii.program(config_area::PDI_CONTROL, PDI_DIGITAL_IO_DEVICE_EMULATION);
+        let mut mem = Memory::new();
+        assert!(sii.reset(&mut mem));
+        let mut b = [0u8; 2];
+        mem.ecat_read(STATION_ALIAS, &mut b, false);
+        assert_eq!(b, [0x34, 0x12]);
+        mem.ecat_read(PDI_CONTROL, &mut b, false);
+        assert_eq!(b, [0x04, 0x01], "PDI digital I/O, device emulation");
+        assert_eq!(mem.raw(ESC_CONFIG, 1), Some(&[0x01][..]));
+        assert_eq!(control_bytes(&mem), [0x40, 0x00], "loaded, no error");
+        // A corrupt checksum: nothing loaded, error and not-loaded bits (11, 12) set.
+        let mut words = drive().image();
+        words[config_area::STATION_ALIAS] = 0x0042;
+        let mut bad = Sii::new(words);
+        let mut mem = Memory::new();
+        assert!(!bad.reset(&mut mem));
+        assert_eq!(mem.read_u16(STATION_ALIAS), 0);
+        assert_eq!(control_bytes(&mem), [0x40, 0x18]);
+        // A reload (after the tool fixed the checksum) loads it, after being busy.
+        bad.program(config_area::STATION_ALIAS, 0x0042);
+        mem.ecat_write(reg::CONTROL, &control::RELOAD.to_le_bytes());
+        bad.on_control_write(&mut mem, 0);
+        assert_eq!(control_bytes(&mem), [0x40, 0x9C]);
+        assert_eq!(bad.advance(&mut mem, RELOAD_NS), Some(true));
+        assert_eq!(mem.read_u16(STATION_ALIAS), 0x0042);
+        assert_eq!(control_bytes(&mem), [0x40, 0x00]);
+    }
+
+    #[test]
     fn write_commands_are_refused_with_the_error_bit() {
-        let sii = Sii::new(drive().image());
+        let mut sii = Sii::new(drive().image());
         let mut mem = Memory::new();
         mem.ecat_write(reg::CONTROL, &control::WRITE.to_le_bytes());
-        sii.on_control_write(&mut mem);
+        sii.on_control_write(&mut mem, 0);
         assert_ne!(mem.read_u16(reg::CONTROL) & control::COMMAND_ERROR, 0);
         assert!(!touches_control(0x0508, 8));
     }

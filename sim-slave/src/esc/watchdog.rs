@@ -11,21 +11,28 @@ use super::registers::{
 /// SyncManager control bit 6: a write to this SyncManager triggers the watchdog.
 const SM_WATCHDOG_TRIGGER: u8 = 0x40;
 /// ESC clock period the divider counts (40 ns, 25 MHz).
-const BASE_TICK_S: f64 = 40e-9;
+const BASE_TICK_NS: u64 = 40;
 
-/// The watchdog's running time.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// The watchdog's state: when it was last triggered (chain time), so that it expires
+/// when the network's time has passed, however the applications' periods fall.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ProcessDataWatchdog {
-    since_trigger_s: f64,
+    last_trigger_ns: u64,
     expired: bool,
 }
 
 impl ProcessDataWatchdog {
     /// The configured timeout, `None` when off (time 0).
     pub fn timeout_s(mem: &Memory) -> Option<f64> {
-        let divider = f64::from(mem.read_u16(WATCHDOG_DIVIDER)) + 2.0;
-        let time = mem.read_u16(WATCHDOG_TIME_PD);
-        (time != 0).then(|| divider * BASE_TICK_S * f64::from(time))
+        Self::timeout_ns(mem).map(|ns| ns as f64 * 1e-9)
+    }
+
+    /// The configured timeout in ns, `None` when off (time 0): (divider + 2) × 40 ns per
+    /// watchdog increment, times the watchdog time.
+    pub fn timeout_ns(mem: &Memory) -> Option<u64> {
+        let divider = u64::from(mem.read_u16(WATCHDOG_DIVIDER)) + 2;
+        let time = u64::from(mem.read_u16(WATCHDOG_TIME_PD));
+        (time != 0).then(|| divider * BASE_TICK_NS * time)
     }
 
     /// Whether any enabled SyncManager covering `[address, address + len)` triggers it.
@@ -48,28 +55,25 @@ impl ProcessDataWatchdog {
         })
     }
 
-    /// A triggering write arrived: restart.
-    pub fn trigger(&mut self, mem: &mut Memory) {
-        self.since_trigger_s = 0.0;
+    /// A triggering write arrived at chain time `now`: restart.
+    pub fn trigger(&mut self, mem: &mut Memory, now: u64) {
+        self.last_trigger_ns = now;
         self.expired = false;
         mem.pdi_write(WATCHDOG_STATUS_PD, &1u16.to_le_bytes());
     }
 
     /// Stops it (the application left Op: nothing to watch).
-    pub fn disarm(&mut self, mem: &mut Memory) {
-        self.trigger(mem);
+    pub fn disarm(&mut self, mem: &mut Memory, now: u64) {
+        self.trigger(mem, now);
     }
 
-    /// Runs `dt_s`; true exactly when it expires now.
-    pub fn tick(&mut self, mem: &mut Memory, dt_s: f64) -> bool {
-        let Some(timeout) = Self::timeout_s(mem) else {
+    /// The network's time is `now`; true exactly when it expires now (status cleared,
+    /// counter incremented).
+    pub fn check(&mut self, mem: &mut Memory, now: u64) -> bool {
+        let Some(timeout) = Self::timeout_ns(mem) else {
             return false;
         };
-        if self.expired {
-            return false;
-        }
-        self.since_trigger_s += dt_s.max(0.0);
-        if self.since_trigger_s < timeout {
+        if self.expired || now.saturating_sub(self.last_trigger_ns) < timeout {
             return false;
         }
         self.expired = true;
@@ -99,13 +103,15 @@ mod tests {
     fn expires_once_without_triggers_and_counts() {
         let mut mem = Memory::new();
         let mut wd = ProcessDataWatchdog::default();
-        wd.trigger(&mut mem);
-        let fired: Vec<bool> = (0..150).map(|_| wd.tick(&mut mem, 0.001)).collect();
+        wd.trigger(&mut mem, 0);
+        let fired: Vec<bool> = (1..=150u64)
+            .map(|ms| wd.check(&mut mem, ms * 1_000_000))
+            .collect();
         assert_eq!(fired.iter().filter(|f| **f).count(), 1);
-        assert!(fired[98..101].contains(&true), "expires at 100 ms");
+        assert!(fired[99], "expires at 100 ms (2500 × 40 ns × 1000)");
         assert_eq!(mem.read_u16(WATCHDOG_STATUS_PD) & 1, 0);
         assert_eq!(mem.raw(WATCHDOG_COUNTER_PD, 1), Some(&[1u8][..]));
-        wd.trigger(&mut mem);
+        wd.trigger(&mut mem, 200_000_000);
         assert_eq!(mem.read_u16(WATCHDOG_STATUS_PD) & 1, 1);
     }
 

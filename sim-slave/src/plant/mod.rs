@@ -109,6 +109,14 @@ impl DeviceModel {
         }
     }
 
+    /// A drive's record, mutable (the ESC side counts missed and doubled setpoints).
+    pub fn record_mut(&mut self) -> Option<&mut record::DriveRecord> {
+        match self {
+            DeviceModel::Servo(s) => Some(s.record_mut()),
+            DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => None,
+        }
+    }
+
     /// The chain index of the slave whose axis this device watches, if it watches one.
     pub fn coupled_axis(&self) -> Option<usize> {
         match self {

