@@ -619,8 +619,14 @@ impl ServoDrive {
             }
             at += o.kind.size();
         }
-        if self.since_take > 0.0 {
-            self.setpoint_period = Some(self.since_take);
+        // The setpoint period: the time between two setpoints, unless that time is a
+        // missed (about twice) or a doubled (about none) setpoint, as a drive that knows
+        // its SYNC0 cycle keeps interpolating over the cycle, not over the gap.
+        let t = self.since_take;
+        match self.setpoint_period {
+            Some(p) if t < 0.5 * p || t > 1.5 * p => {}
+            _ if t > 0.0 => self.setpoint_period = Some(t),
+            _ => {}
         }
         if self.target != previous {
             self.change_interval = self.since_change;
@@ -884,9 +890,12 @@ impl ServoDrive {
             match self.state.state() {
                 State::OperationEnabled => match self.mode {
                     CSP => {
+                        // The loop compares the demand and the position of the same
+                        // instant, the substep's start; the demand then moves on with it.
+                        let now = self.seg_start + self.slope * self.seg_t;
                         self.seg_t += g.h;
                         self.demand = self.seg_start + self.slope * self.seg_t;
-                        let v = kp * (self.demand - self.motor.position) + self.slope;
+                        let v = kp * (now - self.motor.position) + self.slope;
                         Drive::Velocity(v.clamp(-vmax, vmax))
                     }
                     CSV => {
