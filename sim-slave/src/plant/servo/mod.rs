@@ -32,7 +32,8 @@
 //!
 //! A CSP target is interpolated linearly over the setpoint period (the time between two
 //! setpoints taken), with the velocity feed-forward its slope; a period without a new
-//! setpoint continues along the last slope.
+//! setpoint continues along the last slope, and after that the demand stays where it got
+//! to (a drive starved of setpoints does not run away).
 //!
 //! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
 //! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
@@ -634,7 +635,10 @@ impl ServoDrive {
         }
         self.since_take = 0.0;
         self.fresh = true;
-        if self.following() && self.mode == CSP {
+        // A setpoint is a target taken in Operation enabled with a controlword that keeps
+        // it there (the all-zero safe outputs of a slave leaving Op are none).
+        let enabling = self.controlword.command(self.last_controlword) == Command::EnableOperation;
+        if self.following() && self.mode == CSP && enabling {
             self.record.target(self.target);
         }
     }
@@ -892,10 +896,23 @@ impl ServoDrive {
                     CSP => {
                         // The loop compares the demand and the position of the same
                         // instant, the substep's start; the demand then moves on with it.
-                        let now = self.seg_start + self.slope * self.seg_t;
+                        // Without a new setpoint the demand goes on along the last slope
+                        // for one more setpoint period (a single missed setpoint), then
+                        // stays where it got to.
+                        let end = 2.0 * self.seg_len;
+                        let at = |t: f64| {
+                            let t = if end > 0.0 { t.min(end) } else { t };
+                            self.seg_start + self.slope * t
+                        };
+                        let now = at(self.seg_t);
+                        let feed_forward = if end > 0.0 && self.seg_t >= end {
+                            0.0
+                        } else {
+                            self.slope
+                        };
                         self.seg_t += g.h;
-                        self.demand = self.seg_start + self.slope * self.seg_t;
-                        let v = kp * (now - self.motor.position) + self.slope;
+                        self.demand = at(self.seg_t);
+                        let v = kp * (now - self.motor.position) + feed_forward;
                         Drive::Velocity(v.clamp(-vmax, vmax))
                     }
                     CSV => {

@@ -793,3 +793,31 @@ fn a_missed_setpoint_is_extrapolated_and_the_next_interpolated_over_one_period()
         "{worst} counts, {before} before"
     );
 }
+
+#[test]
+fn without_setpoints_the_demand_stops_after_one_period() {
+    let mut r = Rig::enabled(0, p(), CSP);
+    for _ in 0..100 {
+        r.target += 3000;
+        r.cycle();
+    }
+    let last = f64::from(r.target);
+    // The master stops sending: one period along the slope, then the demand stays.
+    for _ in 0..50 {
+        r.d.run(DT);
+    }
+    assert!(
+        (r.d.demand() - (last + 3000.0)).abs() < 1.0,
+        "{}",
+        r.d.demand()
+    );
+    let off = r.d.position() - r.d.demand();
+    assert!(off.abs() < 10.0, "{off}");
+    // The safe outputs of a slave leaving Op (all zero) are no setpoint.
+    let taken = r.d.record().targets;
+    r.target = 0;
+    r.cw = 0;
+    r.cycle();
+    assert_eq!(r.d.record().targets, taken);
+    assert_eq!(r.d.record().max_target_step_counts, 3000);
+}
