@@ -192,8 +192,10 @@ pub struct ServoDrive {
     /// Run time since the target taken last changed (s), and that time when it changed.
     since_change: f64,
     change_interval: f64,
-    /// Time between the last two setpoints taken (s).
+    /// The setpoint period (s): the time between setpoints.
     setpoint_period: Option<f64>,
+    /// The last time between two setpoints taken (s).
+    last_interval: Option<f64>,
     /// The last CSP target, unwrapped to the drive's full position (counts).
     target_abs: Option<f64>,
     /// Interpolation segment: start, slope (the velocity feed-forward, counts/s), time in.
@@ -256,6 +258,7 @@ impl ServoDrive {
             since_change: 0.0,
             change_interval: 0.0,
             setpoint_period: None,
+            last_interval: None,
             target_abs: None,
             seg_start: p,
             slope: 0.0,
@@ -620,14 +623,19 @@ impl ServoDrive {
             }
             at += o.kind.size();
         }
-        // The setpoint period: the time between two setpoints, unless that time is a
-        // missed (about twice) or a doubled (about none) setpoint, as a drive that knows
-        // its SYNC0 cycle keeps interpolating over the cycle, not over the gap.
+        // The setpoint period: the time between two setpoints once two intervals in a
+        // row agree (within half), so that the gap of a missed setpoint, a doubled one or
+        // a pause is not taken for the cycle, as a drive that knows its SYNC0 cycle keeps
+        // interpolating over the cycle; a lone gap can also not lock it out.
         let t = self.since_take;
-        match self.setpoint_period {
-            Some(p) if t < 0.5 * p || t > 1.5 * p => {}
-            _ if t > 0.0 => self.setpoint_period = Some(t),
-            _ => {}
+        if t > 0.0 {
+            let agrees = self
+                .last_interval
+                .is_some_and(|last| t >= 0.5 * last && t <= 1.5 * last);
+            if agrees || self.setpoint_period.is_none() {
+                self.setpoint_period = Some(t);
+            }
+            self.last_interval = Some(t);
         }
         if self.target != previous {
             self.change_interval = self.since_change;

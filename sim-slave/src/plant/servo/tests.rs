@@ -821,3 +821,36 @@ fn without_setpoints_the_demand_stops_after_one_period() {
     assert_eq!(r.d.record().targets, taken);
     assert_eq!(r.d.record().max_target_step_counts, 3000);
 }
+
+#[test]
+fn a_pause_between_setpoints_is_not_taken_for_the_period() {
+    // The drive runs 300 ms before the master's first setpoint, and 300 ms more later:
+    // it interpolates over its 1 ms cycle once two intervals agree, not over the pause
+    // (measured from the first interval alone it crawled over 300 ms segments).
+    let mut r = Rig::new(0, p());
+    for _ in 0..300 {
+        r.d.run(DT);
+    }
+    for cw in [0x06, 0x07, 0x0F, 0x0F] {
+        r.cw = cw;
+        r.cycle();
+    }
+    for _ in 0..300 {
+        r.d.run(DT);
+    }
+    for _ in 0..50 {
+        r.target += 1000;
+        r.cycle();
+    }
+    assert_eq!(r.d.setpoint_period, Some(DT));
+    // Followed at 1 m counts/s, not crawling over 300 ms segments: within a few counts at
+    // the last setpoint.
+    assert!(
+        (r.inputs().position - r.target).abs() < 100,
+        "{:?}",
+        r.inputs()
+    );
+    let i = r.cycles(100);
+    assert!((i.position - r.target).abs() <= 1, "{i:?}");
+    assert_eq!(r.d.record().faults, 0);
+}
