@@ -32,7 +32,8 @@
 //!
 //! A CSP target is interpolated linearly over the setpoint period (the time between two
 //! setpoints taken), with the velocity feed-forward its slope; a period without a new
-//! setpoint continues along the last slope.
+//! setpoint continues along the last slope, and after that the demand stays where it got
+//! to (a drive starved of setpoints does not run away).
 //!
 //! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
 //! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
@@ -191,8 +192,10 @@ pub struct ServoDrive {
     /// Run time since the target taken last changed (s), and that time when it changed.
     since_change: f64,
     change_interval: f64,
-    /// Time between the last two setpoints taken (s).
+    /// The setpoint period (s): the time between setpoints.
     setpoint_period: Option<f64>,
+    /// The last time between two setpoints taken (s).
+    last_interval: Option<f64>,
     /// The last CSP target, unwrapped to the drive's full position (counts).
     target_abs: Option<f64>,
     /// Interpolation segment: start, slope (the velocity feed-forward, counts/s), time in.
@@ -255,6 +258,7 @@ impl ServoDrive {
             since_change: 0.0,
             change_interval: 0.0,
             setpoint_period: None,
+            last_interval: None,
             target_abs: None,
             seg_start: p,
             slope: 0.0,
@@ -619,8 +623,19 @@ impl ServoDrive {
             }
             at += o.kind.size();
         }
-        if self.since_take > 0.0 {
-            self.setpoint_period = Some(self.since_take);
+        // The setpoint period: the time between two setpoints once two intervals in a
+        // row agree (within half), so that the gap of a missed setpoint, a doubled one or
+        // a pause is not taken for the cycle, as a drive that knows its SYNC0 cycle keeps
+        // interpolating over the cycle; a lone gap can also not lock it out.
+        let t = self.since_take;
+        if t > 0.0 {
+            let agrees = self
+                .last_interval
+                .is_some_and(|last| t >= 0.5 * last && t <= 1.5 * last);
+            if agrees || self.setpoint_period.is_none() {
+                self.setpoint_period = Some(t);
+            }
+            self.last_interval = Some(t);
         }
         if self.target != previous {
             self.change_interval = self.since_change;
@@ -628,7 +643,10 @@ impl ServoDrive {
         }
         self.since_take = 0.0;
         self.fresh = true;
-        if self.following() && self.mode == CSP {
+        // A setpoint is a target taken in Operation enabled with a controlword that keeps
+        // it there (the all-zero safe outputs of a slave leaving Op are none).
+        let enabling = self.controlword.command(self.last_controlword) == Command::EnableOperation;
+        if self.following() && self.mode == CSP && enabling {
             self.record.target(self.target);
         }
     }
@@ -639,7 +657,9 @@ impl ServoDrive {
     }
 
     /// (b) Runs the drive for `dt_s` seconds on the command last taken: the power state
-    /// machine, then the loops and the plant at the drive's loop rate.
+    /// machine, then the loops and the plant at the drive's loop rate. Call it once per
+    /// application period (the simulator allows at most 100 ms): a longer run takes
+    /// longer substeps, beyond what the loops are tuned for.
     pub fn run(&mut self, dt_s: f64) {
         let dt = if dt_s.is_finite() { dt_s.max(0.0) } else { 0.0 };
         if let Some(f) = self.pending_touch_probe.take() {
@@ -882,9 +902,25 @@ impl ServoDrive {
             match self.state.state() {
                 State::OperationEnabled => match self.mode {
                     CSP => {
+                        // The loop compares the demand and the position of the same
+                        // instant, the substep's start; the demand then moves on with it.
+                        // Without a new setpoint the demand goes on along the last slope
+                        // for one more setpoint period (a single missed setpoint), then
+                        // stays where it got to.
+                        let end = 2.0 * self.seg_len;
+                        let at = |t: f64| {
+                            let t = if end > 0.0 { t.min(end) } else { t };
+                            self.seg_start + self.slope * t
+                        };
+                        let now = at(self.seg_t);
+                        let feed_forward = if end > 0.0 && self.seg_t >= end {
+                            0.0
+                        } else {
+                            self.slope
+                        };
                         self.seg_t += g.h;
-                        self.demand = self.seg_start + self.slope * self.seg_t;
-                        let v = kp * (self.demand - self.motor.position) + self.slope;
+                        self.demand = at(self.seg_t);
+                        let v = kp * (now - self.motor.position) + feed_forward;
                         Drive::Velocity(v.clamp(-vmax, vmax))
                     }
                     CSV => {
@@ -948,7 +984,8 @@ impl ServoDrive {
     }
 
     /// 0x6041: the state, remote, bit 12 (CSP/CSV/CST: the drive follows the command
-    /// value) and bit 11 (internal limit active: the torque limit clips).
+    /// value), bit 11 (internal limit active: the torque limit clips) and bit 13 (CSP:
+    /// following error).
     fn statusword(&self) -> u16 {
         let mut sw = self.state.statusword().0 | statusword::REMOTE;
         if self.following() {
@@ -956,6 +993,15 @@ impl ServoDrive {
         }
         if self.motor.limited && self.state.state() != State::SwitchOnDisabled {
             sw |= statusword::INTERNAL_LIMIT_ACTIVE;
+        }
+        // Bit 13 in CSP: the following error is beyond the window (its time out running),
+        // or it faulted the drive.
+        let faulted = matches!(
+            self.state.state(),
+            State::FaultReactionActive | State::Fault
+        ) && self.error_code == ERROR_FOLLOWING;
+        if self.mode == CSP && (self.following_time > 0.0 || faulted) {
+            sw |= statusword::MODE_SPECIFIC_13;
         }
         sw
     }
