@@ -13,7 +13,11 @@ use gantry_tests::rig::Rig;
 
 #[test]
 fn wrong_working_counters_stop_every_axis_with_the_reason_and_reset_recovers() {
-    let config = gantry_tests::sim_config(3, 1000);
+    // A DC drive whose SyncManager gets no process data misses setpoints and leaves Op
+    // with a sync error after two cycles (0x10F1:02 = 4): then the lost slave, not the
+    // working counter, stops the axes. These drives are set to tolerate missed setpoints
+    // (0x10F1:02 is writable), so that only the working counter tells.
+    let config = gantry_tests::sim_config_with(3, 1000, "[slave.al]\nsync_error_limit = 1000");
     assert_eq!(config.bus.faults.working_counter_limit, 3);
     let mut rig = Rig::new(&config);
     for axis in 0..3 {

@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use super::transition;
 use ethercrab::std::ethercat_now;
-use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op, SafeOp};
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, SafeOp};
 use ethercrab::{
     MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
@@ -25,7 +25,7 @@ use super::embedded::EmbeddedBus;
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::mapping::map_pdos;
 use super::raw::RawBus;
-use super::recovery::{access, Answer, Recovered, Recovery, RecoveryError};
+use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
 use crate::pcap::PcapWriter;
 use crate::runtime::bus::CycleBus;
@@ -68,10 +68,13 @@ pub const BRING_UP_SILENCE_NS: u64 = 200_000_000;
 const DISCOVERY_LIMIT_NS: u64 = 60_000_000_000;
 const STEP_LIMIT_NS: u64 = 10_000_000_000;
 
-type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op>;
-type GroupDc = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, HasDc>;
+// The groups stay SafeOp-typed: ethercrab exchanges process data from SafeOp on, and
+// the cycle asks each slave for OP itself (`EthercatBus::request_op`), so that ethercrab's
+// own transition, which polls without process data, is never used.
+type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp>;
+type GroupDc = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, HasDc>;
 
-/// The group in OP, with or without distributed clocks.
+/// The group (its slaves in SafeOp, then OP), with or without distributed clocks.
 enum Groups {
     Plain(Group),
     Dc(GroupDc),
@@ -151,6 +154,20 @@ pub struct EthercatBus {
     recovery: Option<(usize, Recovery)>,
     /// A finished recovery, until the engine takes it.
     recovered: Option<(usize, Result<Recovered, RecoveryError>)>,
+    /// Asking the slaves for OP at start.
+    op_request: OpRequest,
+}
+
+/// The slaves are asked for OP by the cycle, one AL control write per cycle beside the
+/// process data, once the cycle is ready (`CycleBus::request_op`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum OpRequest {
+    /// Not yet: the slaves wait in SafeOp with the process data running.
+    Waiting,
+    /// Slave `k` is next.
+    Asking(usize),
+    /// Every slave was asked.
+    Done,
 }
 
 impl EthercatBus {
@@ -301,7 +318,11 @@ impl EthercatBus {
             }
             Groups::Plain(group)
         };
-        let _ = writeln!(out, "all slaves in OP");
+        let _ = writeln!(
+            out,
+            "all slaves in SafeOp: the cycle takes them to OP (at most {} s)",
+            transition::OP_TIMEOUT.as_secs()
+        );
         let group_ref = &group;
         let addresses: Vec<u16> =
             with_group!(group_ref, g => g.iter(&md).map(|sd| sd.configured_address()).collect());
@@ -325,6 +346,10 @@ impl EthercatBus {
             },
             addresses,
             expected_wkc,
+        )
+        .starting(
+            (transition::OP_TIMEOUT.as_micros() as u64 / u64::from(config.bus.cycle_us)) as u32,
+            transition::OP_TIMEOUT.as_millis() as u64,
         );
         let slaves = with_group!(group_ref, g => g.len());
         let dc = DcStatus {
@@ -343,6 +368,7 @@ impl EthercatBus {
                 runner,
                 recovery: None,
                 recovered: None,
+                op_request: OpRequest::Waiting,
             },
             CspCycle::new(kernel, channels),
             health,
@@ -384,12 +410,17 @@ impl EthercatBus {
         let group = std::mem::replace(&mut self.group, Groups::Plain(Group::default()));
         let result = self.runner.run_step(
             || async {
-                with_group!(group, g => g
-                    .into_safe_op(md)
-                    .await?
-                    .into_pre_op(md)
-                    .await
-                    .map(|_| ()))
+                // A slave that left Op with an error (its watchdog, a sync error) obeys
+                // no request but Init until the error is acknowledged (ETG.1000.6
+                // §6.4.1): ask every slave for PreOp with the acknowledge bit first.
+                with_group!(&group, g => {
+                    for sd in g.iter(md) {
+                        let ack = recovery::AL_STATE_PREOP | recovery::AL_ERROR_ACK;
+                        let _ = access(&sd, RegisterAccess::WriteAlControl(ack)).await;
+                    }
+                });
+                // Op → PreOp is a transition of its own (ETG.1000.6 Table 10).
+                with_group!(group, g => g.into_pre_op(md).await.map(|_| ()))
             },
             &self.replies,
             BRING_UP_SILENCE_NS,
@@ -479,24 +510,13 @@ fn dc_to_op(
         .map_err(|e| step_error("distributed clocks", e))?;
     runner
         .run_step(
-            move || async move { to_op(group.into_safe_op(md).await?, md).await },
+            move || group.into_safe_op(md),
             replies,
             BRING_UP_SILENCE_NS,
             STEP_LIMIT_NS,
         )
-        .map_err(|e| step_error("to OP", e))?
-        .map_err(|e| step_error("to OP", e))
-}
-
-/// SafeOp to Op with the process data running, as drives need (see `transition`).
-async fn to_op<DC>(
-    group: SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
-    md: &MainDevice<'static>,
-) -> Result<
-    SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, Op, DC>,
-    ethercrab::error::Error,
-> {
-    transition::into_op(group, md, transition::OP_TIMEOUT).await
+        .map_err(|e| step_error("to SafeOp", e))?
+        .map_err(|e| step_error("to SafeOp", e))
 }
 
 /// PreOp to OP without distributed clocks (see [`dc_to_op`]).
@@ -514,13 +534,13 @@ fn plain_to_op(
 ) -> Result<Group, StartError> {
     runner
         .run_step(
-            move || async move { to_op(group.into_safe_op(md).await?, md).await },
+            move || group.into_safe_op(md),
             replies,
             BRING_UP_SILENCE_NS,
             2 * STEP_LIMIT_NS,
         )
-        .map_err(|e| step_error("to OP", e))?
-        .map_err(|e| step_error("to OP", e))
+        .map_err(|e| step_error("to SafeOp", e))?
+        .map_err(|e| step_error("to SafeOp", e))
 }
 
 impl CycleBus for EthercatBus {
@@ -551,10 +571,17 @@ impl CycleBus for EthercatBus {
         // A recovery in progress does one register access beside the process data,
         // under the same deadline.
         let (md, runner) = (&self.md, &self.runner);
-        let pending = self.recovery.as_ref().and_then(|(axis, r)| {
+        let recovering = self.recovery.as_ref().and_then(|(axis, r)| {
             let drive = self.drives.get(*axis).copied()?;
             Some((drive, r.next_access()?))
         });
+        // Otherwise the request for OP at start, slave by slave.
+        let asking = match (recovering, self.op_request) {
+            (None, OpRequest::Asking(k)) => Some(k),
+            _ => None,
+        };
+        let pending = recovering
+            .or(asking.map(|k| (k, RegisterAccess::WriteAlControl(recovery::AL_STATE_OP))));
         let (answer, accessed) = match &self.group {
             Groups::Plain(g) => {
                 let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
@@ -592,7 +619,17 @@ impl CycleBus for EthercatBus {
             // No reply by the deadline, or the frame could not be sent.
             Some(Err(_)) | None => health.record(Exchange::Lost),
         }
-        if let Some((axis, recovery)) = self.recovery.as_mut() {
+        if let Some(k) = asking {
+            // Not taken (lost frame, no answer): the same slave again next cycle.
+            if accessed == Some(Answer::Written) {
+                let slaves = with_group!(&self.group, g => g.len());
+                self.op_request = if k + 1 >= slaves {
+                    OpRequest::Done
+                } else {
+                    OpRequest::Asking(k + 1)
+                };
+            }
+        } else if let Some((axis, recovery)) = self.recovery.as_mut() {
             recovery.on_answer(accessed.unwrap_or(Answer::None), now_ns());
             if let Some(outcome) = recovery.outcome() {
                 self.recovered = Some((*axis, outcome));
@@ -622,6 +659,12 @@ impl CycleBus for EthercatBus {
             }
         }
         true
+    }
+
+    fn request_op(&mut self) {
+        if self.op_request == OpRequest::Waiting {
+            self.op_request = OpRequest::Asking(0);
+        }
     }
 
     fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)> {

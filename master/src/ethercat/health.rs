@@ -4,6 +4,13 @@
 //! whole bus is faulted. A slave whose AL state is not OP — it stopped answering, or left
 //! OP on its own — faults its own axes at once, and the others go on unless configured to
 //! stop with it.
+//!
+//! At start the cycle itself takes the slaves from SafeOp to OP: bring-up only requests
+//! OP, and the process data runs from the first cycle on, because a drive goes to OP only
+//! with valid outputs and, once there, counts every SYNC0 period without a setpoint as a
+//! sync error (two in a row take it out of OP again, ETG.1020 / 0x10F1:02). Until every
+//! slave has reported OP — at most [`BusHealth::starting`]'s cycles — a slave still on its
+//! way is no fault.
 
 use ethercrab::SubDeviceState;
 use thiserror::Error;
@@ -40,6 +47,13 @@ pub enum SlaveProblem {
     NoAnswer,
     /// It answered from another state.
     LeftOp(SubDeviceState),
+    /// At start it did not reach OP in time.
+    NotInOp {
+        /// Its state when time ran out.
+        state: SubDeviceState,
+        /// The time it had (ms).
+        waited_ms: u64,
+    },
 }
 
 impl std::fmt::Display for SlaveProblem {
@@ -47,6 +61,9 @@ impl std::fmt::Display for SlaveProblem {
         match self {
             SlaveProblem::NoAnswer => f.write_str("does not answer (cable, power?)"),
             SlaveProblem::LeftOp(state) => write!(f, "left OP: now {state}"),
+            SlaveProblem::NotInOp { state, waited_ms } => {
+                write!(f, "did not reach OP in {waited_ms} ms: still {state}")
+            }
         }
     }
 }
@@ -124,6 +141,9 @@ pub struct BusHealth {
     pub wkc_total: u64,
     bus: Option<BusFault>,
     slaves: Vec<Option<BusFault>>,
+    /// While the slaves are on their way to OP: answered cycles left, and the time they
+    /// get in all (ms, for the message).
+    starting: Option<(u32, u64)>,
 }
 
 impl BusHealth {
@@ -141,7 +161,20 @@ impl BusHealth {
             wkc_total: 0,
             bus: None,
             slaves: vec![None; n],
+            starting: None,
         }
+    }
+
+    /// The slaves have been asked for OP and get `cycles` answered cycles (`waited_ms` of
+    /// time) to report it; until then a slave in another state is on its way, not lost.
+    pub fn starting(mut self, cycles: u32, waited_ms: u64) -> Self {
+        self.starting = Some((cycles, waited_ms));
+        self
+    }
+
+    /// Whether the slaves are still on their way to OP.
+    pub fn is_starting(&self) -> bool {
+        self.starting.is_some()
     }
 
     /// Takes one cycle's outcome.
@@ -162,6 +195,21 @@ impl BusHealth {
                 states,
             } => {
                 self.lost_run = 0;
+                if let Some((left, waited_ms)) = self.starting {
+                    let answering = !states.contains(&SubDeviceState::None);
+                    if states.iter().all(|s| *s == SubDeviceState::Op) {
+                        self.starting = None;
+                    } else if answering && left > 0 {
+                        self.starting = Some((left - 1, waited_ms));
+                        return;
+                    } else if answering {
+                        self.starting = None;
+                        self.not_in_op(states, waited_ms);
+                    } else {
+                        // A slave that does not answer is lost at once, starting or not.
+                        self.starting = None;
+                    }
+                }
                 let mut lost_slave = None;
                 for (i, state) in states.iter().enumerate() {
                     if *state != SubDeviceState::Op {
@@ -204,6 +252,25 @@ impl BusHealth {
                         address: self.addresses.get(i).copied().unwrap_or(0),
                     });
                 }
+            }
+        }
+    }
+
+    /// Time ran out at start: every slave not in OP faults its axes with its state.
+    fn not_in_op(&mut self, states: &[SubDeviceState], waited_ms: u64) {
+        for (i, state) in states.iter().enumerate() {
+            if *state == SubDeviceState::Op {
+                continue;
+            }
+            if let Some(slot) = self.slaves.get_mut(i) {
+                slot.get_or_insert(BusFault::Slave {
+                    position: i,
+                    address: self.addresses.get(i).copied().unwrap_or(0),
+                    problem: SlaveProblem::NotInOp {
+                        state: *state,
+                        waited_ms,
+                    },
+                });
             }
         }
     }
@@ -284,6 +351,42 @@ mod tests {
             "EtherCAT: slave 1 (0x1001) does not answer (cable, power?)"
         );
         assert_eq!(h.wkc_total, 0);
+    }
+
+    #[test]
+    fn slaves_on_their_way_to_op_at_start_are_no_fault_until_time_runs_out() {
+        let start = || health().starting(3, 3);
+        let answered = |h: &mut BusHealth, states: &[SubDeviceState]| {
+            h.record(Exchange::Answered {
+                working_counter: 1,
+                states,
+            })
+        };
+        // Both reach OP in time: no fault, and from then on leaving OP is one.
+        let mut h = start();
+        answered(&mut h, &[SafeOp, SafeOp]);
+        answered(&mut h, &[Op, SafeOp]);
+        assert!(h.is_starting() && !h.any_fault());
+        answered(&mut h, &[Op, Op]);
+        assert!(!h.is_starting() && !h.any_fault());
+        answered(&mut h, &[Op, SafeOp]);
+        assert!(h.fault(1).unwrap().to_string().contains("left OP: now"));
+        // One never gets there: after 3 answered cycles it faults with its state.
+        let mut h = start();
+        for _ in 0..3 {
+            answered(&mut h, &[Op, SafeOp]);
+        }
+        assert!(!h.any_fault());
+        answered(&mut h, &[Op, SafeOp]);
+        assert_eq!(h.fault(0), None);
+        assert_eq!(
+            h.fault(1).unwrap().to_string(),
+            "EtherCAT: slave 1 (0x1001) did not reach OP in 3 ms: still Safe-Operational"
+        );
+        // A slave that does not answer is lost at once.
+        let mut h = start();
+        answered(&mut h, &[SafeOp, SubDeviceState::None]);
+        assert!(h.fault(1).unwrap().to_string().contains("does not answer"));
     }
 
     #[test]

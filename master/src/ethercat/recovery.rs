@@ -31,6 +31,8 @@ pub const AL_CONTROL: u16 = 0x0120;
 pub const AL_STATUS: u16 = 0x0130;
 /// Bytes read from [`AL_STATUS`]: status, reserved, AL status code.
 const AL_STATUS_AND_CODE_BYTES: usize = 6;
+/// AL state PreOp in the AL control/status registers.
+pub const AL_STATE_PREOP: u16 = 0x02;
 /// AL state OP in the AL control/status registers.
 pub const AL_STATE_OP: u16 = 0x08;
 /// The state bits of AL control/status.

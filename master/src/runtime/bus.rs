@@ -21,6 +21,10 @@ pub trait CycleBus {
     /// under the same deadline, until it is back, refuses, or `timeout_ns` after `now_ns`
     /// passes. False (nothing started) while another recovery is running.
     fn start_recovery(&mut self, axis: usize, now_ns: u64, timeout_ns: u64) -> bool;
+    /// The cycle is ready for the slaves to go to OP (in phase with SYNC0, where it locks
+    /// to it): from the next exchange on, each asks one slave for OP beside the process
+    /// data, until every slave was asked. The bus came up with its slaves in SafeOp.
+    fn request_op(&mut self);
     /// A finished recovery: the axis that asked and the outcome (taken once).
     fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)>;
     /// The chain position of `axis`' drive.

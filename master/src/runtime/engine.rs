@@ -148,7 +148,15 @@ pub struct Engine<B: CycleBus> {
     next_reset: usize,
     /// How long a slave may take to come back before its reset fails.
     recovery_timeout_ns: u64,
+    /// Answered cycles in a row whose frame the phase lock held, at start; `None` once
+    /// the slaves were asked for OP.
+    held_before_op: Option<u32>,
 }
+
+/// Cycles in a row the phase lock must hold before the slaves are asked for OP: a DC
+/// drive in OP counts every SYNC0 period without exactly one setpoint (ETG.1020), so the
+/// frames must be settled between its edges before it gets there.
+pub const HELD_BEFORE_OP: u32 = 20;
 
 impl<B: CycleBus> Engine<B> {
     /// An engine and the application's ends of its channels (allocates, once).
@@ -212,6 +220,7 @@ impl<B: CycleBus> Engine<B> {
             recovering: None,
             next_reset: 0,
             recovery_timeout_ns: RECOVERY_TIMEOUT_NS,
+            held_before_op: Some(0),
         };
         let app = AppEnds {
             requests: req_tx,
@@ -287,6 +296,7 @@ impl<B: CycleBus> Engine<B> {
         self.bus.exchange(&mut self.health, reply_by);
         self.answered = self.health.lost_total == lost_before;
         self.finish_recovery();
+        self.request_op_when_ready();
         let t2 = now_ns();
         let in_a_row = self
             .stats
@@ -372,6 +382,26 @@ impl<B: CycleBus> Engine<B> {
                 status: CommandStatus::Error(e),
             },
         }
+    }
+
+    /// At start: asks the bus to take the slaves to OP once the cycle is ready for them —
+    /// at once when it is not locked to SYNC0 (no DC, or no phase lock: free run is the
+    /// user's choice), else after [`HELD_BEFORE_OP`] answered frames in a row held in phase.
+    fn request_op_when_ready(&mut self) {
+        let Some(held) = self.held_before_op else {
+            return;
+        };
+        let held = match (self.phase_lock, self.bus.dc_offset_ns()) {
+            (Some(lock), Some(offset)) if self.answered && lock.holds(offset) => held + 1,
+            (Some(_), Some(_)) => 0,
+            _ => HELD_BEFORE_OP,
+        };
+        self.held_before_op = if held >= HELD_BEFORE_OP {
+            self.bus.request_op();
+            None
+        } else {
+            Some(held)
+        };
     }
 
     /// Hands the next waiting reset's slave to the bus, if the bus is free.

@@ -53,6 +53,12 @@ impl PhaseLock {
         }
     }
 
+    /// Whether a frame that reached the reference clock `offset_ns` into the SYNC0 period
+    /// is held: within an eighth of the period of the target, far from both SYNC0 edges.
+    pub fn holds(&self, offset_ns: u64) -> bool {
+        self.error_ns(offset_ns).unsigned_abs() <= (self.period_ns / 8) as u64
+    }
+
     /// How far to move the next deadlines (ns; negative: earlier) after a frame reached
     /// the reference clock `offset_ns` into the SYNC0 period.
     pub fn correction_ns(&self, offset_ns: u64) -> i64 {
