@@ -89,6 +89,34 @@ pub struct AppEnds {
     pub samples: rtrb::Consumer<CycleSample>,
 }
 
+/// The channels between the cycle thread and the application, made before the bus goes
+/// to Op: the trace ring alone is tens of MB, every page populated at once under
+/// `mlockall(MCL_FUTURE)` (~12 ms measured for 2¹⁶ samples). Made after Op, that time is a
+/// gap in the process data, and drives synchronised to SYNC0 count missed setpoints
+/// (0x1C32:0B) and leave Op at their limit (0x10F1:02; ETG.1020 sync error, AL status code
+/// 0x001A) before the first cycle runs.
+pub struct Channels {
+    requests: (rtrb::Producer<Request>, rtrb::Consumer<Request>),
+    snapshot: (
+        triple_buffer::Input<Snapshot>,
+        triple_buffer::Output<Snapshot>,
+    ),
+    trace: (rtrb::Producer<TraceSample>, rtrb::Consumer<TraceSample>),
+    stats: (CycleStats, rtrb::Consumer<CycleSample>),
+}
+
+impl Channels {
+    /// Channels for `axes` axes and a trace ring of `trace_capacity` samples (allocates).
+    pub fn new(axes: usize, trace_capacity: usize) -> Self {
+        Self {
+            requests: rtrb::RingBuffer::new(1024),
+            snapshot: triple_buffer::triple_buffer(&Snapshot::sized(axes)),
+            trace: rtrb::RingBuffer::new(trace_capacity.max(1)),
+            stats: CycleStats::new(),
+        }
+    }
+}
+
 /// Everything the cycle thread owns.
 pub struct Engine<B: CycleBus> {
     /// The bus.
@@ -139,11 +167,30 @@ impl<B: CycleBus> Engine<B> {
         overrun_limit: u32,
         trace_capacity: usize,
     ) -> (Self, AppEnds) {
-        let (req_tx, req_rx) = rtrb::RingBuffer::new(1024);
-        let (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(cycle.len()));
-        let (trace_tx, trace_rx) = rtrb::RingBuffer::new(trace_capacity.max(1));
+        let channels = Channels::new(cycle.len(), trace_capacity);
+        Self::with_channels(bus, cycle, health, overrun_limit, channels)
+    }
+
+    /// An engine on channels made beforehand ([`Channels::new`], before the bus goes to
+    /// Op); allocates only its small tables.
+    pub fn with_channels(
+        bus: B,
+        cycle: CspCycle,
+        health: BusHealth,
+        overrun_limit: u32,
+        channels: Channels,
+    ) -> (Self, AppEnds) {
+        let Channels {
+            requests: (req_tx, req_rx),
+            snapshot: (mut snap_in, mut snap_out),
+            trace: (trace_tx, trace_rx),
+            stats: (stats, samples),
+        } = channels;
         let axes = cycle.len();
-        let (stats, samples) = CycleStats::new();
+        // Channels made for another number of axes: a snapshot that fits.
+        if snap_in.input_buffer_mut().axes.len() != axes {
+            (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(axes));
+        }
         let engine = Self {
             bus,
             cycle,

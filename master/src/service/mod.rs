@@ -17,7 +17,7 @@ use thiserror::Error;
 use crate::config::{Config, ConfigError};
 use crate::ethercat::bus::EthercatBus;
 use crate::runtime::controller::Controller;
-use crate::runtime::engine::{AppEnds, Engine, LateReply};
+use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
 use crate::runtime::stats::{CycleCounters, CycleFigures};
 
@@ -76,8 +76,12 @@ pub fn start_cycle(
     if real_time {
         rt::enter(&config.rt).map_err(|e| e.to_string())?;
     }
+    // The channels first: made after the bus is in Op, their allocation would be a gap in
+    // the process data that drives count as missed setpoints (see `Channels`).
+    let channels = Channels::new(config.axes.len(), 1 << 16);
     let (bus, cycle, health) = EthercatBus::bring_up(config, log).map_err(|e| e.to_string())?;
-    let (mut engine, ends) = Engine::new(bus, cycle, health, config.rt.overrun_limit, 1 << 16);
+    let (mut engine, ends) =
+        Engine::with_channels(bus, cycle, health, config.rt.overrun_limit, channels);
     // Without real time a late reply is the host's fault, not the bus'.
     engine.set_late_reply(if real_time {
         LateReply::Lost
