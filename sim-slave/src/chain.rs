@@ -1074,8 +1074,8 @@ mod tests {
         assert_eq!(record.sync_doubled, 1);
         assert_eq!(record.targets, taken + 1, "one setpoint taken at the edge");
         assert_eq!(
-            record.max_target_step_counts, 40,
-            "70 → 110: the first never taken"
+            record.max_target_step_counts, 20,
+            "70 → 110 with the 100 between never taken: 40 counts over two master cycles"
         );
         assert_eq!(c.slaves()[0].sync_counters().cycle_time_too_small, 1);
         // A period without a frame: one missed setpoint, 0x1C32:0B = 3, still Op.

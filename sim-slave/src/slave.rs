@@ -447,7 +447,7 @@ impl Slave {
             if self.sync.buffers_since_sync0 >= 2 && in_op {
                 self.sync.cycle_time_too_small = self.sync.cycle_time_too_small.wrapping_add(1);
                 if let Some(r) = self.device.record_mut() {
-                    r.sync_doubled = r.sync_doubled.saturating_add(1);
+                    r.doubled();
                 }
             }
         } else if in_op {
@@ -573,9 +573,7 @@ impl Slave {
             return;
         }
         if let Some(r) = self.device.record_mut() {
-            r.sync_missed = r
-                .sync_missed
-                .saturating_add(missed.min(u64::from(u32::MAX)) as u32);
+            r.missed(missed.min(u64::from(u32::MAX)) as u32);
         }
         let limit = self.firmware.sync_error_limit;
         for _ in 0..missed.min(u64::from(limit)) {

@@ -340,8 +340,21 @@ pub fn start_gantry_sim_reporting(
     config: &std::path::Path,
     slaves: usize,
 ) -> SimProcess {
+    start_gantry_sim_recording(ns, iface, config, slaves, None)
+}
+
+/// As [`start_gantry_sim_reporting`]; with `record`, the simulator writes its drives'
+/// records there when it stops (`gantry-sim --record`, for
+/// [`crate::invariant::assert_record_invariants`]).
+pub fn start_gantry_sim_recording(
+    ns: &str,
+    iface: &str,
+    config: &std::path::Path,
+    slaves: usize,
+    record: Option<&std::path::Path>,
+) -> SimProcess {
     use std::io::BufRead;
-    let mut child = spawn_gantry_sim(ns, iface, config);
+    let mut child = spawn_gantry_sim(ns, iface, config, record);
     let mut stdout = std::io::BufReader::new(child.child().stdout.take().expect("piped"));
     let mut first = String::new();
     stdout
@@ -357,14 +370,24 @@ pub fn start_gantry_sim_reporting(
     }
 }
 
-fn spawn_gantry_sim(ns: &str, iface: &str, config: &std::path::Path) -> Reaped {
+fn spawn_gantry_sim(
+    ns: &str,
+    iface: &str,
+    config: &std::path::Path,
+    record: Option<&std::path::Path>,
+) -> Reaped {
+    let mut command = Command::new("ip");
+    command
+        .args(["netns", "exec", ns])
+        .arg(gantry_sim_binary().expect("gantry-sim is built"))
+        .args(["--interface", iface, "--config"])
+        .arg(config)
+        .args(["--priority", "70"]);
+    if let Some(path) = record {
+        command.arg("--record").arg(path);
+    }
     Reaped::new(
-        Command::new("ip")
-            .args(["netns", "exec", ns])
-            .arg(gantry_sim_binary().expect("gantry-sim is built"))
-            .args(["--interface", iface, "--config"])
-            .arg(config)
-            .args(["--priority", "70"])
+        command
             .stdout(std::process::Stdio::piped())
             .spawn()
             .expect("start gantry-sim"),

@@ -14,8 +14,12 @@ use thiserror::Error;
 pub struct DriveRecord {
     /// Target positions taken while in Operation enabled.
     pub targets: u64,
-    /// The largest change between two consecutive targets taken in Operation enabled
-    /// (counts, as the drive's 32-bit counter wraps: a step across ±2³¹ is its short way).
+    /// The largest change between two consecutive targets taken in Operation enabled, per
+    /// master cycle (counts, as the drive's 32-bit counter wraps: a step across ±2³¹ is
+    /// its short way). A step across setpoints the drive never took — a SYNC0 period with
+    /// none, or one overwritten by a second in the same period — spans as many master
+    /// cycles more and is divided by them: the master is judged by what it sent per
+    /// cycle, the host's timing by `sync_missed` / `sync_doubled`.
     pub max_target_step_counts: u64,
     /// When the largest step was taken (number of targets taken before it).
     pub max_target_step_at: u64,
@@ -32,6 +36,9 @@ pub struct DriveRecord {
     pub sync_doubled: u32,
     #[serde(skip)]
     previous: Option<i32>,
+    /// Setpoints the master sent that the drive did not take since its last target.
+    #[serde(skip)]
+    untaken: u64,
 }
 
 /// What a test expects of every drive's record (issue 10 §6), see [`DriveRecord::check`].
@@ -122,22 +129,38 @@ impl DriveRecord {
 }
 
 impl DriveRecord {
+    /// `n` SYNC0 periods passed with no setpoint (the master's frames for them were late
+    /// or lost).
+    pub fn missed(&mut self, n: u32) {
+        self.sync_missed = self.sync_missed.saturating_add(n);
+        self.untaken += u64::from(n);
+    }
+
+    /// A second setpoint arrived within one SYNC0 period: the first is never taken.
+    pub fn doubled(&mut self) {
+        self.sync_doubled = self.sync_doubled.saturating_add(1);
+        self.untaken += 1;
+    }
+
     /// The drive took `target` in Operation enabled.
     pub fn target(&mut self, target: i32) {
         if let Some(p) = self.previous {
-            let step = u64::from(target.wrapping_sub(p).unsigned_abs());
+            let cycles = 1 + self.untaken;
+            let step = u64::from(target.wrapping_sub(p).unsigned_abs()).div_ceil(cycles);
             if step > self.max_target_step_counts {
                 self.max_target_step_counts = step;
                 self.max_target_step_at = self.targets;
             }
         }
         self.previous = Some(target);
+        self.untaken = 0;
         self.targets += 1;
     }
 
     /// The drive left Operation enabled: the next target starts a new sequence.
     pub fn disabled(&mut self) {
         self.previous = None;
+        self.untaken = 0;
     }
 
     /// The drive faulted with `code`.
@@ -166,6 +189,25 @@ mod tests {
         r.target(-30);
         assert_eq!((r.max_target_step_counts, r.max_target_step_at), (30, 3));
         assert_eq!(r.targets, 4);
+    }
+
+    #[test]
+    fn a_step_across_untaken_setpoints_counts_per_master_cycle() {
+        let mut r = DriveRecord::default();
+        r.target(0);
+        r.target(100);
+        // One period without a setpoint, then one overwritten: the next step spans three
+        // master cycles.
+        r.missed(1);
+        r.doubled();
+        r.target(400);
+        assert_eq!(r.max_target_step_counts, 100);
+        assert_eq!((r.sync_missed, r.sync_doubled), (1, 1));
+        r.target(550);
+        assert_eq!(
+            r.max_target_step_counts, 150,
+            "counted anew after each target"
+        );
     }
 
     #[test]
