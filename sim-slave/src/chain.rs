@@ -721,6 +721,27 @@ mod tests {
         0x80, 0x10, 0x80, 0x00, 0x22, 0x00, 0x01, 0x00,
     ];
 
+    /// The servo's process-data SyncManagers as a master sets them: SM2 (outputs at
+    /// 0x1100, buffered, ECAT writes) and SM3 (inputs at 0x1400, buffered, ECAT reads) with
+    /// these lengths.
+    fn process_data_sms(c: &mut SlaveChain, outputs: u8, inputs: u8) {
+        use crate::esc::registers::SM0;
+        send(
+            c,
+            Command::Apwr,
+            0,
+            SM0 + 16,
+            &[0x00, 0x11, outputs, 0, 0x64, 0, 1, 0],
+        );
+        send(
+            c,
+            Command::Apwr,
+            0,
+            SM0 + 24,
+            &[0x00, 0x14, inputs, 0, 0x20, 0, 1, 0],
+        );
+    }
+
     /// A servo taken to PreOp the way a master does it.
     fn servo_in_preop() -> SlaveChain {
         use crate::catalog::{self, ServoOptions};
@@ -787,20 +808,7 @@ mod tests {
         use crate::esc::registers::SM0;
         let mut c = servo_in_preop();
         // SM2 one byte short of the mapped 6 output bytes; SM3 right.
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 5, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 5, 6);
         send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
         assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x1D, 0x00]);
         // Right length, but the master-reads direction (control 0x60): outputs again.
@@ -813,20 +821,7 @@ mod tests {
         );
         send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
         assert_eq!(al(&mut c)[4], 0x1D);
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 4, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 6, 4);
         send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
         assert_eq!(al(&mut c)[4], 0x1E, "now the inputs");
         send(
@@ -851,20 +846,7 @@ mod tests {
         // SYNC0 (if activated) starts in 100 s.
         let start = (c.now_ns() + 100_000_000_000).to_le_bytes();
         send(&mut c, Command::Apwr, 0, DC_START_TIME_CYCLIC, &start);
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 6, 6);
         send(
             &mut c,
             Command::Apwr,
@@ -915,20 +897,7 @@ mod tests {
         use crate::esc::registers::{DC_ACTIVATION, SM0};
         // Cyclic unit on, no SYNC signal: 0x0030 at PreOp → SafeOp.
         let mut c = servo_in_preop();
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 6, 6);
         send(&mut c, Command::Apwr, 0, DC_ACTIVATION, &[0x01]);
         send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
         assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x30, 0x00]);
@@ -943,20 +912,7 @@ mod tests {
         assert_eq!(al(&mut c), [0x14, 0x00, 0, 0, 0x2D, 0x00]);
         // SYNC0 pulsing (start time 0, already passed): Op once outputs came.
         let mut c = servo_in_preop();
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 6, 6);
         // The slave's system time is its local time (offset 0, drift 0): chain time.
         let start = c.now_ns().to_le_bytes();
         send(
@@ -1003,20 +959,7 @@ mod tests {
         };
         use gantry_drives::cia402::State;
         let mut c = servo_in_preop();
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 16,
-            &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0],
-        );
-        send(
-            &mut c,
-            Command::Apwr,
-            0,
-            SM0 + 24,
-            &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0],
-        );
+        process_data_sms(&mut c, 6, 6);
         // SYNC0 every 1 ms from half a period on: frames sent right after each whole
         // period arrive mid-period (each frame's wire time moves them 7 µs a period).
         let start = (c.now_ns() + 500_000).to_le_bytes();
