@@ -839,9 +839,7 @@ mod tests {
 
     /// A servo in SafeOp with process data at 0x1100 (outputs) and 0x1400 (inputs).
     fn servo_in_safeop(activation: u8) -> SlaveChain {
-        use crate::esc::registers::{
-            DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME, SM0,
-        };
+        use crate::esc::registers::{DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME};
         let mut c = servo_in_preop();
         // SYNC0 (if activated) starts in 100 s.
         let start = (c.now_ns() + 100_000_000_000).to_le_bytes();
@@ -894,7 +892,7 @@ mod tests {
 
     #[test]
     fn dc_mode_waits_for_sync0_and_a_bad_activation_is_an_invalid_dc_configuration() {
-        use crate::esc::registers::{DC_ACTIVATION, SM0};
+        use crate::esc::registers::DC_ACTIVATION;
         // Cyclic unit on, no SYNC signal: 0x0030 at PreOp → SafeOp.
         let mut c = servo_in_preop();
         process_data_sms(&mut c, 6, 6);
@@ -954,9 +952,7 @@ mod tests {
 
     #[test]
     fn a_dc_drive_takes_its_outputs_at_sync0_and_counts_missed_and_doubled_setpoints() {
-        use crate::esc::registers::{
-            DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME, SM0,
-        };
+        use crate::esc::registers::{DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME};
         use gantry_drives::cia402::State;
         let mut c = servo_in_preop();
         process_data_sms(&mut c, 6, 6);
