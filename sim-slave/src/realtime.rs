@@ -39,6 +39,15 @@ impl WallClock {
         chain.run_until(self.now_ns(), self.period_ns);
     }
 
+    /// Brings `chain` up to the time a frame arrived `age` ago (never back): frames that
+    /// waited in the socket while this process was not scheduled are served at their
+    /// arrival, with the SYNC0 edges between them where they were, so the drives judge the
+    /// master's timing and not the simulator's own stall.
+    pub fn catch_up_to_arrival(&self, chain: &mut SlaveChain, age: Duration) {
+        let age_ns = u64::try_from(age.as_nanos()).unwrap_or(u64::MAX);
+        chain.run_until(self.now_ns().saturating_sub(age_ns), self.period_ns);
+    }
+
     /// How long until the applications' next period starts (to sleep at most that long).
     pub fn until_next_period(&self, chain: &SlaveChain) -> Duration {
         let next = (chain.now_ns() / self.period_ns + 1) * self.period_ns;

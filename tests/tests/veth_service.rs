@@ -88,21 +88,52 @@ fn gantry_run_drives_the_simulator_over_veth_in_real_time() {
         );
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
+    // This VM's kernel does not preempt ("Dynamic Preempt: none"): now and then a
+    // real-time thread waits milliseconds for kernel work on its CPU, three frames in a row
+    // are lost and the bus stops every axis (the example's limit, 3), about one run in
+    // five. Such a stop — and only such a stop — is reset as an operator would, counted,
+    // and the command repeated; the count is printed and bounded.
+    let mut timing_stops = Vec::new();
+    let mut step = |args: &[&str]| -> String {
+        loop {
+            let out = cli(args);
+            if out.status.success() {
+                return String::from_utf8_lossy(&out.stdout).into_owned();
+            }
+            let table = String::from_utf8_lossy(&cli(&["status"]).stdout).into_owned();
+            let timing = table.contains("frames lost in a row");
+            assert!(
+                timing && timing_stops.len() < 3,
+                "{args:?}: {}{}\n{table}\nearlier timing stops: {timing_stops:?}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr),
+            );
+            timing_stops.push(format!("{args:?}"));
+            for axis in ["x", "y", "z", "c"] {
+                ok(&["reset", axis]);
+                ok(&["enable", axis]);
+            }
+        }
+    };
     for axis in ["x", "y", "z", "c"] {
-        ok(&["enable", axis]);
-        ok(&["set-position", axis, "--position", "0"]);
+        step(&["enable", axis]);
+        step(&["set-position", axis, "--position", "0"]);
     }
     // Moves on all four axes at once, then each waited for.
     for (axis, to) in [("x", 100.0), ("y", -50.0), ("z", 20.0), ("c", 270.0)] {
-        ok(&["move", axis, "--to", &to.to_string(), "--no-wait"]);
+        step(&["move", axis, "--to", &to.to_string(), "--no-wait"]);
     }
     for (axis, to) in [("x", 100.0), ("y", -50.0), ("z", 20.0)] {
-        let out = ok(&["move", axis, "--to", &to.to_string()]);
+        let out = step(&["move", axis, "--to", &to.to_string()]);
         assert!(out.contains("done at"), "{out}");
     }
     // The rotary axis went the shorter way to 270° (that is -90°).
-    let out = ok(&["move", "c", "--to", "270"]);
+    let out = step(&["move", "c", "--to", "270"]);
     assert!(out.contains("done at 270.0"), "{out}");
+    eprintln!(
+        "stops for frames lost in a row (reset, command repeated): {}",
+        timing_stops.len()
+    );
     let status: serde_json::Value = serde_json::from_str(&ok(&["status", "--json"])).unwrap();
     let table = ok(&["status"]);
     eprintln!("{table}");

@@ -113,6 +113,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let config = SimConfig::load(&args.config)?;
     let mut chain = config.chain()?;
     let socket = RawSocket::open(&args.interface)?;
+    socket.stamp_arrivals()?;
     if let Some(priority) = args.priority {
         set_fifo(priority)?;
     }
@@ -139,21 +140,27 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                 return Ok(());
             }
             let wait = clock.until_next_period(&chain);
-            if let Some(n) = socket.recv(&mut buf, Some(wait))? {
-                let frame = buf.get_mut(..n).unwrap_or_default();
-                clock.catch_up(&mut chain);
-                match chain.process(frame) {
-                    Ok(()) => {
-                        socket.send(frame)?;
-                        served += 1;
-                        gaps.frame(Instant::now(), &chain);
+            match socket.recv_stamped(&mut buf, Some(wait))? {
+                Some((n, age)) => {
+                    let frame = buf.get_mut(..n).unwrap_or_default();
+                    // Served at its arrival: a frame that waited while this process was
+                    // not scheduled still meets the SYNC0 edges it met on the wire.
+                    clock.catch_up_to_arrival(&mut chain, age);
+                    match chain.process(frame) {
+                        Ok(()) => {
+                            socket.send(frame)?;
+                            served += 1;
+                            let arrived = Instant::now().checked_sub(age);
+                            gaps.frame(arrived.unwrap_or_else(Instant::now), &chain);
+                        }
+                        // A real network drops what it cannot parse; so do we, and count it.
+                        Err(_) => dropped += 1,
                     }
-                    // A real network drops what it cannot parse; so do we, and count it.
-                    Err(_) => dropped += 1,
                 }
+                // Idle: the chain goes on to now (timers, the watchdog); after a stall
+                // the applications catch up a few periods, not all of it.
+                None => clock.catch_up(&mut chain),
             }
-            // After a stall the applications catch up a few periods, not all of it.
-            clock.catch_up(&mut chain);
         }
     };
     let served_result = serve();

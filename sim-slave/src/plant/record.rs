@@ -39,6 +39,9 @@ pub struct DriveRecord {
     /// Setpoints the master sent that the drive did not take since its last target.
     #[serde(skip)]
     untaken: u64,
+    /// Of those, SYNC0 periods that brought none.
+    #[serde(skip)]
+    missed_since: u64,
 }
 
 /// What a test expects of every drive's record (issue 10 §6), see [`DriveRecord::check`].
@@ -134,12 +137,19 @@ impl DriveRecord {
     pub fn missed(&mut self, n: u32) {
         self.sync_missed = self.sync_missed.saturating_add(n);
         self.untaken += u64::from(n);
+        self.missed_since += u64::from(n);
     }
 
     /// A second setpoint arrived within one SYNC0 period: the first is never taken.
     pub fn doubled(&mut self) {
         self.sync_doubled = self.sync_doubled.saturating_add(1);
         self.untaken += 1;
+    }
+
+    /// SYNC0 periods without a setpoint since the last target taken (the drive's own count
+    /// of missed SM events: the next step covers as many periods more).
+    pub fn missed_since_target(&self) -> u64 {
+        self.missed_since
     }
 
     /// The drive took `target` in Operation enabled.
@@ -154,6 +164,7 @@ impl DriveRecord {
         }
         self.previous = Some(target);
         self.untaken = 0;
+        self.missed_since = 0;
         self.targets += 1;
     }
 
@@ -161,6 +172,7 @@ impl DriveRecord {
     pub fn disabled(&mut self) {
         self.previous = None;
         self.untaken = 0;
+        self.missed_since = 0;
     }
 
     /// The drive faulted with `code`.

@@ -154,6 +154,83 @@ impl RawSocket {
         Ok(Some(n as usize))
     }
 
+    /// Asks the kernel to stamp every received frame with its arrival time
+    /// (`SO_TIMESTAMPNS`, CLOCK_REALTIME), for [`RawSocket::recv_stamped`].
+    pub fn stamp_arrivals(&self) -> io::Result<()> {
+        let one: libc::c_int = 1;
+        // SAFETY: option value is a c_int of the size given.
+        let r = unsafe {
+            libc::setsockopt(
+                self.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_TIMESTAMPNS,
+                (&one as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        if r < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        Ok(())
+    }
+
+    /// As [`RawSocket::recv`], with how long ago the frame arrived (from its kernel time
+    /// stamp, see [`RawSocket::stamp_arrivals`]; zero when it has none). A process that
+    /// was not scheduled for a while finds frames that waited: their age says when they
+    /// really came.
+    pub fn recv_stamped(
+        &self,
+        buf: &mut [u8],
+        timeout: Option<Duration>,
+    ) -> io::Result<Option<(usize, Duration)>> {
+        if !self.wait_readable(timeout)? {
+            return Ok(None);
+        }
+        let mut iov = libc::iovec {
+            iov_base: buf.as_mut_ptr().cast(),
+            iov_len: buf.len(),
+        };
+        // Room for one SCM_TIMESTAMPNS control message (a timespec), aligned for cmsghdr.
+        let mut control = [0u64; 8];
+        // SAFETY: a zeroed msghdr is valid; the pointers set below outlive the call.
+        let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+        msg.msg_iov = &mut iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control.as_mut_ptr().cast();
+        msg.msg_controllen = std::mem::size_of_val(&control);
+        // SAFETY: msg points to a valid buffer and control area of the sizes given.
+        let n = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &mut msg, libc::MSG_DONTWAIT) };
+        if n < 0 {
+            let e = io::Error::last_os_error();
+            return match e.kind() {
+                io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted => Ok(None),
+                _ => Err(e),
+            };
+        }
+        let mut age = Duration::ZERO;
+        // SAFETY: the CMSG macros walk the control area the kernel filled in, within
+        // msg_controllen; the timespec is read unaligned.
+        unsafe {
+            let mut c = libc::CMSG_FIRSTHDR(&msg);
+            while !c.is_null() {
+                if (*c).cmsg_level == libc::SOL_SOCKET && (*c).cmsg_type == libc::SCM_TIMESTAMPNS {
+                    let ts: libc::timespec =
+                        std::ptr::read_unaligned(libc::CMSG_DATA(c).cast::<libc::timespec>());
+                    let at = Duration::new(
+                        ts.tv_sec.max(0) as u64,
+                        ts.tv_nsec.clamp(0, 999_999_999) as u32,
+                    );
+                    let now = std::time::SystemTime::now()
+                        .duration_since(std::time::UNIX_EPOCH)
+                        .unwrap_or_default();
+                    age = now.saturating_sub(at);
+                }
+                c = libc::CMSG_NXTHDR(&msg, c);
+            }
+        }
+        Ok(Some((n as usize, age)))
+    }
+
     fn wait_readable(&self, timeout: Option<Duration>) -> io::Result<bool> {
         let mut pfd = libc::pollfd {
             fd: self.fd.as_raw_fd(),

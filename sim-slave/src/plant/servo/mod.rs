@@ -192,6 +192,8 @@ pub struct ServoDrive {
     /// Run time since the target taken last changed (s), and that time when it changed.
     since_change: f64,
     change_interval: f64,
+    /// SYNC0 periods without a setpoint before the one taken last.
+    missed_periods: u64,
     /// The setpoint period (s): the time between setpoints.
     setpoint_period: Option<f64>,
     /// The last time between two setpoints taken (s).
@@ -257,6 +259,7 @@ impl ServoDrive {
             since_take: 0.0,
             since_change: 0.0,
             change_interval: 0.0,
+            missed_periods: 0,
             setpoint_period: None,
             last_interval: None,
             target_abs: None,
@@ -641,6 +644,9 @@ impl ServoDrive {
             self.change_interval = self.since_change;
             self.since_change = 0.0;
         }
+        // SYNC0 periods that brought no setpoint since the last (the ESC side counts
+        // them): the step covers them too, however little of that time the simulator ran.
+        self.missed_periods = self.record.missed_since_target();
         self.since_take = 0.0;
         self.fresh = true;
         // A setpoint is a target taken in Operation enabled with a controlword that keeps
@@ -843,7 +849,9 @@ impl ServoDrive {
         // SM events does. The first target after enabling must be within one period's
         // move of where the load is.
         let interval = match self.target_abs {
-            Some(_) => period.max(self.change_interval),
+            Some(_) => period
+                .max(self.change_interval)
+                .max(period * (1.0 + self.missed_periods as f64)),
             None => period,
         };
         let reference = self.target_abs.unwrap_or(self.demand);
