@@ -99,8 +99,14 @@ impl WireTiming {
     }
 }
 
-/// Application periods run at most in one catch-up after the host stalled.
-pub const MAX_CATCH_UP: u32 = 4;
+/// Application periods run at most in one catch-up after the host stalled: a second at
+/// 1 ms. A drive runs on its own clock, so a stall of the simulator is replayed period by
+/// period, SYNC0 edges and application runs in their order; skipped, the drives would
+/// have followed their setpoints in less time than the master gave them (a following
+/// error the master did not cause, or setpoints taken with no run between them). A
+/// longer stall means the run is broken anyway; replaying it would stall the simulator
+/// again.
+pub const MAX_CATCH_UP: u32 = 1000;
 
 /// A line of slaves.
 #[derive(Clone, Debug, Default)]
@@ -201,7 +207,7 @@ impl SlaveChain {
 
     /// Brings the network to time `t_ns`: the applications run once for every whole
     /// `period_ns` of network time passed (at most [`MAX_CATCH_UP`] of them after a stall:
-    /// the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs
+    /// beyond that the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs
     /// call this before every frame, so DC clocks and SYNC0 follow the host's clock to the
     /// nanosecond rather than in whole periods.
     pub fn run_until(&mut self, t_ns: u64, period_ns: u64) {
@@ -651,13 +657,21 @@ mod tests {
         };
         // 99 whole periods at 1 rev/s and 1000 counts per rev: 99 counts (not 70 % of it).
         assert_eq!(e.position_counts(), 99);
-        // After a stall, at most four periods are run, and the clocks jump.
+        // A stall of 100 ms is replayed period by period: the device's time keeps up.
         c.run_until(200_000_000, 1_000_000);
         assert_eq!(c.now_ns(), 200_000_000);
         let DeviceModel::Encoder(e) = c.slaves()[0].device() else {
             panic!("an encoder");
         };
-        assert_eq!(e.position_counts(), 99 + i64::from(MAX_CATCH_UP));
+        assert_eq!(e.position_counts(), 200);
+        // Beyond MAX_CATCH_UP periods the rest is skipped, and the clocks jump.
+        let long = 200_000_000 + 5 * u64::from(MAX_CATCH_UP) * 1_000_000;
+        c.run_until(long, 1_000_000);
+        assert_eq!(c.now_ns(), long);
+        let DeviceModel::Encoder(e) = c.slaves()[0].device() else {
+            panic!("an encoder");
+        };
+        assert_eq!(e.position_counts(), 200 + i64::from(MAX_CATCH_UP));
     }
 
     #[test]

@@ -158,7 +158,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
                     }
                 }
                 // Idle: the chain goes on to now (timers, the watchdog); after a stall
-                // the applications catch up a few periods, not all of it.
+                // the applications replay the periods they missed (up to a second).
                 None => clock.catch_up(&mut chain),
             }
         }

@@ -605,6 +605,14 @@ impl ServoDrive {
     /// by. Call it once per new setpoint: a run without one is a missed setpoint, and the
     /// time between two calls is the setpoint period the target is interpolated over.
     pub fn take_outputs(&mut self, mem: &Memory) {
+        // A setpoint taken before the drive ran since the previous one (the simulator
+        // caught up after a stall of its own, passing SYNC0 edges without running the
+        // periods between them): the previous one is judged and interpolated first, as
+        // the drive did at its own edge. Judged only with the last, two steps in a row
+        // would count as one over a single period.
+        if core::mem::take(&mut self.fresh) && self.following() && self.mode == CSP {
+            self.new_setpoint(self.setpoint_period.unwrap_or(0.0));
+        }
         let previous = self.target;
         let mut out = [0u8; MAX_PDO_BYTES];
         let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);

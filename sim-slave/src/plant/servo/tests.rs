@@ -357,6 +357,39 @@ fn a_setpoint_sent_a_period_late_is_judged_over_the_periods_it_covers() {
 }
 
 #[test]
+fn setpoints_taken_with_no_run_between_them_are_judged_one_by_one() {
+    // After a stall of its own the simulator may pass two SYNC0 edges before it runs the
+    // drive again: each setpoint is one period's step (within 0x607F), both together
+    // are not, and the drive must not take them for one step.
+    let mut r = Rig::enabled(0, p(), CSP);
+    let per = (80.0 * f64::from(p().counts_per_rev) * DT) as i32;
+    for k in 1..=100 {
+        r.target += per.min(per * k / 50);
+        r.cycle();
+    }
+    assert!(
+        f64::from(2 * per) > p().max_speed_counts() * DT,
+        "the pair is too far"
+    );
+    for _ in 0..2 {
+        r.target += per;
+        let mut b = [0u8; 7];
+        b[0..2].copy_from_slice(&r.cw.to_le_bytes());
+        b[2] = r.mode as u8;
+        b[3..7].copy_from_slice(&r.target.to_le_bytes());
+        r.mem.pdi_write(PROCESS_RAM, &b);
+        r.d.take_outputs(&r.mem);
+    }
+    r.d.run(DT);
+    for _ in 0..20 {
+        r.target += per;
+        assert_eq!(r.cycle().error, 0);
+    }
+    assert_eq!(r.d.record().faults, 0);
+    assert_eq!(r.d.record().max_target_step_counts, per as u64);
+}
+
+#[test]
 fn positions_wrap_at_32_bits_and_targets_are_taken_the_short_way() {
     let mut r = Rig::enabled(i32::MAX - 50_000, p(), CSP);
     // 1000 counts per cycle (1 m counts/s) across +2³¹.
