@@ -4,7 +4,7 @@
 
 use std::io::Write;
 use std::sync::atomic::AtomicU64;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use super::transition;
@@ -21,10 +21,11 @@ use thiserror::Error;
 use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
-use super::embedded::EmbeddedBus;
+use super::embedded::SimWire;
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::mapping::map_pdos;
-use super::raw::RawBus;
+use super::link::{FrameIo, Link};
+use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
 use crate::pcap::PcapWriter;
@@ -132,12 +133,6 @@ pub enum StartError {
     Setup(String),
 }
 
-/// What keeps the frames flowing.
-enum Link {
-    Raw(RawBus),
-    Embedded(EmbeddedBus),
-}
-
 /// The EtherCAT bus in OP.
 pub struct EthercatBus {
     md: MainDevice<'static>,
@@ -145,10 +140,12 @@ pub struct EthercatBus {
     dc: DcStatus,
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
-    link: Option<Link>,
-    /// The pump's count of replies (bring-up and shutdown watch it for silence).
+    /// The in-process simulator's chain, when the link is the wire to it.
+    chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
+    /// Replies handed back so far (bring-up and shutdown watch it for silence).
     replies: Arc<AtomicU64>,
-    /// Runs ethercrab's futures in the cycle thread without a lock.
+    /// Runs ethercrab's futures in the cycle thread without a lock, and exchanges their
+    /// frames on the link.
     runner: BlockOn,
     /// The slave being brought back to OP: the axis that asked, and the machine.
     recovery: Option<(usize, Recovery)>,
@@ -177,7 +174,7 @@ impl EthercatBus {
     /// The steps run in a short-lived thread of their own with a large stack
     /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
     /// stack per level in debug builds), started from the calling thread so that it — and
-    /// the frame pump it starts — inherit the caller's scheduling and CPU.
+    /// the simulator's thread it may start — inherit the caller's scheduling and CPU.
     pub fn bring_up(
         config: &Config,
         out: &mut (dyn Write + Send),
@@ -216,26 +213,35 @@ impl EthercatBus {
         let (tx, rx, pdu_loop) = PDU_STORAGE
             .try_split()
             .map_err(|_| StartError::Link("the EtherCAT bus can start once per process".into()))?;
-        let link = match (&config.bus.interface, &config.bus.simulator) {
-            (Some(interface), _) => Link::Raw(
-                RawBus::open(interface, tx, rx, capture)
-                    .map_err(|e| StartError::Link(e.to_string()))?,
-            ),
-            (None, Some(sim)) => {
-                let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
-                let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
-                let period = Duration::from_micros(u64::from(sim.cycle_us));
-                Link::Embedded(EmbeddedBus::start_realtime(tx, rx, chain, capture, period))
-            }
-            (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
-        };
-        let replies = match &link {
-            Link::Raw(r) => r.replies(),
-            Link::Embedded(e) => e.replies(),
-        };
+        // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
+        // the in-process simulator's thread.
+        let (link, chain): (Box<dyn Link>, _) =
+            match (&config.bus.interface, &config.bus.simulator) {
+                (Some(interface), _) => (
+                    Box::new(
+                        RawLink::open(interface).map_err(|e| StartError::Link(e.to_string()))?,
+                    ),
+                    None,
+                ),
+                (None, Some(sim)) => {
+                    let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
+                    let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
+                    let chain = Arc::new(Mutex::new(chain));
+                    let period = Duration::from_micros(u64::from(sim.cycle_us));
+                    let wire = SimWire::start(chain.clone(), period).map_err(|e| {
+                        StartError::Link(format!("the simulator's thread: {e}"))
+                    })?;
+                    (Box::new(wire), Some(chain))
+                }
+                (None, None) => {
+                    return Err(StartError::Link("no interface and no simulator".into()))
+                }
+            };
+        let io = FrameIo::new(tx, rx, link, capture);
+        let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
-        let runner =
-            BlockOn::new().map_err(|e| StartError::Link(format!("the cycle's eventfd: {e}")))?;
+        let runner = BlockOn::with_io(io)
+            .map_err(|e| StartError::Link(format!("the cycle's eventfd: {e}")))?;
         // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
         let silence = BRING_UP_SILENCE_NS;
         let group = runner
@@ -363,7 +369,7 @@ impl EthercatBus {
                 dc,
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves),
-                link: Some(link),
+                chain,
                 replies,
                 runner,
                 recovery: None,
@@ -376,7 +382,7 @@ impl EthercatBus {
     }
 
     /// Replies the slaves sent back so far (every frame: process data, register
-    /// accesses), as the pump counted them.
+    /// accesses).
     pub fn replies(&self) -> u64 {
         self.replies.load(std::sync::atomic::Ordering::Acquire)
     }
@@ -391,10 +397,7 @@ impl EthercatBus {
     pub fn simulated_chain(
         &self,
     ) -> Option<std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>> {
-        match &self.link {
-            Some(Link::Embedded(e)) => Some(e.chain.clone()),
-            _ => None,
-        }
+        self.chain.clone()
     }
 
     /// Takes the slaves down to PreOp and stops the link.
@@ -437,15 +440,8 @@ impl EthercatBus {
                 let _ = writeln!(out, "bus: could not take the slaves to PreOp: {e}");
             }
         }
-        match self.link.take() {
-            Some(Link::Raw(r)) => {
-                r.stop();
-            }
-            Some(Link::Embedded(e)) => {
-                e.stop();
-            }
-            None => {}
-        }
+        // The capture flushed, the link closed (the simulator's thread stops with it).
+        self.runner.finish_io();
     }
 }
 

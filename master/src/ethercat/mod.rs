@@ -8,6 +8,7 @@ pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
 pub mod health;
+pub mod link;
 pub mod mapping;
 pub mod pump;
 pub mod raw;
