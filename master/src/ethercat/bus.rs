@@ -23,8 +23,8 @@ use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
 use super::embedded::SimWire;
 use super::health::{BusHealth, Exchange, HealthConfig};
-use super::mapping::map_pdos;
 use super::link::{FrameIo, Link};
+use super::mapping::map_pdos;
 use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
@@ -215,28 +215,23 @@ impl EthercatBus {
             .map_err(|_| StartError::Link("the EtherCAT bus can start once per process".into()))?;
         // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
         // the in-process simulator's thread.
-        let (link, chain): (Box<dyn Link>, _) =
-            match (&config.bus.interface, &config.bus.simulator) {
-                (Some(interface), _) => (
-                    Box::new(
-                        RawLink::open(interface).map_err(|e| StartError::Link(e.to_string()))?,
-                    ),
-                    None,
-                ),
-                (None, Some(sim)) => {
-                    let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
-                    let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
-                    let chain = Arc::new(Mutex::new(chain));
-                    let period = Duration::from_micros(u64::from(sim.cycle_us));
-                    let wire = SimWire::start(chain.clone(), period).map_err(|e| {
-                        StartError::Link(format!("the simulator's thread: {e}"))
-                    })?;
-                    (Box::new(wire), Some(chain))
-                }
-                (None, None) => {
-                    return Err(StartError::Link("no interface and no simulator".into()))
-                }
-            };
+        let (link, chain): (Box<dyn Link>, _) = match (&config.bus.interface, &config.bus.simulator)
+        {
+            (Some(interface), _) => (
+                Box::new(RawLink::open(interface).map_err(|e| StartError::Link(e.to_string()))?),
+                None,
+            ),
+            (None, Some(sim)) => {
+                let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
+                let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
+                let chain = Arc::new(Mutex::new(chain));
+                let period = Duration::from_micros(u64::from(sim.cycle_us));
+                let wire = SimWire::start(chain.clone(), period)
+                    .map_err(|e| StartError::Link(format!("the simulator's thread: {e}")))?;
+                (Box::new(wire), Some(chain))
+            }
+            (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
+        };
         let io = FrameIo::new(tx, rx, link, capture);
         let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());

@@ -100,10 +100,7 @@ impl BlockOn {
     /// Sends what ethercrab queued and hands back the replies waiting: whether one came
     /// (then the future is polled again at once).
     fn exchange(&self) -> bool {
-        self.io
-            .borrow_mut()
-            .as_mut()
-            .is_some_and(FrameIo::exchange)
+        self.io.borrow_mut().as_mut().is_some_and(FrameIo::exchange)
     }
 
     /// Sleeps until the bell rings, a reply may be in, or `timeout` passed.

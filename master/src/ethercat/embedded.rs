@@ -197,7 +197,9 @@ impl SimWire {
                             let frame = wire.get_mut(..n).unwrap_or_default();
                             // A frame the chain cannot parse is lost, as on a wire; so is
                             // a reply with no room (the master stopped reading).
-                            if c.process(frame).is_ok() && replies.push(WireFrame::of(frame)).is_ok() {
+                            if c.process(frame).is_ok()
+                                && replies.push(WireFrame::of(frame)).is_ok()
+                            {
                                 let _ = ring.write(1);
                             }
                         }

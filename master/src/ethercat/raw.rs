@@ -51,13 +51,14 @@ impl RawBus {
         capture: Option<Capture>,
     ) -> Result<Self, RawSocketError> {
         let link = RawLink::open(interface)?;
-        let pump = FramePump::start(FrameIo::new(tx, rx, Box::new(link), capture)).map_err(
-            |source| RawSocketError::Io {
-                interface: interface.into(),
-                what: "starting the pump thread",
-                source,
-            },
-        )?;
+        let pump =
+            FramePump::start(FrameIo::new(tx, rx, Box::new(link), capture)).map_err(|source| {
+                RawSocketError::Io {
+                    interface: interface.into(),
+                    what: "starting the pump thread",
+                    source,
+                }
+            })?;
         Ok(Self { pump })
     }
 
