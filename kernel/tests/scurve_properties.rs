@@ -158,6 +158,10 @@ fn feasible(start: &KinematicState, target: f64, lim: &Limits, horizon: f64, n: 
 /// -lower(t)` at every step boundary (`t` from the start of `start`). An acceleration
 /// beyond `amax` at the start may only shrink at the jerk rate (so a start beyond its
 /// acceleration bound is feasible at all).
+///
+/// minilp 0.2 sometimes panics on a singular basis (an `unwrap` inside its solver, about
+/// 1 LP in 1000 here); the question is then asked again on a grid of one step more, and a
+/// second failure fails the test.
 fn feasible_under(
     start: &KinematicState,
     target: f64,
@@ -166,6 +170,25 @@ fn feasible_under(
     n: usize,
     upper: impl Fn(f64) -> f64,
     lower: impl Fn(f64) -> f64,
+) -> bool {
+    let ask = |n| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            grid_feasible(start, target, lim, horizon, n, &upper, &lower)
+        }))
+    };
+    ask(n)
+        .or_else(|_| ask(n + 1))
+        .expect("minilp failed on two grids")
+}
+
+fn grid_feasible(
+    start: &KinematicState,
+    target: f64,
+    lim: &Limits,
+    horizon: f64,
+    n: usize,
+    upper: &impl Fn(f64) -> f64,
+    lower: &impl Fn(f64) -> f64,
 ) -> bool {
     let h = horizon / n as f64;
     let mut pb = Problem::new(OptimizationDirection::Minimize);
@@ -320,7 +343,8 @@ fn lp_cases() -> u32 {
 //   deceleration) are the fastest braking there is, so a move that must stay below the
 //   envelope has no choice there: the rule fixes them. The LP starts where they end and
 //   compares only what the rule leaves free: piecewise-constant jerk to rest on the
-//   target with |a| <= amax and -vmax <= v <= max(vmax, envelope) at every step.
+//   target with |a| <= amax and -vmax <= v <= max(vmax, envelope) at every step (on
+//   the side beyond; the other side keeps vmax), within `LP_TOL` of the planner.
 // ---------------------------------------------------------------------------------------
 
 fn v_stop(s: &KinematicState, lim: &Limits) -> f64 {
@@ -467,14 +491,14 @@ fn rest_once_inside(p: &Profile, target: f64, lim: &Limits) -> (f64, f64) {
     (p.duration() - t_in, again.duration())
 }
 
-/// Relative tolerance of the LP comparison of the free part, both ways: 1 %. The LP can
-/// only beat a real trajectory by what its grid lets slip between step boundaries (v may
-/// overshoot a bound by at most jmax·h²/8 inside a step, 10⁻⁴·vmax here), so a planner
-/// slower than optimal by more than that shows as a feasible LP at 99 %; its own
-/// pessimism (jerk switches only on the grid) costs at most 0.25 % over 120 steps on these
-/// cases (measured by bisection against the planner), so it must find a move at 101 %.
-/// The cases were up to 14 % slow.
-const LP_TOL: f64 = 0.01;
+/// Relative tolerance of the LP comparison of the free part, both ways: 0.5 %. The LP
+/// can beat a real trajectory only by what its grid lets slip between step boundaries (v
+/// may overshoot a bound by at most jmax·h²/8 inside a step, about 10⁻⁴·vmax here), so a
+/// planner slower than optimal by more than a trifle shows as a feasible LP at 99.5 %.
+/// Its own pessimism (jerk switches only on the grid) made its optimum 1.0000 to 1.0008
+/// times the planner's free part over 150 seeded cases of `beyond_case` (bisection to
+/// 10⁻⁵), so it must find a move at 100.5 %. The cases were up to 16.6 % slow.
+const LP_TOL: f64 = 0.005;
 
 /// Checks the free part of a move from beyond the limits against the rule's LP.
 fn check_lp_beyond(start: &KinematicState, target: f64, lim: &Limits, p: &Profile) {
