@@ -596,6 +596,33 @@ proptest! {
 }
 
 proptest! {
+    // Asymmetric limits: a change whose velocity crosses zero holds min(amax, dmax)
+    // (the module's conservative rule, README's known limitations), which from beyond
+    // vmax brakes more gently than the landing on vmax: the rule is asserted for moves
+    // that do not reverse. Most random targets need a reversal, hence the rejects.
+    #![proptest_config(ProptestConfig { max_global_rejects: 100_000, ..config(1000, 0x11a) })]
+
+    #[test]
+    fn beyond_the_limits_with_asymmetric_limits_the_rest_is_optimal_once_back_inside(
+        (start, target, lim) in beyond_case(),
+        dmax_factor in 0.3..3.0f64,
+    ) {
+        let lim = Limits { dmax: lim.amax * dmax_factor, ..lim };
+        let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
+        let reverses = (0..=1000).any(|k| p.sample(p.duration() * k as f64 / 1000.0).v * start.v < 0.0);
+        prop_assume!(!reverses);
+        prop_assert_eq!(p.end_state().p, target);
+        check_limits(&p, &start, &lim);
+        check_rule(&p, &start, &lim);
+        let (rest, again) = rest_once_inside(&p, target, &lim);
+        prop_assert!(
+            rest <= again * (1.0 + 1e-9),
+            "once back inside: {} s left, {} s from there", rest, again
+        );
+    }
+}
+
+proptest! {
     #![proptest_config(config(lp_cases(), 0x11b))]
 
     #[test]
