@@ -14,8 +14,12 @@
 //! cruises for the rest. When even the full `vmax` does not fit, `D(vp) = distance` is
 //! solved for `vp` by a bracketed root search (Illinois regula falsi, bounded iterations).
 //! A target inside the stopping distance simply gets a `vp` of the other sign: the move
-//! passes through zero velocity and comes back. Every result is verified by evaluating its
-//! end state before it is returned.
+//! passes through zero velocity and comes back. A target beyond the shortest stop but
+//! short of the stop after the first change's fastest landing (the "dip window", `dip`)
+//! gets a shape of its own: the move follows that landing and leaves it by braking onto
+//! the target. From beyond vmax the landing on (vmax, 0) is the braking rule, which the
+//! move never outruns. Every result is verified by evaluating its end state before it is
+//! returned.
 //!
 //! Acceleration bound of each velocity change (see the module doc of `profile`): `amax`
 //! when speeding up, `dmax` when slowing down, `min(amax, dmax)` when the change crosses
