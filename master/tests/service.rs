@@ -189,6 +189,20 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
             &b"{\"v\":1,\"cmd\":\"halt\",\"axis\":\"x\",\"extra\":1}\n"[..],
             "unknown field",
         ),
+        // Words of the protocol: the field, the word and the choices.
+        (
+            &b"{\"v\":1,\"cmd\":\"move\",\"axis\":\"x\",\"to\":1,\"mode\":\"sideways\"}\n"[..],
+            "mode \"sideways\" is not one of \"absolute\", \"relative\"",
+        ),
+        (
+            &b"{\"v\":1,\"cmd\":\"jog\",\"axis\":\"x\",\"direction\":\"up\",\"speed\":1}\n"[..],
+            "direction \"up\" is not one of \"+\", \"-\"",
+        ),
+        // x is linear: the way round a modulo axis means nothing there.
+        (
+            &b"{\"v\":1,\"cmd\":\"move\",\"axis\":\"x\",\"to\":1,\"mode\":\"positive\"}\n"[..],
+            "mode \"positive\" is for a modulo axis; x is not one",
+        ),
     ] {
         let r = raw_request(&svc.socket, line);
         assert_eq!(r["ok"], false, "{r}");

@@ -18,8 +18,9 @@ use serde_json::{json, Value};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
-use super::protocol::{self, Request, MAX_LINE};
+use super::protocol::{self, JogDirection, MoveMode, Request, MAX_LINE};
 use crate::config::Config;
+use crate::error_chain::Chain;
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::protocol::{Snapshot, TraceSample};
 
@@ -138,7 +139,7 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
                         Ok(result) => protocol::ok(result),
                         Err(e) => protocol::error(&e),
                     },
-                    Err(e) => protocol::error(&e),
+                    Err(e) => protocol::error(&Chain(&e).to_string()),
                 },
                 Err(_) => protocol::error("request is not UTF-8"),
             }
@@ -205,29 +206,20 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                 .kernel_axes
                 .get(i)
                 .is_some_and(|c| c.mechanics.modulo.is_some());
-            let mode = match (mode.as_deref().unwrap_or("absolute"), modulo) {
-                ("absolute", false) => PositioningMode::AbsNormal,
+            let mode = match (mode, modulo) {
+                (MoveMode::Absolute, false) => PositioningMode::AbsNormal,
                 // On a modulo axis "absolute" takes the shorter way round.
-                ("absolute" | "shortest", true) => PositioningMode::AbsModuloAuto,
-                ("positive", true) => PositioningMode::AbsModuloPos,
-                ("negative", true) => PositioningMode::AbsModuloNeg,
-                ("relative", _) => PositioningMode::RelTarget,
-                (other, _) => {
+                (MoveMode::Absolute | MoveMode::Shortest, true) => PositioningMode::AbsModuloAuto,
+                (MoveMode::Positive, true) => PositioningMode::AbsModuloPos,
+                (MoveMode::Negative, true) => PositioningMode::AbsModuloNeg,
+                (MoveMode::Relative, _) => PositioningMode::RelTarget,
+                (MoveMode::Shortest | MoveMode::Positive | MoveMode::Negative, false) => {
                     return Err(format!(
-                        "mode {other:?} is not absolute or relative (or, on a modulo axis, shortest, positive or negative)"
+                        "mode \"{mode}\" is for a modulo axis; {a} is not one (absolute or relative)"
                     ))
                 }
             };
-            let buffer = match buffer.as_deref().unwrap_or("aborting") {
-                "aborting" => BufferMode::Aborting,
-                "buffered" => BufferMode::Buffered,
-                "blending-low" => BufferMode::BlendingLow,
-                "blending-previous" => BufferMode::BlendingPrevious,
-                "blending-next" => BufferMode::BlendingNext,
-                "blending-high" => BufferMode::BlendingHigh,
-                other => return Err(format!("buffer {other:?} is not a buffer mode")),
-            };
-            let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer);
+            let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer.into());
             m.speed = speed;
             m.acceleration = acceleration;
             m.deceleration = deceleration;
@@ -240,11 +232,6 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
             speed,
         } => {
             let i = axis(&a)?;
-            let direction = match direction.as_str() {
-                "+" | "positive" => MoveDirection::Positive,
-                "-" | "negative" => MoveDirection::Negative,
-                other => return Err(format!("direction {other:?} is not \"+\" or \"-\"")),
-            };
             let d = state
                 .config
                 .kernel_axes
@@ -252,7 +239,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                 .map(|c| c.defaults)
                 .ok_or("no axis")?;
             let jog = Jog::new(
-                direction,
+                direction.into(),
                 number("speed", speed)?,
                 d.acceleration,
                 d.deceleration,
@@ -331,6 +318,28 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
         Request::Shutdown => {
             ctl.shutdown().map_err(|e| e.to_string())?;
             Ok(json!({"shutting_down": true}))
+        }
+    }
+}
+
+impl From<protocol::BufferMode> for BufferMode {
+    fn from(b: protocol::BufferMode) -> Self {
+        match b {
+            protocol::BufferMode::Aborting => Self::Aborting,
+            protocol::BufferMode::Buffered => Self::Buffered,
+            protocol::BufferMode::BlendingLow => Self::BlendingLow,
+            protocol::BufferMode::BlendingPrevious => Self::BlendingPrevious,
+            protocol::BufferMode::BlendingNext => Self::BlendingNext,
+            protocol::BufferMode::BlendingHigh => Self::BlendingHigh,
+        }
+    }
+}
+
+impl From<JogDirection> for MoveDirection {
+    fn from(d: JogDirection) -> Self {
+        match d {
+            JogDirection::Positive => Self::Positive,
+            JogDirection::Negative => Self::Negative,
         }
     }
 }
