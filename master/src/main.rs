@@ -368,7 +368,9 @@ fn main() -> std::process::ExitCode {
     match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // The message only: it says what and where; a backtrace would not help a user.
+            // What failed, then each cause after a colon (`{:#}` walks the sources; the
+            // errors keep their causes there, not in their messages, so each is said once).
+            // No backtrace: it would not help a user.
             eprintln!("gantry: {e:#}");
             std::process::ExitCode::FAILURE
         }

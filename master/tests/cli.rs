@@ -253,3 +253,27 @@ fn rt_check_measures_beside_cyclictest() {
     assert!(text.contains("ratio gantry/cyclictest"), "{text}");
     assert!(!text.contains("NOT real time"), "{text}");
 }
+
+#[test]
+fn an_error_prints_what_failed_and_its_cause_once() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-chain-{}", std::process::id()));
+    let pcap = dir.join("no-such-dir").join("x.pcap");
+    let out = gantry()
+        .args(["demo", "--speed", "0", "--bus", "ethercat", "--out"])
+        .arg(&dir)
+        .arg("--pcap")
+        .arg(&pcap)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains(&format!(
+            "gantry: cannot write {}: No such file or directory",
+            pcap.display()
+        )),
+        "{e}"
+    );
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
+}
