@@ -513,8 +513,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 jmax,
                 ramp,
             };
-            let answer =
-                profile::answer(&req, true).map_err(|e| anyhow::anyhow!("gantry profile: {e}"))?;
+            let answer = profile::answer(&req, true).context("gantry profile")?;
             println!("{}", serde_json::to_string_pretty(&answer)?);
         }
     }

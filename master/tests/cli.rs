@@ -119,7 +119,12 @@ fn profile_batch_answers_every_line() {
         .collect();
     assert_eq!(lines.len(), 3);
     assert!(lines[0]["plan_ns"].as_u64().is_some());
-    assert!(lines[1]["error"].as_str().unwrap().starts_with("line 2:"));
+    let e = lines[1]["error"].as_str().unwrap();
+    // Where, what, and serde's why.
+    assert!(
+        e.starts_with("line 2: not a request: invalid type: string \"x\", expected f64"),
+        "{e}"
+    );
     assert!(lines[2]["peak_a"].as_f64().unwrap() <= 2.0 + 1e-12);
 }
 
