@@ -476,9 +476,28 @@ mod tests {
     #[test]
     fn every_request_kind_survives_the_wire() {
         let requests = every_kind();
-        // Every kind once: a new kind that is not listed here fails this count.
-        let kinds: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(kinds.len(), 14, "{kinds:?}");
+        // Every kind once: a new kind does not compile here until it is numbered, and then
+        // fails the count until `every_kind` has it.
+        let kind = |r: &Request| match r {
+            Request::Status => 0,
+            Request::Enable { .. } => 1,
+            Request::Disable { .. } => 2,
+            Request::Move { .. } => 3,
+            Request::Jog { .. } => 4,
+            Request::Halt { .. } => 5,
+            Request::Stop { .. } => 6,
+            Request::Release { .. } => 7,
+            Request::SetPosition { .. } => 8,
+            Request::Reset { .. } => 9,
+            Request::Command { .. } => 10,
+            Request::Wait { .. } => 11,
+            Request::Trace { .. } => 12,
+            Request::Shutdown => 13,
+        };
+        let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
+        assert_eq!(kinds, (0..14).collect(), "{requests:?}");
+        let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
+        assert_eq!(words.len(), 14, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");
