@@ -189,6 +189,20 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
             &b"{\"v\":1,\"cmd\":\"halt\",\"axis\":\"x\",\"extra\":1}\n"[..],
             "unknown field",
         ),
+        // Words of the protocol: the field, the word and the choices.
+        (
+            &b"{\"v\":1,\"cmd\":\"move\",\"axis\":\"x\",\"to\":1,\"mode\":\"sideways\"}\n"[..],
+            "mode \"sideways\" is not one of \"absolute\", \"relative\"",
+        ),
+        (
+            &b"{\"v\":1,\"cmd\":\"jog\",\"axis\":\"x\",\"direction\":\"up\",\"speed\":1}\n"[..],
+            "direction \"up\" is not one of \"+\", \"-\"",
+        ),
+        // x is linear: the way round a modulo axis means nothing there.
+        (
+            &b"{\"v\":1,\"cmd\":\"move\",\"axis\":\"x\",\"to\":1,\"mode\":\"positive\"}\n"[..],
+            "mode \"positive\" is for a modulo axis; x is not one",
+        ),
     ] {
         let r = raw_request(&svc.socket, line);
         assert_eq!(r["ok"], false, "{r}");
@@ -298,4 +312,31 @@ fn an_axis_on_a_drive_the_bus_does_not_have_stops_start_up() {
         e.contains("axis \"c\" is on drive 7, but the bus has 4 slaves"),
         "{e}"
     );
+}
+
+#[test]
+fn a_bring_up_error_prints_what_failed_and_its_cause_once() {
+    let dir = std::env::temp_dir().join(format!("gantry-bad-pcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
+    assert!(text.contains("# pcap = \"gantry.pcap\""));
+    let text = text.replace("# pcap = \"gantry.pcap\"", "pcap = \"no-such-dir/g.pcap\"");
+    std::fs::write(dir.join("g.toml"), text).unwrap();
+    std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
+    let out = gantry()
+        .args(["run", "--no-rt", "--config"])
+        .arg(dir.join("g.toml"))
+        .arg("--socket")
+        .arg(dir.join("s.sock"))
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    // What failed (the link, by its file), then why (the OS), each said once.
+    assert!(
+        e.contains("gantry: pcap ") && e.contains("no-such-dir/g.pcap: No such file or directory"),
+        "{e}"
+    );
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
 }

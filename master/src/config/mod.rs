@@ -47,7 +47,7 @@ impl Config {
     pub fn load(path: &str) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
             path: path.into(),
-            reason: e.to_string(),
+            source: e.into(),
         })?;
         let mut config = Self::parse(&text, path)?;
         // Files named in the configuration are relative to it.

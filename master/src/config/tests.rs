@@ -85,3 +85,15 @@ fn every_mistake_names_file_line_key_and_reason() {
         "{e}"
     );
 }
+
+#[test]
+fn an_unreadable_file_is_named_with_why() {
+    let e = Config::load("/nonexistent-gantry/g.toml").unwrap_err();
+    assert_eq!(e.to_string(), "cannot read /nonexistent-gantry/g.toml");
+    let why = std::error::Error::source(&e).map(|s| s.to_string());
+    assert!(
+        why.as_deref()
+            .is_some_and(|w| w.starts_with("No such file or directory")),
+        "{why:?}"
+    );
+}

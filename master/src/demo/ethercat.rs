@@ -32,6 +32,18 @@ use gantry_drives::cia402::pdo::PdoLayout;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
+/// An error of the EtherCAT network at `step`, its cause kept.
+fn bus_error<E>(step: impl Into<String>) -> impl FnOnce(E) -> DemoError
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    let step = step.into();
+    move |e| DemoError::Bus {
+        step,
+        source: Box::new(e),
+    }
+}
+
 /// 5 mm ball screws on 2^17-count motors.
 fn scaling() -> Result<Scaling, DemoError> {
     Scaling::new(ScalingConfig {
@@ -41,7 +53,7 @@ fn scaling() -> Result<Scaling, DemoError> {
         units_per_load_rev: 5.0,
         invert: false,
     })
-    .map_err(|e| DemoError::Bus(format!("scaling: {e}")))
+    .map_err(bus_error("scaling"))
 }
 
 fn axis(name: &str) -> AxisConfig {
@@ -78,7 +90,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     );
     let (tx, rx, pdu_loop) = PDU_STORAGE
         .try_split()
-        .map_err(|_| DemoError::Bus("the EtherCAT demo runs once per process".into()))?;
+        .map_err(|_| DemoError::Network("the EtherCAT demo runs once per process"))?;
     let capture = match &args.pcap {
         Some(path) => {
             let file = std::fs::File::create(path).map_err(|source| DemoError::Io {
@@ -87,7 +99,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             })?;
             Some(
                 PcapWriter::new(std::io::BufWriter::new(file))
-                    .map_err(|e| DemoError::Bus(e.to_string()))?,
+                    .map_err(bus_error(format!("capture to {}", path.display())))?,
             )
         }
         None => None,
@@ -107,7 +119,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     // The process data every drive is mapped to in PreOp (by SDO, from this layout).
     let layout = PdoLayout::csp();
     let channel =
-        CspChannel::with_layout(scaling()?, &layout).map_err(|e| DemoError::Bus(e.to_string()))?;
+        CspChannel::with_layout(scaling()?, &layout).map_err(bus_error("process data layout"))?;
     let mut cycle = CspCycle::new(kernel, vec![channel; names.len()]);
     let mut trace = Trace::new(
         names
@@ -121,7 +133,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         let group = maindevice
             .init_single_group::<8, 64>(ethercat_now)
             .await
-            .map_err(|e| DemoError::Bus(format!("scan: {e}")))?;
+            .map_err(bus_error("scan"))?;
         let _ = writeln!(out, ">> found {} EtherCAT slaves:", group.len());
         for sd in group.iter(&maindevice) {
             let _ = writeln!(
@@ -135,7 +147,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         for sd in group.iter(&maindevice) {
             map_pdos(&sd, &layout)
                 .await
-                .map_err(|e| DemoError::Bus(e.to_string()))?;
+                .map_err(bus_error("PDO mapping"))?;
         }
         let _ = writeln!(
             out,
@@ -148,7 +160,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             transition::into_op(group, &maindevice, transition::OP_TIMEOUT).await
         }
         .await
-        .map_err(|e| DemoError::Bus(format!("to OP: {e}")))?;
+        .map_err(bus_error("to OP"))?;
         let _ = writeln!(out, ">> all slaves in OP; enabling drives (CiA-402)");
         for (i, name) in names.iter().enumerate() {
             cycle
@@ -163,20 +175,20 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             for i in 0..names.len() {
                 let sd = group
                     .subdevice(&maindevice, i)
-                    .map_err(|e| DemoError::Bus(format!("{e}")))?;
+                    .map_err(|e| bus_error(format!("cycle {n}: slave {i}"))(e))?;
                 cycle
                     .read_inputs(i, &sd.inputs_raw())
-                    .map_err(|e| DemoError::Bus(e.to_string()))?;
+                    .map_err(|e| bus_error(format!("cycle {n}: inputs"))(e))?;
             }
             cycle.step();
             let mut sample = Vec::with_capacity(4);
             for (i, following) in max_following.iter_mut().enumerate() {
                 let sd = group
                     .subdevice(&maindevice, i)
-                    .map_err(|e| DemoError::Bus(format!("{e}")))?;
+                    .map_err(|e| bus_error(format!("cycle {n}: slave {i}"))(e))?;
                 cycle
                     .write_outputs(i, sd.io_raw_mut().outputs())
-                    .map_err(|e| DemoError::Bus(e.to_string()))?;
+                    .map_err(|e| bus_error(format!("cycle {n}: outputs"))(e))?;
                 let status = cycle.kernel.axis_status(i).copied().unwrap_or_default();
                 sample.push(status.set.p);
                 sample.push(status.actual_position);
@@ -188,7 +200,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             group
                 .tx_rx(&maindevice)
                 .await
-                .map_err(|e| DemoError::Bus(format!("cycle {n}: {e}")))?;
+                .map_err(|e| bus_error(format!("cycle {n}"))(e))?;
             if let Ok(mut c) = chain.lock() {
                 c.tick(dt);
             }
@@ -301,7 +313,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
             .iter()
             .map(|s| s.device().record().copied())
             .collect(),
-        Err(_) => return Err(DemoError::Bus("the simulated chain is poisoned".into())),
+        Err(_) => return Err(DemoError::Network("the simulated chain is poisoned")),
     };
     check_drive_invariant(&records, &names, &cycle, dt, out)?;
     let _ = writeln!(
@@ -314,8 +326,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     })?;
     // What the drives recorded, for whoever wants to judge the run again.
     let records_path = args.out.join("drive-records.json");
-    let json = serde_json::to_string_pretty(&records)
-        .map_err(|e| DemoError::Bus(format!("drive records: {e}")))?;
+    let json = serde_json::to_string_pretty(&records).map_err(DemoError::Records)?;
     std::fs::write(&records_path, json).map_err(|source| DemoError::Io {
         path: records_path.display().to_string(),
         source,
