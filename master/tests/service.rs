@@ -157,6 +157,11 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
 
     // Off when off is no error; each command says what it did.
     assert!(svc.ok(&["disable", "y"]).contains("y: disabled at"));
+    let out = svc.ok(&["reset", "y"]);
+    assert!(
+        out.contains(", Disabled (its drive's power is off: `gantry enable y`)"),
+        "{out}"
+    );
     assert!(svc.ok(&["enable", "x"]).contains("x: enabled at"));
     assert_eq!(svc.axis("x")["state"], "Standstill");
     let e = svc.fails(&["move", "x", "--to", "20"]);
@@ -239,7 +244,12 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     let huge = vec![b'x'; 70 * 1024];
     let r = raw_request(&svc.socket, &huge);
     assert!(r["error"].as_str().unwrap().contains("longer than"), "{r}");
-    svc.ok(&["reset", "x"]);
+    // A reset says what it left the axis in (x has no error: it stays powered).
+    let out = svc.ok(&["reset", "x"]);
+    assert!(
+        out.contains("x: reset at") && out.contains(", Standstill (its drive is powered)"),
+        "{out}"
+    );
     assert_eq!(svc.status()["ended"], false);
 
     // Every drive moves, so that the invariant judges all four; the rotary table c across
