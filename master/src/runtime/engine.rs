@@ -4,7 +4,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use gantry_kernel::axis::command::{Command, PowerCommand};
+use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
@@ -16,7 +16,7 @@ use super::protocol::{
 };
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use crate::ethercat::cycle::CspCycle;
-use crate::ethercat::health::BusHealth;
+use crate::ethercat::health::{BusHealth, COMMUNICATION_FAULT};
 use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
@@ -145,10 +145,10 @@ pub struct Engine<B: CycleBus> {
     /// Per axis: the id of a reset waiting for the kernel to see its drive as it is (see
     /// [`Engine::reset`]).
     unseen_resets: Vec<Option<u64>>,
-    /// The last cycle in which the kernel was given faults of gantry's own instead of what
-    /// the drives said: a bus fault in force when the inputs were read (the communication
-    /// fault), or the overrun stop (0x6100).
-    forced_faults_at: Option<u64>,
+    /// Per axis: the last cycle in which the kernel was given a fault of gantry's own
+    /// instead of what its drive said: a bus fault on its drive in force when the inputs
+    /// were read (the communication fault), or the overrun stop (0x6100).
+    forced_faults_at: Vec<Option<u64>>,
     /// The axis whose slave the bus is bringing back now.
     recovering: Option<usize>,
     /// Where the search for the next waiting reset starts (round robin).
@@ -225,7 +225,7 @@ impl<B: CycleBus> Engine<B> {
             cycles: 0,
             resets: vec![None; axes],
             unseen_resets: vec![None; axes],
-            forced_faults_at: None,
+            forced_faults_at: vec![None; axes],
             recovering: None,
             next_reset: 0,
             recovery_timeout_ns: RECOVERY_TIMEOUT_NS,
@@ -291,9 +291,7 @@ impl<B: CycleBus> Engine<B> {
         let t0 = now_ns();
         self.take_requests();
         self.apply_seen_resets();
-        if self.health.any_fault() || self.overrun_stop {
-            self.forced_faults_at = Some(self.cycles);
-        }
+        self.mark_forced_faults();
         let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
         if self.overrun_stop {
             for axis in 0..self.cycle.len() {
@@ -373,8 +371,10 @@ impl<B: CycleBus> Engine<B> {
     /// until enabled again — whatever the order and the timing of the resets. Before that
     /// cycle the kernel holds gantry's communication fault (0x8100) or overrun stop
     /// (0x6100), which no drive raised, for the drive's own, and its Reset would take
-    /// the power from a powered drive. Otherwise the axis' Reset at once. A second reset
-    /// of the same axis while one waits replaces it (the first is Aborted).
+    /// the power from a powered drive. If the bus fault on its drive is back by then, the
+    /// reset fails (the drive still has the communication fault, 0x8100). Otherwise the
+    /// axis' Reset at once. A second reset of the same axis while one waits replaces it
+    /// (the first is Aborted).
     fn reset(&mut self, id: u64, axis: usize) -> Entry {
         self.overrun_stop = false;
         self.reset_when_seen(id, axis)
@@ -385,7 +385,7 @@ impl<B: CycleBus> Engine<B> {
     fn reset_when_seen(&mut self, id: u64, axis: usize) -> Entry {
         let waiting = if self.health.any_fault() {
             self.resets.get_mut(axis)
-        } else if !self.kernel_saw_the_drives() {
+        } else if !self.kernel_saw_the_drive(axis) {
             self.unseen_resets.get_mut(axis)
         } else {
             None
@@ -403,26 +403,53 @@ impl<B: CycleBus> Engine<B> {
         self.axis_reset(id, axis)
     }
 
-    /// The kernel stepped at least once with no fault of gantry's own since the last that
-    /// had one: every axis' feedback is its drive's own.
-    fn kernel_saw_the_drives(&self) -> bool {
+    /// Notes, before this cycle's inputs are read, which axes the kernel gets a fault of
+    /// gantry's own for instead of their drive's inputs.
+    fn mark_forced_faults(&mut self) {
+        for axis in 0..self.forced_faults_at.len() {
+            let forced = self.overrun_stop || self.health.fault(self.bus.drive_of(axis)).is_some();
+            if let (true, Some(at)) = (forced, self.forced_faults_at.get_mut(axis)) {
+                *at = Some(self.cycles);
+            }
+        }
+    }
+
+    /// The kernel stepped at least once on `axis`' drive's own inputs since it was last
+    /// given a fault of gantry's own for it.
+    fn kernel_saw_the_drive(&self, axis: usize) -> bool {
         // Inputs read in cycle `c` reach the kernel's state in cycle `c`'s step; a command
         // applied at the start of cycle `c + 2` is judged on cycle `c + 1`'s, clean ones.
         self.forced_faults_at
+            .get(axis)
+            .copied()
+            .flatten()
             .is_none_or(|c| self.cycles >= c.saturating_add(2))
     }
 
-    /// Resets that waited for the kernel to see their drive: applied once it has; back to
-    /// waiting for the bus if a fault came back meanwhile.
+    /// Resets that waited for the kernel to see their drive: applied once it has. One
+    /// whose drive's bus fault came back meanwhile fails (the axis stays in ErrorStop with
+    /// the communication fault; `gantry status` says why) rather than wait again: a bus
+    /// that keeps failing would bring the slave back and lose it over and over.
     fn apply_seen_resets(&mut self) {
-        if !self.kernel_saw_the_drives() && !self.health.any_fault() {
-            return;
-        }
         for axis in 0..self.unseen_resets.len() {
+            let fault_back = self.health.fault(self.bus.drive_of(axis)).is_some();
+            if !fault_back && !self.kernel_saw_the_drive(axis) {
+                continue;
+            }
             let Some(id) = self.unseen_resets.get_mut(axis).and_then(Option::take) else {
                 continue;
             };
-            let entry = self.reset_when_seen(id, axis);
+            let entry = if fault_back {
+                Entry {
+                    id,
+                    handle: None,
+                    status: CommandStatus::Error(CommandError::DriveResetFailed {
+                        code: COMMUNICATION_FAULT,
+                    }),
+                }
+            } else {
+                self.axis_reset(id, axis)
+            };
             if let Some(slot) = self.tracked.iter_mut().find(|e| e.id == id) {
                 *slot = entry;
             }
