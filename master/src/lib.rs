@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod config;
 pub mod demo;
+pub mod drive_records;
 pub mod error_chain;
 pub mod ethercat;
 pub mod pcap;

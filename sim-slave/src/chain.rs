@@ -205,6 +205,16 @@ impl SlaveChain {
         &self.slaves
     }
 
+    /// What each device recorded of the setpoints it took, in chain order (`None` for
+    /// devices that are no drive): what tests judge the master by, and what
+    /// [`crate::plant::record::write_records`] writes.
+    pub fn records(&self) -> Vec<Option<crate::plant::record::DriveRecord>> {
+        self.slaves
+            .iter()
+            .map(|s| s.device().record().copied())
+            .collect()
+    }
+
     /// Brings the network to time `t_ns`: the applications run once for every whole
     /// `period_ns` of network time passed (at most [`MAX_CATCH_UP`] of them after a stall:
     /// beyond that the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs

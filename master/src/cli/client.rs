@@ -362,7 +362,18 @@ pub fn command(
                 } else {
                     String::new()
                 };
-                writeln!(out, "{axis}: {} {set:.3} {units}{settling}", outcome(cmd)).map_err(io)?;
+                let state = entry.and_then(|a| a["state"].as_str()).unwrap_or("");
+                let after = if cmd == "reset" {
+                    after_reset(axis, state)
+                } else {
+                    String::new()
+                };
+                writeln!(
+                    out,
+                    "{axis}: {} {set:.3} {units}{settling}{after}",
+                    outcome(cmd)
+                )
+                .map_err(io)?;
             }
             Ok(())
         }
@@ -374,6 +385,17 @@ pub fn command(
                 .unwrap_or_default();
             Err(ClientError::Failed(format!("{axis}: {e}{why}")))
         }
+    }
+}
+
+/// What a reset left the axis in, in words (PLCopen MC_Reset: Standstill when its drive's
+/// power is on, Disabled when it is off — see `Engine::reset`).
+fn after_reset(axis: &str, state: &str) -> String {
+    match state {
+        "Standstill" => ", Standstill (its drive is powered)".into(),
+        "Disabled" => format!(", Disabled (its drive's power is off: `gantry enable {axis}`)"),
+        "" => String::new(),
+        other => format!(", {other}"),
     }
 }
 

@@ -15,6 +15,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::config::{Config, ConfigError};
+use crate::drive_records;
 use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::runtime::controller::Controller;
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
@@ -130,7 +131,23 @@ pub fn spawn_cycle_thread(
             let _ = ends.send(Ok(app));
             let engine = engine.run(period_ns, &stop);
             let counters = engine.counters();
-            engine.into_bus().shut_down(&mut log);
+            let bus = engine.into_bus();
+            let chain = bus.simulated_chain();
+            bus.shut_down(&mut log);
+            // What the simulated drives saw, the shutdown included.
+            if let (Some(path), Some(chain)) = (&config.bus.simulator_record, chain) {
+                match chain.lock() {
+                    Ok(chain) => {
+                        drive_records::report_at_exit(&config, &chain.records(), path, &mut log)
+                    }
+                    Err(_) => {
+                        let _ = writeln!(
+                            log,
+                            "gantry: the simulated chain is poisoned: no drive records"
+                        );
+                    }
+                }
+            }
             Some(counters)
         })
         .map_err(|source| ServiceError::Start {
