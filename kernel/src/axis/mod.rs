@@ -1,6 +1,6 @@
 //! One axis: its configuration, PLCopen state, set-value source and status.
 //!
-//! Commands are applied between cycles ([`Axis::apply`], in `apply.rs`) and plan from the
+//! Commands are applied between cycles ([`Axis::apply`], in `apply/`, one module per command family) and plan from the
 //! last set values, so a new move continues the old one without a jump; [`Axis::step`]
 //! samples the running profile at the cycle's time, chains buffered moves inside the
 //! cycle (no standstill cycle between them) and derives the status.
