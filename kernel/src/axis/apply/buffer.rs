@@ -4,7 +4,7 @@
 
 use crate::axis::command::{BufferMode, CommandError};
 use crate::axis::handle::{CommandStatus, HandleTable};
-use crate::axis::motion::{Epoch, Motion, MotionKind, Queued};
+use crate::axis::motion::{Epoch, Motion, MotionKind, Queued, Settle};
 use crate::axis::Axis;
 use crate::profile::KinematicState;
 
@@ -24,13 +24,20 @@ impl Axis {
         if was_empty && blending {
             // The running move must now end at the blend velocity: replan it from here.
             if let Some(mo) = self.motion {
-                if let MotionKind::Ptp { target, window } = mo.kind {
+                // A move already settling at its target has ended: nothing to replan (the
+                // blending move starts next cycle without waiting for the settling).
+                if let MotionKind::Ptp {
+                    target,
+                    settle: Settle { since: None, .. },
+                    ..
+                } = mo.kind
+                {
                     let v_end = self.blend_velocity(target, mo.params.limits.vmax);
                     if let Ok(p) = self.plan_ptp(self.main, target, v_end, &mo.params) {
                         self.motion = Some(Motion {
                             profile: p,
                             epoch: Epoch::at(self.last_tick),
-                            kind: MotionKind::Ptp { target, window },
+                            kind: mo.kind,
                             ..mo
                         });
                     }

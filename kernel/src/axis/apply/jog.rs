@@ -7,7 +7,7 @@ use crate::axis::command::{
 };
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::{Epoch, Motion, MotionKind, MoveParams};
-use crate::axis::state::AxisState;
+use crate::axis::state::Event;
 use crate::axis::Axis;
 use crate::profile::{Limits, RampType};
 
@@ -141,7 +141,7 @@ impl Axis {
                 command: "Jog",
                 decel_jerk,
             });
-            self.state = AxisState::ContinuousMotion;
+            self.enter(Event::ContinuousMotionStarted);
         } else {
             // Merge disabled while another move runs: the jog is superimposed on it.
             let (speed, params, decel_jerk) = self.jog_params(j, self.overlay_set.v.abs())?;

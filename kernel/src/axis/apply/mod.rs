@@ -20,7 +20,7 @@ mod velocity;
 
 use super::command::{Command, CommandError};
 use super::handle::{CommandStatus, HandleId, HandleTable};
-use super::state::accepts;
+use super::state::{accepts, AxisState};
 use super::Axis;
 
 impl Axis {
@@ -38,6 +38,13 @@ impl Axis {
             return Err(CommandError::NotCommandable {
                 command: name,
                 kind: self.cfg.kind.name(),
+            });
+        }
+        if self.state == AxisState::ErrorStop && !accepts(self.state, cmd) {
+            // PLCopen: ErrorStop is left only through Reset; say why the axis is there.
+            return Err(CommandError::InErrorStop {
+                command: name,
+                cause: self.error_summary(),
             });
         }
         if !accepts(self.state, cmd) {

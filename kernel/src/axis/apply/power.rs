@@ -3,7 +3,7 @@
 use crate::axis::command::{CommandError, PowerCommand};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::MotionKind;
-use crate::axis::state::AxisState;
+use crate::axis::state::{AxisState, Event};
 use crate::axis::{Axis, AxisKind};
 use crate::profile::KinematicState;
 
@@ -26,9 +26,7 @@ impl Axis {
                     self.enable_handle = Some(h);
                     return Ok(CommandStatus::Busy);
                 }
-                if self.state == AxisState::Disabled {
-                    self.state = AxisState::Standstill;
-                }
+                self.enter(Event::PoweredOn);
                 Ok(CommandStatus::Done)
             }
             PowerCommand::DisableForced => {
@@ -47,7 +45,7 @@ impl Axis {
                 self.fold_overlay(handles);
                 self.abort_all_but_values(handles);
                 self.start_stop_motion(MotionKind::Disable, decel, h, "Power.Disable")?;
-                self.state = AxisState::Stopping;
+                self.enter(Event::StopStarted);
                 Ok(CommandStatus::Active)
             }
         }

@@ -7,8 +7,8 @@ use crate::axis::command::{
     RampBreakMode, RangeProblem,
 };
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
-use crate::axis::motion::{Epoch, Motion, MotionKind, MoveParams, Queued};
-use crate::axis::state::AxisState;
+use crate::axis::motion::{Epoch, Motion, MotionKind, MoveParams, Queued, Settle};
+use crate::axis::state::Event;
 use crate::axis::status::SlopeState;
 use crate::axis::{Axis, Dynamics};
 use crate::profile::{plan_position, plan_velocity, KinematicState, Profile};
@@ -305,7 +305,11 @@ impl Axis {
         self.last_target = Some(target);
         self.last_window = window;
         self.motion = Some(Motion {
-            kind: MotionKind::Ptp { target, window },
+            kind: MotionKind::Ptp {
+                target,
+                window,
+                settle: Settle::default(),
+            },
             profile,
             epoch,
             params,
@@ -313,8 +317,6 @@ impl Axis {
             command: "MovePtp",
             decel_jerk: params.limits.jmax,
         });
-        if self.state != AxisState::ErrorStop {
-            self.state = AxisState::DiscreteMotion;
-        }
+        self.enter(Event::DiscreteMotionStarted);
     }
 }

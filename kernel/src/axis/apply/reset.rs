@@ -2,7 +2,7 @@
 
 use crate::axis::command::CommandError;
 use crate::axis::handle::{CommandStatus, HandleId};
-use crate::axis::state::AxisState;
+use crate::axis::state::{AxisState, Event};
 use crate::axis::Axis;
 
 impl Axis {
@@ -22,11 +22,9 @@ impl Axis {
                 state: AxisState::ErrorStop,
             });
         }
-        self.state = if self.powered {
-            AxisState::Standstill
-        } else {
-            AxisState::Disabled
-        };
+        self.enter(Event::Reset {
+            powered: self.powered,
+        });
         self.status.error = None;
         self.refresh_status();
         Ok(CommandStatus::Done)

@@ -4,7 +4,7 @@
 use crate::axis::command::{positive, CommandError, HaltMode, Operand};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::{Epoch, Motion, MotionKind, MoveParams};
-use crate::axis::state::AxisState;
+use crate::axis::state::{AxisState, Event};
 use crate::axis::Axis;
 use crate::profile::{plan_position, plan_velocity, Limits, RampType};
 
@@ -85,7 +85,7 @@ impl Axis {
             command: name,
             decel_jerk: params.limits.jmax,
         });
-        self.state = AxisState::DiscreteMotion;
+        self.enter(Event::DiscreteMotionStarted);
         Ok(CommandStatus::Active)
     }
 
@@ -105,7 +105,7 @@ impl Axis {
         self.abort_all_but_values(handles);
         self.start_stop_motion(MotionKind::Stop, dec, h, "Stop")?;
         self.release_pending = false;
-        self.state = AxisState::Stopping;
+        self.enter(Event::StopStarted);
         Ok(CommandStatus::Active)
     }
 
@@ -163,7 +163,7 @@ impl Axis {
         if self.motion.is_some_and(|m| m.kind == MotionKind::Stop) {
             self.release_pending = true;
         } else if self.state == AxisState::Stopping {
-            self.state = AxisState::Standstill;
+            self.enter(Event::Released);
         }
         Ok(CommandStatus::Done)
     }
@@ -182,7 +182,7 @@ impl Axis {
             h,
             "QuickStop",
         )?;
-        self.state = AxisState::Stopping;
+        self.enter(Event::StopStarted);
         Ok(CommandStatus::Active)
     }
 }

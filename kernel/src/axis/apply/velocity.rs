@@ -4,7 +4,7 @@ use super::plan::Goal;
 use crate::axis::command::{CommandError, MoveDirection, MoveVelocity};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::{Epoch, Motion, MotionKind, MoveParams, Queued};
-use crate::axis::state::AxisState;
+use crate::axis::state::Event;
 use crate::axis::{Axis, Dynamics};
 use crate::profile::{plan_velocity, KinematicState, Profile};
 
@@ -65,9 +65,7 @@ impl Axis {
             command: "MoveVelocity",
             decel_jerk: params.limits.jmax,
         });
-        if self.state != AxisState::ErrorStop {
-            self.state = AxisState::ContinuousMotion;
-        }
+        self.enter(Event::ContinuousMotionStarted);
     }
 
     pub(super) fn move_velocity(
