@@ -311,8 +311,8 @@ pub enum ConfigError {
     },
     /// The target monitoring times are not a dwell ≥ 0 below a finite timeout.
     #[error(
-        "axis {axis}: target_monitoring: dwell_s = {dwell_s} and timeout_s = {timeout_s} must be \
-         finite with 0 <= dwell_s < timeout_s"
+        "axis {axis}: dwell_s = {dwell_s} and timeout_s = {timeout_s} of target_monitoring \
+         must be finite with 0 <= dwell_s < timeout_s"
     )]
     TargetMonitoring {
         /// Axis name.
