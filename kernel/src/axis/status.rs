@@ -65,7 +65,9 @@ pub struct StatusBits {
     pub stopping: bool,
     /// The position is referenced.
     pub homed: bool,
-    /// The actual position is within the target window of the last PTP target.
+    /// The actual position is within the target window of the last PTP target (TwinCAT's
+    /// InPositionArea). With target position monitoring a PTP is Done once this has held
+    /// for the dwell time after the set value reached the target.
     pub in_target_window: bool,
     /// |set velocity| exceeds the configured maximum speed (e.g. a superimposed jog).
     pub max_speed_exceeded: bool,
