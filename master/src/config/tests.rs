@@ -121,6 +121,30 @@ fn every_mistake_names_file_line_key_and_reason() {
 }
 
 #[test]
+fn target_monitoring_is_read_defaults_to_on_and_its_mistakes_are_named() {
+    let c = Config::parse(EXAMPLE, "veth-4-axes.toml").unwrap();
+    let x = c.kernel_axes[0].target_monitoring;
+    assert!(x.enabled);
+    assert_eq!((x.dwell_s, x.timeout_s), (0.02, 5.0));
+    // y gives no section: on, with the kernel's defaults.
+    assert_eq!(
+        c.kernel_axes[1].target_monitoring,
+        gantry_kernel::axis::TargetMonitoring::new(true)
+    );
+    let off = Config::parse(
+        &EXAMPLE.replacen("enabled = true ", "enabled = false", 1),
+        "g.toml",
+    )
+    .unwrap();
+    assert!(!off.kernel_axes[0].target_monitoring.enabled);
+    let e = mistake("dwell_s = 0.02 ", "dwell_s = 5.0  ");
+    assert!(
+        e.contains("axis[0].target_monitoring: dwell_s = 5 and timeout_s = 5"),
+        "{e}"
+    );
+}
+
+#[test]
 fn an_unreadable_file_is_named_with_why() {
     let e = Config::load("/nonexistent-gantry/g.toml").unwrap_err();
     assert_eq!(e.to_string(), "cannot read /nonexistent-gantry/g.toml");
