@@ -45,43 +45,68 @@ fn random_case(r: &mut XorShift) -> (KinematicState, f64, Limits) {
     (start, r.range(-100.0, 100.0), lim)
 }
 
+/// A random start beyond the limits (|v0| up to 1.6·vmax, or a0 carrying v past vmax: a
+/// NewSpeed below the current speed, a jog superimposed on a move), target and limits.
+fn random_beyond_case(r: &mut XorShift) -> (KinematicState, f64, Limits) {
+    let (mut start, target, lim) = random_case(r);
+    let side = if r.next() < 0.5 { -1.0 } else { 1.0 };
+    if r.next() < 0.5 {
+        start.v = side * r.range(1.01, 1.6) * lim.vmax;
+    } else {
+        // v0 = vmax − u·a0²/2J with a0 towards vmax: carried (1 − u)·a0²/2J past it.
+        let a = r.range(0.3, 1.0) * lim.amax.min(lim.dmax);
+        start.a = side * a;
+        start.v = side * (lim.vmax - r.range(0.05, 0.95) * a * a / (2.0 * lim.jmax));
+    }
+    (start, target, lim)
+}
+
+/// Planning time distribution (median, p99, max) of `ramp` over `cases`. Each state is
+/// planned 5 times and its fastest time kept: a plan that was merely interrupted by the
+/// (shared, noisy) machine shows as slow once, a slow plan always.
+fn measure(cases: &[(KinematicState, f64, Limits)], ramp: RampType) -> (u64, u64, u64) {
+    let mut ns: Vec<u64> = cases
+        .iter()
+        .map(|(s, t, l)| {
+            (0..5)
+                .map(|_| {
+                    let t0 = std::time::Instant::now();
+                    let p = plan_position(ramp, *s, *t, 0.0, l);
+                    let dt = t0.elapsed().as_nanos() as u64;
+                    divan::black_box(p).ok();
+                    dt
+                })
+                .min()
+                .unwrap_or(0)
+        })
+        .collect();
+    ns.sort_unstable();
+    let q = |f: f64| ns[((ns.len() - 1) as f64 * f) as usize];
+    (q(0.5), q(0.99), ns[ns.len() - 1])
+}
+
 /// S-curve planning time from 10 000 random states: the distribution (median, p99, max),
-/// with trapezoid planning of the same moves as the baseline of the same run.
+/// with trapezoid planning of the same moves as the baseline of the same run; and from
+/// 10 000 states beyond the limits.
 fn planning_distribution() {
     let mut r = XorShift(0x9e37_79b9_7f4a_7c15);
     let cases: Vec<_> = (0..10_000).map(|_| random_case(&mut r)).collect();
-    // Each state is planned 5 times and its fastest time kept: a plan that was merely
-    // interrupted by the (shared, noisy) machine shows as slow once, a slow plan always.
-    let measure = |ramp: RampType| {
-        let mut ns: Vec<u64> = cases
-            .iter()
-            .map(|(s, t, l)| {
-                (0..5)
-                    .map(|_| {
-                        let t0 = std::time::Instant::now();
-                        let p = plan_position(ramp, *s, *t, 0.0, l);
-                        let dt = t0.elapsed().as_nanos() as u64;
-                        divan::black_box(p).ok();
-                        dt
-                    })
-                    .min()
-                    .unwrap_or(0)
-            })
-            .collect();
-        ns.sort_unstable();
-        let q = |f: f64| ns[((ns.len() - 1) as f64 * f) as usize];
-        (q(0.5), q(0.99), ns[ns.len() - 1])
-    };
+    let beyond: Vec<_> = (0..10_000).map(|_| random_beyond_case(&mut r)).collect();
     // Warm up, then measure.
-    let _ = measure(RampType::SCurve);
-    let s = measure(RampType::SCurve);
-    let t = measure(RampType::Trapezoid);
+    let _ = measure(&cases, RampType::SCurve);
+    let s = measure(&cases, RampType::SCurve);
+    let t = measure(&cases, RampType::Trapezoid);
+    let b = measure(&beyond, RampType::SCurve);
     println!("planning over 10000 random states, fastest of 5 runs each (ns): median / p99 / max");
     println!("  scurve     {:>7} / {:>7} / {:>7}", s.0, s.1, s.2);
     println!("  trapezoid  {:>7} / {:>7} / {:>7}", t.0, t.1, t.2);
     println!(
         "  ratio scurve/trapezoid at the median: {:.1}",
         s.0 as f64 / t.0.max(1) as f64
+    );
+    println!(
+        "  scurve from beyond the limits {:>7} / {:>7} / {:>7}",
+        b.0, b.1, b.2
     );
 }
 

@@ -150,25 +150,66 @@ proptest! {
 /// step boundaries. Every such trajectory is a continuous one, so infeasibility below our
 /// duration means no trajectory on this grid beats the planner.
 fn feasible(start: &KinematicState, target: f64, lim: &Limits, horizon: f64, n: usize) -> bool {
+    let vmax = |_: f64| lim.vmax;
+    feasible_under(start, target, lim, horizon, n, vmax, vmax)
+}
+
+/// [`feasible`] with a velocity bound that changes with time: `upper(t) >= v(t) >=
+/// -lower(t)` at every step boundary (`t` from the start of `start`). An acceleration
+/// beyond `amax` at the start may only shrink at the jerk rate (so a start beyond its
+/// acceleration bound is feasible at all).
+///
+/// minilp 0.2 sometimes panics on a singular basis (an `unwrap` inside its solver, about
+/// 1 LP in 1000 here); the question is then asked again on a grid of one step more, and a
+/// second failure fails the test.
+fn feasible_under(
+    start: &KinematicState,
+    target: f64,
+    lim: &Limits,
+    horizon: f64,
+    n: usize,
+    upper: impl Fn(f64) -> f64,
+    lower: impl Fn(f64) -> f64,
+) -> bool {
+    let ask = |n| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            grid_feasible(start, target, lim, horizon, n, &upper, &lower)
+        }))
+    };
+    ask(n)
+        .or_else(|_| ask(n + 1))
+        .expect("minilp failed on two grids")
+}
+
+fn grid_feasible(
+    start: &KinematicState,
+    target: f64,
+    lim: &Limits,
+    horizon: f64,
+    n: usize,
+    upper: &impl Fn(f64) -> f64,
+    lower: &impl Fn(f64) -> f64,
+) -> bool {
     let h = horizon / n as f64;
     let mut pb = Problem::new(OptimizationDirection::Minimize);
     let vars: Vec<_> = (0..n)
         .map(|_| pb.add_var(0.0, (-lim.jmax, lim.jmax)))
         .collect();
-    let a_max = lim.amax;
     for k in 1..=n {
         let kf = k as f64;
+        let t = kf * h;
+        let a_max = lim.amax.max(start.a.abs() - lim.jmax * t);
         // a_k, v_k, p_k as linear functions of the jerks j_0..j_{k-1}.
         let a_terms: Vec<_> = (0..k).map(|i| (vars[i], h)).collect();
         let v_terms: Vec<_> = (0..k)
             .map(|i| (vars[i], h * h * (2.0 * (k - i) as f64 - 1.0) / 2.0))
             .collect();
         let a_base = start.a;
-        let v_base = start.v + start.a * kf * h;
+        let v_base = start.v + start.a * t;
         pb.add_constraint(a_terms.as_slice(), ComparisonOp::Le, a_max - a_base);
         pb.add_constraint(a_terms.as_slice(), ComparisonOp::Ge, -a_max - a_base);
-        pb.add_constraint(v_terms.as_slice(), ComparisonOp::Le, lim.vmax - v_base);
-        pb.add_constraint(v_terms.as_slice(), ComparisonOp::Ge, -lim.vmax - v_base);
+        pb.add_constraint(v_terms.as_slice(), ComparisonOp::Le, upper(t) - v_base);
+        pb.add_constraint(v_terms.as_slice(), ComparisonOp::Ge, -lower(t) - v_base);
         if k == n {
             let p_terms: Vec<_> = (0..k)
                 .map(|i| {
@@ -176,7 +217,6 @@ fn feasible(start: &KinematicState, target: f64, lim: &Limits, horizon: f64, n: 
                     (vars[i], h * h * h * (m.powi(3) - (m - 1.0).powi(3)) / 6.0)
                 })
                 .collect();
-            let t = kf * h;
             let p_base = start.p + start.v * t + start.a * t * t / 2.0;
             pb.add_constraint(a_terms.as_slice(), ComparisonOp::Eq, -a_base);
             pb.add_constraint(v_terms.as_slice(), ComparisonOp::Eq, -v_base);
@@ -282,4 +322,312 @@ fn lp_cases() -> u32 {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(24)
+}
+
+// ---------------------------------------------------------------------------------------
+// Starts beyond the limits (issue 11 §7).
+//
+// From |v0| > vmax, or with a0 carrying v past vmax, no move can stay inside the limits,
+// so "time-optimal" needs a rule for the way back. The planner's rule (the braking rule):
+// the axis never goes faster than the fastest landing on vmax with a = 0 — the kernel's
+// own velocity change from the start to ±vmax, `scurve::plan_velocity`, called the
+// envelope here (when braking already under way takes the axis below vmax, the envelope
+// eases that braking to zero at once and ends at v_stop). Below the envelope the move is
+// free within the limits, and must be the fastest such move. Two checks:
+//
+// - the issue's measure: once the axis is back inside its limits (|v| <= vmax and its
+//   acceleration no longer carrying it past vmax), the rest of the profile is exactly as
+//   long as the planner's own plan from that state, which the inside-limits LP tests
+//   check for optimality (cheap, so it runs over many states);
+// - the LP: the envelope's phases before its last one (jerk towards braking, then full
+//   deceleration) are the fastest braking there is, so a move that must stay below the
+//   envelope has no choice there: the rule fixes them. The LP starts where they end and
+//   compares only what the rule leaves free: piecewise-constant jerk to rest on the
+//   target with |a| <= amax and -vmax <= v <= max(vmax, envelope) at every step (on
+//   the side beyond; the other side keeps vmax), within `LP_TOL` of the planner.
+// ---------------------------------------------------------------------------------------
+
+fn v_stop(s: &KinematicState, lim: &Limits) -> f64 {
+    s.v + s.a * s.a.abs() / (2.0 * lim.jmax)
+}
+
+/// The side (±1) on which `s` is beyond vmax, or `None` when it is inside the limits.
+fn beyond_side(s: &KinematicState, lim: &Limits) -> Option<f64> {
+    let vs = v_stop(s, lim);
+    if s.v > lim.vmax || vs > lim.vmax {
+        Some(1.0)
+    } else if s.v < -lim.vmax || vs < -lim.vmax {
+        Some(-1.0)
+    } else {
+        None
+    }
+}
+
+/// The braking rule's envelope of a start beyond the limits: its side and the landing.
+fn envelope(s: &KinematicState, lim: &Limits) -> Option<(f64, Profile)> {
+    let side = beyond_side(s, lim)?;
+    let land = side * (side * v_stop(s, lim)).min(lim.vmax);
+    Some((
+        side,
+        scurve::plan_velocity(*s, land, lim).expect("a landing"),
+    ))
+}
+
+/// Whether a state is inside the limits: |v| <= vmax and not carried past it.
+fn inside(s: &KinematicState, lim: &Limits) -> bool {
+    let tol = 1e-9 * lim.vmax.max(1.0);
+    s.v.abs() <= lim.vmax + tol && v_stop(s, lim).abs() <= lim.vmax + tol
+}
+
+/// The first instant at which profile `p` is back inside the limits (bisection to 1e-15
+/// of its duration between the first inside sample of 10 000 and the one before).
+fn back_inside(p: &Profile, lim: &Limits) -> f64 {
+    let t_end = p.duration();
+    let n = 10_000;
+    let first = (0..=n)
+        .find(|&i| inside(&p.sample(t_end * i as f64 / n as f64), lim))
+        .expect("a move ends at rest, inside the limits");
+    if first == 0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (
+        t_end * (first - 1) as f64 / n as f64,
+        t_end * first as f64 / n as f64,
+    );
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if inside(&p.sample(mid), lim) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
+/// Random starts beyond the limits (symmetric limits, as the LP needs): either |v0| above
+/// vmax, or v0 inside with a0 carrying v past vmax; |a0| inside its bound.
+fn beyond_case() -> impl Strategy<Value = (KinematicState, f64, Limits)> {
+    let limits = (0.5..3.0f64, 0.5..3.0f64, 0.5..5.0f64).prop_map(|(vmax, amax, jmax)| Limits {
+        vmax,
+        amax,
+        dmax: amax,
+        jmax,
+    });
+    let too_fast = (limits.clone(), 1.01..1.6f64, -0.9..0.9f64)
+        .prop_map(|(lim, fv, fa)| (lim, fv * lim.vmax, fa * lim.amax));
+    // v0 = vmax − u·a0²/2J: stopping the acceleration at once ends (1 − u)·a0²/2J past vmax.
+    let carried = (limits, 0.3..0.95f64, 0.05..0.95f64).prop_map(|(lim, fa, u)| {
+        let a = fa * lim.amax;
+        (lim, lim.vmax - u * a * a / (2.0 * lim.jmax), a)
+    });
+    (prop_oneof![too_fast, carried], any::<bool>(), -5.0..5.0f64).prop_filter_map(
+        "start beyond the limits on one side only",
+        |((lim, v, a), flip, target)| {
+            let m = if flip { -1.0 } else { 1.0 };
+            let start = KinematicState {
+                p: 0.0,
+                v: m * v,
+                a: m * a,
+                j: 0.0,
+            };
+            let vs = v_stop(&start, &lim);
+            let one_side = !(start.v.abs() > lim.vmax && vs * start.v < -lim.vmax * start.v.abs());
+            (beyond_side(&start, &lim).is_some() && one_side && start.v.abs() <= 1.6 * lim.vmax)
+                .then_some((start, target, lim))
+        },
+    )
+}
+
+/// Checks the rule on a planned move from a start beyond the limits: the profile follows
+/// the envelope through its fixed phases and never goes faster than it. Returns the
+/// envelope's side and profile and the time its fixed phases end.
+fn check_rule(p: &Profile, start: &KinematicState, lim: &Limits) -> (f64, Profile, f64) {
+    let (side, env) = envelope(start, lim).expect("start beyond the limits");
+    let segs = env.segments();
+    let fixed: f64 = segs
+        .iter()
+        .take(segs.len().saturating_sub(1))
+        .map(|s| s.duration)
+        .sum();
+    assert!(
+        p.duration() >= fixed - 1e-12,
+        "the move ends ({} s) before the braking rule's fixed phases ({fixed} s)",
+        p.duration()
+    );
+    let scale = start.v.abs().max(start.a.abs()).max(1.0);
+    for i in 0..=200 {
+        let t = fixed * i as f64 / 200.0;
+        let (a, b) = (p.sample(t), env.sample(t));
+        assert!(
+            (a.p - b.p).abs() <= 1e-9 * scale && (a.v - b.v).abs() <= 1e-9 * scale,
+            "leaves the fixed braking at t {t}: {a:?} vs envelope {b:?}"
+        );
+    }
+    for i in 0..=4000 {
+        let t = p.duration() * i as f64 / 4000.0;
+        let v = side * p.sample(t).v;
+        let cap = lim.vmax.max(side * env.sample(t).v);
+        assert!(
+            v <= cap + 1e-9 * scale,
+            "faster than the braking rule at t {t}: {v} > {cap}"
+        );
+    }
+    (side, env, fixed)
+}
+
+/// The issue's measure: the rest of the move once the axis is back inside its limits,
+/// and the planner's own plan from there. Returns (rest of the move, plan from there).
+///
+/// Only "the rest is not slower" is asserted: the duration of a plan is continuous in its
+/// start state but not Lipschitz (a target a distance δ beyond the shortest stop costs
+/// about √δ of time), so the state found to within 1e-9 of the crossing of vmax may give
+/// a plan a few 1e-7 of its length longer than the rest, never shorter.
+fn rest_once_inside(p: &Profile, target: f64, lim: &Limits) -> (f64, f64) {
+    let t_in = back_inside(p, lim);
+    let from = p.sample(t_in);
+    let from = KinematicState { j: 0.0, ..from };
+    let again = scurve::plan_position(from, target, 0.0, lim).expect("a plan from inside");
+    (p.duration() - t_in, again.duration())
+}
+
+/// Relative tolerance of the LP comparison of the free part, both ways: 0.5 %. The LP
+/// can beat a real trajectory only by what its grid lets slip between step boundaries (v
+/// may overshoot a bound by at most jmax·h²/8 inside a step, about 10⁻⁴·vmax here), so a
+/// planner slower than optimal by more than a trifle shows as a feasible LP at 99.5 %.
+/// Its own pessimism (jerk switches only on the grid) made its optimum 1.0000 to 1.0008
+/// times the planner's free part over 150 seeded cases of `beyond_case` (bisection to
+/// 10⁻⁵), so it must find a move at 100.5 %. The issue's cases were up to 16.6 % slow.
+const LP_TOL: f64 = 0.005;
+
+/// Checks the free part of a move from beyond the limits against the rule's LP.
+fn check_lp_beyond(start: &KinematicState, target: f64, lim: &Limits, p: &Profile) {
+    let (side, env, fixed) = check_rule(p, start, lim);
+    let free = p.duration() - fixed;
+    if free < 0.05 {
+        return;
+    }
+    let from = env.sample(fixed);
+    let bound = |sign: f64| {
+        let env = &env;
+        move |t: f64| {
+            if sign == side {
+                lim.vmax.max(side * env.sample(fixed + t).v)
+            } else {
+                lim.vmax
+            }
+        }
+    };
+    let n = 120;
+    assert!(
+        !feasible_under(
+            &from,
+            target,
+            lim,
+            (1.0 - LP_TOL) * free,
+            n,
+            bound(1.0),
+            bound(-1.0)
+        ),
+        "LP beat the planner's free part ({free} s after {fixed} s of fixed braking)"
+    );
+    assert!(
+        feasible_under(
+            &from,
+            target,
+            lim,
+            (1.0 + LP_TOL) * free,
+            n,
+            bound(1.0),
+            bound(-1.0)
+        ),
+        "LP finds nothing at {} % of the free part ({free} s): the check itself is broken",
+        100.0 * (1.0 + LP_TOL)
+    );
+}
+
+/// Issue 11's example: from −3.1978 units/s (vmax 2.8466) while braking, the old planner
+/// braked to 1.25 units/s, paused the braking there and braked again: 0.5098 s, 16.6 %
+/// slower than optimal once back inside the limits. The optimum follows the braking rule
+/// and leaves it by braking straight onto the target.
+#[test]
+fn issue_11_example_beyond_vmax_is_optimal_once_back_inside() {
+    let start = KinematicState {
+        p: 0.3794,
+        v: -3.1978,
+        a: 1.9090,
+        j: 0.0,
+    };
+    let target = -0.3618;
+    let lim = Limits {
+        vmax: 2.8466,
+        amax: 11.8221,
+        dmax: 11.8221,
+        jmax: 90.9856,
+    };
+    let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
+    assert_eq!(p.end_state().p, target);
+    check_limits(&p, &start, &lim);
+    check_continuity(&p);
+    let (rest, again) = rest_once_inside(&p, target, &lim);
+    assert!(
+        rest <= again * (1.0 + 1e-9),
+        "once back inside: {rest} s left, {again} s from there"
+    );
+    check_lp_beyond(&start, target, &lim, &p);
+}
+
+proptest! {
+    #![proptest_config(config(1000, 0x11))]
+
+    #[test]
+    fn beyond_the_limits_the_rest_is_optimal_once_back_inside((start, target, lim) in beyond_case()) {
+        let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
+        prop_assert_eq!(p.end_state().p, target);
+        check_limits(&p, &start, &lim);
+        check_continuity(&p);
+        check_rule(&p, &start, &lim);
+        let (rest, again) = rest_once_inside(&p, target, &lim);
+        prop_assert!(
+            rest <= again * (1.0 + 1e-9),
+            "once back inside: {} s left, {} s from there", rest, again
+        );
+    }
+}
+
+proptest! {
+    // Asymmetric limits: a change whose velocity crosses zero holds min(amax, dmax)
+    // (the module's conservative rule, README's known limitations), which from beyond
+    // vmax brakes more gently than the landing on vmax: the rule is asserted for moves
+    // that do not reverse. Most random targets need a reversal, hence the rejects.
+    #![proptest_config(ProptestConfig { max_global_rejects: 100_000, ..config(1000, 0x11a) })]
+
+    #[test]
+    fn beyond_the_limits_with_asymmetric_limits_the_rest_is_optimal_once_back_inside(
+        (start, target, lim) in beyond_case(),
+        dmax_factor in 0.3..3.0f64,
+    ) {
+        let lim = Limits { dmax: lim.amax * dmax_factor, ..lim };
+        let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
+        let reverses = (0..=1000).any(|k| p.sample(p.duration() * k as f64 / 1000.0).v * start.v < 0.0);
+        prop_assume!(!reverses);
+        prop_assert_eq!(p.end_state().p, target);
+        check_limits(&p, &start, &lim);
+        check_rule(&p, &start, &lim);
+        let (rest, again) = rest_once_inside(&p, target, &lim);
+        prop_assert!(
+            rest <= again * (1.0 + 1e-9),
+            "once back inside: {} s left, {} s from there", rest, again
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(config(lp_cases(), 0x11b))]
+
+    #[test]
+    fn no_grid_trajectory_beats_the_free_part_beyond_the_limits((start, target, lim) in beyond_case()) {
+        let p = scurve::plan_position(start, target, 0.0, &lim).expect("a plan");
+        check_lp_beyond(&start, target, &lim, &p);
+    }
 }

@@ -7,6 +7,8 @@
 pub mod cli;
 pub mod config;
 pub mod demo;
+pub mod drive_records;
+pub mod error_chain;
 pub mod ethercat;
 pub mod pcap;
 pub mod plot;

@@ -9,8 +9,8 @@ use gantry::cli::client::{self, Client};
 use gantry::cli::profile::{self, Request};
 use gantry::cli::scan;
 use gantry::demo::{self, DemoArgs};
+use gantry::service::protocol::{BufferMode, JogDirection, MoveMode, Request as Line};
 use gantry::service::{self, server, RunArgs};
-use serde_json::json;
 
 /// Options of the commands that talk to a running gantry.
 #[derive(clap::Args, Debug)]
@@ -30,23 +30,92 @@ impl ClientOpts {
     }
 }
 
-/// Sends a one-axis command and waits for it (or not).
-fn axis_command(
-    opts: &ClientOpts,
-    axis: &str,
-    request: serde_json::Value,
+/// A one-axis command of the command line, as the request it sends.
+struct AxisCommand {
+    /// What goes on the socket.
+    request: Line,
+    /// Return at once with the handle instead of waiting for the command to finish.
     no_wait: bool,
-) -> anyhow::Result<()> {
-    let mut c = opts.connect()?;
-    client::command(
-        &mut c,
-        axis,
-        request,
-        no_wait,
-        opts.json,
-        &mut std::io::stdout(),
-    )?;
-    Ok(())
+    /// Where and how.
+    opts: ClientOpts,
+}
+
+impl AxisCommand {
+    /// The request of a one-axis command.
+    fn of(cmd: AxisCmd) -> Self {
+        let (request, no_wait, opts) = match cmd {
+            AxisCmd::Enable { axis, client } => (Line::Enable { axis }, false, client),
+            AxisCmd::Disable { axis, client } => (Line::Disable { axis }, false, client),
+            AxisCmd::Move {
+                axis,
+                to,
+                mode,
+                speed,
+                acceleration,
+                deceleration,
+                jerk,
+                buffer,
+                no_wait,
+                client,
+            } => (
+                Line::Move {
+                    axis,
+                    to,
+                    mode,
+                    speed,
+                    acceleration,
+                    deceleration,
+                    jerk,
+                    buffer,
+                },
+                no_wait,
+                client,
+            ),
+            // A jog runs until halted: nothing to wait for.
+            AxisCmd::Jog {
+                axis,
+                direction,
+                speed,
+                client,
+            } => (
+                Line::Jog {
+                    axis,
+                    direction,
+                    speed,
+                },
+                true,
+                client,
+            ),
+            AxisCmd::Halt { axis, client } => (Line::Halt { axis }, false, client),
+            AxisCmd::Stop { axis, client } => (Line::Stop { axis }, false, client),
+            AxisCmd::Release { axis, client } => (Line::Release { axis }, false, client),
+            AxisCmd::SetPosition {
+                axis,
+                position,
+                client,
+            } => (Line::SetPosition { axis, position }, false, client),
+            AxisCmd::Reset { axis, client } => (Line::Reset { axis }, false, client),
+        };
+        Self {
+            request,
+            no_wait,
+            opts,
+        }
+    }
+
+    /// Sends the command and waits for it (or not).
+    fn send(&self) -> anyhow::Result<()> {
+        let mut c = self.opts.connect()?;
+        client::command(
+            &mut c,
+            self.request.axis().unwrap_or_default(),
+            &self.request,
+            self.no_wait,
+            self.opts.json,
+            &mut std::io::stdout(),
+        )?;
+        Ok(())
+    }
 }
 
 /// gantry: a Linux motion master for CiA-402 drives.
@@ -104,102 +173,9 @@ enum Cmd {
         #[command(flatten)]
         client: ClientOpts,
     },
-    /// Power an axis on.
-    Enable {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Power an axis off (stopping it first).
-    Disable {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Move an axis (point to point), showing progress.
-    Move {
-        /// Axis name.
-        axis: String,
-        /// Target (or distance with --mode relative), in the axis' units.
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        to: f64,
-        /// absolute or relative; on a modulo axis also positive or negative (direction).
-        #[arg(long, default_value = "absolute")]
-        mode: String,
-        /// Speed (units/s; default: the axis' default).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        speed: Option<f64>,
-        /// Acceleration (units/s²).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        acceleration: Option<f64>,
-        /// Deceleration (units/s²).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        deceleration: Option<f64>,
-        /// Jerk (units/s³).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        jerk: Option<f64>,
-        /// aborting, buffered, blending-low, blending-previous, blending-next, blending-high.
-        #[arg(long)]
-        buffer: Option<String>,
-        /// Return at once with the command's handle.
-        #[arg(long)]
-        no_wait: bool,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Jog an axis until halted.
-    Jog {
-        /// Axis name.
-        axis: String,
-        /// + or -.
-        #[arg(long, allow_hyphen_values = true)]
-        direction: String,
-        /// Speed (units/s).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        speed: f64,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Decelerate an axis to a stop.
-    Halt {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Stop an axis and lock it until released (`gantry release`).
-    Stop {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Release a stopped axis.
-    Release {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Set an axis' position without moving (homing by "set position"; marks it homed).
-    SetPosition {
-        /// Axis name.
-        axis: String,
-        /// The position the axis is at now, in its units.
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        position: f64,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
-    /// Reset an axis in ErrorStop (its slave back to OP, the drive's fault reset).
-    Reset {
-        /// Axis name.
-        axis: String,
-        #[command(flatten)]
-        client: ClientOpts,
-    },
+    /// The commands to one axis.
+    #[command(flatten)]
+    Axis(AxisCmd),
     /// Record set and actual positions of axes, to CSV or SVG (by extension).
     Trace {
         /// Axis names.
@@ -262,6 +238,108 @@ enum Cmd {
     },
 }
 
+/// The commands to one axis of a running gantry.
+#[derive(Subcommand, Debug)]
+enum AxisCmd {
+    /// Power an axis on.
+    Enable {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Power an axis off (stopping it first).
+    Disable {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Move an axis (point to point), showing progress.
+    Move {
+        /// Axis name.
+        axis: String,
+        /// Target (or distance with --mode relative), in the axis' units.
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        to: f64,
+        /// absolute or relative; on a modulo axis also shortest, positive or negative
+        /// (the way round).
+        #[arg(long, default_value = "absolute")]
+        mode: MoveMode,
+        /// Speed (units/s; default: the axis' default).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        speed: Option<f64>,
+        /// Acceleration (units/s²).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        acceleration: Option<f64>,
+        /// Deceleration (units/s²).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        deceleration: Option<f64>,
+        /// Jerk (units/s³).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        jerk: Option<f64>,
+        /// aborting, buffered, blending-low, blending-previous, blending-next, blending-high.
+        #[arg(long, default_value = "aborting")]
+        buffer: BufferMode,
+        /// Return at once with the command's handle.
+        #[arg(long)]
+        no_wait: bool,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Jog an axis until halted.
+    Jog {
+        /// Axis name.
+        axis: String,
+        /// + or - (or positive, negative).
+        #[arg(long, allow_hyphen_values = true)]
+        direction: JogDirection,
+        /// Speed (units/s).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        speed: f64,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Decelerate an axis to a stop.
+    Halt {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Stop an axis and lock it until released (`gantry release`).
+    Stop {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Release a stopped axis.
+    Release {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Set an axis' position without moving (homing by "set position"; marks it homed).
+    SetPosition {
+        /// Axis name.
+        axis: String,
+        /// The position the axis is at now, in its units.
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        position: f64,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Reset an axis in ErrorStop (its slave back to OP, the drive's fault reset).
+    Reset {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+}
+
 /// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
 fn finite(text: &str) -> Result<f64, String> {
     let value: f64 = text
@@ -290,7 +368,9 @@ fn main() -> std::process::ExitCode {
     match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // The message only: it says what and where; a backtrace would not help a user.
+            // What failed, then each cause after a colon (`{:#}` walks the sources; the
+            // errors keep their causes there, not in their messages, so each is said once).
+            // No backtrace: it would not help a user.
             eprintln!("gantry: {e:#}");
             std::process::ExitCode::FAILURE
         }
@@ -351,61 +431,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut c = opts.connect()?;
             client::status(&mut c, opts.json, &mut std::io::stdout())?;
         }
-        Cmd::Enable { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "enable", "axis": axis}), false)?
-        }
-        Cmd::Disable { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "disable", "axis": axis}), false)?
-        }
-        Cmd::Move {
-            axis,
-            to,
-            mode,
-            speed,
-            acceleration,
-            deceleration,
-            jerk,
-            buffer,
-            no_wait,
-            client: opts,
-        } => {
-            let request = json!({
-                "cmd": "move", "axis": axis, "to": to, "mode": mode, "speed": speed,
-                "acceleration": acceleration, "deceleration": deceleration, "jerk": jerk,
-                "buffer": buffer,
-            });
-            axis_command(&opts, &axis, request, no_wait)?
-        }
-        Cmd::Jog {
-            axis,
-            direction,
-            speed,
-            client: opts,
-        } => {
-            let request =
-                json!({"cmd": "jog", "axis": axis, "direction": direction, "speed": speed});
-            axis_command(&opts, &axis, request, true)?
-        }
-        Cmd::Halt { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "halt", "axis": axis}), false)?
-        }
-        Cmd::Stop { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "stop", "axis": axis}), false)?
-        }
-        Cmd::Release { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "release", "axis": axis}), false)?
-        }
-        Cmd::SetPosition {
-            axis,
-            position,
-            client: opts,
-        } => {
-            let request = json!({"cmd": "set_position", "axis": axis, "position": position});
-            axis_command(&opts, &axis, request, false)?
-        }
-        Cmd::Reset { axis, client: opts } => {
-            axis_command(&opts, &axis, json!({"cmd": "reset", "axis": axis}), false)?
-        }
+        Cmd::Axis(command) => AxisCommand::of(command).send()?,
         Cmd::Trace {
             axes,
             seconds,
@@ -487,10 +513,159 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 jmax,
                 ramp,
             };
-            let answer =
-                profile::answer(&req, true).map_err(|e| anyhow::anyhow!("gantry profile: {e}"))?;
+            let answer = profile::answer(&req, true).context("gantry profile")?;
             println!("{}", serde_json::to_string_pretty(&answer)?);
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gantry::service::protocol;
+
+    /// What the command line `args` sends, as the service reads it back off the wire.
+    fn sent(args: &[&str]) -> (Line, bool) {
+        let cli = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))
+            .unwrap_or_else(|e| panic!("{args:?}: {e}"));
+        let Cmd::Axis(cmd) = cli.command else {
+            panic!("{args:?} is not a one-axis command");
+        };
+        let command = AxisCommand::of(cmd);
+        let line = command.request.to_line().unwrap();
+        let parsed = protocol::parse(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
+        assert_eq!(parsed, command.request, "{line}");
+        (parsed, command.no_wait)
+    }
+
+    #[test]
+    fn every_axis_command_reaches_the_service_as_typed() {
+        let x = || "x".to_string();
+        for (args, request, no_wait) in [
+            (&["enable", "x"][..], Line::Enable { axis: x() }, false),
+            (&["disable", "x"], Line::Disable { axis: x() }, false),
+            (&["halt", "x"], Line::Halt { axis: x() }, false),
+            (&["stop", "x"], Line::Stop { axis: x() }, false),
+            (&["release", "x"], Line::Release { axis: x() }, false),
+            (&["reset", "x"], Line::Reset { axis: x() }, false),
+            (
+                &["set-position", "x", "--position", "-2.5"],
+                Line::SetPosition {
+                    axis: x(),
+                    position: -2.5,
+                },
+                false,
+            ),
+            (
+                &["move", "x", "--to", "20"],
+                Line::Move {
+                    axis: x(),
+                    to: 20.0,
+                    mode: MoveMode::Absolute,
+                    speed: None,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    buffer: BufferMode::Aborting,
+                },
+                false,
+            ),
+            (
+                &[
+                    "move",
+                    "x",
+                    "--to",
+                    "-5",
+                    "--mode",
+                    "relative",
+                    "--speed",
+                    "100",
+                    "--acceleration",
+                    "1000",
+                    "--deceleration",
+                    "800",
+                    "--jerk",
+                    "20000",
+                    "--buffer",
+                    "blending-next",
+                    "--no-wait",
+                ],
+                Line::Move {
+                    axis: x(),
+                    to: -5.0,
+                    mode: MoveMode::Relative,
+                    speed: Some(100.0),
+                    acceleration: Some(1000.0),
+                    deceleration: Some(800.0),
+                    jerk: Some(20000.0),
+                    buffer: BufferMode::BlendingNext,
+                },
+                true,
+            ),
+            (
+                &[
+                    "move", "x", "--to", "350", "--mode", "negative", "--buffer", "buffered",
+                ],
+                Line::Move {
+                    axis: x(),
+                    to: 350.0,
+                    mode: MoveMode::Negative,
+                    speed: None,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    buffer: BufferMode::Buffered,
+                },
+                false,
+            ),
+            (
+                &["jog", "x", "--direction", "-", "--speed", "20"],
+                Line::Jog {
+                    axis: x(),
+                    direction: JogDirection::Negative,
+                    speed: 20.0,
+                },
+                true,
+            ),
+            (
+                &["jog", "x", "--direction", "positive", "--speed", "5"],
+                Line::Jog {
+                    axis: x(),
+                    direction: JogDirection::Positive,
+                    speed: 5.0,
+                },
+                true,
+            ),
+        ] {
+            assert_eq!(sent(args), (request, no_wait), "{args:?}");
+        }
+    }
+
+    #[test]
+    fn a_wrong_word_on_the_command_line_names_the_option_and_the_word() {
+        for (args, option, says) in [
+            (
+                &["move", "x", "--to", "1", "--mode", "sideways"][..],
+                "'--mode <MODE>'",
+                r#"mode "sideways" is not one of "absolute", "relative""#,
+            ),
+            (
+                &["move", "x", "--to", "1", "--buffer", "soon"],
+                "'--buffer <BUFFER>'",
+                r#"buffer "soon" is not one of "aborting""#,
+            ),
+            (
+                &["jog", "x", "--direction", "up", "--speed", "1"],
+                "'--direction <DIRECTION>'",
+                r#"direction "up" is not one of "+", "-""#,
+            ),
+        ] {
+            let e = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(option), "{args:?}: {e}");
+            assert!(e.contains(says), "{args:?}: {e}");
+        }
+    }
 }

@@ -16,7 +16,7 @@ pub const SNAPLEN: u32 = 65_535;
 
 /// Writing a capture failed.
 #[derive(Debug, Error)]
-#[error("cannot write pcap: {0}")]
+#[error("cannot write pcap")]
 pub struct PcapError(#[from] std::io::Error);
 
 /// Writes frames to a pcap stream.

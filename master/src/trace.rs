@@ -18,7 +18,7 @@ pub enum TraceError {
         got: usize,
     },
     /// Writing the file failed.
-    #[error("cannot write trace file {path}: {source}")]
+    #[error("cannot write trace file {path}")]
     Io {
         /// The file.
         path: String,

@@ -119,7 +119,12 @@ fn profile_batch_answers_every_line() {
         .collect();
     assert_eq!(lines.len(), 3);
     assert!(lines[0]["plan_ns"].as_u64().is_some());
-    assert!(lines[1]["error"].as_str().unwrap().starts_with("line 2:"));
+    let e = lines[1]["error"].as_str().unwrap();
+    // Where, what, and serde's why.
+    assert!(
+        e.starts_with("line 2: not a request: invalid type: string \"x\", expected f64"),
+        "{e}"
+    );
     assert!(lines[2]["peak_a"].as_f64().unwrap() <= 2.0 + 1e-12);
 }
 
@@ -252,4 +257,28 @@ fn rt_check_measures_beside_cyclictest() {
     assert!(text.contains("cyclictest  p50"), "{text}");
     assert!(text.contains("ratio gantry/cyclictest"), "{text}");
     assert!(!text.contains("NOT real time"), "{text}");
+}
+
+#[test]
+fn an_error_prints_what_failed_and_its_cause_once() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-chain-{}", std::process::id()));
+    let pcap = dir.join("no-such-dir").join("x.pcap");
+    let out = gantry()
+        .args(["demo", "--speed", "0", "--bus", "ethercat", "--out"])
+        .arg(&dir)
+        .arg("--pcap")
+        .arg(&pcap)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains(&format!(
+            "gantry: cannot write {}: No such file or directory",
+            pcap.display()
+        )),
+        "{e}"
+    );
+    assert_eq!(e.matches("No such file").count(), 1, "{e}");
 }

@@ -102,7 +102,8 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
                     .map_err(|e| e.to_string())?;
                 // Real time, bring-up and engine exactly as `gantry run` makes them.
                 let (engine, ends) =
-                    gantry::service::start_cycle(&config, true, &mut std::io::sink())?;
+                    gantry::service::start_cycle(&config, true, &mut std::io::sink())
+                        .map_err(|e| gantry::error_chain::Chain(&e).to_string())?;
                 tx.send(ends).map_err(|e| e.to_string())?;
                 let engine = engine.run(PERIOD_NS, &stop);
                 let ended = Ended {
@@ -215,19 +216,6 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
     stop.store(true, Ordering::Relaxed);
     let ended = cycle_thread.join().unwrap().expect("the cycle thread");
     let gaps = sim.stop().expect("gantry-sim's summary");
-    // What reached the drives: never a target step beyond the axis' speed per master
-    // cycle, never a following-error fault. Setpoints are missed or doubled here now and
-    // then (this VM's stalls): the drives count them, the test reports them above.
-    assert_record_invariants(
-        &records,
-        &DriveUnderTest::of_config(&config),
-        PERIOD_NS as f64 * 1e-9,
-        TestConditions {
-            injects_following_error: false,
-            phase_locked: false,
-        },
-    );
-    std::fs::remove_dir_all(&dir).unwrap();
     // The percentiles are computed on the application's side, from every cycle.
     let f = ctl.figures();
     eprintln!(
@@ -247,6 +235,19 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
         stops.len(),
         gaps.line
     );
+    // What reached the drives: never a target step beyond the axis' speed per master
+    // cycle, never a following-error fault. Setpoints are missed or doubled here now and
+    // then (this VM's stalls): the drives count them, the test reports them above.
+    assert_record_invariants(
+        &records,
+        &DriveUnderTest::of_config(&config),
+        PERIOD_NS as f64 * 1e-9,
+        TestConditions {
+            injects_following_error: false,
+            phase_locked: false,
+        },
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
     // Generous bounds: this is a shared VM whose kernel does not preempt (an RT thread
     // waits for kernel work of other tasks on its CPU: 2–10 ms measured), so frames are
     // lost now and then, three in a row at times, which stops the axes (the example's

@@ -11,7 +11,10 @@
 //! - `|j| <= jmax` (S-curve only; the other ramp types have no jerk limit).
 //!
 //! A start state already beyond a limit is brought back inside as fast as the other limits
-//! allow, and never goes further out.
+//! allow, and never goes further out. For the S-curve that is the braking rule: the axis
+//! never goes faster than the fastest landing on vmax with a = 0 that the jerk allows (the
+//! velocity change to vmax); below that landing the move is time-optimal (it leaves the
+//! landing early when the target is near: `scurve`'s dip window).
 
 pub mod ramp;
 pub mod scurve;

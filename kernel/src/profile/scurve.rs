@@ -14,8 +14,12 @@
 //! cruises for the rest. When even the full `vmax` does not fit, `D(vp) = distance` is
 //! solved for `vp` by a bracketed root search (Illinois regula falsi, bounded iterations).
 //! A target inside the stopping distance simply gets a `vp` of the other sign: the move
-//! passes through zero velocity and comes back. Every result is verified by evaluating its
-//! end state before it is returned.
+//! passes through zero velocity and comes back. A target beyond the shortest stop but
+//! short of the stop after the first change's fastest landing (the "dip window", `dip`)
+//! gets a shape of its own: the move follows that landing and leaves it by braking onto
+//! the target. From beyond vmax the landing on (vmax, 0) is the braking rule, which the
+//! move never outruns. Every result is verified by evaluating its end state before it is
+//! returned.
 //!
 //! Acceleration bound of each velocity change (see the module doc of `profile`): `amax`
 //! when speeding up, `dmax` when slowing down, `min(amax, dmax)` when the change crosses
@@ -297,10 +301,9 @@ pub fn plan_position(
         }
     }
     if ve == 0.0 {
-        if let Some((ease, change)) = dip(&s, dist, lim, tol) {
+        if let Some((prefix, change)) = dip(&s, dist, lim, tol) {
             let mut profile = Profile::new(KinematicState { j: 0.0, ..start });
-            profile.push(ease.t, Shape::Jerk(m * ease.j))?;
-            for ph in &change.phases {
+            for ph in prefix.iter().chain(&change.phases) {
                 profile.push(ph.t, Shape::Jerk(m * ph.j))?;
             }
             return pin_end(profile, &start, target, 0.0, scale, lim);
@@ -360,41 +363,64 @@ fn pin_end(
     Ok(profile)
 }
 
-/// The "dip window": moving towards the target while already braking (a0 < 0 in the
-/// frame where the target is ahead), with the target beyond the shortest stopping point
-/// but short of where the axis stops after easing its braking to zero first. The
-/// time-optimal move eases the braking only part way — acceleration turns back at `a1`
-/// between `a0` and 0 — then brakes to rest on the target. `a1` is found by a bracketed
-/// root search (distance grows from the shortest stop at `a1 = a0` to the eased stop at
-/// `a1 = 0`). Returns the easing phase and the braking change, or `None` outside the
-/// window.
-fn dip(s: &KinematicState, dist: f64, lim: &Limits, tol: f64) -> Option<(Phase, VelChange)> {
+/// The "dip window": moving towards the target with the target beyond the shortest
+/// stopping point but short of where the axis stops after it has followed its
+/// *envelope* to the end. The envelope is the fastest the axis may go:
+/// - inside the limits and already braking (a0 < 0 in the frame where the target is
+///   ahead), easing the braking to zero at once (the speed falls to `v_stop`);
+/// - beyond a limit (`v_stop > vmax`: |v0| > vmax, or a0 carrying v past vmax), the
+///   braking rule: landing on vmax with a = 0 as fast as the jerk allows (the velocity
+///   change to (vmax, 0)). The axis never goes faster than this landing.
+///
+/// The time-optimal move follows the envelope for a while and leaves it by braking to
+/// rest on the target: the later it leaves, the faster it has gone and the further it
+/// gets. So the departure time `τ` in the envelope's last phase (the one that eases the
+/// acceleration to zero; before it the envelope brakes at full jerk or full deceleration,
+/// and braking from there is the plain stop) is found by a bracketed root search
+/// (distance grows from the plain stop at `τ = 0` to the stop after the whole envelope).
+/// Stopping from a slower speed at a = 0 instead — a peak velocity `vp` below the
+/// envelope's end, what the `vp` search finds in this window — pauses the braking and is
+/// slower (in issue 11's example from beyond vmax, the rest once back inside the limits
+/// took 16.6 % longer than the optimum from there).
+///
+/// Returns the envelope up to the departure and the braking change, or `None` outside
+/// the window.
+fn dip(s: &KinematicState, dist: f64, lim: &Limits, tol: f64) -> Option<([Phase; 3], VelChange)> {
     let vs = v_stop(s, lim);
-    if !(s.a < 0.0 && s.v > 0.0 && vs > 0.0) {
-        return None;
-    }
-    let brake = through(s, 0.0, 0.0, lim).distance;
-    let eased = through(s, vs, 0.0, lim).distance;
-    if !(dist > brake && dist < eased) {
-        return None;
-    }
     let j = lim.jmax;
-    let plan = |a1: f64| {
-        let t1 = (a1 - s.a) / j;
-        let ease = Phase { t: t1, j };
-        let after = KinematicState {
-            p: t1 * (s.v + t1 * (s.a / 2.0 + t1 * j / 6.0)),
-            v: s.v + t1 * (s.a + t1 * j / 2.0),
-            a: a1,
-            j: 0.0,
-        };
-        let change = VelChange::new(after.v, a1, 0.0, first_bound(&after, 0.0, lim), j);
-        (ease, change, change.integrate(after).p)
+    let envelope = if vs > lim.vmax {
+        VelChange::new(s.v, s.a, lim.vmax, first_bound(s, lim.vmax, lim), j)
+    } else if s.a < 0.0 && s.v > 0.0 && vs > 0.0 {
+        let ease = Phase { t: -s.a / j, j };
+        VelChange {
+            phases: [Phase::default(), Phase::default(), ease],
+        }
+    } else {
+        return None;
     };
-    let g = |a1: f64| plan(a1).2 - dist;
-    let a1 = solve(s.a, 0.0, brake - dist, eased - dist, tol, g);
-    let (ease, change, _) = plan(a1);
-    Some((ease, change))
+    let [first, hold, last] = envelope.phases;
+    // The last phase eases a ≤ 0 back to zero: a departure only makes sense there.
+    if !(last.j > 0.0 && last.t > 0.0) {
+        return None;
+    }
+    let origin = KinematicState { p: 0.0, ..*s };
+    let plan = |tau: f64| {
+        let prefix = VelChange {
+            phases: [first, hold, Phase { t: tau, j: last.j }],
+        };
+        let after = prefix.integrate(origin);
+        let change = VelChange::new(after.v, after.a, 0.0, first_bound(&after, 0.0, lim), j);
+        (prefix.phases, change, change.integrate(after).p)
+    };
+    let plain = plan(0.0).2;
+    let whole = plan(last.t).2;
+    if !(dist > plain && dist < whole) {
+        return None;
+    }
+    let g = |tau: f64| plan(tau).2 - dist;
+    let tau = solve(0.0, last.t, plain - dist, whole - dist, tol, g);
+    let (prefix, change, _) = plan(tau);
+    Some((prefix, change))
 }
 
 /// Plans a velocity change; see [`super::plan_velocity`].

@@ -10,25 +10,42 @@ use serde_json::{json, Value};
 use thiserror::Error;
 
 use crate::plot::{self, Panel};
-use crate::service::protocol::VERSION;
-use crate::trace::Trace;
+use crate::service::protocol::{MoveMode, Request};
+use crate::trace::{Trace, TraceError};
 
 /// Why a client command failed.
 #[derive(Debug, Error)]
 pub enum ClientError {
     /// The service is not there.
-    #[error(
-        "cannot reach gantry at {path}: {reason} (is `gantry run` running? --socket sets the path)"
-    )]
+    #[error("cannot reach gantry at {path} (is `gantry run` running? --socket sets the path)")]
     Connect {
         /// Socket path.
         path: String,
         /// Why.
-        reason: String,
+        #[source]
+        source: std::io::Error,
     },
-    /// The connection broke or the reply was not JSON.
+    /// The connection broke.
+    #[error("control socket")]
+    Io(#[source] std::io::Error),
+    /// The request could not be written as JSON, or the reply is not JSON.
     #[error("control socket: {0}")]
-    Io(String),
+    Json(&'static str, #[source] serde_json::Error),
+    /// Writing the output failed.
+    #[error("writing the output")]
+    Output(#[source] std::io::Error),
+    /// The trace could not be recorded or written.
+    #[error(transparent)]
+    Trace(#[from] TraceError),
+    /// The SVG could not be written.
+    #[error("cannot write {path}")]
+    Write {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
     /// The service refused the request.
     #[error("{0}")]
     Refused(String),
@@ -46,26 +63,25 @@ pub struct Client {
 impl Client {
     /// Connects to the socket at `path`.
     pub fn connect(path: &Path) -> Result<Self, ClientError> {
-        let connect_error = |e: std::io::Error| ClientError::Connect {
+        let connect_error = |source: std::io::Error| ClientError::Connect {
             path: path.display().to_string(),
-            reason: e.to_string(),
+            source,
         };
         let writer = UnixStream::connect(path).map_err(connect_error)?;
         let reader = BufReader::new(writer.try_clone().map_err(connect_error)?);
         Ok(Self { writer, reader })
     }
 
-    /// Sends one request (without `v`), returns the result or the service's error.
-    pub fn request(&mut self, mut request: Value) -> Result<Value, ClientError> {
-        if let Some(o) = request.as_object_mut() {
-            o.insert("v".into(), json!(VERSION));
-        }
-        let io = |e: std::io::Error| ClientError::Io(e.to_string());
-        writeln!(self.writer, "{request}").map_err(io)?;
+    /// Sends one request, returns the result or the service's error.
+    pub fn request(&mut self, request: &Request) -> Result<Value, ClientError> {
+        let line = request
+            .to_line()
+            .map_err(|e| ClientError::Json("request", e))?;
+        writeln!(self.writer, "{line}").map_err(ClientError::Io)?;
         let mut line = String::new();
-        self.reader.read_line(&mut line).map_err(io)?;
+        self.reader.read_line(&mut line).map_err(ClientError::Io)?;
         let reply: Value =
-            serde_json::from_str(&line).map_err(|e| ClientError::Io(format!("reply: {e}")))?;
+            serde_json::from_str(&line).map_err(|e| ClientError::Json("reply", e))?;
         if reply["ok"] == json!(true) {
             Ok(reply["result"].clone())
         } else {
@@ -85,7 +101,10 @@ impl Client {
         let end = Instant::now() + timeout;
         let tty = std::io::stdout().is_terminal();
         loop {
-            let s = self.request(json!({"cmd": "wait", "handle": handle, "timeout_s": 0.1}));
+            let s = self.request(&Request::Wait {
+                handle,
+                timeout_s: 0.1,
+            });
             match s {
                 Ok(status) => {
                     if tty {
@@ -135,8 +154,8 @@ pub fn status(
     json_out: bool,
     out: &mut impl Write,
 ) -> Result<(), ClientError> {
-    let s = client.request(json!({"cmd": "status"}))?;
-    let io = |e: std::io::Error| ClientError::Io(e.to_string());
+    let s = client.request(&Request::Status)?;
+    let io = ClientError::Output;
     if json_out {
         writeln!(out, "{s}").map_err(io)?;
         return Ok(());
@@ -253,16 +272,18 @@ pub fn status(
 pub fn command(
     client: &mut Client,
     axis: &str,
-    request: Value,
+    request: &Request,
     no_wait: bool,
     json_out: bool,
     out: &mut impl Write,
 ) -> Result<(), ClientError> {
-    let io = |e: std::io::Error| ClientError::Io(e.to_string());
-    let target = request["to"].as_f64();
-    let cmd = request["cmd"].as_str().unwrap_or_default().to_string();
-    let request_is_move = cmd == "move";
-    let relative = request["mode"] == json!("relative");
+    let io = ClientError::Output;
+    let (target, relative) = match request {
+        Request::Move { to, mode, .. } => (Some(*to), *mode == MoveMode::Relative),
+        _ => (None, false),
+    };
+    let cmd = request.cmd();
+    let request_is_move = matches!(request, Request::Move { .. });
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
     if no_wait {
@@ -280,7 +301,7 @@ pub fn command(
         return Ok(());
     }
     let start = client
-        .request(json!({"cmd": "status"}))
+        .request(&Request::Status)
         .ok()
         .and_then(|s| axis_of(&s, axis).and_then(|a| a["position"].as_f64()));
     let goal = match (target, start) {
@@ -291,7 +312,7 @@ pub fn command(
     // Moves may take long; power, halts and resets finish in seconds or not at all.
     let timeout = if request_is_move { 600 } else { 30 };
     let result = client.wait(handle, Duration::from_secs(timeout), |c| {
-        let s = c.request(json!({"cmd": "status"})).ok()?;
+        let s = c.request(&Request::Status).ok()?;
         let a = axis_of(&s, axis)?;
         let p = a["position"].as_f64()?;
         let units = a["units"].as_str().unwrap_or("");
@@ -312,7 +333,7 @@ pub fn command(
             ),
         })
     });
-    let status = client.request(json!({"cmd": "status"}))?;
+    let status = client.request(&Request::Status)?;
     let entry = axis_of(&status, axis);
     let position = entry.and_then(|a| a["position"].as_f64());
     // Where the command put the axis: the set position (a move's target when it is done);
@@ -341,8 +362,18 @@ pub fn command(
                 } else {
                     String::new()
                 };
-                writeln!(out, "{axis}: {} {set:.3} {units}{settling}", outcome(&cmd))
-                    .map_err(io)?;
+                let state = entry.and_then(|a| a["state"].as_str()).unwrap_or("");
+                let after = if cmd == "reset" {
+                    after_reset(axis, state)
+                } else {
+                    String::new()
+                };
+                writeln!(
+                    out,
+                    "{axis}: {} {set:.3} {units}{settling}{after}",
+                    outcome(cmd)
+                )
+                .map_err(io)?;
             }
             Ok(())
         }
@@ -354,6 +385,17 @@ pub fn command(
                 .unwrap_or_default();
             Err(ClientError::Failed(format!("{axis}: {e}{why}")))
         }
+    }
+}
+
+/// What a reset left the axis in, in words (PLCopen MC_Reset: Standstill when its drive's
+/// power is on, Disabled when it is off — see `Engine::reset`).
+fn after_reset(axis: &str, state: &str) -> String {
+    match state {
+        "Standstill" => ", Standstill (its drive is powered)".into(),
+        "Disabled" => format!(", Disabled (its drive's power is off: `gantry enable {axis}`)"),
+        "" => String::new(),
+        other => format!(", {other}"),
     }
 }
 
@@ -379,7 +421,10 @@ pub fn trace(
     path: &Path,
     out: &mut impl Write,
 ) -> Result<(), ClientError> {
-    let r = client.request(json!({"cmd": "trace", "axes": axes, "seconds": seconds}))?;
+    let r = client.request(&Request::Trace {
+        axes: axes.to_vec(),
+        seconds,
+    })?;
     let columns: Vec<String> = r["columns"]
         .as_array()
         .into_iter()
@@ -397,8 +442,7 @@ pub fn trace(
             .filter_map(Value::as_f64)
             .collect();
         if let Some((time, values)) = v.split_first() {
-            t.push(*time, values)
-                .map_err(|e| ClientError::Io(e.to_string()))?;
+            t.push(*time, values)?;
         }
     }
     let svg = path.extension().is_some_and(|e| e == "svg");
@@ -410,11 +454,12 @@ pub fn trace(
                 channels: (0..columns.len()).collect(),
             }],
         );
-        std::fs::write(path, doc)
-            .map_err(|e| ClientError::Io(format!("{}: {e}", path.display())))?;
+        std::fs::write(path, doc).map_err(|source| ClientError::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
     } else {
-        t.write_csv(path)
-            .map_err(|e| ClientError::Io(e.to_string()))?;
+        t.write_csv(path)?;
     }
     let cut_short = if r["complete"] == json!(false) {
         " (gantry stopped: the recording ends there)"
@@ -428,6 +473,6 @@ pub fn trace(
         axes.join(", "),
         path.display()
     )
-    .map_err(|e| ClientError::Io(e.to_string()))?;
+    .map_err(ClientError::Output)?;
     Ok(())
 }

@@ -8,6 +8,8 @@ use gantry_kernel::profile::{plan_position, KinematicState, Limits, Profile, Ram
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::error_chain::Chain;
+
 /// One planning request (the `--batch` line format; the flags use the same names).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -79,11 +81,11 @@ pub struct Answer {
 }
 
 /// Why a request cannot be planned.
-#[derive(Clone, Debug, Error, PartialEq)]
+#[derive(Debug, Error)]
 pub enum ProfileError {
     /// A field is missing, of the wrong type, or unknown.
-    #[error("{0}")]
-    Parse(String),
+    #[error("not a request")]
+    Parse(#[source] serde_json::Error),
     /// A numeric field is not finite.
     #[error("{field} = {value} is not a finite number")]
     NotFinite {
@@ -107,8 +109,8 @@ pub enum ProfileError {
     #[error("jmax is required for the scurve ramp")]
     NoJerk,
     /// The planner failed.
-    #[error("planning failed: {0}")]
-    Plan(gantry_kernel::profile::PlanError),
+    #[error("planning failed")]
+    Plan(#[source] gantry_kernel::profile::PlanError),
 }
 
 /// Plans a request.
@@ -203,13 +205,13 @@ pub fn batch(input: impl BufRead, mut output: impl Write) -> std::io::Result<()>
             continue;
         }
         let result = serde_json::from_str::<Request>(&line)
-            .map_err(|e| ProfileError::Parse(e.to_string()))
+            .map_err(ProfileError::Parse)
             .and_then(|r| answer(&r, false));
         let text = match result {
             Ok(a) => {
                 serde_json::to_string(&a).unwrap_or_else(|e| error_json(n + 1, &e.to_string()))
             }
-            Err(e) => error_json(n + 1, &e.to_string()),
+            Err(e) => error_json(n + 1, &Chain(&e).to_string()),
         };
         writeln!(output, "{text}")?;
     }
@@ -258,7 +260,7 @@ mod tests {
         assert!(answer(&r, false).unwrap_err().to_string().contains("cubic"));
         let mut r = req("scurve");
         r.jmax = None;
-        assert_eq!(answer(&r, false).unwrap_err(), ProfileError::NoJerk);
+        assert!(matches!(answer(&r, false), Err(ProfileError::NoJerk)));
     }
 
     #[test]

@@ -10,7 +10,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 use crate::ethercat::raw::RawBus;
-use crate::pcap::PcapWriter;
+use crate::pcap::{PcapError, PcapWriter};
 
 const MAX_SLAVES: usize = 64;
 const MAX_PDI: usize = 4096;
@@ -24,15 +24,16 @@ pub enum ScanError {
     #[error(transparent)]
     Socket(#[from] gantry_sim::transport::raw_socket::RawSocketError),
     /// The pcap file could not be written.
-    #[error("pcap {path}: {reason}")]
+    #[error("pcap {path}")]
     Pcap {
         /// The file.
         path: String,
         /// Why.
-        reason: String,
+        #[source]
+        source: PcapError,
     },
     /// The network did not answer as expected.
-    #[error("{step} on {interface}: {source}")]
+    #[error("{step} on {interface}")]
     Bus {
         /// What the master was doing.
         step: &'static str,
@@ -45,7 +46,7 @@ pub enum ScanError {
     #[error("no EtherCAT slave answered on {0} (cable, link, or the wrong interface?)")]
     NoSlaves(String),
     /// The output could not be written.
-    #[error("writing the table: {0}")]
+    #[error("writing the table")]
     Output(#[from] std::io::Error),
 }
 
@@ -91,13 +92,11 @@ pub fn scan(interface: &str, pcap: Option<&str>) -> Result<Vec<SlaveRow>, ScanEr
     let capture = match pcap {
         Some(path) => Some(
             std::fs::File::create(path)
-                .map_err(|e| e.to_string())
-                .and_then(|f| {
-                    PcapWriter::new(std::io::BufWriter::new(f)).map_err(|e| e.to_string())
-                })
-                .map_err(|reason| ScanError::Pcap {
+                .map_err(PcapError::from)
+                .and_then(|f| PcapWriter::new(std::io::BufWriter::new(f)))
+                .map_err(|source| ScanError::Pcap {
                     path: path.into(),
-                    reason,
+                    source,
                 })?,
         ),
         None => None,

@@ -3,15 +3,16 @@
 use thiserror::Error;
 
 /// A configuration that cannot be used.
-#[derive(Clone, Debug, Error, PartialEq, Eq)]
+#[derive(Clone, Debug, Error)]
 pub enum ConfigError {
     /// The file cannot be read.
-    #[error("cannot read {path}: {reason}")]
+    #[error("cannot read {path}")]
     Read {
         /// The file.
         path: String,
-        /// Why.
-        reason: String,
+        /// Why (shared: the error stays `Clone`).
+        #[source]
+        source: std::sync::Arc<std::io::Error>,
     },
     /// The file is not valid for gantry: malformed TOML, an unknown key, a wrong type,
     /// a missing key or a value out of range.

@@ -47,16 +47,20 @@ impl Config {
     pub fn load(path: &str) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
             path: path.into(),
-            reason: e.to_string(),
+            source: e.into(),
         })?;
         let mut config = Self::parse(&text, path)?;
         // Files named in the configuration are relative to it.
         let dir = std::path::Path::new(path)
             .parent()
             .unwrap_or(std::path::Path::new(""));
-        for file in [&mut config.bus.simulator, &mut config.bus.pcap]
-            .into_iter()
-            .flatten()
+        for file in [
+            &mut config.bus.simulator,
+            &mut config.bus.simulator_record,
+            &mut config.bus.pcap,
+        ]
+        .into_iter()
+        .flatten()
         {
             if std::path::Path::new(file.as_str()).is_relative() {
                 *file = dir.join(&*file).display().to_string();

@@ -69,10 +69,10 @@ pub struct DemoReport {
 #[derive(Debug, Error)]
 pub enum DemoError {
     /// The kernel refused the demo's axes (a bug in the demo).
-    #[error("demo configuration rejected: {0}")]
+    #[error("demo configuration rejected")]
     Config(#[from] gantry_kernel::axis::ConfigError),
     /// A step of the script was refused or failed.
-    #[error("demo step {label} ({axis}: {command}) failed: {error}")]
+    #[error("demo step {label} ({axis}: {command}) failed")]
     Step {
         /// The step.
         label: &'static str,
@@ -81,6 +81,7 @@ pub enum DemoError {
         /// Command name.
         command: &'static str,
         /// The error.
+        #[source]
         error: gantry_kernel::axis::command::CommandError,
     },
     /// The script waited for a step that never finished.
@@ -93,14 +94,26 @@ pub enum DemoError {
     #[error(transparent)]
     Trace(#[from] TraceError),
     /// The EtherCAT network failed.
+    #[error("EtherCAT {step}")]
+    Bus {
+        /// What the demo was doing.
+        step: String,
+        /// Why it failed.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    },
+    /// The demo's in-process network cannot run.
     #[error("EtherCAT: {0}")]
-    Bus(String),
+    Network(&'static str),
+    /// The drives' records could not be written.
+    #[error(transparent)]
+    Records(#[from] gantry_sim::plant::record::RecordsFileError),
     /// A simulated drive saw the master break the drive invariant (issue 10 §6): a target
     /// step beyond `vmax · T`, a following-error fault, a missed or doubled setpoint.
     #[error("drive invariant broken: {0}")]
     Invariant(String),
     /// Creating the output folder or writing the plot failed.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}")]
     Io {
         /// The path.
         path: String,

@@ -102,19 +102,34 @@ pub struct DcStatus {
     pub cycle_offset_ns: u64,
 }
 
-/// Why the bus did not come up.
+/// What made a step of the bring-up fail: ethercrab's error, a stalled step, an I/O or a
+/// configuration error; kept as the [`std::error::Error::source`] of a [`StartError`].
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why the bus did not come up. The message says what failed; what caused it is the
+/// error's source (printed after it, see `crate::error_chain`).
 #[derive(Debug, Error)]
 pub enum StartError {
-    /// The link (interface or simulator) could not be opened.
+    /// The configuration gives no link, or the bus is already up in this process.
     #[error("{0}")]
-    Link(String),
+    NoLink(&'static str),
+    /// The link (interface, simulator, pcap file) could not be opened.
+    #[error("{what}")]
+    Link {
+        /// What was being opened.
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Cause,
+    },
     /// A step of the bring-up failed.
-    #[error("EtherCAT {step}: {reason}")]
+    #[error("EtherCAT {step}")]
     Bus {
         /// The step.
         step: &'static str,
         /// Why.
-        reason: String,
+        #[source]
+        source: Cause,
     },
     /// The configuration names a drive that is not there.
     #[error("{path}: axis {axis:?} is on drive {drive}, but the bus has {slaves} slaves")]
@@ -128,9 +143,39 @@ pub enum StartError {
         /// Slaves found.
         slaves: usize,
     },
+    /// An axis' configuration does not fit its drive (PDO layout, scaling).
+    #[error("axis {axis:?}: {key}: {reason}")]
+    Axis {
+        /// The axis.
+        axis: String,
+        /// The configuration key.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// The layout does not suit CSP, or the kernel refused the axes.
-    #[error("{0}")]
-    Setup(String),
+    #[error("{what}")]
+    Setup {
+        /// What was being set up.
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Cause,
+    },
+}
+
+impl StartError {
+    /// A link that could not be opened.
+    fn link(what: impl Into<String>) -> impl FnOnce(Cause) -> Self {
+        let what = what.into();
+        move |source| Self::Link { what, source }
+    }
+
+    /// A set-up that failed.
+    fn setup(what: impl Into<String>) -> impl FnOnce(Cause) -> Self {
+        let what = what.into();
+        move |source| Self::Setup { what, source }
+    }
 }
 
 /// The EtherCAT bus in OP.
@@ -180,63 +225,56 @@ impl EthercatBus {
         out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
         on_large_stack("gantry-bring-up", || Self::bring_up_here(config, out))
-            .unwrap_or_else(|e| Err(StartError::Link(format!("a thread for the bring-up: {e}"))))
+            .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
     }
 
     fn bring_up_here(
         config: &Config,
         out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
-        let bus_error = |step: &'static str| {
-            move |e: ethercrab::error::Error| StartError::Bus {
-                step,
-                reason: e.to_string(),
-            }
-        };
-        let stalled = |step: &'static str| {
-            move |e: StepStalled| StartError::Bus {
-                step,
-                reason: e.to_string(),
-            }
-        };
+        let bus_error = |step: &'static str| move |e: ethercrab::error::Error| step_error(step, e);
+        let stalled = |step: &'static str| move |e: StepStalled| step_error(step, e);
         let capture = match &config.bus.pcap {
             Some(path) => Some(
                 std::fs::File::create(path)
-                    .map_err(|e| e.to_string())
-                    .and_then(|f| {
-                        PcapWriter::new(std::io::BufWriter::new(f)).map_err(|e| e.to_string())
-                    })
-                    .map_err(|e| StartError::Link(format!("pcap {path}: {e}")))?,
+                    .map_err(Cause::from)
+                    .and_then(|f| PcapWriter::new(std::io::BufWriter::new(f)).map_err(Cause::from))
+                    .map_err(StartError::link(format!("pcap {path}")))?,
             ),
             None => None,
         };
         let (tx, rx, pdu_loop) = PDU_STORAGE
             .try_split()
-            .map_err(|_| StartError::Link("the EtherCAT bus can start once per process".into()))?;
+            .map_err(|_| StartError::NoLink("the EtherCAT bus can start once per process"))?;
         // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
         // the in-process simulator's thread.
-        let (link, chain): (Box<dyn Link>, _) = match (&config.bus.interface, &config.bus.simulator)
-        {
-            (Some(interface), _) => (
-                Box::new(RawLink::open(interface).map_err(|e| StartError::Link(e.to_string()))?),
-                None,
-            ),
-            (None, Some(sim)) => {
-                let sim = SimConfig::load(sim).map_err(|e| StartError::Link(e.to_string()))?;
-                let chain = sim.chain().map_err(|e| StartError::Link(e.to_string()))?;
-                let chain = Arc::new(Mutex::new(chain));
-                let period = Duration::from_micros(u64::from(sim.cycle_us));
-                let wire = SimWire::start(chain.clone(), period)
-                    .map_err(|e| StartError::Link(format!("the simulator's thread: {e}")))?;
-                (Box::new(wire), Some(chain))
-            }
-            (None, None) => return Err(StartError::Link("no interface and no simulator".into())),
-        };
+        let (link, chain): (Box<dyn Link>, _) =
+            match (&config.bus.interface, &config.bus.simulator) {
+                (Some(interface), _) => (
+                    Box::new(RawLink::open(interface).map_err(|e| {
+                        StartError::link(format!("interface {interface}"))(e.into())
+                    })?),
+                    None,
+                ),
+                (None, Some(sim)) => {
+                    let sim = SimConfig::load(sim)
+                        .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
+                    let chain = sim
+                        .chain()
+                        .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
+                    let chain = Arc::new(Mutex::new(chain));
+                    let period = Duration::from_micros(u64::from(sim.cycle_us));
+                    let wire = SimWire::start(chain.clone(), period)
+                        .map_err(|e| StartError::link("the simulator's thread")(e.into()))?;
+                    (Box::new(wire), Some(chain))
+                }
+                (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
+            };
         let io = FrameIo::new(tx, rx, link, capture);
         let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
-        let runner = BlockOn::with_io(io)
-            .map_err(|e| StartError::Link(format!("the cycle's eventfd: {e}")))?;
+        let runner =
+            BlockOn::with_io(io).map_err(|e| StartError::link("the cycle's eventfd")(e.into()))?;
         // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
         let silence = BRING_UP_SILENCE_NS;
         let group = runner
@@ -268,22 +306,29 @@ impl EthercatBus {
                     slaves: group.len(),
                 });
             }
-            let layout = a.pdo_layout().map_err(|(_, r)| StartError::Setup(r))?;
+            let axis_error = |(key, reason)| StartError::Axis {
+                axis: a.name.clone(),
+                key,
+                reason,
+            };
+            let layout = a.pdo_layout().map_err(axis_error)?;
             let sd = group
                 .subdevice(&md, a.drive)
                 .map_err(bus_error("addressing"))?;
             runner
                 .run_step(|| map_pdos(&sd, &layout), &replies, silence, STEP_LIMIT_NS)
                 .map_err(stalled("PDO mapping"))?
-                .map_err(|e| StartError::Setup(e.to_string()))?;
-            let scaling = a.scaling().map_err(|(_, r)| StartError::Setup(r))?;
+                .map_err(|e| {
+                    StartError::setup(format!("axis {:?}: PDO mapping", a.name))(e.into())
+                })?;
+            let scaling = a.scaling().map_err(axis_error)?;
             let mut channel = CspChannel::with_layout(scaling, &layout)
-                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+                .map_err(|e| StartError::setup(format!("axis {:?}", a.name))(e.into()))?;
             // A modulo period that cannot be counted is refused here, by name (the cycle
             // would fault the axis).
             channel
                 .set_modulo(a.modulo.and_then(Modulo::new))
-                .map_err(|e| StartError::Setup(format!("axis {:?}: {e}", a.name)))?;
+                .map_err(|e| StartError::setup(format!("axis {:?}", a.name))(e.into()))?;
             channels.push(channel);
         }
         let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
@@ -337,7 +382,7 @@ impl EthercatBus {
             .sum());
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
         let kernel = Kernel::new(dt, config.kernel_axes.clone())
-            .map_err(|e| StartError::Setup(e.to_string()))?;
+            .map_err(|e| StartError::setup("the motion kernel")(e.into()))?;
         let f = config.bus.faults;
         let health = BusHealth::new(
             HealthConfig {
@@ -458,10 +503,10 @@ fn on_large_stack<T: Send>(name: &str, f: impl FnOnce() -> T + Send) -> std::io:
 }
 
 /// An error of a bring-up step, with the step's name.
-fn step_error(step: &'static str, reason: impl std::fmt::Display) -> StartError {
+fn step_error(step: &'static str, cause: impl Into<Cause>) -> StartError {
     StartError::Bus {
         step,
-        reason: reason.to_string(),
+        source: cause.into(),
     }
 }
 

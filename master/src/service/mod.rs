@@ -15,7 +15,8 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::config::{Config, ConfigError};
-use crate::ethercat::bus::EthercatBus;
+use crate::drive_records;
+use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::runtime::controller::Controller;
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
@@ -42,15 +43,28 @@ pub enum ServiceError {
     #[error(transparent)]
     RealTime(#[from] RtError),
     /// The bus did not come up.
-    #[error("{0}")]
-    Start(String),
+    #[error(transparent)]
+    Bus(#[from] StartError),
+    /// A thread or the control socket's runtime could not be started.
+    #[error("cannot start {what}")]
+    Start {
+        /// What.
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The cycle thread ended without saying why (it panicked).
+    #[error("the cycle thread {0}")]
+    CycleThread(&'static str),
     /// The control socket could not be opened.
-    #[error("control socket {path}: {reason}")]
+    #[error("control socket {path}")]
     Socket {
         /// Its path.
         path: String,
         /// Why.
-        reason: String,
+        #[source]
+        source: std::io::Error,
     },
 }
 
@@ -72,14 +86,14 @@ pub fn start_cycle(
     config: &Config,
     real_time: bool,
     log: &mut (dyn Write + Send),
-) -> Result<(Engine<EthercatBus>, AppEnds), String> {
+) -> Result<(Engine<EthercatBus>, AppEnds), ServiceError> {
     if real_time {
-        rt::enter(&config.rt).map_err(|e| e.to_string())?;
+        rt::enter(&config.rt)?;
     }
     // The channels first: made after the bus is in Op, their allocation would be a gap in
     // the process data that drives count as missed setpoints (see `Channels`).
     let channels = Channels::new(config.axes.len(), 1 << 16);
-    let (bus, cycle, health) = EthercatBus::bring_up(config, log).map_err(|e| e.to_string())?;
+    let (bus, cycle, health) = EthercatBus::bring_up(config, log)?;
     let (mut engine, ends) =
         Engine::with_channels(bus, cycle, health, config.rt.overrun_limit, channels);
     // Without real time a late reply is the host's fault, not the bus'.
@@ -100,7 +114,7 @@ pub fn spawn_cycle_thread(
     real_time: bool,
     period_ns: u64,
     stop: Arc<AtomicBool>,
-    ends: mpsc::Sender<Result<AppEnds, String>>,
+    ends: mpsc::Sender<Result<AppEnds, ServiceError>>,
 ) -> Result<std::thread::JoinHandle<Option<CycleCounters>>, ServiceError> {
     std::thread::Builder::new()
         .name(CYCLE_THREAD.into())
@@ -117,10 +131,29 @@ pub fn spawn_cycle_thread(
             let _ = ends.send(Ok(app));
             let engine = engine.run(period_ns, &stop);
             let counters = engine.counters();
-            engine.into_bus().shut_down(&mut log);
+            let bus = engine.into_bus();
+            let chain = bus.simulated_chain();
+            bus.shut_down(&mut log);
+            // What the simulated drives saw, the shutdown included.
+            if let (Some(path), Some(chain)) = (&config.bus.simulator_record, chain) {
+                match chain.lock() {
+                    Ok(chain) => {
+                        drive_records::report_at_exit(&config, &chain.records(), path, &mut log)
+                    }
+                    Err(_) => {
+                        let _ = writeln!(
+                            log,
+                            "gantry: the simulated chain is poisoned: no drive records"
+                        );
+                    }
+                }
+            }
             Some(counters)
         })
-        .map_err(|e| ServiceError::Start(e.to_string()))
+        .map_err(|source| ServiceError::Start {
+            what: "the cycle thread",
+            source,
+        })
 }
 
 /// Runs the service until shut down.
@@ -137,19 +170,15 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
     }
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
     let stop = Arc::new(AtomicBool::new(false));
-    let (tx, rx) = mpsc::channel::<Result<AppEnds, String>>();
+    let (tx, rx) = mpsc::channel::<Result<AppEnds, ServiceError>>();
     let cycle_thread = spawn_cycle_thread(config.clone(), real_time, period_ns, stop.clone(), tx)?;
     let ends = match rx.recv() {
         Ok(Ok(ends)) => ends,
         Ok(Err(e)) => {
             let _ = cycle_thread.join();
-            return Err(ServiceError::Start(e));
+            return Err(e);
         }
-        Err(_) => {
-            return Err(ServiceError::Start(
-                "the cycle thread ended at start".into(),
-            ))
-        }
+        Err(_) => return Err(ServiceError::CycleThread("ended at start")),
     };
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
     let controller = Controller::new(ends, names);
@@ -157,13 +186,16 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
         .worker_threads(2)
         .enable_all()
         .build()
-        .map_err(|e| ServiceError::Start(format!("tokio: {e}")))?;
+        .map_err(|source| ServiceError::Start {
+            what: "the control socket's runtime (tokio)",
+            source,
+        })?;
     let socket = args.socket.clone();
     let listener = runtime
         .block_on(async { server::bind(&socket) })
-        .map_err(|e| ServiceError::Socket {
+        .map_err(|source| ServiceError::Socket {
             path: socket.display().to_string(),
-            reason: e.to_string(),
+            source,
         })?;
     let _ = writeln!(
         out,
@@ -222,7 +254,7 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
         .join()
         .ok()
         .flatten()
-        .ok_or_else(|| ServiceError::Start("the cycle thread failed".into()))?;
+        .ok_or(ServiceError::CycleThread("failed (it panicked)"))?;
     let figures = controller.figures();
     let _ = writeln!(
         out,

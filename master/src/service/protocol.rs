@@ -7,20 +7,212 @@
 //! → {"v":1,"cmd":"wait","handle":7,"timeout_s":10}
 //! ← {"v":1,"ok":true,"result":{"status":"Done"}}
 //! → {"v":1,"cmd":"frobnicate"}
-//! ← {"v":1,"ok":false,"error":"unknown variant `frobnicate`, expected one of …"}
+//! ← {"v":1,"ok":false,"error":"invalid request: unknown variant `frobnicate`, expected one of …"}
 //! ```
 //!
 //! Commands: `status`, `enable`, `disable`, `move`, `jog`, `halt`, `stop`, `release`,
 //! `set_position`, `reset`, `command` (status of a handle), `wait`, `trace`, `shutdown`. A malformed or
 //! hostile request gets an error reply; nothing of it reaches the cycle thread.
+//!
+//! [`Request`] is the one description of a request: the CLI serialises it
+//! ([`Request::to_line`]), the server parses it ([`parse`]). The words of the modes, buffer
+//! modes and jog directions are typed ([`MoveMode`], [`BufferMode`], [`JogDirection`]),
+//! each with one table of its wire names; a wrong word is refused at parsing with the field,
+//! the word and the choices. The wire format is version 1 as before: the same fields and
+//! words, `null` still means "not given".
 
-use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::marker::PhantomData;
+use std::str::FromStr;
+
+use serde::de::{self, Deserializer, Visitor};
+use serde::{Deserialize, Serialize, Serializer};
 use serde_json::Value;
+use thiserror::Error;
 
 /// The protocol version this gantry speaks.
 pub const VERSION: u64 = 1;
 /// Longest request line accepted.
 pub const MAX_LINE: usize = 64 * 1024;
+
+/// A word of the protocol that is not one of its field's choices.
+#[derive(Clone, Debug, Error, PartialEq, Eq)]
+#[error("{field} {value:?} is not one of {choices}")]
+pub struct BadWord {
+    /// The request's field (`mode`, `buffer`, `direction`).
+    pub field: &'static str,
+    /// What was sent.
+    pub value: String,
+    /// The words it takes.
+    pub choices: String,
+}
+
+/// A protocol enum: one table of wire names per type, the canonical name first and
+/// aliases after it; serde, [`FromStr`] and [`fmt::Display`] all read it.
+pub trait Word: Copy + PartialEq + 'static {
+    /// The request field it fills (named in errors).
+    const FIELD: &'static str;
+    /// Wire names and the value each stands for.
+    const NAMES: &'static [(&'static str, Self)];
+
+    /// The canonical wire name.
+    fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, v)| *v == self)
+            .map_or("?", |(n, _)| n)
+    }
+
+    /// The words this field takes, for messages.
+    fn choices() -> String {
+        let names: Vec<String> = Self::NAMES.iter().map(|(n, _)| format!("{n:?}")).collect();
+        names.join(", ")
+    }
+
+    /// The value of a wire name.
+    fn from_word(word: &str) -> Result<Self, BadWord> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == word)
+            .map(|(_, v)| *v)
+            .ok_or_else(|| BadWord {
+                field: Self::FIELD,
+                value: word.to_string(),
+                choices: Self::choices(),
+            })
+    }
+}
+
+/// Reads a [`Word`] from a string; a wrong type or word names the field.
+struct WordVisitor<T>(PhantomData<T>);
+
+impl<T: Word> Visitor<'_> for WordVisitor<T> {
+    type Value = T;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "{} as one of {}", T::FIELD, T::choices())
+    }
+
+    fn visit_str<E: de::Error>(self, word: &str) -> Result<T, E> {
+        T::from_word(word).map_err(E::custom)
+    }
+}
+
+/// Serde, `FromStr` and `Display` of a [`Word`] type, from its table.
+macro_rules! word_impls {
+    ($t:ty) => {
+        impl Serialize for $t {
+            fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(self.name())
+            }
+        }
+        impl<'de> Deserialize<'de> for $t {
+            fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                d.deserialize_str(WordVisitor(PhantomData))
+            }
+        }
+        impl FromStr for $t {
+            type Err = BadWord;
+            fn from_str(word: &str) -> Result<Self, BadWord> {
+                Self::from_word(word)
+            }
+        }
+        impl fmt::Display for $t {
+            fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
+/// How a move's `to` is meant. What `absolute` means depends on the axis: on a modulo axis
+/// it takes the shorter way round.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MoveMode {
+    /// `to` is a position (on a modulo axis: reached the shorter way round).
+    #[default]
+    Absolute,
+    /// `to` is a distance from the set position.
+    Relative,
+    /// Modulo axes only: the shorter way round (as `absolute` there).
+    Shortest,
+    /// Modulo axes only: round in the positive direction.
+    Positive,
+    /// Modulo axes only: round in the negative direction.
+    Negative,
+}
+
+impl Word for MoveMode {
+    const FIELD: &'static str = "mode";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("absolute", Self::Absolute),
+        ("relative", Self::Relative),
+        ("shortest", Self::Shortest),
+        ("positive", Self::Positive),
+        ("negative", Self::Negative),
+    ];
+}
+word_impls!(MoveMode);
+
+/// How a move takes over from the one in progress (PLCopen's buffer modes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BufferMode {
+    /// Replaces the move in progress at once.
+    #[default]
+    Aborting,
+    /// Starts when the move in progress is done.
+    Buffered,
+    /// Blends at the lower of the two speeds.
+    BlendingLow,
+    /// Blends at the speed of the move in progress.
+    BlendingPrevious,
+    /// Blends at the speed of the new move.
+    BlendingNext,
+    /// Blends at the higher of the two speeds.
+    BlendingHigh,
+}
+
+impl Word for BufferMode {
+    const FIELD: &'static str = "buffer";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("aborting", Self::Aborting),
+        ("buffered", Self::Buffered),
+        ("blending-low", Self::BlendingLow),
+        ("blending-previous", Self::BlendingPrevious),
+        ("blending-next", Self::BlendingNext),
+        ("blending-high", Self::BlendingHigh),
+    ];
+}
+word_impls!(BufferMode);
+
+/// Which way a jog goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JogDirection {
+    /// Increasing positions: `"+"` (or `"positive"`).
+    Positive,
+    /// Decreasing positions: `"-"` (or `"negative"`).
+    Negative,
+}
+
+impl Word for JogDirection {
+    const FIELD: &'static str = "direction";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("+", Self::Positive),
+        ("-", Self::Negative),
+        ("positive", Self::Positive),
+        ("negative", Self::Negative),
+    ];
+}
+word_impls!(JogDirection);
+
+/// `null` is the default, as an absent field is (version-1 clients send `"buffer": null`).
+fn null_is_default<'de, D, T>(d: D) -> Result<T, D::Error>
+where
+    D: Deserializer<'de>,
+    T: Deserialize<'de> + Default,
+{
+    Ok(Option::<T>::deserialize(d)?.unwrap_or_default())
+}
 
 /// A request.
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
@@ -44,33 +236,31 @@ pub enum Request {
         axis: String,
         /// Target (absolute) or distance (relative), in the axis' units.
         to: f64,
-        /// `"absolute"` (default; the shorter way on a modulo axis) or `"relative"`; on a
-        /// modulo axis also `"positive"` / `"negative"` (the direction to go round).
-        #[serde(default)]
-        mode: Option<String>,
-        /// Speed (units/s).
-        #[serde(default)]
+        /// How `to` is meant (default `absolute`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        mode: MoveMode,
+        /// Speed (units/s; default: the axis').
+        #[serde(default, skip_serializing_if = "Option::is_none")]
         speed: Option<f64>,
         /// Acceleration (units/s²).
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "Option::is_none")]
         acceleration: Option<f64>,
         /// Deceleration (units/s²).
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "Option::is_none")]
         deceleration: Option<f64>,
         /// Jerk (units/s³).
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "Option::is_none")]
         jerk: Option<f64>,
-        /// `"aborting"` (default), `"buffered"`, `"blending-low"`, `"blending-previous"`,
-        /// `"blending-next"`, `"blending-high"`.
-        #[serde(default)]
-        buffer: Option<String>,
+        /// How it takes over from the move in progress (default `aborting`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        buffer: BufferMode,
     },
     /// Jog until halted.
     Jog {
         /// Axis name.
         axis: String,
-        /// `"+"` or `"-"`.
-        direction: String,
+        /// Which way.
+        direction: JogDirection,
         /// Speed (units/s).
         speed: f64,
     },
@@ -124,20 +314,100 @@ pub enum Request {
     Shutdown,
 }
 
-/// Parses one request line: the version first, then the command.
-pub fn parse(line: &str) -> Result<Request, String> {
-    let mut value: Value = serde_json::from_str(line).map_err(|e| format!("not JSON: {e}"))?;
-    let obj = value.as_object_mut().ok_or("a request is a JSON object")?;
-    match obj.remove("v").and_then(|v| v.as_u64()) {
-        Some(VERSION) => {}
-        Some(v) => {
-            return Err(format!(
-                "protocol version {v} is not supported (this gantry speaks {VERSION})"
-            ))
+impl Request {
+    /// The request's `cmd` word.
+    pub fn cmd(&self) -> &'static str {
+        match self {
+            Self::Status => "status",
+            Self::Enable { .. } => "enable",
+            Self::Disable { .. } => "disable",
+            Self::Move { .. } => "move",
+            Self::Jog { .. } => "jog",
+            Self::Halt { .. } => "halt",
+            Self::Stop { .. } => "stop",
+            Self::Release { .. } => "release",
+            Self::SetPosition { .. } => "set_position",
+            Self::Reset { .. } => "reset",
+            Self::Command { .. } => "command",
+            Self::Wait { .. } => "wait",
+            Self::Trace { .. } => "trace",
+            Self::Shutdown => "shutdown",
         }
-        None => return Err(format!("missing \"v\": the protocol version ({VERSION})")),
     }
-    serde_json::from_value(value).map_err(|e| e.to_string())
+
+    /// The axis a one-axis request is for.
+    pub fn axis(&self) -> Option<&str> {
+        match self {
+            Self::Enable { axis }
+            | Self::Disable { axis }
+            | Self::Move { axis, .. }
+            | Self::Jog { axis, .. }
+            | Self::Halt { axis }
+            | Self::Stop { axis }
+            | Self::Release { axis }
+            | Self::SetPosition { axis, .. }
+            | Self::Reset { axis } => Some(axis),
+            Self::Status
+            | Self::Command { .. }
+            | Self::Wait { .. }
+            | Self::Trace { .. }
+            | Self::Shutdown => None,
+        }
+    }
+
+    /// The request as one line of the protocol (without the newline), version included.
+    pub fn to_line(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string(&Versioned {
+            v: VERSION,
+            request: self,
+        })
+    }
+}
+
+/// A request on the wire: the version beside the command's fields.
+#[derive(Serialize)]
+struct Versioned<'a> {
+    v: u64,
+    #[serde(flatten)]
+    request: &'a Request,
+}
+
+/// Why a request line was refused (the reply's `error` is its chain).
+#[derive(Debug, Error)]
+pub enum ProtocolError {
+    /// The line is not JSON.
+    #[error("not JSON")]
+    NotJson(#[source] serde_json::Error),
+    /// The line is JSON but not an object.
+    #[error("a request is a JSON object")]
+    NotObject,
+    /// No `v`.
+    #[error("missing \"v\": the protocol version ({VERSION})")]
+    NoVersion,
+    /// `v` is not a version number.
+    #[error("\"v\" is {0}, not a protocol version number (this gantry speaks {VERSION})")]
+    BadVersion(Value),
+    /// Another version.
+    #[error("protocol version {0} is not supported (this gantry speaks {VERSION})")]
+    Version(u64),
+    /// The command or its fields are wrong.
+    #[error("invalid request")]
+    Invalid(#[source] serde_json::Error),
+}
+
+/// Parses one request line: the version first, then the command.
+pub fn parse(line: &str) -> Result<Request, ProtocolError> {
+    let mut value: Value = serde_json::from_str(line).map_err(ProtocolError::NotJson)?;
+    let obj = value.as_object_mut().ok_or(ProtocolError::NotObject)?;
+    match obj.remove("v") {
+        None => return Err(ProtocolError::NoVersion),
+        Some(v) => match v.as_u64() {
+            Some(VERSION) => {}
+            Some(other) => return Err(ProtocolError::Version(other)),
+            None => return Err(ProtocolError::BadVersion(v)),
+        },
+    }
+    serde_json::from_value(value).map_err(ProtocolError::Invalid)
 }
 
 /// A successful reply line.
@@ -153,29 +423,230 @@ pub fn error(message: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error_chain::Chain;
+
+    /// The reply's error text of a refused line.
+    fn refusal(line: &str) -> String {
+        Chain(&parse(line).unwrap_err()).to_string()
+    }
+
+    /// One request of every kind, with every optional field given.
+    fn every_kind() -> Vec<Request> {
+        let axis = || "x".to_string();
+        vec![
+            Request::Status,
+            Request::Enable { axis: axis() },
+            Request::Disable { axis: axis() },
+            Request::Move {
+                axis: axis(),
+                to: -12.5,
+                mode: MoveMode::Negative,
+                speed: Some(50.0),
+                acceleration: Some(500.0),
+                deceleration: Some(400.0),
+                jerk: Some(1e4),
+                buffer: BufferMode::BlendingPrevious,
+            },
+            Request::Jog {
+                axis: axis(),
+                direction: JogDirection::Negative,
+                speed: 20.0,
+            },
+            Request::Halt { axis: axis() },
+            Request::Stop { axis: axis() },
+            Request::Release { axis: axis() },
+            Request::SetPosition {
+                axis: axis(),
+                position: 3.25,
+            },
+            Request::Reset { axis: axis() },
+            Request::Command { handle: 7 },
+            Request::Wait {
+                handle: 7,
+                timeout_s: 0.1,
+            },
+            Request::Trace {
+                axes: vec!["x".into(), "y".into()],
+                seconds: 2.5,
+            },
+            Request::Shutdown,
+        ]
+    }
 
     #[test]
-    fn requests_parse_and_mistakes_are_explained() {
+    fn every_request_kind_survives_the_wire() {
+        let requests = every_kind();
+        // Every kind once: a new kind does not compile here until it is numbered, and then
+        // fails the count until `every_kind` has it.
+        let kind = |r: &Request| match r {
+            Request::Status => 0,
+            Request::Enable { .. } => 1,
+            Request::Disable { .. } => 2,
+            Request::Move { .. } => 3,
+            Request::Jog { .. } => 4,
+            Request::Halt { .. } => 5,
+            Request::Stop { .. } => 6,
+            Request::Release { .. } => 7,
+            Request::SetPosition { .. } => 8,
+            Request::Reset { .. } => 9,
+            Request::Command { .. } => 10,
+            Request::Wait { .. } => 11,
+            Request::Trace { .. } => 12,
+            Request::Shutdown => 13,
+        };
+        let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
+        assert_eq!(kinds, (0..14).collect(), "{requests:?}");
+        let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
+        assert_eq!(words.len(), 14, "{words:?}");
+        for r in requests {
+            let line = r.to_line().unwrap();
+            assert!(!line.contains('\n'), "{line}");
+            let value: Value = serde_json::from_str(&line).unwrap();
+            assert_eq!(value["v"], VERSION, "{line}");
+            assert_eq!(value["cmd"], r.cmd(), "{line}");
+            assert_eq!(parse(&line).unwrap(), r, "{line}");
+        }
+    }
+
+    #[test]
+    fn every_word_survives_the_wire() {
+        let move_with = |mode, buffer| Request::Move {
+            axis: "a".into(),
+            to: 1.0,
+            mode,
+            speed: None,
+            acceleration: None,
+            deceleration: None,
+            jerk: None,
+            buffer,
+        };
+        for &(_, mode) in MoveMode::NAMES {
+            for &(_, buffer) in BufferMode::NAMES {
+                let r = move_with(mode, buffer);
+                assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+            }
+        }
+        for &(word, direction) in JogDirection::NAMES {
+            let r = Request::Jog {
+                axis: "a".into(),
+                direction,
+                speed: 1.0,
+            };
+            assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+            // Aliases read as the value they name; it goes out under its canonical word.
+            assert_eq!(word.parse::<JogDirection>().unwrap(), direction);
+        }
+        assert_eq!(JogDirection::Positive.to_string(), "+");
+        assert_eq!(BufferMode::BlendingHigh.to_string(), "blending-high");
+    }
+
+    #[test]
+    fn what_version_1_clients_sent_still_parses() {
+        // The hand-built lines of the version-1 CLI: every field present, null when not
+        // given, `v` last.
+        let old_move = r#"{"acceleration":null,"axis":"x","buffer":null,"cmd":"move","deceleration":null,"jerk":null,"mode":"relative","speed":100.0,"to":5.0,"v":1}"#;
+        assert_eq!(
+            parse(old_move).unwrap(),
+            Request::Move {
+                axis: "x".into(),
+                to: 5.0,
+                mode: MoveMode::Relative,
+                speed: Some(100.0),
+                acceleration: None,
+                deceleration: None,
+                jerk: None,
+                buffer: BufferMode::Aborting,
+            }
+        );
+        assert_eq!(
+            parse(r#"{"axis":"x","cmd":"jog","direction":"-","speed":20.0,"v":1}"#).unwrap(),
+            Request::Jog {
+                axis: "x".into(),
+                direction: JogDirection::Negative,
+                speed: 20.0
+            }
+        );
+        // Absent optional fields are their defaults.
         assert_eq!(
             parse(r#"{"v":1,"cmd":"move","axis":"x","to":5}"#).unwrap(),
             Request::Move {
                 axis: "x".into(),
                 to: 5.0,
-                mode: None,
+                mode: MoveMode::Absolute,
                 speed: None,
                 acceleration: None,
                 deceleration: None,
                 jerk: None,
-                buffer: None
+                buffer: BufferMode::Aborting,
             }
         );
         assert_eq!(parse(r#"{"v":1,"cmd":"status"}"#).unwrap(), Request::Status);
+    }
+
+    #[test]
+    fn a_wrong_word_is_refused_naming_its_field_and_the_word() {
         for (line, says) in [
-            ("{", "not JSON"),
+            (
+                r#"{"v":1,"cmd":"move","axis":"x","to":1,"mode":"sideways"}"#,
+                r#"invalid request: mode "sideways" is not one of "absolute", "relative", "shortest", "positive", "negative""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"move","axis":"x","to":1,"buffer":"blended"}"#,
+                r#"invalid request: buffer "blended" is not one of "aborting", "buffered", "blending-low", "blending-previous", "blending-next", "blending-high""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"jog","axis":"x","direction":"up","speed":1}"#,
+                r#"invalid request: direction "up" is not one of "+", "-", "positive", "negative""#,
+            ),
+            // Words are exact: no case folding, no padding.
+            (
+                r#"{"v":1,"cmd":"move","axis":"x","to":1,"mode":"Absolute"}"#,
+                r#"mode "Absolute" is not one of"#,
+            ),
+            (
+                r#"{"v":1,"cmd":"jog","axis":"x","direction":" +","speed":1}"#,
+                r#"direction " +" is not one of"#,
+            ),
+            // Not a string: the type is wrong, and the field is named all the same.
+            (
+                r#"{"v":1,"cmd":"jog","axis":"x","direction":1,"speed":1}"#,
+                r#"invalid type: integer `1`, expected direction as one of "+", "-""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"move","axis":"x","to":1,"mode":["relative"]}"#,
+                "expected mode as one of",
+            ),
+            // A jog has no default direction.
+            (
+                r#"{"v":1,"cmd":"jog","axis":"x","speed":1}"#,
+                "missing field `direction`",
+            ),
+        ] {
+            let e = refusal(line);
+            assert!(e.contains(says), "{line}\n  said: {e}\n  want: {says}");
+        }
+        // The command line reads words through the same table and says the same.
+        assert_eq!(
+            "sideways".parse::<MoveMode>().unwrap_err().to_string(),
+            r#"mode "sideways" is not one of "absolute", "relative", "shortest", "positive", "negative""#
+        );
+    }
+
+    #[test]
+    fn mistakes_in_the_line_are_explained() {
+        for (line, says) in [
+            ("{", "not JSON: EOF while parsing an object"),
             ("[1]", "a JSON object"),
             (r#"{"cmd":"status"}"#, "missing \"v\""),
             (r#"{"v":2,"cmd":"status"}"#, "version 2 is not supported"),
-            (r#"{"v":1,"cmd":"frob"}"#, "unknown variant `frob`"),
+            (
+                r#"{"v":"1","cmd":"status"}"#,
+                r#""v" is "1", not a protocol version number"#,
+            ),
+            (
+                r#"{"v":1,"cmd":"frob"}"#,
+                "invalid request: unknown variant `frob`",
+            ),
             (r#"{"v":1,"cmd":"move","axis":"x"}"#, "missing field `to`"),
             (
                 r#"{"v":1,"cmd":"move","axis":"x","to":"far"}"#,
@@ -186,7 +657,7 @@ mod tests {
                 "unknown field `now`",
             ),
         ] {
-            let e = parse(line).unwrap_err();
+            let e = refusal(line);
             assert!(e.contains(says), "{line}: {e}");
         }
     }

@@ -15,11 +15,13 @@ use gantry_kernel::axis::command::{
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use serde_json::{json, Value};
+use thiserror::Error;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
-use super::protocol::{self, Request, MAX_LINE};
+use super::protocol::{self, JogDirection, MoveMode, Request, MAX_LINE};
 use crate::config::Config;
+use crate::error_chain::Chain;
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::protocol::{Snapshot, TraceSample};
 
@@ -136,9 +138,9 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
                 Ok(text) => match protocol::parse(text.trim()) {
                     Ok(request) => match handle(&state, request).await {
                         Ok(result) => protocol::ok(result),
-                        Err(e) => protocol::error(&e),
+                        Err(e) => protocol::error(&Chain(&e).to_string()),
                     },
-                    Err(e) => protocol::error(&e),
+                    Err(e) => protocol::error(&Chain(&e).to_string()),
                 },
                 Err(_) => protocol::error("request is not UTF-8"),
             }
@@ -160,19 +162,65 @@ fn status_name(s: CommandStatus) -> Value {
     }
 }
 
-fn number(name: &str, v: f64) -> Result<f64, String> {
-    if v.is_finite() {
-        Ok(v)
+/// Why a well-formed request was refused (the reply's `error`).
+#[derive(Debug, Error)]
+pub enum Refused {
+    /// The controller refused it (no such axis, the cycle not taking requests).
+    #[error(transparent)]
+    Control(#[from] ControlError),
+    /// A number is not finite (JSON cannot carry one; a guard for
+    /// `Duration::from_secs_f64`, which panics on them).
+    #[error("{field} = {value} is not a finite number")]
+    NotFinite {
+        /// The field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A way round a modulo axis, asked of a linear one.
+    #[error("mode \"{mode}\" is for a modulo axis; {axis} is not one (absolute or relative)")]
+    NotModulo {
+        /// The mode.
+        mode: MoveMode,
+        /// The axis.
+        axis: String,
+    },
+    /// An axis the configuration does not have (the controller and the configuration
+    /// disagree: a bug).
+    #[error("axis {0:?} has no configuration")]
+    NoConfig(String),
+    /// No such handle.
+    #[error("no handle {0} (handles are per service run)")]
+    NoHandle(u64),
+    /// `wait` ran out of time (the client polls on this text: "not final").
+    #[error("handle {handle} not final after {timeout_s} s")]
+    NotFinal {
+        /// The handle.
+        handle: u64,
+        /// The time waited.
+        timeout_s: f64,
+    },
+    /// An axis beyond those the trace records.
+    #[error(
+        "only the first {} axes are traced",
+        crate::runtime::protocol::TRACE_AXES
+    )]
+    NotTraced,
+}
+
+fn number(field: &'static str, value: f64) -> Result<f64, Refused> {
+    if value.is_finite() {
+        Ok(value)
     } else {
-        Err(format!("{name} must be a finite number"))
+        Err(Refused::NotFinite { field, value })
     }
 }
 
-async fn handle(state: &ServerState, request: Request) -> Result<Value, String> {
+async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused> {
     let ctl = &state.controller;
-    let axis = |name: &str| ctl.axis(name).map_err(|e| e.to_string());
-    let sent = |h: Result<CommandHandle, ControlError>| -> Result<Value, String> {
-        let h = h.map_err(|e| e.to_string())?;
+    let axis = |name: &str| ctl.axis(name);
+    let sent = |h: Result<CommandHandle, ControlError>| -> Result<Value, Refused> {
+        let h = h?;
         let id = h.id();
         let mut handles = state.handles.lock().unwrap_or_else(|p| p.into_inner());
         if handles.len() >= 4096 {
@@ -205,29 +253,18 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                 .kernel_axes
                 .get(i)
                 .is_some_and(|c| c.mechanics.modulo.is_some());
-            let mode = match (mode.as_deref().unwrap_or("absolute"), modulo) {
-                ("absolute", false) => PositioningMode::AbsNormal,
+            let mode = match (mode, modulo) {
+                (MoveMode::Absolute, false) => PositioningMode::AbsNormal,
                 // On a modulo axis "absolute" takes the shorter way round.
-                ("absolute" | "shortest", true) => PositioningMode::AbsModuloAuto,
-                ("positive", true) => PositioningMode::AbsModuloPos,
-                ("negative", true) => PositioningMode::AbsModuloNeg,
-                ("relative", _) => PositioningMode::RelTarget,
-                (other, _) => {
-                    return Err(format!(
-                        "mode {other:?} is not absolute or relative (or, on a modulo axis, shortest, positive or negative)"
-                    ))
+                (MoveMode::Absolute | MoveMode::Shortest, true) => PositioningMode::AbsModuloAuto,
+                (MoveMode::Positive, true) => PositioningMode::AbsModuloPos,
+                (MoveMode::Negative, true) => PositioningMode::AbsModuloNeg,
+                (MoveMode::Relative, _) => PositioningMode::RelTarget,
+                (MoveMode::Shortest | MoveMode::Positive | MoveMode::Negative, false) => {
+                    return Err(Refused::NotModulo { mode, axis: a })
                 }
             };
-            let buffer = match buffer.as_deref().unwrap_or("aborting") {
-                "aborting" => BufferMode::Aborting,
-                "buffered" => BufferMode::Buffered,
-                "blending-low" => BufferMode::BlendingLow,
-                "blending-previous" => BufferMode::BlendingPrevious,
-                "blending-next" => BufferMode::BlendingNext,
-                "blending-high" => BufferMode::BlendingHigh,
-                other => return Err(format!("buffer {other:?} is not a buffer mode")),
-            };
-            let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer);
+            let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer.into());
             m.speed = speed;
             m.acceleration = acceleration;
             m.deceleration = deceleration;
@@ -240,19 +277,14 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
             speed,
         } => {
             let i = axis(&a)?;
-            let direction = match direction.as_str() {
-                "+" | "positive" => MoveDirection::Positive,
-                "-" | "negative" => MoveDirection::Negative,
-                other => return Err(format!("direction {other:?} is not \"+\" or \"-\"")),
-            };
             let d = state
                 .config
                 .kernel_axes
                 .get(i)
                 .map(|c| c.defaults)
-                .ok_or("no axis")?;
+                .ok_or(Refused::NoConfig(a))?;
             let jog = Jog::new(
-                direction,
+                direction.into(),
                 number("speed", speed)?,
                 d.acceleration,
                 d.deceleration,
@@ -288,7 +320,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                 Duration::from_secs_f64(number("timeout_s", timeout_s)?.clamp(0.0, 3600.0));
             match tokio::time::timeout(timeout, h.done()).await {
                 Ok(s) => Ok(status_name(s)),
-                Err(_) => Err(format!("handle {handle} not final after {timeout_s} s")),
+                Err(_) => Err(Refused::NotFinal { handle, timeout_s }),
             }
         }
         Request::Trace { axes, seconds } => {
@@ -297,7 +329,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
                 .iter()
                 .any(|&i| i >= crate::runtime::protocol::TRACE_AXES)
             {
-                return Err("only the first 16 axes are traced".into());
+                return Err(Refused::NotTraced);
             }
             let seconds = number("seconds", seconds)?.clamp(0.0, 60.0);
             let start = ctl.snapshot().time_s;
@@ -329,13 +361,35 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, String> 
             Ok(json!({"columns": columns, "rows": rows, "complete": complete}))
         }
         Request::Shutdown => {
-            ctl.shutdown().map_err(|e| e.to_string())?;
+            ctl.shutdown()?;
             Ok(json!({"shutting_down": true}))
         }
     }
 }
 
-fn find(state: &ServerState, id: u64) -> Result<CommandHandle, String> {
+impl From<protocol::BufferMode> for BufferMode {
+    fn from(b: protocol::BufferMode) -> Self {
+        match b {
+            protocol::BufferMode::Aborting => Self::Aborting,
+            protocol::BufferMode::Buffered => Self::Buffered,
+            protocol::BufferMode::BlendingLow => Self::BlendingLow,
+            protocol::BufferMode::BlendingPrevious => Self::BlendingPrevious,
+            protocol::BufferMode::BlendingNext => Self::BlendingNext,
+            protocol::BufferMode::BlendingHigh => Self::BlendingHigh,
+        }
+    }
+}
+
+impl From<JogDirection> for MoveDirection {
+    fn from(d: JogDirection) -> Self {
+        match d {
+            JogDirection::Positive => Self::Positive,
+            JogDirection::Negative => Self::Negative,
+        }
+    }
+}
+
+fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
     state
         .handles
         .lock()
@@ -343,7 +397,7 @@ fn find(state: &ServerState, id: u64) -> Result<CommandHandle, String> {
         .iter()
         .find(|h| h.id() == id)
         .cloned()
-        .ok_or_else(|| format!("no handle {id} (handles are per service run)"))
+        .ok_or(Refused::NoHandle(id))
 }
 
 /// The `status` reply.

@@ -84,7 +84,7 @@ fn engine() {
             // (and its pump) brought up from it, late replies lost at the deadline.
             let (engine, ends) =
                 start_cycle(&config, true, &mut std::io::sink()).unwrap_or_else(|e| {
-                    eprintln!("start: {e}");
+                    eprintln!("start: {}", gantry::error_chain::Chain(&e));
                     std::process::exit(4)
                 });
             let dc = engine.bus().dc().active;
