@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gantry_drives::cia402::error_code::{describe, describe_fault};
+use crate::axis_fault::describe_fault;
+use gantry_drives::cia402::error_code::describe;
 use gantry_kernel::axis::command::{
     BufferMode, Command, CommandError, HaltMode, Jog, MoveDirection, MovePtp, PositioningMode,
     PowerCommand,
