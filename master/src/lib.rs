@@ -4,6 +4,7 @@
 //! the master runs the motion kernel on simulated axes.
 #![deny(missing_docs)]
 
+pub mod axis_fault;
 pub mod cli;
 pub mod config;
 pub mod demo;

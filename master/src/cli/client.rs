@@ -52,6 +52,10 @@ pub enum ClientError {
     /// The command ended in error.
     #[error("{0}")]
     Failed(String),
+    /// The command ended in error, and the text already says why the axis stopped (a
+    /// refusal in ErrorStop names the axis' error).
+    #[error("{0}")]
+    Explained(String),
 }
 
 /// A connection to the service.
@@ -112,6 +116,11 @@ impl Client {
                     }
                     return match status["status"].as_str() {
                         Some("Done") => Ok(status),
+                        Some("Error") if status["names_cause"] == json!(true) => {
+                            Err(ClientError::Explained(
+                                status["error"].as_str().unwrap_or("error").to_string(),
+                            ))
+                        }
                         Some("Error") => Err(ClientError::Failed(
                             status["error"].as_str().unwrap_or("error").to_string(),
                         )),
@@ -336,8 +345,8 @@ pub fn command(
     let status = client.request(&Request::Status)?;
     let entry = axis_of(&status, axis);
     let position = entry.and_then(|a| a["position"].as_f64());
-    // Where the command put the axis: the set position (a move's target when it is done);
-    // the actual may still be settling into the target window behind it.
+    // Where the command put the axis: the set position (a move's target when it is done;
+    // with target monitoring off the actual may still be settling behind it).
     let set_position = entry.and_then(|a| a["set_position"].as_f64());
     match result {
         Ok(_) => {
@@ -377,6 +386,7 @@ pub fn command(
             }
             Ok(())
         }
+        Err(ClientError::Explained(e)) => Err(ClientError::Failed(format!("{axis}: {e}"))),
         Err(e) => {
             // Say why, when the axis knows (a drive fault, the bus).
             let why = entry

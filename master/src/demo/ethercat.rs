@@ -275,7 +275,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                             command: String::new(),
                             error: status
                                 .error
-                                .map(|e| gantry_drives::cia402::error_code::describe_fault(&e))
+                                .map(|e| crate::axis_fault::describe_fault(&e))
                                 .unwrap_or_default(),
                         }
                     })

@@ -246,7 +246,7 @@ mod tests {
             })
         );
         assert_eq!(
-            gantry_drives::cia402::error_code::describe_fault(&status.error.unwrap()),
+            crate::axis_fault::describe_fault(&status.error.unwrap()),
             "drive fault 0x6320: parameter error (gantry stops the axis: its set position has \
              no 64-bit drive count; check the scaling and the travel)"
         );
