@@ -7,6 +7,7 @@ pub mod cycle;
 pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
+pub mod frame;
 pub mod health;
 pub mod mapping;
 pub mod pump;
