@@ -1,5 +1,5 @@
-//! The cyclic frame with 64 simulated servo(s): the mapped bytes in LRW frames plus one
-//! fixed FRMW frame (DC), no datagram per slave; a slave pulled mid-run is named in the
+//! The cyclic frame with 64 simulated servo(s): the mapped bytes in one LRW datagram plus
+//! one fixed FRMW datagram (DC) in the same frame, no datagram per slave; a slave pulled mid-run is named in the
 //! next cycle. See `gantry_tests::cyclic_frame`.
 
 #[test]

@@ -25,6 +25,7 @@ use super::embedded::EmbeddedBus;
 use super::frame::{self, ProcessImage};
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::mapping::map_pdos;
+use super::pump::FrameGate;
 use super::raw::RawBus;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
@@ -201,6 +202,8 @@ pub struct EthercatBus {
     sync0_ns: u64,
     /// The process data as the wire carries it (the cycle reads and writes it).
     image: ProcessImage,
+    /// Held while the cycle queues its frames, so that they go as one.
+    gate: FrameGate,
     /// What the cycle sent.
     frame_stats: FrameStats,
     drives: Vec<usize>,
@@ -280,9 +283,9 @@ impl EthercatBus {
             }
             (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
         };
-        let replies = match &link {
-            Link::Raw(r) => r.replies(),
-            Link::Embedded(e) => e.replies(),
+        let (replies, gate) = match &link {
+            Link::Raw(r) => (r.replies(), r.gate()),
+            Link::Embedded(e) => (e.replies(), e.gate()),
         };
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
         let runner =
@@ -424,6 +427,7 @@ impl EthercatBus {
                 dc_reference,
                 sync0_ns: u64::from(config.bus.cycle_us) * 1000,
                 image,
+                gate,
                 frame_stats: FrameStats::default(),
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
@@ -456,7 +460,7 @@ impl EthercatBus {
     }
 
     /// Bytes on the wire per cycle when every slave answers as it should: the LRW
-    /// frames and, with DC, the FRMW frame.
+    /// frames and, with DC, the FRMW datagram (in the first LRW's frame).
     pub fn cyclic_wire_bytes(&self) -> usize {
         self.image
             .wire_bytes(self.dc_reference.map(|_| frame::DC_TIME_BYTES))
@@ -527,6 +531,42 @@ impl EthercatBus {
             }
             None => {}
         }
+    }
+}
+
+/// A future whose first poll — where ethercrab queues the frames — runs with the pump's
+/// gate held, so that the frames queued in it leave as one.
+struct Together<'g, F> {
+    gate: &'g FrameGate,
+    first: bool,
+    inner: std::pin::Pin<&'g mut F>,
+}
+
+impl<'g, F: std::future::Future> Together<'g, F> {
+    fn new(gate: &'g FrameGate, inner: std::pin::Pin<&'g mut F>) -> Self {
+        Self {
+            gate,
+            first: true,
+            inner,
+        }
+    }
+}
+
+impl<F: std::future::Future> std::future::Future for Together<'_, F> {
+    type Output = F::Output;
+
+    fn poll(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<F::Output> {
+        if !self.first {
+            return self.inner.as_mut().poll(cx);
+        }
+        self.first = false;
+        self.gate.hold();
+        let out = self.inner.as_mut().poll(cx);
+        self.gate.release();
+        out
     }
 }
 
@@ -712,7 +752,7 @@ impl CycleBus for EthercatBus {
         let read_states = health.reads_states();
         let expected = health.expected_working_counter();
         let (image, states, stats) = (&mut self.image, &mut self.states, &mut self.frame_stats);
-        let (dc_reference, group) = (self.dc_reference, &self.group);
+        let (dc_reference, group, gate) = (self.dc_reference, &self.group, &self.gate);
         // The LRW's count, kept if the state read after it misses the deadline.
         let lrw_count = std::cell::Cell::new(None);
         let (answer, accessed) = with_group!(group, g => {
@@ -730,7 +770,10 @@ impl CycleBus for EthercatBus {
                     None => None,
                 }
             };
-            runner.run_both_until(futures_lite::future::zip(cyclic, time), access_fut, deadline_ns)
+            // Queued together, the LRW and the FRMW go as one frame (see `coalesce`).
+            let zipped = std::pin::pin!(futures_lite::future::zip(cyclic, time));
+            let together = Together::new(gate, zipped);
+            runner.run_both_until(together, access_fut, deadline_ns)
         });
         let answer = match answer {
             Some((cyclic, time)) => {

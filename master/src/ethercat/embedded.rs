@@ -69,6 +69,11 @@ impl EmbeddedBus {
         Self { pump, chain }
     }
 
+    /// The gate that sends one exchange's frames as one.
+    pub fn gate(&self) -> super::pump::FrameGate {
+        self.pump.gate()
+    }
+
     /// Replies handed to ethercrab so far.
     pub fn replies(&self) -> Arc<std::sync::atomic::AtomicU64> {
         self.pump.replies()

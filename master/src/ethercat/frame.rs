@@ -10,13 +10,14 @@
 //! bus does that in the same exchange, see `bus::EthercatBus::exchange`).
 //!
 //! ethercrab's public raw API (`Command::lrw`, `Command::frmw`) sends one datagram per
-//! frame, so the DC time (FRMW of 0x0910, when DC runs) is a frame of its own beside the
-//! LRW: fixed size whatever the number of slaves.
+//! frame; the pump joins the frames the cycle queues together (`coalesce`), so the DC
+//! time (FRMW of 0x0910, when DC runs) is one datagram more in the LRW's frame: fixed size
+//! whatever the number of slaves.
 
 use std::ops::Range;
 
 use ethercrab::error::Error;
-use ethercrab::subdevice_group::SafeOp;
+use ethercrab::subdevice_group::HasPdi;
 use ethercrab::{Command, MainDevice, SubDeviceGroup};
 use thiserror::Error;
 
@@ -41,6 +42,8 @@ pub const DATAGRAM_HEADER: usize = 10;
 pub const WORKING_COUNTER: usize = 2;
 /// Bytes of DC system time the FRMW carries (register 0x0910, ETG.1000.4 Table 60).
 pub const DC_TIME_BYTES: usize = 8;
+/// Datagram bytes one frame holds: an Ethernet payload (1500 B) less the EtherCAT header.
+pub const MAX_DATAGRAMS: usize = 1500 - ECAT_HEADER;
 /// Bit rate of the wire (100BASE-TX): bits per microsecond.
 pub const BITS_PER_US: f64 = 100.0;
 
@@ -180,8 +183,8 @@ impl ProcessImage {
     /// The image of ethercrab's group, checked against where ethercrab keeps each slave's
     /// bytes (its image must be laid out as [`ProcessImage::new`] lays it out, since the
     /// LRW addresses the slaves' FMMUs by those offsets).
-    pub fn of_group<const N: usize, const P: usize, DC>(
-        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, SafeOp, DC>,
+    pub fn of_group<const N: usize, const P: usize, S: HasPdi, DC>(
+        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, S, DC>,
         md: &MainDevice<'_>,
         max_datagram: usize,
     ) -> Result<Self, ImageError> {
@@ -264,21 +267,30 @@ impl ProcessImage {
         self.chunks.iter().map(|c| c.working_counter).sum()
     }
 
-    /// Bytes on the wire per cycle: the LRW frames, plus a frame with `extra` bytes of one
-    /// datagram's data when given (the DC time: [`DC_TIME_BYTES`]).
+    /// Bytes on the wire per cycle: the LRW frames, plus a datagram of `extra` bytes of
+    /// data when given (the DC time: [`DC_TIME_BYTES`]), joined to the first LRW's frame
+    /// when it fits there (as the pump joins them), else in a frame of its own.
     pub fn wire_bytes(&self, extra: Option<usize>) -> usize {
-        let lrw: usize = self
+        let mut frames: Vec<usize> = self
             .chunks
             .iter()
-            .map(|c| wire_bytes(datagram_bytes(c.bytes.len())))
-            .sum();
-        lrw + extra.map_or(0, |d| wire_bytes(datagram_bytes(d)))
+            .map(|c| datagram_bytes(c.bytes.len()))
+            .collect();
+        if let Some(d) = extra {
+            match frames.first_mut() {
+                Some(first) if *first + datagram_bytes(d) <= MAX_DATAGRAMS => {
+                    *first += datagram_bytes(d)
+                }
+                _ => frames.push(datagram_bytes(d)),
+            }
+        }
+        frames.into_iter().map(wire_bytes).sum()
     }
 
     /// The least any master sends for this image: the mapped bytes in as few full-size
     /// frames as an Ethernet MTU (1500 B) allows, one datagram each.
     pub fn minimum_wire_bytes(&self) -> usize {
-        const PER_FRAME: usize = 1500 - ECAT_HEADER - DATAGRAM_HEADER - WORKING_COUNTER;
+        const PER_FRAME: usize = MAX_DATAGRAMS - DATAGRAM_HEADER - WORKING_COUNTER;
         let len = self.bytes.len();
         let frames = len.div_ceil(PER_FRAME).max(1);
         (0..frames)
@@ -329,9 +341,9 @@ impl ProcessImage {
     }
 
     /// Copies the outputs into ethercrab's image of `group` (before its `tx_rx`).
-    pub fn put_outputs<const N: usize, const P: usize, DC>(
+    pub fn put_outputs<const N: usize, const P: usize, S: HasPdi, DC>(
         &self,
-        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, SafeOp, DC>,
+        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, S, DC>,
         md: &MainDevice<'_>,
     ) {
         for (sd, io) in group.iter(md).zip(&self.slaves) {
@@ -345,9 +357,9 @@ impl ProcessImage {
     }
 
     /// Copies the inputs from ethercrab's image of `group` (after its `tx_rx`).
-    pub fn take_inputs<const N: usize, const P: usize, DC>(
+    pub fn take_inputs<const N: usize, const P: usize, S: HasPdi, DC>(
         &mut self,
-        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, SafeOp, DC>,
+        group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, S, DC>,
         md: &MainDevice<'_>,
     ) {
         for (sd, io) in group.iter(md).zip(&self.slaves) {
@@ -392,5 +404,14 @@ mod tests {
         assert!((wire_us(1250) - 100.0).abs() < 1e-9);
         let image = ProcessImage::new(&[(20, 20); 64], 1486).unwrap();
         assert_eq!(image.minimum_wire_bytes(), image.wire_bytes(None));
+        // 2560 bytes: two full-ish frames; the FRMW joins the first only if it fits.
+        let two = image.wire_bytes(None);
+        assert_eq!(
+            image.wire_bytes(Some(8)),
+            two + 84,
+            "the first frame is full"
+        );
+        let image = ProcessImage::new(&[(11, 11); 16], 1486).unwrap();
+        assert_eq!(image.wire_bytes(Some(8)), image.wire_bytes(None) + 20);
     }
 }

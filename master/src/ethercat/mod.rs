@@ -3,6 +3,7 @@
 //! process data.
 
 pub mod bus;
+pub mod coalesce;
 pub mod cycle;
 pub mod cyclic;
 pub mod doorbell;

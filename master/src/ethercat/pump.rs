@@ -20,6 +20,7 @@ use gantry_sim::chain::SlaveChain;
 use gantry_sim::realtime::WallClock;
 use gantry_sim::transport::raw_socket::RawSocket;
 
+use super::coalesce::Coalescer;
 use super::doorbell::Doorbell;
 use crate::pcap::PcapWriter;
 
@@ -104,6 +105,25 @@ impl Link {
     }
 }
 
+/// Takes every frame ethercrab queued into `joined`, sending through `send` what is full
+/// and a frame that cannot be joined.
+fn take_queued(tx: &mut PduTx<'static>, joined: &mut Coalescer, send: &mut impl FnMut(&[u8])) {
+    while let Some(frame) = tx.next_sendable_frame() {
+        let _ = frame.send_blocking(|bytes| {
+            if !joined.push(bytes) {
+                if !joined.is_empty() {
+                    send(joined.frame());
+                    joined.sent();
+                }
+                if !joined.push(bytes) {
+                    send(bytes);
+                }
+            }
+            Ok(bytes.len())
+        });
+    }
+}
+
 /// Name of the pump thread.
 pub const PUMP_THREAD: &str = "ethercat-pump";
 
@@ -121,8 +141,32 @@ pub struct PumpStats {
     pub errors: u64,
 }
 
+/// Holds the pump while the cycle queues the frames of one exchange, so that they go on
+/// the wire as one frame (see `coalesce`): the pump takes what is queued but sends nothing
+/// until released. Held for one poll of the cycle's futures (microseconds, no lock).
+#[derive(Clone)]
+pub struct FrameGate {
+    /// Odd while held; moves at every hold and release.
+    epoch: Arc<AtomicU64>,
+    doorbell: Arc<Doorbell>,
+}
+
+impl FrameGate {
+    /// The frames queued from now on wait for [`FrameGate::release`].
+    pub fn hold(&self) {
+        self.epoch.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// Sends what was queued since [`FrameGate::hold`], together.
+    pub fn release(&self) {
+        self.epoch.fetch_add(1, Ordering::AcqRel);
+        self.doorbell.wake_by_ref();
+    }
+}
+
 /// A running pump thread.
 pub struct FramePump {
+    epoch: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
     replies: Arc<AtomicU64>,
     doorbell: Arc<Doorbell>,
@@ -139,8 +183,10 @@ impl FramePump {
     ) -> io::Result<Self> {
         let doorbell = Doorbell::new()?;
         let stop = Arc::new(AtomicBool::new(false));
+        let epoch = Arc::new(AtomicU64::new(0));
         let replies = Arc::new(AtomicU64::new(0));
         let (stop_io, bell, replied) = (stop.clone(), doorbell.clone(), replies.clone());
+        let epoch_io = epoch.clone();
         let thread = std::thread::Builder::new()
             .name(PUMP_THREAD.into())
             .spawn(move || {
@@ -148,6 +194,7 @@ impl FramePump {
                 let started = Instant::now();
                 let mut stats = PumpStats::default();
                 let mut buf = vec![0u8; RECV_BYTES];
+                let mut joined = Coalescer::default();
                 let record = |capture: &mut Option<PcapWriter<_>>, at_us: u64, frame: &[u8]| {
                     if let Some(c) = capture.as_mut() {
                         let _ = c.frame(at_us, frame);
@@ -155,22 +202,36 @@ impl FramePump {
                 };
                 while !stop_io.load(Ordering::Relaxed) {
                     tx.replace_waker(&waker);
-                    while let Some(frame) = tx.next_sendable_frame() {
-                        let sent = frame.send_blocking(|bytes| {
-                            // The frame goes on the wire first, the capture after it
-                            // (a file write must not delay the frame); stamped with
-                            // the time it was sent.
+                    {
+                        // Sends one frame: on the wire first, the capture after it (a file
+                        // write must not delay the frame); stamped with the time it was
+                        // sent.
+                        let mut send = |bytes: &[u8]| {
                             let at_us = started.elapsed().as_micros() as u64;
-                            let sent = link
-                                .send(bytes)
-                                .map(|()| bytes.len())
-                                .map_err(|_| ethercrab::error::Error::SendFrame);
+                            match link.send(bytes) {
+                                Ok(()) => stats.sent += 1,
+                                Err(_) => stats.errors += 1,
+                            }
                             record(&mut capture, at_us, bytes);
-                            sent
-                        });
-                        match sent {
-                            Ok(_) => stats.sent += 1,
-                            Err(_) => stats.errors += 1,
+                        };
+                        // Every queued frame into one. While the cycle holds the gate
+                        // (odd epoch) nothing is sent; a take is complete when no hold or
+                        // release happened during it (the epoch did not move): then it saw
+                        // all of an exchange's frames or none.
+                        loop {
+                            let epoch = epoch_io.load(Ordering::Acquire);
+                            take_queued(&mut tx, &mut joined, &mut send);
+                            if epoch % 2 == 1 {
+                                bell.wait(None, Some(std::time::Duration::from_millis(1)));
+                                continue;
+                            }
+                            if epoch_io.load(Ordering::Acquire) == epoch {
+                                break;
+                            }
+                        }
+                        if !joined.is_empty() {
+                            send(joined.frame());
+                            joined.sent();
                         }
                     }
                     loop {
@@ -182,9 +243,11 @@ impl FramePump {
                                 // cycle), so a cycle that got its reply also sees the
                                 // count. Then the reply to ethercrab, then the capture.
                                 replied.fetch_add(1, Ordering::Release);
-                                if rx.receive_frame(frame).is_ok() {
-                                    stats.received += 1;
-                                }
+                                joined.split(frame, |part| {
+                                    if rx.receive_frame(part).is_ok() {
+                                        stats.received += 1;
+                                    }
+                                });
                                 record(&mut capture, at_us, frame);
                             }
                             Ok(None) => break,
@@ -204,6 +267,7 @@ impl FramePump {
                 stats
             })?;
         Ok(Self {
+            epoch,
             stop,
             replies,
             doorbell,
@@ -215,6 +279,14 @@ impl FramePump {
     /// ethercrab sees them: bring-up watches it to tell a silent bus from a slow step).
     pub fn replies(&self) -> Arc<AtomicU64> {
         self.replies.clone()
+    }
+
+    /// The gate the cycle holds while it queues one exchange's frames.
+    pub fn gate(&self) -> FrameGate {
+        FrameGate {
+            epoch: self.epoch.clone(),
+            doorbell: self.doorbell.clone(),
+        }
     }
 
     /// Stops the thread; returns what it counted.

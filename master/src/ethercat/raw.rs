@@ -31,6 +31,11 @@ impl RawBus {
         Ok(Self { pump })
     }
 
+    /// The gate that sends one exchange's frames as one.
+    pub fn gate(&self) -> super::pump::FrameGate {
+        self.pump.gate()
+    }
+
     /// Replies handed to ethercrab so far.
     pub fn replies(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
         self.pump.replies()
