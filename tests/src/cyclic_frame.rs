@@ -18,6 +18,8 @@ pub const LRW: u8 = 12;
 pub const FPRD: u8 = 4;
 /// FRMW.
 pub const FRMW: u8 = 14;
+/// BRD.
+pub const BRD: u8 = 7;
 
 /// One datagram as captured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -194,8 +196,9 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     let bytes = std::fs::read(&pcap).expect("the capture");
     let frames = sent_frames(&bytes).expect("a readable capture");
     // The steady cycles as captured: the longest run of frames that are each one LRW of
-    // the whole image and one FRMW of the DC time (the pump joins the two, queued together,
-    // into one frame; the image of up to 64 servos fits one datagram).
+    // the whole image, one FRMW of the DC time and one BRD of the AL status (the pump
+    // joins them, queued together, into one frame; the image of up to 64 servos fits one
+    // datagram).
     assert_eq!(rig_chunks, [image_len], "one LRW datagram");
     let cyclic = [
         Datagram {
@@ -206,10 +209,15 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
             command: FRMW,
             len: frame::DC_TIME_BYTES,
         },
+        Datagram {
+            command: BRD,
+            len: frame::AL_STATUS_BYTES,
+        },
     ];
     // In either order: the pump takes them in the order of ethercrab's frame slots.
-    let is_cyclic =
-        |f: &SentFrame| f.datagrams.len() == 2 && cyclic.iter().all(|d| f.datagrams.contains(d));
+    let is_cyclic = |f: &SentFrame| {
+        f.datagrams.len() == cyclic.len() && cyclic.iter().all(|d| f.datagrams.contains(d))
+    };
     let (mut longest, mut run) = (0, 0);
     let mut wire = None;
     for f in &frames {
@@ -236,12 +244,16 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
         .iter()
         .any(|f| f.datagrams.iter().filter(|d| d.command == FPRD).count() >= slaves));
     assert_eq!(wire, expected_wire);
-    // The minimum's frame with one datagram more: 20 bytes whatever the slave count
-    // (the frame is past its 64-byte minimum from 16 slaves on; a single slave's LRW
-    // frame is padded, so there the FRMW costs only 10).
-    let with_frmw = wire_bytes(datagram_bytes(image_len) + datagram_bytes(frame::DC_TIME_BYTES));
-    assert_eq!(wire, with_frmw, "the mapped bytes + one fixed datagram");
-    assert!(wire - minimum <= datagram_bytes(frame::DC_TIME_BYTES));
+    // The minimum's frame with two fixed datagrams more: 34 bytes whatever the slave
+    // count (the frame is past its 64-byte minimum from 16 slaves on; a single slave's
+    // LRW frame is padded, so there they cost less).
+    let fixed = datagram_bytes(frame::DC_TIME_BYTES) + datagram_bytes(frame::AL_STATUS_BYTES);
+    assert_eq!(
+        wire,
+        wire_bytes(datagram_bytes(image_len) + fixed),
+        "the mapped bytes + two fixed datagrams"
+    );
+    assert!(wire - minimum <= fixed);
     Figures {
         slaves,
         mapped: image_len,

@@ -460,10 +460,13 @@ impl EthercatBus {
     }
 
     /// Bytes on the wire per cycle when every slave answers as it should: the LRW
-    /// frames and, with DC, the FRMW datagram (in the first LRW's frame).
+    /// frames, the AL-status BRD and, with DC, the FRMW (both in the first LRW's frame).
     pub fn cyclic_wire_bytes(&self) -> usize {
+        let dc = self
+            .dc_reference
+            .map_or(0, |_| frame::datagram_bytes(frame::DC_TIME_BYTES));
         self.image
-            .wire_bytes(self.dc_reference.map(|_| frame::DC_TIME_BYTES))
+            .wire_bytes(frame::datagram_bytes(frame::AL_STATUS_BYTES) + dc)
     }
 
     /// Distributed clocks as of the last exchange.
@@ -583,8 +586,9 @@ pub struct FrameStats {
     pub state_reads: u64,
 }
 
-/// One cycle's process data: the image's LRW datagrams alone; then, if the working counter
-/// is not `expected` (or at once, if `read_states` asks for it), every slave's AL status with ethercrab's
+/// One cycle's process data: the image's LRW datagrams and one BRD of the AL status of
+/// all `slaves`; then, if the working counter is not `expected` or a slave is not in OP
+/// (or at once, if `read_states` asks for it), every slave's AL status with ethercrab's
 /// `tx_rx` (its LRW again, with the same outputs, and one FPRD per slave), in the same
 /// exchange, so that the slave that left is named in the cycle that saw it go. Returns
 /// the working counter and whether `states` holds the slaves' states. The LRW's count is
@@ -598,13 +602,25 @@ async fn cyclic_exchange<DC>(
     stats: &mut FrameStats,
     read_states: bool,
     expected: u16,
+    slaves: u16,
     lrw_count: &std::cell::Cell<Option<u16>>,
 ) -> Result<(u16, bool), ethercrab::error::Error> {
     stats.cycles += 1;
     if !read_states {
-        let lrw = image.exchange(md).await?;
+        // Beside the LRW, every slave's AL status in one BRD (each slave ORs its own in,
+        // ETG.1000.4 §5.4.1.2; the working counter counts those that answered): the
+        // LRW's count does not change when a slave goes from OP to SafeOp, whose output
+        // SyncManager stays active (ETG.1000.6 §6.4.1: SafeOp takes outputs, unused).
+        let al = Command::brd(recovery::AL_STATUS)
+            .with_wkc(slaves)
+            .receive::<u16>(md);
+        let (lrw, al) = futures_lite::future::zip(image.exchange(md), al).await;
+        let lrw = lrw?;
         lrw_count.set(Some(lrw.working_counter));
-        if lrw.complete && lrw.working_counter == expected {
+        let all_in_op = al.is_ok_and(|s| {
+            s & (recovery::AL_STATE_MASK | recovery::AL_ERROR_ACK) == recovery::AL_STATE_OP
+        });
+        if all_in_op && lrw.complete && lrw.working_counter == expected {
             return Ok((lrw.working_counter, false));
         }
     }
@@ -758,7 +774,7 @@ impl CycleBus for EthercatBus {
         let (answer, accessed) = with_group!(group, g => {
             let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
             let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
-            let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, expected, &lrw_count);
+            let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, expected, g.len() as u16, &lrw_count);
             // With DC the reference clock's time goes round too (one FRMW, its own frame).
             let time = async {
                 match dc_reference {

@@ -125,8 +125,15 @@ impl Coalescer {
 
     /// The frame went out: remember how to split its reply.
     pub fn sent(&mut self) {
+        self.current.index = self.out.get(HEADERS + 1).copied().unwrap_or(0);
+        // A joined frame whose reply never came (lost) must not split the reply of a
+        // later frame that starts with the same index (ethercrab's indices wrap at 256).
+        for slot in &mut self.in_flight {
+            if slot.is_some_and(|j| j.index == self.current.index) {
+                *slot = None;
+            }
+        }
         if self.current.count > 1 {
-            self.current.index = self.out.get(HEADERS + 1).copied().unwrap_or(0);
             self.in_flight[self.next_slot] = Some(self.current);
             self.next_slot = (self.next_slot + 1) % IN_FLIGHT;
         }
@@ -217,6 +224,15 @@ mod tests {
         frmw_reply[6] = 0x12;
         assert_eq!(parts, [lrw_reply, frmw_reply]);
         // A reply to a frame sent alone passes as it is.
+        let mut one = Vec::new();
+        c.split(&lrw, |p| one.push(p.to_vec()));
+        assert_eq!(one, [lrw.clone()]);
+        // A joined frame whose reply was lost: a later frame sent alone with the same
+        // first index gets its reply whole.
+        assert!(c.push(&lrw) && c.push(&frmw));
+        c.sent();
+        assert!(c.push(&lrw));
+        c.sent();
         let mut one = Vec::new();
         c.split(&lrw, |p| one.push(p.to_vec()));
         assert_eq!(one, [lrw]);

@@ -3,15 +3,19 @@
 //!
 //! ethercrab's `SubDeviceGroup::tx_rx` puts an AL-status FPRD per slave beside the LRW
 //! (12 B header + 2 B data each: 224 B more at 16 drives). Like IgH and SOEM, gantry
-//! supervises with the LRW's working counter instead — a slave that stops answering, or
-//! leaves OP, no longer writes its outputs (ETG.1000.4 §5.4.3: an LRW counts +1 for a
-//! read, +2 for a write, per slave; an ESC out of OP does not write its outputs,
-//! ETG.1000.6 §6.4.1 Table 10) — and reads the AL status only when the count is wrong (the
-//! bus does that in the same exchange, see `bus::EthercatBus::exchange`).
+//! supervises with the LRW's working counter instead — a slave that stops answering no
+//! longer counts (ETG.1000.4 §5.4.3: an LRW counts +1 for a read, +2 for a write, per
+//! slave) — and reads each slave's AL status only when something is wrong (the bus does
+//! that in the same exchange, see `bus::EthercatBus::exchange`).
 //!
-//! ethercrab's public raw API (`Command::lrw`, `Command::frmw`) sends one datagram per
-//! frame; the pump joins the frames the cycle queues together (`coalesce`), so the DC
-//! time (FRMW of 0x0910, when DC runs) is one datagram more in the LRW's frame: fixed size
+//! A slave that goes from OP to SafeOp does not change the LRW's count (its output
+//! SyncManager stays active in SafeOp, ETG.1000.6 §6.4.1), so one BRD of AL status
+//! (0x0130) goes beside it: every slave ORs its state in, the working counter counts those
+//! that answered — anything but "all in OP, no error" sends the cycle to read each
+//! slave's state. ethercrab's public raw API (`Command::lrw`, `Command::brd`,
+//! `Command::frmw`) sends one datagram per frame; the pump joins the frames the cycle
+//! queues together (`coalesce`), so the BRD (14 B) and, when DC runs, the FRMW of the
+//! reference clock's time (0x0910, 20 B) are datagrams in the LRW's frame: fixed size
 //! whatever the number of slaves.
 
 use std::ops::Range;
@@ -44,6 +48,8 @@ pub const WORKING_COUNTER: usize = 2;
 pub const DC_TIME_BYTES: usize = 8;
 /// Datagram bytes one frame holds: an Ethernet payload (1500 B) less the EtherCAT header.
 pub const MAX_DATAGRAMS: usize = 1500 - ECAT_HEADER;
+/// Bytes of AL status the supervising BRD reads (register 0x0130, ETG.1000.4 Table 35).
+pub const AL_STATUS_BYTES: usize = 2;
 /// Bit rate of the wire (100BASE-TX): bits per microsecond.
 pub const BITS_PER_US: f64 = 100.0;
 
@@ -267,21 +273,20 @@ impl ProcessImage {
         self.chunks.iter().map(|c| c.working_counter).sum()
     }
 
-    /// Bytes on the wire per cycle: the LRW frames, plus a datagram of `extra` bytes of
-    /// data when given (the DC time: [`DC_TIME_BYTES`]), joined to the first LRW's frame
-    /// when it fits there (as the pump joins them), else in a frame of its own.
-    pub fn wire_bytes(&self, extra: Option<usize>) -> usize {
+    /// Bytes on the wire per cycle: the LRW frames, plus `extra` bytes of fixed-size
+    /// datagrams (the AL-status BRD, the DC FRMW; see [`datagram_bytes`]) joined to the
+    /// first LRW's frame when they fit there (as the pump joins them), else in a frame of
+    /// their own.
+    pub fn wire_bytes(&self, extra: usize) -> usize {
         let mut frames: Vec<usize> = self
             .chunks
             .iter()
             .map(|c| datagram_bytes(c.bytes.len()))
             .collect();
-        if let Some(d) = extra {
+        if extra > 0 {
             match frames.first_mut() {
-                Some(first) if *first + datagram_bytes(d) <= MAX_DATAGRAMS => {
-                    *first += datagram_bytes(d)
-                }
-                _ => frames.push(datagram_bytes(d)),
+                Some(first) if *first + extra <= MAX_DATAGRAMS => *first += extra,
+                _ => frames.push(extra),
             }
         }
         frames.into_iter().map(wire_bytes).sum()
@@ -403,15 +408,11 @@ mod tests {
         assert_eq!(wire_bytes(datagram_bytes(1486)), 1518 + 20);
         assert!((wire_us(1250) - 100.0).abs() < 1e-9);
         let image = ProcessImage::new(&[(20, 20); 64], 1486).unwrap();
-        assert_eq!(image.minimum_wire_bytes(), image.wire_bytes(None));
+        assert_eq!(image.minimum_wire_bytes(), image.wire_bytes(0));
         // 2560 bytes: two full-ish frames; the FRMW joins the first only if it fits.
-        let two = image.wire_bytes(None);
-        assert_eq!(
-            image.wire_bytes(Some(8)),
-            two + 84,
-            "the first frame is full"
-        );
+        let two = image.wire_bytes(0);
+        assert_eq!(image.wire_bytes(20), two + 84, "the first frame is full");
         let image = ProcessImage::new(&[(11, 11); 16], 1486).unwrap();
-        assert_eq!(image.wire_bytes(Some(8)), image.wire_bytes(None) + 20);
+        assert_eq!(image.wire_bytes(20 + 14), image.wire_bytes(0) + 34);
     }
 }
