@@ -168,7 +168,7 @@ fn setup() -> Bench {
     lrw_cycle(&mut b);
     assert_eq!(
         sent(&b),
-        b.image.wire_bytes(None),
+        b.image.wire_bytes(0),
         "gantry's frame as captured"
     );
     one_cycle(&mut b);
