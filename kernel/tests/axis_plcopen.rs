@@ -241,6 +241,55 @@ fn error_stop_refuses_motion_until_reset() {
     run_until_final(&mut k, 0, h, 100_000);
 }
 
+/// PLCopen: only Reset leaves ErrorStop. Powering off while the axis still brakes from
+/// the error ends braking and power there, and leaves the axis in ErrorStop (it used to
+/// pass through Stopping to Disabled, as if the error had been acknowledged).
+#[test]
+fn power_off_while_braking_in_error_stop_stays_in_error_stop() {
+    let mut cfg = linear("x");
+    cfg.mechanics.software_limits = Some((-50.0, 50.0));
+    let mut k = kernel(vec![cfg]);
+    k.command(
+        0,
+        Command::SetPosition {
+            position: 45.0,
+            relative: false,
+        },
+    )
+    .unwrap();
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
+    // Run until the limit check fires and the axis brakes in ErrorStop.
+    let mut braking = false;
+    for _ in 0..5000 {
+        k.step(&[]);
+        let s = k.axis_status(0).unwrap();
+        if s.state == AxisState::ErrorStop && s.bits.moving {
+            braking = true;
+            break;
+        }
+    }
+    assert!(braking, "the axis brakes in ErrorStop");
+    let off = k
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Disable),
+        )
+        .unwrap();
+    let trace = run_until_final(&mut k, 0, off, 100_000);
+    assert!(trace.iter().all(|s| s.state == AxisState::ErrorStop));
+    assert_eq!(k.command_status(off), CommandStatus::Done);
+    assert!(!k.step(&[])[0].enable, "power is off");
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
+    // Reset with power off: Disabled.
+    k.command(0, Command::Reset).unwrap();
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::Disabled);
+    assert_eq!(k.axes()[0].refused_transitions(), 0);
+}
+
 #[test]
 fn homed_flag_semantics() {
     let mut cfg = linear("x");

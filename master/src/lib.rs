@@ -4,9 +4,11 @@
 //! the master runs the motion kernel on simulated axes.
 #![deny(missing_docs)]
 
+pub mod axis_fault;
 pub mod cli;
 pub mod config;
 pub mod demo;
+pub mod drive_records;
 pub mod error_chain;
 pub mod ethercat;
 pub mod pcap;

@@ -10,6 +10,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use gantry::config::Config;
+use gantry::drive_records::{judge, AxisBound, Conditions};
+use gantry_sim::plant::record::read_records;
+
 fn gantry() -> Command {
     Command::new(env!("CARGO_BIN_EXE_gantry"))
 }
@@ -23,14 +27,29 @@ fn example(name: &str) -> PathBuf {
 struct Service {
     child: Child,
     socket: PathBuf,
+    /// The folder of its configuration (the example, recording its drives).
+    dir: PathBuf,
 }
 
 impl Service {
+    /// The example configuration as shipped, with `bus.simulator_record` on, from a
+    /// folder of its own.
     fn start(tag: &str) -> Self {
-        let socket = std::env::temp_dir().join(format!("gantry-{tag}-{}.sock", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
+        let off = "# simulator_record = \"drive-records.json\"";
+        assert!(text.contains(off), "the example documents simulator_record");
+        std::fs::write(
+            dir.join("gantry.toml"),
+            text.replace(off, "simulator_record = \"drive-records.json\""),
+        )
+        .unwrap();
+        std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
+        let socket = dir.join("gantry.sock");
         let child = gantry()
             .args(["run", "--no-rt", "--config"])
-            .arg(example("sim-4-axes.toml"))
+            .arg(dir.join("gantry.toml"))
             .arg("--socket")
             .arg(&socket)
             .stdout(Stdio::piped())
@@ -42,7 +61,29 @@ impl Service {
             assert!(Instant::now() < end, "the service did not open its socket");
             std::thread::sleep(Duration::from_millis(50));
         }
-        Self { child, socket }
+        Self { child, socket, dir }
+    }
+
+    /// Judges what the simulated drives recorded (written when the service exited)
+    /// against the configuration's axes: the drive invariant (issue 10 §6). Not real
+    /// time (`--no-rt`): missed and doubled setpoints are the host's, not judged.
+    fn assert_drive_invariant(&self) {
+        let config = Config::load(&self.dir.join("gantry.toml").display().to_string()).unwrap();
+        let path = self.dir.join("drive-records.json");
+        let records = read_records(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(records.len(), 4, "one record per chain position");
+        let verdict = judge(
+            &records,
+            &AxisBound::of_config(&config).unwrap(),
+            Conditions::default(),
+        );
+        assert!(
+            verdict.holds(),
+            "{:#?}\n{:#?}",
+            verdict.broken,
+            verdict.summary
+        );
+        eprintln!("drive records: {:#?}", verdict.summary);
     }
 
     /// A client command on this service's socket (arguments may follow).
@@ -93,7 +134,8 @@ impl Service {
 impl Drop for Service {
     fn drop(&mut self) {
         let _ = self.child.kill();
-        let _ = std::fs::remove_file(&self.socket);
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
 
@@ -115,6 +157,11 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
 
     // Off when off is no error; each command says what it did.
     assert!(svc.ok(&["disable", "y"]).contains("y: disabled at"));
+    let out = svc.ok(&["reset", "y"]);
+    assert!(
+        out.contains(", Disabled (its drive's power is off: `gantry enable y`)"),
+        "{out}"
+    );
     assert!(svc.ok(&["enable", "x"]).contains("x: enabled at"));
     assert_eq!(svc.axis("x")["state"], "Standstill");
     let e = svc.fails(&["move", "x", "--to", "20"]);
@@ -211,8 +258,35 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     let huge = vec![b'x'; 70 * 1024];
     let r = raw_request(&svc.socket, &huge);
     assert!(r["error"].as_str().unwrap().contains("longer than"), "{r}");
-    svc.ok(&["reset", "x"]);
+    // A reset says what it left the axis in (x has no error: it stays powered).
+    let out = svc.ok(&["reset", "x"]);
+    assert!(
+        out.contains("x: reset at") && out.contains(", Standstill (its drive is powered)"),
+        "{out}"
+    );
     assert_eq!(svc.status()["ended"], false);
+
+    // Every drive moves, so that the invariant judges all four; the rotary table c across
+    // its wrap at 360° both ways (issue 10 §1: its drive was sent a full period's step).
+    for a in ["y", "z", "c"] {
+        svc.ok(&["enable", a]);
+    }
+    svc.ok(&["set-position", "c", "--position", "350"]);
+    let out = svc.ok(&[
+        "move", "c", "--to", "30", "--mode", "relative", "--speed", "360",
+    ]);
+    assert!(out.contains("c: done at"), "{out}");
+    assert!((svc.axis("c")["position"].as_f64().unwrap() - 20.0).abs() < 0.05);
+    let out = svc.ok(&[
+        "move", "c", "--to", "-40", "--mode", "relative", "--speed", "720",
+    ]);
+    assert!(out.contains("c: done at"), "{out}");
+    assert!((svc.axis("c")["position"].as_f64().unwrap() - 340.0).abs() < 0.05);
+    for (a, to) in [("y", "15"), ("z", "-5")] {
+        svc.ok(&["set-position", a, "--position", "0"]);
+        let out = svc.ok(&["move", a, "--to", to]);
+        assert!(out.contains(&format!("{a}: done at")), "{out}");
+    }
 
     // SIGTERM: quick stop, disable, bus to PreOp, exit 0 — and a trace still recording
     // gets what was recorded up to the end, the stop included.
@@ -247,6 +321,13 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
     assert!(out.contains("bus: slaves in PreOp"), "{out}");
     assert!(out.contains("stopped after"), "{out}");
     assert!(!svc.socket.exists(), "the socket is removed");
+    // It wrote what its drives saw, and said what it was.
+    assert!(out.contains("gantry: drive records written to "), "{out}");
+    assert!(
+        out.contains("  c: largest target step ") && !out.contains("drive invariant broken"),
+        "{out}"
+    );
+    svc.assert_drive_invariant();
     let recorded = recording.wait_with_output().unwrap();
     let said = String::from_utf8_lossy(&recorded.stdout);
     assert!(

@@ -9,6 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use gantry::config::Config;
+use gantry::drive_records::{judge, AxisBound, Conditions};
+use gantry_sim::plant::record::read_records;
+
 /// The unprivileged user the test runs gantry as (nobody).
 const NOBODY: u32 = 65534;
 
@@ -118,10 +122,20 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     std::fs::create_dir_all(&dir).unwrap();
     std::os::unix::fs::chown(&dir, Some(NOBODY), Some(NOBODY)).unwrap();
     let socket = dir.join("gantry.sock");
-    // The example configuration as shipped (its bus.faults limits included).
+    // The example configuration as shipped (its bus.faults limits included), recording
+    // what its simulated drives saw (`bus.simulator_record`, written at exit).
     let example = std::fs::read_to_string(deploy("examples/sim-4-axes.toml")).unwrap();
+    let off = "# simulator_record = \"drive-records.json\"";
+    assert!(
+        example.contains(off),
+        "the example documents simulator_record"
+    );
     let config = dir.join("gantry.toml");
-    std::fs::write(&config, example).unwrap();
+    std::fs::write(
+        &config,
+        example.replace(off, "simulator_record = \"drive-records.json\""),
+    )
+    .unwrap();
     std::fs::copy(
         deploy("examples/sim-4-servos.toml"),
         dir.join("sim-4-servos.toml"),
@@ -178,9 +192,39 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
         );
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
-    cli(&["enable", "x"]);
-    cli(&["set-position", "x", "--position", "0"]);
-    let moved = cli(&["move", "x", "--to", "10"]);
+    // This VM's kernel does not preempt: now and then the real-time thread waits
+    // milliseconds for kernel work, three frames in a row are lost and the bus stops every
+    // axis (the example's limit, 3; see README "veth"). Such a stop — and only such a
+    // stop — is reset as an operator would (an axis comes back as its drive is: Standstill
+    // when it stayed powered, else enabled again), at most three times, and the command
+    // repeated; the stops are printed.
+    let mut timing_stops = 0;
+    let mut step = |args: &[&str]| loop {
+        let out = run_cli(args);
+        if out.status.success() {
+            break String::from_utf8_lossy(&out.stdout).into_owned();
+        }
+        let table = String::from_utf8_lossy(&run_cli(&["status"]).stdout).into_owned();
+        timing_stops += 1;
+        assert!(
+            table.contains("frames lost in a row") && timing_stops <= 3,
+            "{args:?}: {}\n{table}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        eprintln!("timing stop {timing_stops} at {args:?}: reset, repeated\n{table}");
+        for axis in ["x", "y", "z", "c"] {
+            cli(&["reset", axis]);
+            cli(&["enable", axis]);
+        }
+    };
+    // Every drive is driven, so that the invariant below judges all four.
+    let mut moves = Vec::new();
+    for (axis, to) in [("x", "10"), ("y", "10"), ("z", "-5"), ("c", "90")] {
+        step(&["enable", axis]);
+        step(&["set-position", axis, "--position", "0"]);
+        moves.push(step(&["move", axis, "--to", to]));
+    }
+    let moved = &moves[0];
     let status: serde_json::Value = serde_json::from_str(&cli(&["status", "--json"])).unwrap();
     // The figures of this run: lost frames, overruns, latencies.
     eprintln!("{}", cli(&["status"]));
@@ -191,7 +235,23 @@ fn the_units_capabilities_are_enough_for_real_time_without_root() {
     .unwrap();
     let out = service.finish();
     let text = String::from_utf8_lossy(&out.stdout);
+    // What reached the drives: no target step beyond the axis' speed per cycle, no
+    // following-error fault. Missed and doubled setpoints are reported, not judged: the
+    // example's drives tolerate a host without PREEMPT_RT (its sync_error_limit note).
+    let loaded = Config::load(&config.display().to_string()).unwrap();
+    let records = read_records(&dir.join("drive-records.json"));
     std::fs::remove_dir_all(&dir).unwrap();
+    let records = records.unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let verdict = judge(
+        &records,
+        &AxisBound::of_config(&loaded).unwrap(),
+        Conditions::default(),
+    );
+    eprintln!("drive records: {:#?}", verdict.summary);
+    assert!(verdict.holds(), "{:#?}", verdict.broken);
+    for (m, to) in moves.iter().zip([10.0, 10.0, -5.0, 90.0]) {
+        assert!(m.contains(&format!("done at {to:.3}")), "{m}");
+    }
     let at: f64 = moved
         .split("done at ")
         .nth(1)

@@ -205,6 +205,16 @@ impl SlaveChain {
         &self.slaves
     }
 
+    /// What each device recorded of the setpoints it took, in chain order (`None` for
+    /// devices that are no drive): what tests judge the master by, and what
+    /// [`crate::plant::record::write_records`] writes.
+    pub fn records(&self) -> Vec<Option<crate::plant::record::DriveRecord>> {
+        self.slaves
+            .iter()
+            .map(|s| s.device().record().copied())
+            .collect()
+    }
+
     /// Brings the network to time `t_ns`: the applications run once for every whole
     /// `period_ns` of network time passed (at most [`MAX_CATCH_UP`] of them after a stall:
     /// beyond that the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs
@@ -1156,15 +1166,26 @@ mod tests {
                 ..ServoOptions::default()
             })
         };
+        let safe_op = |c: &mut SlaveChain| {
+            for i in 0..c.slaves().len() {
+                c.slave_mut(i)
+                    .unwrap()
+                    .force_state(crate::esc::al::AlState::SafeOp);
+            }
+        };
         // Inside the cam; then a module pointed at a slave that is not a servo rests.
         let mut c = SlaveChain::new(vec![servo(1999), switches(0), switches(1), servo(2000)]);
         c.tick(0.001);
         let byte = |c: &SlaveChain, i: usize| {
             c.slaves()[i].memory().raw(SWITCHES_INPUTS_AT, 1).unwrap()[0]
         };
-        assert_eq!(byte(&c, 1), 0b100);
+        assert_eq!(byte(&c, 1), 0, "in Init the inputs are not published");
+        safe_op(&mut c);
+        c.tick(0.001);
+        assert_eq!(byte(&c, 1), 0b100, "from SafeOp on they are");
         assert_eq!(byte(&c, 2), 0);
         let mut c = SlaveChain::new(vec![servo(2000), switches(0)]);
+        safe_op(&mut c);
         c.tick(0.001);
         assert_eq!(byte(&c, 1), 0, "one count past the cam");
     }

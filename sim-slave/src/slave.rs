@@ -18,7 +18,7 @@ use crate::esc::registers::{
 use crate::esc::sii::{self, DeviceDescription, Sii};
 use crate::esc::sync_manager::{self as sm, status, Kind, SyncManager};
 use crate::esc::watchdog::ProcessDataWatchdog;
-use crate::plant::DeviceModel;
+use crate::plant::{DeviceModel, Exchange};
 
 /// ESC configuration (0x0141) bit 0: device emulation, the ESC itself copies AL control
 /// to AL status (ESC datasheet section II, 0x0141; simple I/O terminals without firmware).
@@ -292,7 +292,9 @@ impl Slave {
     /// Tells the application where the axis it watches is (counts); see
     /// [`crate::chain::SlaveChain::tick`].
     pub fn couple(&mut self, position: i64) {
-        self.device.on_axis_position(&mut self.memory, position);
+        let exchange = Exchange::in_state(AlState::from_bits(self.al_status()));
+        self.device
+            .on_axis_position(&mut self.memory, position, exchange);
     }
 
     /// Runs `dt_s` seconds of the application (device models read outputs and write
@@ -304,15 +306,17 @@ impl Slave {
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
         }
-        match (&mut self.device, state) {
+        let exchange = Exchange::in_state(state);
+        match &mut self.device {
             // A drive takes its outputs at SYNC0 or when the frame wrote them, not here;
             // its inputs are valid from SafeOp on (ETG.1000.6 §6.4.1), not before.
-            (DeviceModel::Servo(drive), AlState::SafeOp | AlState::Op) => {
+            DeviceModel::Servo(drive) => {
                 drive.run(dt_s);
-                drive.publish_inputs(&mut self.memory);
+                if exchange.inputs {
+                    drive.publish_inputs(&mut self.memory);
+                }
             }
-            (DeviceModel::Servo(drive), _) => drive.run(dt_s),
-            (device, _) => device.step(&mut self.memory, dt_s),
+            device => device.step(&mut self.memory, dt_s, exchange),
         }
         for b in &mut self.outputs {
             swap_buffer(&mut self.memory, b);
@@ -827,6 +831,13 @@ impl Slave {
     /// Writes AL status and AL status code. Leaving Op stops the output handler: the
     /// outputs it had are no longer valid, Op again needs fresh ones (the slave stack
     /// code clears its "first outputs received" there).
+    /// Puts the slave in `state` at once, as if the master had taken it there (tests of
+    /// device models that need a state, not the path to it).
+    #[cfg(test)]
+    pub(crate) fn force_state(&mut self, state: AlState) {
+        self.set_al(u16::from(state.raw()), AlStatusCode::NoError);
+    }
+
     fn set_al(&mut self, status: u16, code: AlStatusCode) {
         let was_op = AlState::from_bits(self.al_status()) == AlState::Op;
         if was_op && AlState::from_bits(status) != AlState::Op {

@@ -187,7 +187,8 @@ fn setup() -> Bench {
 }
 
 /// gantry's cycle: the image's LRW (what `EthercatBus` sends, less its 14-byte AL-status
-/// BRD, which the pump joins to the LRW's frame; this bench has no pump).
+/// BRD, which `FrameIo::exchange` joins to the LRW's frame; the bench's lockstep pump
+/// sends frames as queued).
 fn lrw_cycle(b: &mut Bench) {
     for i in 0..DRIVES {
         b.cycle.read_inputs(i, b.image.inputs(i)).unwrap();

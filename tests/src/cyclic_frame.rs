@@ -196,7 +196,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     let bytes = std::fs::read(&pcap).expect("the capture");
     let frames = sent_frames(&bytes).expect("a readable capture");
     // The steady cycles as captured: the longest run of frames that are each one LRW of
-    // the whole image, one FRMW of the DC time and one BRD of the AL status (the pump
+    // the whole image, one FRMW of the DC time and one BRD of the AL status (the exchange
     // joins them, queued together, into one frame; the image of up to 64 servos fits one
     // datagram).
     assert_eq!(rig_chunks, [image_len], "one LRW datagram");
@@ -214,7 +214,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
             len: frame::AL_STATUS_BYTES,
         },
     ];
-    // In either order: the pump takes them in the order of ethercrab's frame slots.
+    // In either order: the exchange takes them in the order of ethercrab's frame slots.
     let is_cyclic = |f: &SentFrame| {
         f.datagrams.len() == cyclic.len() && cyclic.iter().all(|d| f.datagrams.contains(d))
     };

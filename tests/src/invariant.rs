@@ -10,10 +10,11 @@
 
 use std::path::Path;
 
+use gantry::drive_records::{judge, AxisBound, AxisLimit};
 use gantry_kernel::mechanics::Scaling;
 use gantry_kernel::AxisConfig;
 use gantry_sim::chain::SlaveChain;
-use gantry_sim::plant::record::{max_step_counts, DriveRecord, Expectation};
+use gantry_sim::plant::record::{max_step_counts, DriveRecord};
 
 /// One drive under test: where it sits and what bounds its axis.
 #[derive(Clone, Debug)]
@@ -55,15 +56,14 @@ impl DriveUnderTest {
 
     /// Every axis of a gantry configuration, on the drive its `drive` key names.
     pub fn of_config(config: &gantry::config::Config) -> Vec<Self> {
-        config
-            .axes
-            .iter()
-            .zip(&config.kernel_axes)
-            .map(|(a, k)| {
-                let scaling = a
-                    .scaling()
-                    .unwrap_or_else(|(key, reason)| panic!("axis {}: {key}: {reason}", a.name));
-                Self::new(a.drive, k, scaling)
+        AxisLimit::of_config(config)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .into_iter()
+            .map(|l| Self {
+                axis: l.axis,
+                slave: l.drive,
+                vmax: l.vmax,
+                scaling: l.scaling,
             })
             .collect()
     }
@@ -74,14 +74,10 @@ impl DriveUnderTest {
     }
 }
 
-/// What the test says about itself.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TestConditions {
-    /// The test injects a following-error fault.
-    pub injects_following_error: bool,
-    /// The master's cycle is locked to SYNC0 (no setpoint may be missed or doubled).
-    pub phase_locked: bool,
-}
+/// What the test says about itself: whether it injects a following-error fault, and
+/// whether the master's cycle is locked to SYNC0 (then no setpoint may be missed or
+/// doubled).
+pub type TestConditions = gantry::drive_records::Conditions;
 
 /// Checks every drive's record; the message names each axis that broke the invariant and
 /// how. `records[i]` is the record of the drive at chain position `i` (`None`: that
@@ -93,42 +89,28 @@ pub fn check_records(
     conditions: TestConditions,
 ) -> Result<(), String> {
     assert!(!drives.is_empty(), "the invariant needs at least one drive");
-    let mut broken = Vec::new();
-    for d in drives {
-        let expect = Expectation {
+    let bounds: Vec<AxisBound> = drives
+        .iter()
+        .map(|d| AxisBound {
+            axis: d.axis.clone(),
+            drive: d.slave,
             max_step_counts: d.max_step_counts(cycle_s),
-            injects_following_error: conditions.injects_following_error,
-            phase_locked: conditions.phase_locked,
-        };
-        match records.get(d.slave) {
-            Some(Some(r)) => {
-                if let Err(v) = r.check(&expect) {
-                    broken.push(format!("axis {} (drive {}): {v}; {r:?}", d.axis, d.slave));
-                }
-            }
-            _ => broken.push(format!(
-                "axis {} (drive {}): no drive record at that chain position",
-                d.axis, d.slave
-            )),
-        }
-    }
-    if broken.is_empty() {
+        })
+        .collect();
+    let verdict = judge(records, &bounds, conditions);
+    if verdict.holds() {
         Ok(())
     } else {
         Err(format!(
             "drive invariant broken (issue 10 §6):\n  {}",
-            broken.join("\n  ")
+            verdict.broken.join("\n  ")
         ))
     }
 }
 
 /// The records of every device in `chain` (`None` for devices that are no drive).
 pub fn records(chain: &SlaveChain) -> Vec<Option<DriveRecord>> {
-    chain
-        .slaves()
-        .iter()
-        .map(|s| s.device().record().copied())
-        .collect()
+    chain.records()
 }
 
 /// Asserts the invariant on every drive in `drives`, from the records the in-process
@@ -147,8 +129,7 @@ pub fn assert_drive_invariants(
 /// Reads the records a `gantry-sim --record FILE` wrote when it exited: a JSON array with
 /// one entry per chain position, `null` for devices that are no drive.
 pub fn read_records(path: &Path) -> Result<Vec<Option<DriveRecord>>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    gantry_sim::plant::record::read_records(path).map_err(|e| e.to_string())
 }
 
 /// Asserts the invariant on the records `gantry-sim --record FILE` wrote.
@@ -207,19 +188,8 @@ mod tests {
     }
 
     #[test]
-    fn records_round_trip_through_the_file_gantry_sim_writes() {
-        let mut r = DriveRecord::default();
-        r.target(1);
-        r.target(3);
-        let path = std::env::temp_dir().join(format!("records-{}.json", std::process::id()));
-        std::fs::write(&path, serde_json::to_string(&[Some(r), None]).unwrap()).unwrap();
-        let back = read_records(&path).unwrap();
-        std::fs::remove_file(&path).unwrap();
-        assert_eq!(back.len(), 2);
-        assert_eq!(back[0].unwrap().max_target_step_counts, 2);
-        assert!(back[1].is_none());
-        assert!(read_records(Path::new("/nonexistent/records.json"))
-            .unwrap_err()
-            .starts_with("/nonexistent/records.json: "));
+    fn a_records_file_that_is_not_there_is_named() {
+        let e = read_records(Path::new("/nonexistent/records.json")).unwrap_err();
+        assert!(e.starts_with("/nonexistent/records.json: "), "{e}");
     }
 }

@@ -1,8 +1,8 @@
 //! gantry's engine over the in-process simulator, driven from one test thread: what `gantry
 //! run` runs (bring-up from a configuration, [`Engine`], requests through a
 //! [`Controller`]), minus the real-time thread. The test thread is not real time, so a late
-//! reply is this host's doing and the engine waits for it ([`LateReply::WAIT`]): the bus
-//! faults a test sees are the ones it injected into the chain.
+//! reply is this host's doing and the engine waits for it ([`LateReply::WAIT`]), and a late
+//! start is no overrun ([`Rig::cycle`]): the faults a test sees are the ones it injected.
 
 use std::sync::{Arc, Mutex};
 
@@ -48,9 +48,13 @@ impl Rig {
         }
     }
 
-    /// One cycle at the next deadline.
+    /// One cycle at the next deadline. The test thread is not real time: a cycle that
+    /// starts late is this host's doing, and is not counted as an overrun (which would
+    /// stop every axis after `rt.overrun_limit` in a row on a busy host); a test injects
+    /// the overruns it means with [`Rig::wake`] and [`Rig::step`].
     pub fn cycle(&mut self) {
-        let wake = self.clock.wait();
+        let mut wake = self.clock.wait();
+        wake.overrun = false;
         self.step(wake);
     }
 

@@ -2,6 +2,8 @@
 //! stops every axis, the others with "EtherCAT: stopped with slave N". End to end over the
 //! in-process simulator with the cable pulled in front of drive 2.
 
+use gantry::ethercat::health::COMMUNICATION_FAULT;
+use gantry_kernel::axis::command::CommandError;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_tests::slave_loss::pull_the_cable_before_drive_2;
@@ -21,6 +23,21 @@ fn a_lost_slave_stops_every_axis_when_configured() {
             Some(CommandStatus::Aborted | CommandStatus::Error(_))
         ));
     }
+    // While slave 2 is lost, a reset of another axis fails at once with the drive's
+    // communication fault: its slave comes back (it never left OP), the fault returns with
+    // slave 2 before the kernel sees the drive, and the axis stays in ErrorStop.
+    let reset = rig.ctl.reset(0).unwrap();
+    assert_eq!(
+        rig.finish(&reset, 200),
+        CommandStatus::Error(CommandError::DriveResetFailed {
+            code: COMMUNICATION_FAULT
+        })
+    );
+    assert_eq!(rig.state(0), AxisState::ErrorStop);
+    assert_eq!(
+        rig.bus_fault(0).as_deref(),
+        Some("EtherCAT: stopped with slave 2 (0x1002)")
+    );
     // Plugged back in: resets bring every axis back, the lost slave's first (its watchdog
     // took it out of Op while it was cut off; until it is back, the others would stop
     // with it again).

@@ -7,11 +7,11 @@
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
+use gantry::axis_fault::describe_fault;
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::mapping::map_pdos;
 use gantry::ethercat::transition;
-use gantry_drives::cia402::error_code::describe_fault;
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_kernel::axis::command::{Command, PowerCommand};

@@ -1,6 +1,8 @@
-//! No hidden real-time thread. `gantry run` makes its cycle thread SCHED_FIFO and starts
-//! the frame pump from it (so the pump inherits its priority and CPU): those two, and only
-//! those, run in real time. ethercrab's timers would start async-io's reactor thread from
+//! No hidden real-time thread. `gantry run` makes its cycle thread SCHED_FIFO; the cycle
+//! thread sends and receives its frames itself, so it is gantry's only real-time thread.
+//! On the in-process simulator the simulated network answers from a thread of its own,
+//! started from the cycle thread (so it inherits its priority and CPU, as drives answer
+//! at once): those two, and only those, run in real time. ethercrab's timers would start async-io's reactor thread from
 //! the cycle thread at the first frame (a third SCHED_FIFO thread, undocumented) and give
 //! the cycle a path to the reactor's timer mutex; gantry gives ethercrab no timers, so the
 //! reactor must never start. The cycle thread here is the one `gantry run` spawns
@@ -11,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
-use gantry::ethercat::pump::PUMP_THREAD;
+use gantry::ethercat::embedded::SIM_THREAD;
 use gantry::runtime::controller::Controller;
 use gantry::service::{spawn_cycle_thread, CYCLE_THREAD};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -19,7 +21,7 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::threads::threads;
 
 #[test]
-fn only_the_cycle_and_the_pump_run_in_real_time_and_ethercrab_starts_no_reactor() {
+fn only_the_cycle_and_the_simulator_run_in_real_time_and_ethercrab_starts_no_reactor() {
     let mut config = gantry_tests::sim_config(2, 1000);
     // This test is about the cycle thread, not about riding through lost frames
     // (`bus_faults`, `claim_*` test the limit): on this project's non-preemptible VMs a
@@ -87,8 +89,8 @@ fn only_the_cycle_and_the_pump_run_in_real_time_and_ethercrab_starts_no_reactor(
     real_time.sort_unstable();
     assert_eq!(
         real_time,
-        [PUMP_THREAD, CYCLE_THREAD],
-        "the real-time threads are the cycle and the pump: {listing:?}"
+        [CYCLE_THREAD, SIM_THREAD],
+        "the real-time threads are the cycle and the simulator's: {listing:?}"
     );
     assert!(
         seen.iter().all(|t| t.name != "async-io"),

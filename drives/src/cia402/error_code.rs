@@ -1,8 +1,6 @@
 //! Drive error codes (object 0x603F; the same codes as CiA 301 emergency messages) as text,
 //! so a faulted axis says *what* the drive reported, not just a number.
 
-use gantry_kernel::axis::status::AxisFault;
-
 /// Codes with a specific meaning (CiA 402 / ETG.6010 annex; a drive may use more).
 const KNOWN: &[(u16, &str)] = &[
     (0x0000, "no error"),
@@ -70,14 +68,6 @@ pub fn describe(code: u16) -> &'static str {
         .map_or_else(|| class(code), |(_, text)| *text)
 }
 
-/// An axis fault as a user reads it: drive faults with their meaning.
-pub fn describe_fault(fault: &AxisFault) -> String {
-    match fault {
-        AxisFault::Drive { code } => format!("drive fault 0x{code:04X}: {}", describe(*code)),
-        other => other.to_string(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -87,10 +77,6 @@ mod tests {
         assert_eq!(describe(0x2310), "continuous over-current");
         assert_eq!(describe(0x2311), "current");
         assert_eq!(describe(0xFF42), "device specific");
-        assert_eq!(
-            describe_fault(&AxisFault::Drive { code: 0x8700 }),
-            "drive fault 0x8700: sync controller error (process data watchdog: the master stopped sending)"
-        );
         assert!(
             KNOWN.windows(2).all(|w| w[0].0 < w[1].0),
             "sorted, no duplicates"

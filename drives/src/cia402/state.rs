@@ -162,24 +162,81 @@ pub enum Target {
     QuickStop,
 }
 
-/// The controlword command that moves a drive in `state` one step towards `target`.
-/// `reset` allows a fault reset; a fault reset needs a rising edge, so when the last
-/// controlword already had bit 7 set this returns `DisableVoltage` first.
-pub fn next_command(state: State, target: Target, reset: bool, last: Controlword) -> Command {
-    use State as S;
-    match (state, target) {
-        (S::Fault, _) if reset && !last.has(super::controlword::FAULT_RESET) => Command::FaultReset,
-        (S::Fault | S::FaultReactionActive | S::NotReadyToSwitchOn, _) => Command::DisableVoltage,
-        (_, Target::Disabled) => Command::DisableVoltage,
-        (S::OperationEnabled, Target::QuickStop) => Command::QuickStop,
-        (S::QuickStopActive, Target::QuickStop) => Command::QuickStop,
-        (_, Target::QuickStop) => Command::DisableVoltage,
-        (S::SwitchOnDisabled, Target::Enabled) => Command::Shutdown,
-        (S::ReadyToSwitchOn, Target::Enabled) => Command::SwitchOn,
-        (S::SwitchedOn | S::OperationEnabled, Target::Enabled) => Command::EnableOperation,
-        // Leave quick stop through Switch on disabled (transition 12), then start again.
-        (S::QuickStopActive, Target::Enabled) => Command::DisableVoltage,
+impl Target {
+    /// The states that fulfil the target, the preferred first: quick stop is reached
+    /// from Operation enabled (transition 11); from anywhere else the drive is not enabled
+    /// to be stopped, it is switched off.
+    const fn goals(self) -> &'static [State] {
+        match self {
+            Target::Enabled => &[State::OperationEnabled],
+            Target::Disabled => &[State::SwitchOnDisabled],
+            Target::QuickStop => &[State::QuickStopActive, State::SwitchOnDisabled],
+        }
     }
+}
+
+/// Every state, in declaration order (the search below indexes by it).
+const ALL_STATES: [State; 8] = [
+    State::NotReadyToSwitchOn,
+    State::SwitchOnDisabled,
+    State::ReadyToSwitchOn,
+    State::SwitchedOn,
+    State::OperationEnabled,
+    State::QuickStopActive,
+    State::FaultReactionActive,
+    State::Fault,
+];
+
+/// The controlword command that moves a drive in `state` one step towards `target`, read
+/// from [`TRANSITIONS`]: the first command of a shortest path to one of the target's
+/// states (at equal length the preferred state, then table order). In a target state it
+/// is the command that leads into that state (which holds it there); with no path — a
+/// fault reaction still running, a fault that may not be reset — it is Disable voltage,
+/// the drive's state of rest. `reset` allows a fault reset; that needs a rising edge of
+/// bit 7, so when the last controlword already had it set the reset waits a cycle.
+pub fn next_command(state: State, target: Target, reset: bool, last: Controlword) -> Command {
+    let goals = target.goals();
+    let may_reset = reset && !last.has(super::controlword::FAULT_RESET);
+    let usable = |cmd: Command| cmd != Command::FaultReset || may_reset;
+    if goals.contains(&state) {
+        return TRANSITIONS
+            .iter()
+            .find(|&&(_, _, _, to)| to == state)
+            .map_or(Command::DisableVoltage, |&(_, _, cmd, _)| cmd);
+    }
+    // Breadth first over the 8 states (sets as bit masks): for each state reached, the
+    // first command taken from `state` on the way to it.
+    let bit = |s: State| 1u8 << (s as u8);
+    let mut first: [Option<Command>; ALL_STATES.len()] = [None; ALL_STATES.len()];
+    let (mut seen, mut frontier) = (bit(state), bit(state));
+    while frontier != 0 {
+        let mut next = 0u8;
+        for &(_, from, cmd, to) in &TRANSITIONS {
+            if frontier & bit(from) == 0 || seen & bit(to) != 0 || !usable(cmd) {
+                continue;
+            }
+            let via = if from == state {
+                Some(cmd)
+            } else {
+                first.get(from as usize).copied().flatten()
+            };
+            if let Some(slot) = first.get_mut(to as usize) {
+                *slot = via;
+            }
+            seen |= bit(to);
+            next |= bit(to);
+        }
+        // The preferred goal this layer reached, if any.
+        for &goal in goals {
+            if next & bit(goal) != 0 {
+                if let Some(cmd) = first.get(goal as usize).copied().flatten() {
+                    return cmd;
+                }
+            }
+        }
+        frontier = next;
+    }
+    Command::DisableVoltage
 }
 
 /// The device side: a drive's state, stepped by controlwords and faults. Used by the
@@ -236,16 +293,45 @@ impl DeviceStateMachine {
 mod tests {
     use super::*;
 
-    const STATES: [State; 8] = [
-        State::NotReadyToSwitchOn,
-        State::SwitchOnDisabled,
-        State::ReadyToSwitchOn,
-        State::SwitchedOn,
-        State::OperationEnabled,
-        State::QuickStopActive,
-        State::FaultReactionActive,
-        State::Fault,
-    ];
+    const STATES: [State; 8] = ALL_STATES;
+
+    /// The rules as they were written out by hand before the master read the table: the
+    /// search must choose the same command everywhere.
+    fn written_out(state: State, target: Target, reset: bool, last: Controlword) -> Command {
+        use State as S;
+        match (state, target) {
+            (S::Fault, _) if reset && !last.has(crate::cia402::controlword::FAULT_RESET) => {
+                Command::FaultReset
+            }
+            (S::Fault | S::FaultReactionActive | S::NotReadyToSwitchOn, _) => {
+                Command::DisableVoltage
+            }
+            (_, Target::Disabled) => Command::DisableVoltage,
+            (S::OperationEnabled | S::QuickStopActive, Target::QuickStop) => Command::QuickStop,
+            (_, Target::QuickStop) => Command::DisableVoltage,
+            (S::SwitchOnDisabled, Target::Enabled) => Command::Shutdown,
+            (S::ReadyToSwitchOn, Target::Enabled) => Command::SwitchOn,
+            (S::SwitchedOn | S::OperationEnabled, Target::Enabled) => Command::EnableOperation,
+            (S::QuickStopActive, Target::Enabled) => Command::DisableVoltage,
+        }
+    }
+
+    #[test]
+    fn the_table_read_backwards_gives_the_written_out_rules() {
+        for state in STATES {
+            for target in [Target::Enabled, Target::Disabled, Target::QuickStop] {
+                for reset in [false, true] {
+                    for last in [Controlword(0), Controlword(0x80)] {
+                        assert_eq!(
+                            next_command(state, target, reset, last),
+                            written_out(state, target, reset, last),
+                            "{state:?} → {target:?}, reset {reset}, last {last:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn every_table_row_is_taken_by_the_device() {

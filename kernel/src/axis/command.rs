@@ -8,6 +8,7 @@
 use thiserror::Error;
 
 use super::state::AxisState;
+use super::status::FaultSummary;
 use crate::profile::{PlanError, RampType};
 
 /// How a MovePtp target is interpreted (seed 000 §6.4.3).
@@ -571,6 +572,35 @@ pub enum CommandError {
         /// The axis state.
         state: AxisState,
     },
+    /// The axis is in ErrorStop, which only Reset leaves (PLCopen state diagram): the
+    /// refusal names the error that put it there.
+    #[error(
+        "{command} is refused: the axis is in ErrorStop ({cause}); only Reset leaves ErrorStop"
+    )]
+    InErrorStop {
+        /// Command name.
+        command: &'static str,
+        /// Why the axis is in ErrorStop.
+        cause: FaultSummary,
+    },
+    /// Target position monitoring: the actual position did not settle in the target window
+    /// within the timeout after the set value reached the target.
+    #[error(
+        "{command}: the actual position {actual} did not stay within ±{window} of the target \
+         {target} for the dwell time within {timeout_s} s after the set value reached it"
+    )]
+    TargetNotReached {
+        /// Command name.
+        command: &'static str,
+        /// The target (units, axis frame; wrapped on modulo axes).
+        target: f64,
+        /// The actual position when the timeout expired (same frame).
+        actual: f64,
+        /// The target window (units).
+        window: f64,
+        /// The timeout (s).
+        timeout_s: f64,
+    },
     /// The command needs a homed axis.
     #[error(
         "{command}: the axis is not homed (home it, set an absolute position or mark it homed)"
@@ -657,6 +687,30 @@ impl core::fmt::Display for AlDetail<'_> {
 }
 
 impl CommandError {
+    /// The command the error is about ("a command" where it names none).
+    pub const fn command(&self) -> &'static str {
+        match self {
+            CommandError::OperandOutOfRange { command, .. }
+            | CommandError::ModuloModeOnNormalAxis { command, .. }
+            | CommandError::AbsNormalOnModuloAxis { command }
+            | CommandError::OutsideSoftwareLimits { command, .. }
+            | CommandError::DirectionNotAllowed { command, .. }
+            | CommandError::NotAllowedInState { command, .. }
+            | CommandError::InErrorStop { command, .. }
+            | CommandError::TargetNotReached { command, .. }
+            | CommandError::NotHomed { command }
+            | CommandError::NotCommandable { command, .. }
+            | CommandError::NothingToChange { command }
+            | CommandError::QueueFull { command, .. }
+            | CommandError::Plan { command, .. }
+            | CommandError::AxisFault { command } => command,
+            CommandError::DriveResetFailed { .. } | CommandError::SlaveNotOperational { .. } => {
+                "Reset"
+            }
+            CommandError::NoSuchAxis { .. } => "a command",
+        }
+    }
+
     /// Logix-style EXERR: the number of the offending operand (first after the axis = 1),
     /// or 0 where the error is not about one operand.
     pub const fn operand_number(&self) -> u8 {

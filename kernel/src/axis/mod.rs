@@ -1,6 +1,6 @@
 //! One axis: its configuration, PLCopen state, set-value source and status.
 //!
-//! Commands are applied between cycles ([`Axis::apply`], in `apply.rs`) and plan from the
+//! Commands are applied between cycles ([`Axis::apply`], in `apply/`, one module per command family) and plan from the
 //! last set values, so a new move continues the old one without a jump; [`Axis::step`]
 //! samples the running profile at the cycle's time, chains buffered moves inside the
 //! cycle (no standstill cycle between them) and derives the status.
@@ -15,10 +15,10 @@ mod apply;
 
 use crate::mechanics::{Direction, Mechanics};
 use crate::profile::{KinematicState, Limits, RampType};
-use command::{CommandError, RampBreakMode};
+use command::{BufferMode, CommandError, RampBreakMode};
 use handle::{CommandStatus, HandleTable};
 use motion::{Motion, MotionKind, Queue};
-use state::AxisState;
+use state::{AxisState, Event};
 use status::{AxisFault, AxisStatus, SlopeState, StatusBits};
 
 /// What kind of axis (seed 000 §2).
@@ -85,6 +85,44 @@ pub struct Dynamics {
     pub target_window: f64,
 }
 
+/// Target position monitoring (TwinCAT's "Target Position Monitoring" with its "In-Target
+/// Timeout"): a positioning move (MovePtp) is Done only once the actual position has stayed
+/// inside the move's target window for `dwell_s` after the set value reached the target;
+/// when that has not happened `timeout_s` after the set value reached the target, the move
+/// ends in Error and the axis in ErrorStop, naming the position, the window and the time.
+///
+/// The window is the move's TargetWindow (default: [`Dynamics::target_window`]). Halt and
+/// Stop are not monitored (PLCopen: they are Done at zero velocity). Blending moves take
+/// over when the set value reaches the target, as without monitoring; a Buffered move
+/// starts when the previous one is Done (PLCopen), so now once it is in position. Axes
+/// without feedback (simulated, virtual) have nothing to monitor: their actual is their set
+/// value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TargetMonitoring {
+    /// Whether positioning moves wait for the actual position (default: on for real axes).
+    pub enabled: bool,
+    /// How long the actual must stay in the window without a break (s, ≥ 0).
+    pub dwell_s: f64,
+    /// How long after the set value reached the target the actual may take (s, > dwell).
+    pub timeout_s: f64,
+}
+
+impl TargetMonitoring {
+    /// Default dwell: 20 ms.
+    pub const DEFAULT_DWELL_S: f64 = 0.02;
+    /// Default timeout: 5 s.
+    pub const DEFAULT_TIMEOUT_S: f64 = 5.0;
+
+    /// The defaults, on or off.
+    pub const fn new(enabled: bool) -> Self {
+        Self {
+            enabled,
+            dwell_s: Self::DEFAULT_DWELL_S,
+            timeout_s: Self::DEFAULT_TIMEOUT_S,
+        }
+    }
+}
+
 /// Configuration of one axis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisConfig {
@@ -106,6 +144,9 @@ pub struct AxisConfig {
     pub homing_required: bool,
     /// Position restored at power-up (e.g. stored encoder value × scaling); not homed.
     pub initial_position: f64,
+    /// When a positioning move is Done: in position (on for real axes) or when its set
+    /// value reaches the target.
+    pub target_monitoring: TargetMonitoring,
 }
 
 impl AxisConfig {
@@ -135,6 +176,7 @@ impl AxisConfig {
             ramp_break: RampBreakMode::None,
             homing_required: !matches!(kind, AxisKind::Virtual),
             initial_position: 0.0,
+            target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
         }
     }
 
@@ -190,6 +232,18 @@ impl AxisConfig {
                 axis: name.clone(),
                 field: "defaults.target_window",
                 value: self.defaults.target_window,
+            });
+        }
+        let tm = self.target_monitoring;
+        if !(tm.dwell_s.is_finite()
+            && tm.dwell_s >= 0.0
+            && tm.timeout_s.is_finite()
+            && tm.timeout_s > tm.dwell_s)
+        {
+            return Err(ConfigError::TargetMonitoring {
+                axis: name.clone(),
+                dwell_s: tm.dwell_s,
+                timeout_s: tm.timeout_s,
             });
         }
         if !self.initial_position.is_finite() {
@@ -255,6 +309,19 @@ pub enum ConfigError {
         /// The index given.
         source_index: usize,
     },
+    /// The target monitoring times are not a dwell ≥ 0 below a finite timeout.
+    #[error(
+        "axis {axis}: dwell_s = {dwell_s} and timeout_s = {timeout_s} of target_monitoring \
+         must be finite with 0 <= dwell_s < timeout_s"
+    )]
+    TargetMonitoring {
+        /// Axis name.
+        axis: String,
+        /// Dwell given (s).
+        dwell_s: f64,
+        /// Timeout given (s).
+        timeout_s: f64,
+    },
     /// The cycle time is out of range.
     #[error("cycle time {cycle_s} s is not in [50 µs, 100 ms]")]
     CycleTime {
@@ -274,6 +341,22 @@ pub struct AxisFeedback {
     pub operation_enabled: bool,
     /// The drive reports a fault with this error code.
     pub fault: Option<u16>,
+}
+
+/// What one cycle of target position monitoring found.
+enum SettleStep {
+    /// Not yet in position: go on holding the target.
+    Waiting(motion::Settle),
+    /// In position; `late`: not in the cycle the set value reached the target.
+    Settled {
+        /// The move stood at its target for at least one cycle.
+        late: bool,
+    },
+    /// The timeout expired with the actual here.
+    TimedOut {
+        /// Actual position (axis frame).
+        actual: f64,
+    },
 }
 
 /// Cycles a Reset waits for the drive to clear its fault before it reports failure.
@@ -340,6 +423,8 @@ pub struct Axis {
     actual_v: f64,
     last_tick: u64,
     status: AxisStatus,
+    /// State changes the table refused (a bug if ever non-zero; see [`Axis::enter`]).
+    refused_transitions: u64,
 }
 
 impl Axis {
@@ -371,6 +456,7 @@ impl Axis {
             actual_v: 0.0,
             last_tick: 0,
             status: AxisStatus::default(),
+            refused_transitions: 0,
             cfg,
         };
         axis.normalise_frame();
@@ -397,6 +483,41 @@ impl Axis {
     /// PLCopen state.
     pub fn state(&self) -> AxisState {
         self.state
+    }
+
+    /// State changes the state table refused since the axis was made: 0 unless the
+    /// kernel tried a transition PLCopen's diagram does not have (a kernel bug).
+    pub fn refused_transitions(&self) -> u64 {
+        self.refused_transitions
+    }
+
+    /// Changes the state by applying `event` through the table ([`AxisState::on`]), the
+    /// only way the state changes. A transition the table does not list is refused: the
+    /// state stays, the refusal is counted, and debug builds stop on it (the RT path never
+    /// panics in release). Returns whether the transition was taken.
+    fn enter(&mut self, event: Event) -> bool {
+        match self.state.on(event) {
+            Some(next) => {
+                self.state = next;
+                true
+            }
+            None => {
+                debug_assert!(
+                    false,
+                    "axis {}: PLCopen has no transition from {:?} on {:?}",
+                    self.cfg.name, self.state, event
+                );
+                self.refused_transitions = self.refused_transitions.saturating_add(1);
+                false
+            }
+        }
+    }
+
+    /// Why the axis is in ErrorStop.
+    fn error_summary(&self) -> status::FaultSummary {
+        self.status
+            .error
+            .map_or(status::FaultSummary::Unknown, |f| f.summary())
     }
 
     fn period(&self) -> Option<f64> {
@@ -515,7 +636,7 @@ impl Axis {
                 // until enabled again.
                 self.reset_pending = None;
                 self.powered = false;
-                self.state = AxisState::Disabled;
+                self.enter(Event::Reset { powered: false });
                 self.status.error = None;
                 handles.set(h, CommandStatus::Done);
             } else if self.last_tick.saturating_sub(since) > DRIVE_RESET_TICKS {
@@ -544,9 +665,7 @@ impl Axis {
             if fb.operation_enabled {
                 handles.set(h, CommandStatus::Done);
                 self.enable_handle = None;
-                if self.state == AxisState::Disabled {
-                    self.state = AxisState::Standstill;
-                }
+                self.enter(Event::PoweredOn);
                 // Take over where the drive stands now: the first set value the enabled
                 // drive receives must be its actual position, or it would jump.
                 self.main = KinematicState::at_rest(self.actual_p);
@@ -574,6 +693,47 @@ impl Axis {
                 }
                 return;
             }
+            // Target position monitoring: a PTP whose set value stands at the target is
+            // Done once the actual is in position (a blending successor does not wait).
+            let mut settled_late = false;
+            if let MotionKind::Ptp {
+                target,
+                window,
+                settle,
+            } = m.kind
+            {
+                let blends = self
+                    .queue
+                    .front()
+                    .is_some_and(|q| q.buffer().is_queued() && q.buffer() != BufferMode::Buffered);
+                if self.monitors_target() && !blends {
+                    match self.settle_step(target, window, settle, now, dt) {
+                        SettleStep::Waiting(s) => {
+                            self.main = m.profile.end_state();
+                            if let Some(Motion {
+                                kind: MotionKind::Ptp { settle, .. },
+                                ..
+                            }) = self.motion.as_mut()
+                            {
+                                *settle = s;
+                            }
+                            return;
+                        }
+                        SettleStep::Settled { late } => settled_late = late,
+                        SettleStep::TimedOut { actual } => {
+                            self.main = m.profile.end_state();
+                            let fault = AxisFault::TargetNotReached {
+                                target: self.wrapped(target),
+                                actual: self.wrapped(actual),
+                                window,
+                                timeout_s: self.cfg.target_monitoring.timeout_s,
+                            };
+                            self.fault(fault, handles);
+                            return;
+                        }
+                    }
+                }
+            }
             // The profile ended at `end`; what comes next starts exactly then — or, behind
             // a velocity move whose ramp ended before the next move was queued, from the
             // last cycle's set values.
@@ -585,6 +745,10 @@ impl Axis {
                 end.j = 0.0;
                 end_epoch = motion::Epoch::at(prev);
             }
+            if settled_late {
+                // It stood at the target while it settled: what comes next starts now.
+                end_epoch = motion::Epoch::at(now);
+            }
             self.main = end;
             self.retire(m, handles);
             if let Some(q) = self.queue.pop() {
@@ -594,9 +758,63 @@ impl Axis {
                 }
             } else if self.overlay.is_some() && self.state == AxisState::Standstill {
                 // A superimposed jog still moves the axis.
-                self.state = AxisState::ContinuousMotion;
+                self.enter(Event::ContinuousMotionStarted);
             }
         }
+    }
+
+    /// Whether positioning moves of this axis wait for the actual position.
+    fn monitors_target(&self) -> bool {
+        self.cfg.target_monitoring.enabled && self.cfg.kind.has_feedback()
+    }
+
+    /// |actual − target| (the shorter way round on modulo axes).
+    fn distance_to(&self, target: f64) -> f64 {
+        match self.cfg.mechanics.modulo {
+            Some(m) => m
+                .delta_shortest(m.wrap(target), m.wrap(self.actual_p))
+                .abs(),
+            None => (self.actual_p - target).abs(),
+        }
+    }
+
+    /// A position of the axis frame as the user sees it (within the period on modulo axes).
+    fn wrapped(&self, p: f64) -> f64 {
+        match self.cfg.mechanics.modulo {
+            Some(m) => m.wrap(p),
+            None => p,
+        }
+    }
+
+    /// One cycle of target position monitoring for a PTP whose set value stands at
+    /// `target` (since `settle.since`, or since now).
+    fn settle_step(
+        &self,
+        target: f64,
+        window: f64,
+        settle: motion::Settle,
+        now: u64,
+        dt: f64,
+    ) -> SettleStep {
+        let tm = self.cfg.target_monitoring;
+        let since = settle.since.unwrap_or(now);
+        let in_window_since =
+            (self.distance_to(target) <= window).then(|| settle.in_window_since.unwrap_or(now));
+        // Whole cycles, compared with a margin of a millionth of a cycle so that a dwell
+        // of exactly n cycles takes n cycles despite rounding.
+        let held = |from: u64| now.saturating_sub(from) as f64 * dt >= tm.dwell_s - 1e-6 * dt;
+        if in_window_since.is_some_and(held) {
+            return SettleStep::Settled { late: now > since };
+        }
+        if now.saturating_sub(since) as f64 * dt >= tm.timeout_s - 1e-6 * dt {
+            return SettleStep::TimedOut {
+                actual: self.actual_p,
+            };
+        }
+        SettleStep::Waiting(motion::Settle {
+            since: Some(since),
+            in_window_since,
+        })
     }
 
     /// A velocity move past its ramp: restart its profile from the current state so
@@ -620,8 +838,8 @@ impl Axis {
         match m.kind {
             MotionKind::Ptp { .. } | MotionKind::Halt { .. } => {
                 handles.set(m.handle, CommandStatus::Done);
-                if self.queue.is_empty() && self.state != AxisState::ErrorStop {
-                    self.state = AxisState::Standstill;
+                if self.queue.is_empty() {
+                    self.enter(Event::MotionDone);
                 }
             }
             MotionKind::Velocity { .. } | MotionKind::Jog => {
@@ -632,7 +850,7 @@ impl Axis {
                 handles.set(m.handle, CommandStatus::Done);
                 if self.release_pending {
                     self.release_pending = false;
-                    self.state = AxisState::Standstill;
+                    self.enter(Event::Released);
                 }
             }
             MotionKind::QuickStop | MotionKind::Disable => {
@@ -650,9 +868,7 @@ impl Axis {
     fn power_off(&mut self, handles: &mut HandleTable) {
         self.abort_all(handles, CommandStatus::Aborted);
         self.powered = false;
-        if self.state != AxisState::ErrorStop {
-            self.state = AxisState::Disabled;
-        }
+        self.enter(Event::PoweredOff);
     }
 
     /// Ends the running motion, the overlay and the queue with `status`.
@@ -683,6 +899,18 @@ impl Axis {
     fn fault(&mut self, fault: AxisFault, handles: &mut HandleTable) {
         let err = match fault {
             AxisFault::Command(e) => e,
+            AxisFault::TargetNotReached {
+                target,
+                actual,
+                window,
+                timeout_s,
+            } => CommandError::TargetNotReached {
+                command: self.motion.map(|m| m.command).unwrap_or("MovePtp"),
+                target,
+                actual,
+                window,
+                timeout_s,
+            },
             _ => CommandError::AxisFault {
                 command: self.motion.map(|m| m.command).unwrap_or("no command"),
             },
@@ -696,8 +924,20 @@ impl Axis {
         }
         self.queue
             .drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
-        self.state = AxisState::ErrorStop;
+        self.enter(Event::Error);
         self.status.error = Some(fault);
+        if let Some(h) = self.enable_handle.take() {
+            // The drive will not come on now: the enable ends here, not after a timeout.
+            handles.set(
+                h,
+                CommandStatus::Error(CommandError::InErrorStop {
+                    command: "Power.Enable",
+                    cause: fault.summary(),
+                }),
+            );
+        }
+        // A Release given during an MC_Stop does not carry over: only Reset leaves ErrorStop.
+        self.release_pending = false;
         // Decelerate to a stop with the axis' maximum deceleration.
         let _ = self.start_stop_motion(
             MotionKind::Stop,
@@ -791,13 +1031,9 @@ impl Axis {
             Some(m) => m.wrap(t),
             None => t,
         });
-        let in_window = self.last_target.is_some_and(|t| {
-            let d = match self.cfg.mechanics.modulo {
-                Some(m) => m.delta_shortest(m.wrap(t), m.wrap(self.actual_p)),
-                None => self.actual_p - t,
-            };
-            d.abs() <= self.last_window
-        });
+        let in_window = self
+            .last_target
+            .is_some_and(|t| self.distance_to(t) <= self.last_window);
         let continuous_jog = self
             .motion
             .is_some_and(|m| matches!(m.kind, MotionKind::Jog));

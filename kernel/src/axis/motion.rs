@@ -70,6 +70,8 @@ pub enum MotionKind {
         target: f64,
         /// Target window (units).
         window: f64,
+        /// Target position monitoring once the set value stands at the target.
+        settle: Settle,
     },
     /// Constant velocity (MoveVelocity).
     Velocity {
@@ -102,6 +104,17 @@ impl MotionKind {
     pub const fn is_continuous(&self) -> bool {
         !self.is_finite()
     }
+}
+
+/// Target position monitoring of a PTP move whose set value has reached its target (the
+/// move is then settling: Done once the actual has stayed in the window for the dwell).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Settle {
+    /// The first cycle the set value stood at the target (`None`: still on its way).
+    pub since: Option<u64>,
+    /// The first cycle of the current unbroken run of cycles with the actual position in
+    /// the target window (`None`: outside it).
+    pub in_window_since: Option<u64>,
 }
 
 /// A running motion: a planned profile, when it started, and the command it serves.

@@ -1,7 +1,9 @@
 //! The PLCopen axis state machine (PLCopen Motion Control Part 1, "State diagram").
 //!
-//! One table says which command each state accepts ([`accepts`]); the axis moves between
-//! states only through [`AxisState::after`], so the whole diagram is in this file.
+//! Two tables say all of it: [`accepts`] which command each state takes, and
+//! [`AxisState::on`] where each [`Event`] leads. The axis changes its state only by
+//! applying an event through [`AxisState::on`] (`Axis::enter`), so the whole diagram is in
+//! this file; a transition the table does not list is refused, not taken.
 
 use super::command::{Command, PowerCommand};
 
@@ -47,28 +49,65 @@ impl AxisState {
         }
     }
 
-    /// The state an accepted command leads to (motion commands: the state while they run).
-    /// `None`: the command does not change the state by itself.
-    pub const fn after(self, cmd: &Command) -> Option<AxisState> {
-        match cmd {
-            Command::Power(PowerCommand::Enable) => match self {
-                AxisState::Disabled => Some(AxisState::Standstill),
-                _ => None,
-            },
-            Command::Power(PowerCommand::DisableForced) => Some(AxisState::Disabled),
-            Command::Power(PowerCommand::Disable) => None,
-            Command::Reset => None,
-            Command::MovePtp(_) | Command::Halt { .. } => Some(AxisState::DiscreteMotion),
-            Command::MoveVelocity(_) | Command::Jog(_) | Command::Reverse => {
-                Some(AxisState::ContinuousMotion)
+    /// The state `event` leads to from this one; `None`: the diagram has no such
+    /// transition (the caller keeps the state and flags it).
+    ///
+    /// Only Reset leaves ErrorStop (PLCopen: "ErrorStop → Reset → Standstill or
+    /// Disabled"): powering off, braking and a move ending keep the axis there.
+    pub const fn on(self, event: Event) -> Option<AxisState> {
+        use AxisState as S;
+        match (self, event) {
+            (S::ErrorStop, Event::Reset { powered: true }) => Some(S::Standstill),
+            (S::ErrorStop, Event::Reset { powered: false }) => Some(S::Disabled),
+            (_, Event::Reset { .. }) => None,
+            (_, Event::Error) => Some(S::ErrorStop),
+            (S::ErrorStop, Event::PoweredOff | Event::StopStarted | Event::MotionDone) => {
+                Some(S::ErrorStop)
             }
-            Command::Stop { .. } | Command::QuickStop => Some(AxisState::Stopping),
-            Command::Change(..)
-            | Command::Release
-            | Command::SetPosition { .. }
-            | Command::SetHomed(_) => None,
+            (S::ErrorStop, _) => None,
+            (_, Event::PoweredOff) => Some(S::Disabled),
+            (S::Disabled, Event::PoweredOn) => Some(S::Standstill),
+            (S::Disabled, _) => None,
+            // Power on while on: MC_Power is level-triggered, nothing changes.
+            (S::Stopping, Event::PoweredOn) => None,
+            (s, Event::PoweredOn) => Some(s),
+            (_, Event::StopStarted) => Some(S::Stopping),
+            (S::Stopping, Event::Released) => Some(S::Standstill),
+            (_, Event::Released) => None,
+            (S::Stopping, _) => None,
+            (_, Event::DiscreteMotionStarted) => Some(S::DiscreteMotion),
+            (_, Event::ContinuousMotionStarted) => Some(S::ContinuousMotion),
+            (S::DiscreteMotion, Event::MotionDone) => Some(S::Standstill),
+            (_, Event::MotionDone) => None,
         }
     }
+}
+
+/// What makes an axis change its state (the arcs of PLCopen's diagram).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Event {
+    /// The drive is on (a real axis: its drive reports Operation enabled).
+    PoweredOn,
+    /// Power is off (MC_Power off, forced, or at the end of a quick stop).
+    PoweredOff,
+    /// A move with an end starts (MovePtp, Halt).
+    DiscreteMotionStarted,
+    /// A move without an end starts (MoveVelocity, Jog, or a superimposed jog that still
+    /// moves the axis after the move under it ended).
+    ContinuousMotionStarted,
+    /// Braking that locks the axis starts (MC_Stop, QuickStop, power off while moving).
+    StopStarted,
+    /// A move with an end is done and nothing waits behind it.
+    MotionDone,
+    /// MC_Stop's Execute fell after the axis stood still.
+    Released,
+    /// An error: a drive fault, a failed command, a software limit, a target not reached.
+    Error,
+    /// MC_Reset acknowledged the error; `powered` says whether the drive is still on.
+    Reset {
+        /// The drive is on: the axis goes to Standstill, else to Disabled.
+        powered: bool,
+    },
 }
 
 /// Whether `state` accepts `cmd` (PLCopen's diagram; unlisted pairs are refused).
@@ -178,13 +217,41 @@ mod tests {
     }
 
     #[test]
-    fn forced_disable_is_accepted_everywhere() {
+    fn forced_disable_is_accepted_everywhere_and_only_reset_leaves_error_stop() {
         for s in ALL {
             assert!(accepts(s, &Command::Power(PowerCommand::DisableForced)));
-            assert_eq!(
-                s.after(&Command::Power(PowerCommand::DisableForced)),
-                Some(AxisState::Disabled)
-            );
+            let expected = if s == AxisState::ErrorStop {
+                AxisState::ErrorStop
+            } else {
+                AxisState::Disabled
+            };
+            assert_eq!(s.on(Event::PoweredOff), Some(expected), "{s:?}");
+        }
+        assert_eq!(
+            AxisState::ErrorStop.on(Event::Reset { powered: false }),
+            Some(AxisState::Disabled)
+        );
+        assert_eq!(
+            AxisState::ErrorStop.on(Event::Reset { powered: true }),
+            Some(AxisState::Standstill)
+        );
+        for e in [
+            Event::PoweredOn,
+            Event::DiscreteMotionStarted,
+            Event::ContinuousMotionStarted,
+            Event::Released,
+        ] {
+            assert_eq!(AxisState::ErrorStop.on(e), None, "{e:?}");
+        }
+    }
+
+    #[test]
+    fn every_state_goes_to_error_stop_on_an_error_and_reset_is_only_for_error_stop() {
+        for s in ALL {
+            assert_eq!(s.on(Event::Error), Some(AxisState::ErrorStop));
+            if s != AxisState::ErrorStop {
+                assert_eq!(s.on(Event::Reset { powered: true }), None, "{s:?}");
+            }
         }
     }
 
@@ -201,14 +268,30 @@ mod tests {
     }
 
     #[test]
-    fn motion_commands_lead_to_motion_states() {
+    fn motion_events_lead_to_motion_states_and_back() {
+        let s = AxisState::Standstill;
         assert_eq!(
-            AxisState::Standstill.after(&ptp()),
+            s.on(Event::DiscreteMotionStarted),
             Some(AxisState::DiscreteMotion)
         );
         assert_eq!(
-            AxisState::Standstill.after(&Command::Stop { deceleration: None }),
-            Some(AxisState::Stopping)
+            AxisState::DiscreteMotion.on(Event::MotionDone),
+            Some(AxisState::Standstill)
+        );
+        assert_eq!(s.on(Event::StopStarted), Some(AxisState::Stopping));
+        assert_eq!(
+            AxisState::Stopping.on(Event::DiscreteMotionStarted),
+            None,
+            "Stopping locks out motion until Release"
+        );
+        assert_eq!(
+            AxisState::Stopping.on(Event::Released),
+            Some(AxisState::Standstill)
+        );
+        assert_eq!(AxisState::Disabled.on(Event::DiscreteMotionStarted), None);
+        assert_eq!(
+            AxisState::Disabled.on(Event::PoweredOn),
+            Some(AxisState::Standstill)
         );
     }
 }

@@ -65,7 +65,9 @@ pub struct StatusBits {
     pub stopping: bool,
     /// The position is referenced.
     pub homed: bool,
-    /// The actual position is within the target window of the last PTP target.
+    /// The actual position is within the target window of the last PTP target (TwinCAT's
+    /// InPositionArea). With target position monitoring a PTP is Done once this has held
+    /// for the dwell time after the set value reached the target.
     pub in_target_window: bool,
     /// |set velocity| exceeds the configured maximum speed (e.g. a superimposed jog).
     pub max_speed_exceeded: bool,
@@ -113,6 +115,18 @@ pub enum AxisFault {
         /// The window (units).
         window: f64,
     },
+    /// Target position monitoring: a positioning move's actual position did not settle in
+    /// its target window within the timeout.
+    TargetNotReached {
+        /// The target (units).
+        target: f64,
+        /// The actual position at the timeout (units).
+        actual: f64,
+        /// The target window (units).
+        window: f64,
+        /// The timeout (s).
+        timeout_s: f64,
+    },
     /// The set position reached a software limit during a continuous move.
     SoftwareLimit {
         /// The limit that was reached (units).
@@ -131,6 +145,100 @@ impl core::fmt::Display for AxisFault {
             AxisFault::SoftwareLimit { limit } => {
                 write!(f, "software limit {limit} reached")
             }
+            AxisFault::TargetNotReached { .. } => write!(f, "{}", self.summary()),
+        }
+    }
+}
+
+impl AxisFault {
+    /// The fault without the failed command's own error (a [`CommandError`] cannot hold
+    /// another one): what a command refused in ErrorStop names.
+    pub const fn summary(&self) -> FaultSummary {
+        match *self {
+            AxisFault::Command(e) => FaultSummary::Command {
+                command: e.command(),
+            },
+            AxisFault::Drive { code } => FaultSummary::Drive { code },
+            AxisFault::FollowingError { error, window } => {
+                FaultSummary::FollowingError { error, window }
+            }
+            AxisFault::SoftwareLimit { limit } => FaultSummary::SoftwareLimit { limit },
+            AxisFault::TargetNotReached {
+                target,
+                actual,
+                window,
+                timeout_s,
+            } => FaultSummary::TargetNotReached {
+                target,
+                actual,
+                window,
+                timeout_s,
+            },
+        }
+    }
+}
+
+/// Why an axis is in ErrorStop, as a command refused there reports it ([`AxisFault`] with
+/// the failed command named instead of its error).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FaultSummary {
+    /// A command failed while it ran (`gantry status` shows its error).
+    Command {
+        /// The command's name.
+        command: &'static str,
+    },
+    /// The drive reported a fault.
+    Drive {
+        /// CiA-402 error code (0x603F).
+        code: u16,
+    },
+    /// The following error exceeded its window.
+    FollowingError {
+        /// |set − actual| (units).
+        error: f64,
+        /// The window (units).
+        window: f64,
+    },
+    /// The set position reached a software limit.
+    SoftwareLimit {
+        /// The limit (units).
+        limit: f64,
+    },
+    /// A positioning move did not settle in its target window in time.
+    TargetNotReached {
+        /// The target (units).
+        target: f64,
+        /// The actual position at the timeout (units).
+        actual: f64,
+        /// The target window (units).
+        window: f64,
+        /// The timeout (s).
+        timeout_s: f64,
+    },
+    /// No error is recorded.
+    Unknown,
+}
+
+impl core::fmt::Display for FaultSummary {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            FaultSummary::Command { command } => write!(f, "{command} failed"),
+            FaultSummary::Drive { code } => write!(f, "drive fault, error code 0x{code:04X}"),
+            FaultSummary::FollowingError { error, window } => {
+                write!(f, "following error {error} exceeds window {window}")
+            }
+            FaultSummary::SoftwareLimit { limit } => write!(f, "software limit {limit} reached"),
+            FaultSummary::TargetNotReached {
+                target,
+                actual,
+                window,
+                timeout_s,
+            } => write!(
+                f,
+                "target {target} not reached: actual {actual} not settled within ±{window} \
+                 {timeout_s} s after the set value reached it"
+            ),
+            FaultSummary::Unknown => write!(f, "no error recorded"),
         }
     }
 }

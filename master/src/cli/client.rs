@@ -52,6 +52,10 @@ pub enum ClientError {
     /// The command ended in error.
     #[error("{0}")]
     Failed(String),
+    /// The command ended in error, and the text already says why the axis stopped (a
+    /// refusal in ErrorStop names the axis' error).
+    #[error("{0}")]
+    Explained(String),
 }
 
 /// A connection to the service.
@@ -112,6 +116,11 @@ impl Client {
                     }
                     return match status["status"].as_str() {
                         Some("Done") => Ok(status),
+                        Some("Error") if status["names_cause"] == json!(true) => {
+                            Err(ClientError::Explained(
+                                status["error"].as_str().unwrap_or("error").to_string(),
+                            ))
+                        }
                         Some("Error") => Err(ClientError::Failed(
                             status["error"].as_str().unwrap_or("error").to_string(),
                         )),
@@ -336,8 +345,8 @@ pub fn command(
     let status = client.request(&Request::Status)?;
     let entry = axis_of(&status, axis);
     let position = entry.and_then(|a| a["position"].as_f64());
-    // Where the command put the axis: the set position (a move's target when it is done);
-    // the actual may still be settling into the target window behind it.
+    // Where the command put the axis: the set position (a move's target when it is done;
+    // with target monitoring off the actual may still be settling behind it).
     let set_position = entry.and_then(|a| a["set_position"].as_f64());
     match result {
         Ok(_) => {
@@ -362,10 +371,22 @@ pub fn command(
                 } else {
                     String::new()
                 };
-                writeln!(out, "{axis}: {} {set:.3} {units}{settling}", outcome(cmd)).map_err(io)?;
+                let state = entry.and_then(|a| a["state"].as_str()).unwrap_or("");
+                let after = if cmd == "reset" {
+                    after_reset(axis, state)
+                } else {
+                    String::new()
+                };
+                writeln!(
+                    out,
+                    "{axis}: {} {set:.3} {units}{settling}{after}",
+                    outcome(cmd)
+                )
+                .map_err(io)?;
             }
             Ok(())
         }
+        Err(ClientError::Explained(e)) => Err(ClientError::Failed(format!("{axis}: {e}"))),
         Err(e) => {
             // Say why, when the axis knows (a drive fault, the bus).
             let why = entry
@@ -374,6 +395,17 @@ pub fn command(
                 .unwrap_or_default();
             Err(ClientError::Failed(format!("{axis}: {e}{why}")))
         }
+    }
+}
+
+/// What a reset left the axis in, in words (PLCopen MC_Reset: Standstill when its drive's
+/// power is on, Disabled when it is off — see `Engine::reset`).
+fn after_reset(axis: &str, state: &str) -> String {
+    match state {
+        "Standstill" => ", Standstill (its drive is powered)".into(),
+        "Disabled" => format!(", Disabled (its drive's power is off: `gantry enable {axis}`)"),
+        "" => String::new(),
+        other => format!(", {other}"),
     }
 }
 

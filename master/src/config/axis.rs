@@ -42,6 +42,10 @@ pub struct AxisSection {
     /// Absolute moves need a homed axis.
     #[serde(default = "yes")]
     pub homing_required: bool,
+    /// When a move is Done: once the drive is in position (default), or as soon as the
+    /// set value reaches the target.
+    #[serde(default)]
+    pub target_monitoring: TargetMonitoringSection,
     /// Process data layout the drive is mapped to: `"csp"` (with velocity, torque, error
     /// code) or `"csp-minimal"` (controlword/target, statusword/actual).
     #[serde(default = "csp")]
@@ -118,6 +122,21 @@ pub struct DefaultsSection {
     pub ramp: Option<String>,
     /// In-position window (units).
     pub target_window: Option<f64>,
+}
+
+/// `[axis.target_monitoring]`: a positioning move is Done once the actual position has
+/// stayed inside the target window (`defaults.target_window`, or the move's own) for
+/// `dwell_s` after the set value reached the target; `timeout_s` after that without it, the
+/// move fails and the axis goes to ErrorStop (TwinCAT's target position monitoring).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TargetMonitoringSection {
+    /// Default true.
+    pub enabled: Option<bool>,
+    /// Seconds the actual must stay in the window (default 0.02).
+    pub dwell_s: Option<f64>,
+    /// Seconds after the set value reached the target before the move fails (default 5).
+    pub timeout_s: Option<f64>,
 }
 
 impl AxisSection {
@@ -207,12 +226,17 @@ impl AxisSection {
         }
         c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
         c.homing_required = self.homing_required;
+        let tm = self.target_monitoring;
+        c.target_monitoring.enabled = tm.enabled.unwrap_or(c.target_monitoring.enabled);
+        c.target_monitoring.dwell_s = tm.dwell_s.unwrap_or(c.target_monitoring.dwell_s);
+        c.target_monitoring.timeout_s = tm.timeout_s.unwrap_or(c.target_monitoring.timeout_s);
         c.validate().map_err(|e| {
             use gantry_kernel::axis::ConfigError as K;
             match &e {
                 K::NotPositive { field, .. } | K::AboveMax { field, .. } => {
                     (field.to_string(), kernel_reason(&e))
                 }
+                K::TargetMonitoring { .. } => ("target_monitoring".into(), kernel_reason(&e)),
                 _ => ("mechanics".into(), kernel_reason(&e)),
             }
         })?;

@@ -16,6 +16,11 @@ pub struct BusSection {
     pub simulator: Option<String>,
     /// Cycle time (µs), 250 to 4000.
     pub cycle_us: u32,
+    /// With `simulator`: when gantry exits, write what each simulated drive saw of the
+    /// setpoints it took here (JSON, as `gantry-sim --record` writes it), so that a run on
+    /// the simulator can be judged afterwards (see `crate::drive_records`).
+    #[serde(default)]
+    pub simulator_record: Option<String>,
     /// Write every frame to this pcap file.
     #[serde(default)]
     pub pcap: Option<String>,
@@ -78,6 +83,14 @@ impl BusSection {
                     .into(),
             )),
             _ => {}
+        }
+        if self.simulator_record.is_some() && self.simulator.is_none() {
+            return Err((
+                "simulator_record".into(),
+                "records what simulated drives saw: give it with simulator = \"sim.toml\", \
+                 not with a network interface (gantry-sim --record FILE records its own drives)"
+                    .into(),
+            ));
         }
         if !(250..=4000).contains(&self.cycle_us) {
             return Err((

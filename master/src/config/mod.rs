@@ -54,9 +54,13 @@ impl Config {
         let dir = std::path::Path::new(path)
             .parent()
             .unwrap_or(std::path::Path::new(""));
-        for file in [&mut config.bus.simulator, &mut config.bus.pcap]
-            .into_iter()
-            .flatten()
+        for file in [
+            &mut config.bus.simulator,
+            &mut config.bus.simulator_record,
+            &mut config.bus.pcap,
+        ]
+        .into_iter()
+        .flatten()
         {
             if std::path::Path::new(file.as_str()).is_relative() {
                 *file = dir.join(&*file).display().to_string();

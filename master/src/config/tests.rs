@@ -29,6 +29,26 @@ fn line_of(needle: &str) -> usize {
 }
 
 #[test]
+fn the_simulator_record_is_relative_to_the_configuration() {
+    let dir = std::env::temp_dir().join(format!("gantry-config-record-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let example = include_str!("../../../deploy/examples/sim-4-axes.toml");
+    assert!(example.contains("# simulator_record = \"drive-records.json\""));
+    let text = example.replace(
+        "# simulator_record = \"drive-records.json\"",
+        "simulator_record = \"drive-records.json\"",
+    );
+    let path = dir.join("g.toml");
+    std::fs::write(&path, text).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        c.bus.simulator_record,
+        Some(dir.join("drive-records.json").display().to_string())
+    );
+}
+
+#[test]
 fn every_mistake_names_file_line_key_and_reason() {
     // Unknown key: its own line.
     let l = line_of("lock_memory = true");
@@ -75,6 +95,20 @@ fn every_mistake_names_file_line_key_and_reason() {
         "units_per_load_rev = 0.0",
     );
     assert!(e.contains("axis[0].scaling:"), "{e}");
+    // Records of simulated drives on a real network.
+    let l = line_of("cycle_us = 1000");
+    let e = mistake(
+        "cycle_us = 1000",
+        "cycle_us = 1000\nsimulator_record = \"r.json\"",
+    );
+    assert!(
+        e.starts_with(&format!(
+            "g.toml:{}: bus.simulator_record: records what simulated drives saw: give it with \
+             simulator = \"sim.toml\"",
+            l + 1
+        )),
+        "{e}"
+    );
     // Both interface and simulator.
     let e = mistake(
         "cycle_us = 1000",
@@ -82,6 +116,30 @@ fn every_mistake_names_file_line_key_and_reason() {
     );
     assert!(
         e.contains("bus.simulator: give either interface or simulator, not both"),
+        "{e}"
+    );
+}
+
+#[test]
+fn target_monitoring_is_read_defaults_to_on_and_its_mistakes_are_named() {
+    let c = Config::parse(EXAMPLE, "veth-4-axes.toml").unwrap();
+    let x = c.kernel_axes[0].target_monitoring;
+    assert!(x.enabled);
+    assert_eq!((x.dwell_s, x.timeout_s), (0.02, 5.0));
+    // y gives no section: on, with the kernel's defaults.
+    assert_eq!(
+        c.kernel_axes[1].target_monitoring,
+        gantry_kernel::axis::TargetMonitoring::new(true)
+    );
+    let off = Config::parse(
+        &EXAMPLE.replacen("enabled = true ", "enabled = false", 1),
+        "g.toml",
+    )
+    .unwrap();
+    assert!(!off.kernel_axes[0].target_monitoring.enabled);
+    let e = mistake("dwell_s = 0.02 ", "dwell_s = 5.0  ");
+    assert!(
+        e.contains("axis[0].target_monitoring: dwell_s = 5 and timeout_s = 5"),
         "{e}"
     );
 }

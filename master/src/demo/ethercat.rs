@@ -16,9 +16,10 @@ use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_sim::catalog::{self, ServoOptions};
 use gantry_sim::chain::SlaveChain;
-use gantry_sim::plant::record::{max_step_counts, DriveRecord, Expectation};
+use gantry_sim::plant::record::{write_records, DriveRecord};
 
 use super::{DemoArgs, DemoError, DemoReport};
+use crate::drive_records::{judge, AxisBound, Conditions};
 use crate::ethercat::cycle::CspCycle;
 use crate::ethercat::cyclic::CspChannel;
 use crate::ethercat::embedded::EmbeddedBus;
@@ -274,7 +275,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
                             command: String::new(),
                             error: status
                                 .error
-                                .map(|e| gantry_drives::cia402::error_code::describe_fault(&e))
+                                .map(|e| crate::axis_fault::describe_fault(&e))
                                 .unwrap_or_default(),
                         }
                     })
@@ -307,12 +308,8 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     });
     let frames = bus.stop();
     result?;
-    let records: Vec<Option<DriveRecord>> = match chain.lock() {
-        Ok(c) => c
-            .slaves()
-            .iter()
-            .map(|s| s.device().record().copied())
-            .collect(),
+    let records = match chain.lock() {
+        Ok(c) => c.records(),
         Err(_) => return Err(DemoError::Network("the simulated chain is poisoned")),
     };
     check_drive_invariant(&records, &names, &cycle, dt, out)?;
@@ -325,12 +322,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         source,
     })?;
     // What the drives recorded, for whoever wants to judge the run again.
-    let records_path = args.out.join("drive-records.json");
-    let json = serde_json::to_string_pretty(&records).map_err(DemoError::Records)?;
-    std::fs::write(&records_path, json).map_err(|source| DemoError::Io {
-        path: records_path.display().to_string(),
-        source,
-    })?;
+    write_records(&args.out.join("drive-records.json"), &records)?;
     let csv = args.out.join("ethercat-trace.csv");
     let svg = args.out.join("ethercat-plot.svg");
     trace.write_csv(&csv)?;
@@ -363,38 +355,42 @@ fn check_drive_invariant(
     dt: f64,
     out: &mut impl Write,
 ) -> Result<(), DemoError> {
-    let mut broken = Vec::new();
-    let mut summary = Vec::new();
-    for (i, name) in names.iter().enumerate() {
-        let (Some(Some(record)), Some(channel), Some(axis)) =
-            (records.get(i), cycle.channel(i), cycle.kernel.axes().get(i))
-        else {
-            broken.push(format!("{name}: drive {i} kept no record"));
-            continue;
-        };
-        let expect = Expectation {
-            max_step_counts: max_step_counts(
-                channel.scaling.velocity_to_counts(axis.config().max.vmax),
+    let bounds: Vec<AxisBound> = names
+        .iter()
+        .enumerate()
+        .filter_map(|(i, name)| {
+            let (channel, axis) = (cycle.channel(i)?, cycle.kernel.axes().get(i)?);
+            Some(AxisBound::new(
+                name,
+                i,
+                &channel.scaling,
+                axis.config().max.vmax,
                 dt,
-            ),
+            ))
+        })
+        .collect();
+    if bounds.len() != names.len() {
+        return Err(DemoError::Invariant(format!(
+            "{} axes, {} drives in the cycle",
+            names.len(),
+            bounds.len()
+        )));
+    }
+    let verdict = judge(
+        records,
+        &bounds,
+        Conditions {
             injects_following_error: false,
             phase_locked: true,
-        };
-        summary.push(format!(
-            "{name} {} counts (bound {})",
-            record.max_target_step_counts, expect.max_step_counts
-        ));
-        if let Err(v) = record.check(&expect) {
-            broken.push(format!("{name} (drive {i}): {v}"));
-        }
-    }
-    if !broken.is_empty() {
-        return Err(DemoError::Invariant(broken.join("; ")));
+        },
+    );
+    if !verdict.holds() {
+        return Err(DemoError::Invariant(verdict.broken.join("; ")));
     }
     let _ = writeln!(
         out,
-        ">> drive invariant holds: largest target step {}; no following-error fault, no missed or doubled setpoint",
-        summary.join(", ")
+        ">> drive invariant holds: no following-error fault, no missed or doubled setpoint; {}",
+        verdict.summary.join("; ")
     );
     Ok(())
 }
@@ -429,9 +425,11 @@ mod tests {
         step.target(6554 + 6555);
         let mut text = Vec::new();
         check_drive_invariant(&[Some(ok), Some(ok)], &["x", "y"], &cycle, 1e-3, &mut text).unwrap();
-        assert!(String::from_utf8(text)
-            .unwrap()
-            .contains("largest target step x 6554 counts (bound 6554)"));
+        let text = String::from_utf8(text).unwrap();
+        assert!(
+            text.contains("x: largest target step 6554 counts (bound 6554), 2 targets"),
+            "{text}"
+        );
         let e = check_drive_invariant(
             &[Some(ok), Some(step)],
             &["x", "y"],
@@ -440,13 +438,19 @@ mod tests {
             &mut Vec::new(),
         )
         .unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "drive invariant broken: y (drive 1): target stepped 6555 counts in one cycle at \
-             target #2; vmax · T + 1 count is 6554"
+        assert!(
+            e.to_string().starts_with(
+                "drive invariant broken: axis y (drive 1): target stepped 6555 counts in one \
+                 cycle at target #2; vmax · T + 1 count is 6554; DriveRecord {"
+            ),
+            "{e}"
         );
         let e = check_drive_invariant(&[Some(ok)], &["x", "y"], &cycle, 1e-3, &mut Vec::new())
             .unwrap_err();
-        assert!(e.to_string().contains("y: drive 1 kept no record"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("axis y (drive 1): no drive record at that chain position"),
+            "{e}"
+        );
     }
 }

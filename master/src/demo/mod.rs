@@ -105,9 +105,9 @@ pub enum DemoError {
     /// The demo's in-process network cannot run.
     #[error("EtherCAT: {0}")]
     Network(&'static str),
-    /// The drives' records could not be written as JSON.
-    #[error("the drive records")]
-    Records(#[source] serde_json::Error),
+    /// The drives' records could not be written.
+    #[error(transparent)]
+    Records(#[from] gantry_sim::plant::record::RecordsFileError),
     /// A simulated drive saw the master break the drive invariant (issue 10 §6): a target
     /// step beyond `vmax · T`, a following-error fault, a missed or doubled setpoint.
     #[error("drive invariant broken: {0}")]

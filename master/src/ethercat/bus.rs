@@ -4,7 +4,7 @@
 
 use std::io::Write;
 use std::sync::atomic::AtomicU64;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use super::transition;
@@ -21,12 +21,12 @@ use thiserror::Error;
 use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
-use super::embedded::EmbeddedBus;
+use super::embedded::SimWire;
 use super::frame::{self, ProcessImage};
 use super::health::{BusHealth, Exchange, HealthConfig};
+use super::link::{FrameIo, Link};
 use super::mapping::map_pdos;
-use super::pump::FrameGate;
-use super::raw::RawBus;
+use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
 use crate::pcap::PcapWriter;
@@ -184,12 +184,6 @@ impl StartError {
     }
 }
 
-/// What keeps the frames flowing.
-enum Link {
-    Raw(RawBus),
-    Embedded(EmbeddedBus),
-}
-
 /// The EtherCAT bus in OP.
 pub struct EthercatBus {
     md: MainDevice<'static>,
@@ -202,16 +196,16 @@ pub struct EthercatBus {
     sync0_ns: u64,
     /// The process data as the wire carries it (the cycle reads and writes it).
     image: ProcessImage,
-    /// Held while the cycle queues its frames, so that they go as one.
-    gate: FrameGate,
     /// What the cycle sent.
     frame_stats: FrameStats,
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
-    link: Option<Link>,
-    /// The pump's count of replies (bring-up and shutdown watch it for silence).
+    /// The in-process simulator's chain, when the link is the wire to it.
+    chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
+    /// Replies handed back so far (bring-up and shutdown watch it for silence).
     replies: Arc<AtomicU64>,
-    /// Runs ethercrab's futures in the cycle thread without a lock.
+    /// Runs ethercrab's futures in the cycle thread without a lock, and exchanges their
+    /// frames on the link.
     runner: BlockOn,
     /// The slave being brought back to OP: the axis that asked, and the machine.
     recovery: Option<(usize, Recovery)>,
@@ -240,7 +234,7 @@ impl EthercatBus {
     /// The steps run in a short-lived thread of their own with a large stack
     /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
     /// stack per level in debug builds), started from the calling thread so that it — and
-    /// the frame pump it starts — inherit the caller's scheduling and CPU.
+    /// the simulator's thread it may start — inherit the caller's scheduling and CPU.
     pub fn bring_up(
         config: &Config,
         out: &mut (dyn Write + Send),
@@ -267,29 +261,35 @@ impl EthercatBus {
         let (tx, rx, pdu_loop) = PDU_STORAGE
             .try_split()
             .map_err(|_| StartError::NoLink("the EtherCAT bus can start once per process"))?;
-        let link = match (&config.bus.interface, &config.bus.simulator) {
-            (Some(interface), _) => Link::Raw(
-                RawBus::open(interface, tx, rx, capture)
-                    .map_err(|e| StartError::link(format!("interface {interface}"))(e.into()))?,
-            ),
-            (None, Some(sim)) => {
-                let sim = SimConfig::load(sim)
-                    .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
-                let chain = sim
-                    .chain()
-                    .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
-                let period = Duration::from_micros(u64::from(sim.cycle_us));
-                Link::Embedded(EmbeddedBus::start_realtime(tx, rx, chain, capture, period))
-            }
-            (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
-        };
-        let (replies, gate) = match &link {
-            Link::Raw(r) => (r.replies(), r.gate()),
-            Link::Embedded(e) => (e.replies(), e.gate()),
-        };
+        // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
+        // the in-process simulator's thread.
+        let (link, chain): (Box<dyn Link>, _) =
+            match (&config.bus.interface, &config.bus.simulator) {
+                (Some(interface), _) => (
+                    Box::new(RawLink::open(interface).map_err(|e| {
+                        StartError::link(format!("interface {interface}"))(e.into())
+                    })?),
+                    None,
+                ),
+                (None, Some(sim)) => {
+                    let sim = SimConfig::load(sim)
+                        .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
+                    let chain = sim
+                        .chain()
+                        .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
+                    let chain = Arc::new(Mutex::new(chain));
+                    let period = Duration::from_micros(u64::from(sim.cycle_us));
+                    let wire = SimWire::start(chain.clone(), period)
+                        .map_err(|e| StartError::link("the simulator's thread")(e.into()))?;
+                    (Box::new(wire), Some(chain))
+                }
+                (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
+            };
+        let io = FrameIo::new(tx, rx, link, capture);
+        let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
         let runner =
-            BlockOn::new().map_err(|e| StartError::link("the cycle's eventfd")(e.into()))?;
+            BlockOn::with_io(io).map_err(|e| StartError::link("the cycle's eventfd")(e.into()))?;
         // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
         let silence = BRING_UP_SILENCE_NS;
         let group = runner
@@ -427,11 +427,10 @@ impl EthercatBus {
                 dc_reference,
                 sync0_ns: u64::from(config.bus.cycle_us) * 1000,
                 image,
-                gate,
                 frame_stats: FrameStats::default(),
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
-                link: Some(link),
+                chain,
                 replies,
                 runner,
                 recovery: None,
@@ -444,7 +443,7 @@ impl EthercatBus {
     }
 
     /// Replies the slaves sent back so far (every frame: process data, register
-    /// accesses), as the pump counted them.
+    /// accesses).
     pub fn replies(&self) -> u64 {
         self.replies.load(std::sync::atomic::Ordering::Acquire)
     }
@@ -479,10 +478,7 @@ impl EthercatBus {
     pub fn simulated_chain(
         &self,
     ) -> Option<std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>> {
-        match &self.link {
-            Some(Link::Embedded(e)) => Some(e.chain.clone()),
-            _ => None,
-        }
+        self.chain.clone()
     }
 
     /// Takes the slaves down to PreOp and stops the link.
@@ -525,51 +521,8 @@ impl EthercatBus {
                 let _ = writeln!(out, "bus: could not take the slaves to PreOp: {e}");
             }
         }
-        match self.link.take() {
-            Some(Link::Raw(r)) => {
-                r.stop();
-            }
-            Some(Link::Embedded(e)) => {
-                e.stop();
-            }
-            None => {}
-        }
-    }
-}
-
-/// A future whose first poll — where ethercrab queues the frames — runs with the pump's
-/// gate held, so that the frames queued in it leave as one.
-struct Together<'g, F> {
-    gate: &'g FrameGate,
-    first: bool,
-    inner: std::pin::Pin<&'g mut F>,
-}
-
-impl<'g, F: std::future::Future> Together<'g, F> {
-    fn new(gate: &'g FrameGate, inner: std::pin::Pin<&'g mut F>) -> Self {
-        Self {
-            gate,
-            first: true,
-            inner,
-        }
-    }
-}
-
-impl<F: std::future::Future> std::future::Future for Together<'_, F> {
-    type Output = F::Output;
-
-    fn poll(
-        mut self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-    ) -> std::task::Poll<F::Output> {
-        if !self.first {
-            return self.inner.as_mut().poll(cx);
-        }
-        self.first = false;
-        self.gate.hold();
-        let out = self.inner.as_mut().poll(cx);
-        self.gate.release();
-        out
+        // The capture flushed, the link closed (the simulator's thread stops with it).
+        self.runner.finish_io();
     }
 }
 
@@ -768,7 +721,7 @@ impl CycleBus for EthercatBus {
         let read_states = health.reads_states();
         let expected = health.expected_working_counter();
         let (image, states, stats) = (&mut self.image, &mut self.states, &mut self.frame_stats);
-        let (dc_reference, group, gate) = (self.dc_reference, &self.group, &self.gate);
+        let (dc_reference, group) = (self.dc_reference, &self.group);
         // The LRW's count, kept if the state read after it misses the deadline.
         let lrw_count = std::cell::Cell::new(None);
         let (answer, accessed) = with_group!(group, g => {
@@ -786,10 +739,9 @@ impl CycleBus for EthercatBus {
                     None => None,
                 }
             };
-            // Queued together, the LRW and the FRMW go as one frame (see `coalesce`).
-            let zipped = std::pin::pin!(futures_lite::future::zip(cyclic, time));
-            let together = Together::new(gate, zipped);
-            runner.run_both_until(together, access_fut, deadline_ns)
+            // Queued in one poll, the LRW, the BRD and the FRMW go as one frame (the
+            // runner's exchange joins them, see `coalesce`).
+            runner.run_both_until(futures_lite::future::zip(cyclic, time), access_fut, deadline_ns)
         });
         let answer = match answer {
             Some((cyclic, time)) => {

@@ -11,8 +11,9 @@
 //! queued: the reply's Ethernet header, an EtherCAT header of the part's length, and the
 //! part's datagrams with the last one's "more" bit cleared.
 //!
-//! Everything here works in buffers made at start: the pump sends and receives without
-//! allocating.
+//! Everything here works in buffers made at start: the cycle's exchange
+//! (`link::FrameIo::exchange`) sends and receives without allocating. It sends what one
+//! poll of the cycle's futures queued, so those frames always leave together.
 
 /// Largest Ethernet frame without FCS (IEEE 802.3: 1500 B payload).
 pub const MAX_FRAME: usize = 1514;

@@ -111,9 +111,21 @@ impl CspCycle {
     }
 
     /// Drive `i` cannot be reached this cycle (see `health`): its axis gets a
-    /// communication fault at its last known position instead of stale inputs.
+    /// communication fault instead of stale inputs, at the position the drive was last
+    /// sent ([`CspChannel::last_target_position`]). The kernel takes a faulted drive's
+    /// position as its set value; the drive may well be enabled still and taking every
+    /// frame (the replies were late, not the frames), so its last position actual value —
+    /// as old as the last reply — would step the target back by the path travelled since
+    /// (up to one axis unit in one cycle at full speed after three lost frames, measured
+    /// over veth) and the drive would fault on the step (0xFF01) or follow it.
     pub fn comm_fault(&mut self, i: usize) -> Result<(), CycleError> {
+        let held = self
+            .channels
+            .get(i)
+            .ok_or(CycleError::NoDrive(i))?
+            .last_target_position();
         let feedback = self.feedback.get_mut(i).ok_or(CycleError::NoDrive(i))?;
+        feedback.position = held;
         feedback.operation_enabled = false;
         feedback.fault = Some(COMMUNICATION_FAULT);
         Ok(())
@@ -234,7 +246,7 @@ mod tests {
             })
         );
         assert_eq!(
-            gantry_drives::cia402::error_code::describe_fault(&status.error.unwrap()),
+            crate::axis_fault::describe_fault(&status.error.unwrap()),
             "drive fault 0x6320: parameter error (gantry stops the axis: its set position has \
              no 64-bit drive count; check the scaling and the travel)"
         );
@@ -243,5 +255,101 @@ mod tests {
         let n = sent.len();
         assert!(n > 10, "moved a while first: {n} cycles");
         assert_eq!(sent[n - 2], sent[n - 3], "held, not substituted");
+    }
+
+    /// Replies lost while an axis runs at full speed (a stall of the slave's host: the
+    /// frames arrived and the drive took them, the replies came too late), until the bus
+    /// faults the axis: every target the still-enabled drive takes is within the axis'
+    /// speed of the one before, before, during and after the fault — the set value is not
+    /// taken from the drive's last reported position, which is older by the lost replies
+    /// (the step measured over veth before: 26 214 counts, one unit). And once the bus is
+    /// reachable again with the axis still in ErrorStop (another axis' reset cleared the
+    /// bus faults), the drive is held where it was last sent.
+    #[test]
+    fn a_communication_fault_holds_the_drive_where_it_was_last_sent() {
+        let mut cfg = AxisConfig::new("x", AxisKind::Real);
+        cfg.homing_required = false;
+        let vmax = cfg.max.vmax;
+        let kernel = Kernel::new(1e-3, vec![cfg]).unwrap();
+        // 1000 counts per unit: at most vmax · T · 1000 counts (+1 for rounding) a cycle.
+        let scaling = Scaling::new(ScalingConfig {
+            counts_per_motor_rev: 10_000,
+            motor_revs: 1,
+            load_revs: 1,
+            units_per_load_rev: 10.0,
+            invert: false,
+        })
+        .unwrap();
+        let limit = (vmax * 1e-3 * 1000.0) as i32 + 1;
+        let mut c = CspCycle::new(kernel, vec![CspChannel::new(scaling)]);
+        c.kernel
+            .command(0, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        // The drive: enabled, its position actual value two cycles behind its target.
+        let mut sent: Vec<i32> = vec![0, 0];
+        let mut out = [0u8; 6];
+        let mut cycle = |c: &mut CspCycle, inputs: Option<[u8; 6]>, sent: &mut Vec<i32>| {
+            match inputs {
+                Some(bytes) => c.read_inputs(0, &bytes).unwrap(),
+                None => c.comm_fault(0).unwrap(),
+            }
+            c.step();
+            c.write_outputs(0, &mut out).unwrap();
+            sent.push(i32::from_le_bytes([out[2], out[3], out[4], out[5]]));
+        };
+        let lagging = |sent: &Vec<i32>| enabled_at(sent[sent.len() - 2]);
+        for _ in 0..3 {
+            let i = lagging(&sent);
+            cycle(&mut c, Some(i), &mut sent);
+        }
+        c.kernel
+            .command(
+                0,
+                Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, vmax)),
+            )
+            .unwrap();
+        for _ in 0..500 {
+            let i = lagging(&sent);
+            cycle(&mut c, Some(i), &mut sent);
+        }
+        let n = sent.len();
+        assert!(
+            sent[n - 1] - sent[n - 2] >= limit - 2,
+            "at full speed: {:?}",
+            &sent[n - 3..]
+        );
+        // Three replies lost: the image keeps the last inputs; then the bus faults.
+        let stale = lagging(&sent);
+        for _ in 0..3 {
+            cycle(&mut c, Some(stale), &mut sent);
+        }
+        let before_fault = sent.len();
+        for _ in 0..20 {
+            cycle(&mut c, None, &mut sent);
+        }
+        let status = *c.kernel.axis_status(0).unwrap();
+        assert_eq!(status.state, AxisState::ErrorStop, "{status:?}");
+        assert_eq!(
+            status.error,
+            Some(AxisFault::Drive {
+                code: COMMUNICATION_FAULT
+            })
+        );
+        let held = sent[before_fault - 1];
+        assert!(
+            sent[before_fault..].iter().all(|&t| t == held),
+            "held where it was last sent ({held}): {:?}",
+            &sent[before_fault - 3..before_fault + 3]
+        );
+        // Reachable again, the drive standing where it was sent, the axis in ErrorStop.
+        for _ in 0..20 {
+            cycle(&mut c, Some(enabled_at(held)), &mut sent);
+        }
+        assert!(sent[sent.len() - 20..].iter().all(|&t| t == held));
+        let worst = sent.windows(2).map(|w| (w[1] - w[0]).abs()).max().unwrap();
+        assert!(
+            worst <= limit,
+            "largest target step {worst} counts, vmax · T + 1 is {limit}"
+        );
     }
 }

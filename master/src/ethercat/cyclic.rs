@@ -270,6 +270,19 @@ impl CspChannel {
         self.actual
     }
 
+    /// Where the drive was last sent (units, as [`CspChannel::feedback`] gives
+    /// positions: within the period on modulo axes): its actual position while it was
+    /// not driven. A drive the master cannot see is still enabled and taking the frames
+    /// it sends as far as the master knows, so this is where it stands once it stopped;
+    /// its last position actual value is older, by the frames lost, and a set value taken
+    /// from it would step the target back along the whole path travelled since.
+    pub fn last_target_position(&self) -> f64 {
+        match self.modulo {
+            Some(mc) => mc.to_position(self.last_target).1,
+            None => self.scaling.counts_to_units(self.last_target),
+        }
+    }
+
     /// Why the last set position was not sent, if it was not.
     pub fn count_error(&self) -> Option<CountError> {
         self.count_error

@@ -1,9 +1,10 @@
-//! A doorbell: an eventfd that a waker rings and one thread sleeps on. The pump sleeps on
-//! one until ethercrab queues a frame; the cycle thread on another until its frame's reply
-//! is in. A parker (what `futures_lite::block_on` uses) waits on a mutex and condition
-//! variable; the doorbell takes no lock, so the only thing the real-time cycle waits for is
-//! the bus, and a test can prove it never enters a futex.
+//! A doorbell: an eventfd that a waker rings and one thread sleeps on. The cycle thread
+//! sleeps on one (and on its link's file) until its frame's reply is in; a pump thread
+//! until ethercrab queues a frame. A parker (what `futures_lite::block_on` uses) waits on
+//! a mutex and condition variable; the doorbell takes no lock, so the only thing the
+//! real-time cycle waits for is the bus, and a test can prove it never enters a futex.
 
+use std::cell::RefCell;
 use std::future::Future;
 use std::io;
 use std::os::fd::{AsFd, BorrowedFd};
@@ -17,6 +18,7 @@ use nix::poll::{ppoll, PollFd, PollFlags};
 use nix::sys::eventfd::{EfdFlags, EventFd};
 use nix::sys::time::TimeSpec;
 
+use super::link::{FrameIo, LinkStats};
 use crate::runtime::clock::now_ns;
 
 /// An eventfd that wakers ring.
@@ -53,21 +55,59 @@ impl Wake for Doorbell {
 }
 
 /// Runs futures to completion on the calling thread, sleeping on a doorbell in between.
-/// Made once before the cycle starts: running a future allocates nothing.
-#[derive(Debug)]
+/// With a [`FrameIo`] it also does the frame exchange itself: after each poll it sends
+/// what ethercrab queued and hands back the replies that came, and it sleeps on the
+/// doorbell and the link's file together. Made once before the cycle starts: running a
+/// future allocates nothing.
 pub struct BlockOn {
     bell: Arc<Doorbell>,
     waker: Waker,
+    io: RefCell<Option<FrameIo>>,
+}
+
+impl std::fmt::Debug for BlockOn {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BlockOn")
+            .field("bell", &self.bell)
+            .field("exchanges_frames", &self.io.borrow().is_some())
+            .finish()
+    }
 }
 
 impl BlockOn {
-    /// A runner with its own doorbell.
+    /// A runner with its own doorbell; another thread carries the frames.
     pub fn new() -> io::Result<Self> {
         let bell = Doorbell::new()?;
         Ok(Self {
             waker: Waker::from(bell.clone()),
             bell,
+            io: RefCell::new(None),
         })
+    }
+
+    /// A runner that exchanges the frames on `io` itself.
+    pub fn with_io(io: FrameIo) -> io::Result<Self> {
+        let runner = Self::new()?;
+        *runner.io.borrow_mut() = Some(io);
+        Ok(runner)
+    }
+
+    /// Ends the exchange (see [`FrameIo::finish`]); what it counted.
+    pub fn finish_io(&self) -> Option<LinkStats> {
+        self.io.borrow_mut().take().map(FrameIo::finish)
+    }
+
+    /// Sends what ethercrab queued and hands back the replies waiting: whether one came
+    /// (then the future is polled again at once).
+    fn exchange(&self) -> bool {
+        self.io.borrow_mut().as_mut().is_some_and(FrameIo::exchange)
+    }
+
+    /// Sleeps until the bell rings, a reply may be in, or `timeout` passed.
+    fn sleep(&self, timeout: Option<Duration>) {
+        let io = self.io.borrow();
+        self.bell
+            .wait(io.as_ref().and_then(FrameIo::readable), timeout);
     }
 
     /// Polls `future` until it is ready. ethercrab's futures end by themselves (their
@@ -79,7 +119,9 @@ impl BlockOn {
             if let Poll::Ready(out) = future.as_mut().poll(&mut cx) {
                 return out;
             }
-            self.bell.wait(None, None);
+            if !self.exchange() {
+                self.sleep(None);
+            }
         }
     }
 
@@ -93,8 +135,11 @@ impl BlockOn {
             if let Poll::Ready(out) = future.as_mut().poll(&mut cx) {
                 return Some(out);
             }
+            if self.exchange() {
+                continue;
+            }
             let left = deadline_ns.checked_sub(now_ns()).filter(|&ns| ns > 0)?;
-            self.bell.wait(None, Some(Duration::from_nanos(left)));
+            self.sleep(Some(Duration::from_nanos(left)));
         }
     }
 }
@@ -129,10 +174,13 @@ impl BlockOn {
             if out_a.is_some() && b_done {
                 return (out_a, out_b);
             }
+            if self.exchange() {
+                continue;
+            }
             let Some(left) = deadline_ns.checked_sub(now_ns()).filter(|&ns| ns > 0) else {
                 return (out_a, out_b);
             };
-            self.bell.wait(None, Some(Duration::from_nanos(left)));
+            self.sleep(Some(Duration::from_nanos(left)));
         }
     }
 }
@@ -196,8 +244,11 @@ impl BlockOn {
                     ms: silence_ns / 1_000_000,
                 });
             }
+            if self.exchange() {
+                continue;
+            }
             let left = silent_at.min(end_at) - now;
-            self.bell.wait(None, Some(Duration::from_nanos(left)));
+            self.sleep(Some(Duration::from_nanos(left)));
         }
     }
 }

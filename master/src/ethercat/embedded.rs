@@ -1,15 +1,84 @@
 //! The embedded EtherCAT bus: ethercrab's frames handed to a simulated slave chain in this
-//! process (no network interface, no root). Used by `gantry demo --bus ethercat` and the tests.
+//! process (no network interface, no root).
+//!
+//! Two links reach a chain: [`ChainLink`] passes each frame through the chain in the
+//! thread that sends it (a pump thread's, for the lockstep harnesses and the demo's
+//! lockstep bus: [`EmbeddedBus`]); [`SimWire`] is a wire to a thread of the simulator's
+//! own (`gantry run` with `[bus] simulator`): the cycle thread sends on it as it sends on a
+//! raw socket, and the chain — a device on the other end, locked by whoever inspects it —
+//! never runs in the cycle thread.
 
 use std::collections::VecDeque;
+use std::io;
+use std::os::fd::{AsFd, BorrowedFd};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::task::Wake;
+use std::thread::JoinHandle;
+use std::time::Duration;
 
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::realtime::WallClock;
+use nix::sys::eventfd::{EfdFlags, EventFd};
 
-use super::pump::{FramePump, Link};
-use crate::pcap::PcapWriter;
+use super::doorbell::Doorbell;
+use super::link::{Capture, FrameIo, Link, MAX_FRAME};
+use super::pump::FramePump;
+
+/// A simulated chain as a link: each frame passes it in the sending thread.
+pub struct ChainLink {
+    /// The chain (lock it to inspect or change slaves between exchanges).
+    pub chain: Arc<Mutex<SlaveChain>>,
+    /// Replies waiting to be handed back.
+    replies: VecDeque<Vec<u8>>,
+    /// Runs the chain on the wall clock (`None`: the caller advances it, lockstep).
+    wall_clock: Option<WallClock>,
+}
+
+impl Link for ChainLink {
+    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
+        let mut wire = frame.to_vec();
+        let processed = self
+            .chain
+            .lock()
+            .map(|mut c| {
+                if let Some(clock) = &self.wall_clock {
+                    clock.catch_up(&mut c);
+                }
+                c.process(&mut wire).is_ok()
+            })
+            .unwrap_or(false);
+        // A frame the chain cannot parse is lost, as on a wire.
+        if processed {
+            self.replies.push_back(wire);
+        }
+        Ok(())
+    }
+
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        Ok(self.replies.pop_front().map(|r| copy_frame(&r, buf)))
+    }
+
+    fn readable(&self) -> Option<BorrowedFd<'_>> {
+        None
+    }
+
+    fn idle(&mut self) {
+        if let (Some(clock), Ok(mut c)) = (&self.wall_clock, self.chain.lock()) {
+            clock.catch_up(&mut c);
+        }
+    }
+}
+
+/// Copies `frame` into `buf` (truncated to it); the length copied.
+fn copy_frame(frame: &[u8], buf: &mut [u8]) -> usize {
+    let n = frame.len().min(buf.len());
+    if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
+        dst.copy_from_slice(src);
+    }
+    n
+}
 
 /// ethercrab's frames passed through a simulated chain in this process by a pump thread.
 pub struct EmbeddedBus {
@@ -32,46 +101,17 @@ impl EmbeddedBus {
         tx: PduTx<'static>,
         rx: PduRx<'static>,
         chain: SlaveChain,
-        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
-    ) -> Self {
-        Self::start_with(tx, rx, chain, capture, None)
-    }
-
-    /// Starts the exchange thread with the chain on the wall clock: its DC clocks follow
-    /// the host's, its applications run every `period` (for real-time runs on the
-    /// simulator, e.g. `gantry run`).
-    pub fn start_realtime(
-        tx: PduTx<'static>,
-        rx: PduRx<'static>,
-        chain: SlaveChain,
-        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
-        period: std::time::Duration,
-    ) -> Self {
-        let clock = WallClock::start(&chain, period);
-        Self::start_with(tx, rx, chain, capture, Some(clock))
-    }
-
-    fn start_with(
-        tx: PduTx<'static>,
-        rx: PduRx<'static>,
-        chain: SlaveChain,
-        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
-        wall_clock: Option<WallClock>,
+        capture: Option<Capture>,
     ) -> Self {
         let chain = Arc::new(Mutex::new(chain));
-        let link = Link::Embedded {
+        let link = ChainLink {
             chain: chain.clone(),
             replies: VecDeque::new(),
-            wall_clock,
+            wall_clock: None,
         };
-        let pump = FramePump::start(tx, rx, link, capture)
+        let pump = FramePump::start(FrameIo::new(tx, rx, Box::new(link), capture))
             .expect("eventfd and a thread for the embedded bus");
         Self { pump, chain }
-    }
-
-    /// The gate that sends one exchange's frames as one.
-    pub fn gate(&self) -> super::pump::FrameGate {
-        self.pump.gate()
     }
 
     /// Replies handed to ethercrab so far.
@@ -82,5 +122,136 @@ impl EmbeddedBus {
     /// Stops the thread; returns how many frames went through the chain.
     pub fn stop(self) -> u64 {
         self.pump.stop().received
+    }
+}
+
+/// Name of the simulator's thread behind a [`SimWire`].
+pub const SIM_THREAD: &str = "gantry-sim";
+
+/// Frames in flight each way on a [`SimWire`] (ethercrab has at most 16 frames).
+const WIRE_FRAMES: usize = 16;
+
+/// One frame on a [`SimWire`] (fixed size: the queues allocate once).
+#[derive(Clone, Copy)]
+struct WireFrame {
+    len: usize,
+    data: [u8; MAX_FRAME],
+}
+
+impl WireFrame {
+    fn of(frame: &[u8]) -> Self {
+        let mut w = Self {
+            len: 0,
+            data: [0; MAX_FRAME],
+        };
+        w.len = copy_frame(frame, &mut w.data);
+        w
+    }
+
+    fn bytes(&self) -> &[u8] {
+        self.data.get(..self.len).unwrap_or_default()
+    }
+}
+
+/// The master's end of a wire to a simulated chain served by a thread of its own, on the
+/// wall clock: frames go over wait-free queues, each way with an eventfd rung after the
+/// frame is in. Sending and receiving allocate nothing and take no lock.
+pub struct SimWire {
+    to_sim: rtrb::Producer<WireFrame>,
+    from_sim: rtrb::Consumer<WireFrame>,
+    /// Rung by the master after a frame is queued.
+    sim_bell: Arc<Doorbell>,
+    /// Rung by the simulator after a reply is queued.
+    replied: Arc<EventFd>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl SimWire {
+    /// Starts the simulator's thread on `chain`, its time tied to the host's with the
+    /// applications every `period`. The thread inherits the caller's scheduling and CPU
+    /// (gantry starts it from the real-time cycle thread: the simulated drives answer as
+    /// promptly as the cycle asks).
+    pub fn start(chain: Arc<Mutex<SlaveChain>>, period: Duration) -> io::Result<Self> {
+        let (to_sim, mut frames) = rtrb::RingBuffer::<WireFrame>::new(WIRE_FRAMES);
+        let (mut replies, from_sim) = rtrb::RingBuffer::<WireFrame>::new(WIRE_FRAMES);
+        let sim_bell = Doorbell::new()?;
+        let replied = Arc::new(EventFd::from_flags(
+            EfdFlags::EFD_NONBLOCK | EfdFlags::EFD_CLOEXEC,
+        )?);
+        let stop = Arc::new(AtomicBool::new(false));
+        let clock = chain
+            .lock()
+            .map(|c| WallClock::start(&c, period))
+            .map_err(|_| io::Error::other("the simulated chain's lock is poisoned"))?;
+        let (bell, ring, stopping) = (sim_bell.clone(), replied.clone(), stop.clone());
+        let thread = std::thread::Builder::new()
+            .name(SIM_THREAD.into())
+            .spawn(move || {
+                let mut wire = [0u8; MAX_FRAME];
+                while !stopping.load(Ordering::Relaxed) {
+                    if let Ok(mut c) = chain.lock() {
+                        clock.catch_up(&mut c);
+                        while let Ok(f) = frames.pop() {
+                            let n = copy_frame(f.bytes(), &mut wire);
+                            let frame = wire.get_mut(..n).unwrap_or_default();
+                            // A frame the chain cannot parse is lost, as on a wire; so is
+                            // a reply with no room (the master stopped reading).
+                            if c.process(frame).is_ok()
+                                && replies.push(WireFrame::of(frame)).is_ok()
+                            {
+                                let _ = ring.write(1);
+                            }
+                        }
+                    }
+                    // Until a frame comes, or the next application period starts.
+                    let until = chain
+                        .lock()
+                        .map(|c| clock.until_next_period(&c))
+                        .unwrap_or(period);
+                    bell.wait(None, Some(until.min(period)));
+                }
+            })?;
+        Ok(Self {
+            to_sim,
+            from_sim,
+            sim_bell,
+            replied,
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Link for SimWire {
+    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
+        self.to_sim
+            .push(WireFrame::of(frame))
+            .map_err(|_| io::Error::from(io::ErrorKind::WouldBlock))?;
+        self.sim_bell.wake_by_ref();
+        Ok(())
+    }
+
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        if let Ok(f) = self.from_sim.pop() {
+            return Ok(Some(copy_frame(f.bytes(), buf)));
+        }
+        // Cleared before looking again: a reply queued after this look rings anew.
+        let _ = self.replied.read();
+        Ok(self.from_sim.pop().ok().map(|f| copy_frame(f.bytes(), buf)))
+    }
+
+    fn readable(&self) -> Option<BorrowedFd<'_>> {
+        Some(self.replied.as_fd())
+    }
+}
+
+impl Drop for SimWire {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.sim_bell.wake_by_ref();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
     }
 }

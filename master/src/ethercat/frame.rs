@@ -13,7 +13,7 @@
 //! (0x0130) goes beside it: every slave ORs its state in, the working counter counts those
 //! that answered — anything but "all in OP, no error" sends the cycle to read each
 //! slave's state. ethercrab's public raw API (`Command::lrw`, `Command::brd`,
-//! `Command::frmw`) sends one datagram per frame; the pump joins the frames the cycle
+//! `Command::frmw`) sends one datagram per frame; the cycle's exchange joins the frames it
 //! queues together (`coalesce`), so the BRD (14 B) and, when DC runs, the FRMW of the
 //! reference clock's time (0x0910, 20 B) are datagrams in the LRW's frame: fixed size
 //! whatever the number of slaves.
@@ -275,7 +275,7 @@ impl ProcessImage {
 
     /// Bytes on the wire per cycle: the LRW frames, plus `extra` bytes of fixed-size
     /// datagrams (the AL-status BRD, the DC FRMW; see [`datagram_bytes`]) joined to the
-    /// first LRW's frame when they fit there (as the pump joins them), else in a frame of
+    /// first LRW's frame when they fit there (as the cycle's exchange joins them), else in a frame of
     /// their own.
     pub fn wire_bytes(&self, extra: usize) -> usize {
         let mut frames: Vec<usize> = self

@@ -10,6 +10,7 @@ pub mod doorbell;
 pub mod embedded;
 pub mod frame;
 pub mod health;
+pub mod link;
 pub mod mapping;
 pub mod pump;
 pub mod raw;

@@ -1,13 +1,43 @@
 //! The real EtherCAT path: ethercrab's frames on a raw socket bound to a network
 //! interface (a NIC wired to real slaves, or a veth end with `gantry-sim` on the other).
+//! The cycle thread sends and receives on it itself (see `link.rs`).
+
+use std::io;
+use std::os::fd::{AsRawFd, BorrowedFd};
 
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::transport::raw_socket::{RawSocket, RawSocketError};
 
-use super::pump::{FramePump, Link, PumpStats};
-use crate::pcap::PcapWriter;
+use super::link::{Capture, FrameIo, Link, LinkStats};
+use super::pump::FramePump;
 
-/// ethercrab's frames on an interface.
+/// A raw socket on an interface, as a link.
+pub struct RawLink(RawSocket);
+
+impl RawLink {
+    /// Opens `interface` (needs CAP_NET_RAW).
+    pub fn open(interface: &str) -> Result<Self, RawSocketError> {
+        RawSocket::open(interface).map(Self)
+    }
+}
+
+impl Link for RawLink {
+    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
+        self.0.send(frame)
+    }
+
+    fn recv(&mut self, buf: &mut [u8]) -> io::Result<Option<usize>> {
+        self.0.recv(buf, Some(std::time::Duration::ZERO))
+    }
+
+    fn readable(&self) -> Option<BorrowedFd<'_>> {
+        // SAFETY: the socket lives as long as `self`, and so does the borrow.
+        Some(unsafe { BorrowedFd::borrow_raw(self.0.as_raw_fd()) })
+    }
+}
+
+/// ethercrab's frames on an interface through a pump thread, for tools that drive
+/// ethercrab from an ordinary thread with its own executor (`gantry scan`).
 pub struct RawBus {
     pump: FramePump,
 }
@@ -18,31 +48,22 @@ impl RawBus {
         interface: &str,
         tx: PduTx<'static>,
         rx: PduRx<'static>,
-        capture: Option<PcapWriter<std::io::BufWriter<std::fs::File>>>,
+        capture: Option<Capture>,
     ) -> Result<Self, RawSocketError> {
-        let socket = RawSocket::open(interface)?;
-        let pump = FramePump::start(tx, rx, Link::Raw(socket), capture).map_err(|source| {
-            RawSocketError::Io {
-                interface: interface.into(),
-                what: "starting the pump thread",
-                source,
-            }
-        })?;
+        let link = RawLink::open(interface)?;
+        let pump =
+            FramePump::start(FrameIo::new(tx, rx, Box::new(link), capture)).map_err(|source| {
+                RawSocketError::Io {
+                    interface: interface.into(),
+                    what: "starting the pump thread",
+                    source,
+                }
+            })?;
         Ok(Self { pump })
     }
 
-    /// The gate that sends one exchange's frames as one.
-    pub fn gate(&self) -> super::pump::FrameGate {
-        self.pump.gate()
-    }
-
-    /// Replies handed to ethercrab so far.
-    pub fn replies(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
-        self.pump.replies()
-    }
-
     /// Stops the pump; returns what it counted.
-    pub fn stop(self) -> PumpStats {
+    pub fn stop(self) -> LinkStats {
         self.pump.stop()
     }
 }

@@ -4,7 +4,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use gantry_kernel::axis::command::{Command, PowerCommand};
+use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
@@ -16,7 +16,7 @@ use super::protocol::{
 };
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use crate::ethercat::cycle::CspCycle;
-use crate::ethercat::health::BusHealth;
+use crate::ethercat::health::{BusHealth, COMMUNICATION_FAULT};
 use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
@@ -142,6 +142,13 @@ pub struct Engine<B: CycleBus> {
     cycles: u64,
     /// Per axis: the id of a reset waiting for its slave to come back to OP.
     resets: Vec<Option<u64>>,
+    /// Per axis: the id of a reset waiting for the kernel to see its drive as it is (see
+    /// [`Engine::reset`]).
+    unseen_resets: Vec<Option<u64>>,
+    /// Per axis: the last cycle in which the kernel was given a fault of gantry's own
+    /// instead of what its drive said: a bus fault on its drive in force when the inputs
+    /// were read (the communication fault), or the overrun stop (0x6100).
+    forced_faults_at: Vec<Option<u64>>,
     /// The axis whose slave the bus is bringing back now.
     recovering: Option<usize>,
     /// Where the search for the next waiting reset starts (round robin).
@@ -217,6 +224,8 @@ impl<B: CycleBus> Engine<B> {
             phase: Phase::Running,
             cycles: 0,
             resets: vec![None; axes],
+            unseen_resets: vec![None; axes],
+            forced_faults_at: vec![None; axes],
             recovering: None,
             next_reset: 0,
             recovery_timeout_ns: RECOVERY_TIMEOUT_NS,
@@ -281,6 +290,8 @@ impl<B: CycleBus> Engine<B> {
     pub fn step(&mut self, wake: Wake) -> bool {
         let t0 = now_ns();
         self.take_requests();
+        self.apply_seen_resets();
+        self.mark_forced_faults();
         let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
         if self.overrun_stop {
             for axis in 0..self.cycle.len() {
@@ -348,24 +359,101 @@ impl<B: CycleBus> Engine<B> {
     /// the reset waits (Busy) while the bus does one register access per cycle beside the
     /// process data, inside the cycle's reply deadline, so no cycle is stretched; once the
     /// slave is back, the bus faults are forgotten (they come back next cycle if they are
-    /// still there) and the axis' Reset follows. Without a bus fault, the axis' Reset at
-    /// once. A second reset of the same axis while one waits replaces it (the first is
-    /// Aborted).
+    /// still there). A reset also ends the overrun stop (for every axis).
+    ///
+    /// Then the axis' Reset follows as soon as the kernel has seen its drive as it is —
+    /// one cycle with no fault of gantry's own (no bus fault in force when the inputs
+    /// were read, no overrun stop) — so that what the Reset leaves the axis in is decided
+    /// by the drive alone, as PLCopen's MC_Reset wants (ErrorStop → Standstill when the
+    /// power is on, Disabled when it is off): an axis whose drive stayed in Operation
+    /// enabled through the fault is back in Standstill, one whose drive faulted gets the
+    /// fault reset and is Disabled (CiA 402 leaves a reset drive in Switch on disabled)
+    /// until enabled again — whatever the order and the timing of the resets. Before that
+    /// cycle the kernel holds gantry's communication fault (0x8100) or overrun stop
+    /// (0x6100), which no drive raised, for the drive's own, and its Reset would take
+    /// the power from a powered drive. If the bus fault on its drive is back by then, the
+    /// reset fails (the drive still has the communication fault, 0x8100). Otherwise the
+    /// axis' Reset at once. A second reset of the same axis while one waits replaces it
+    /// (the first is Aborted).
     fn reset(&mut self, id: u64, axis: usize) -> Entry {
         self.overrun_stop = false;
-        if self.health.any_fault() {
-            if let Some(slot) = self.resets.get_mut(axis) {
-                if let Some(replaced) = slot.replace(id) {
-                    self.set_status(replaced, CommandStatus::Aborted);
-                }
-                return Entry {
-                    id,
-                    handle: None,
-                    status: CommandStatus::Busy,
-                };
+        self.reset_when_seen(id, axis)
+    }
+
+    /// [`Engine::reset`] past the overrun stop: waits for the bus, or for the kernel to
+    /// see the drive, or resets the axis now.
+    fn reset_when_seen(&mut self, id: u64, axis: usize) -> Entry {
+        let waiting = if self.health.any_fault() {
+            self.resets.get_mut(axis)
+        } else if !self.kernel_saw_the_drive(axis) {
+            self.unseen_resets.get_mut(axis)
+        } else {
+            None
+        };
+        if let Some(slot) = waiting {
+            if let Some(replaced) = slot.replace(id) {
+                self.set_status(replaced, CommandStatus::Aborted);
             }
+            return Entry {
+                id,
+                handle: None,
+                status: CommandStatus::Busy,
+            };
         }
         self.axis_reset(id, axis)
+    }
+
+    /// Notes, before this cycle's inputs are read, which axes the kernel gets a fault of
+    /// gantry's own for instead of their drive's inputs.
+    fn mark_forced_faults(&mut self) {
+        for axis in 0..self.forced_faults_at.len() {
+            let forced = self.overrun_stop || self.health.fault(self.bus.drive_of(axis)).is_some();
+            if let (true, Some(at)) = (forced, self.forced_faults_at.get_mut(axis)) {
+                *at = Some(self.cycles);
+            }
+        }
+    }
+
+    /// The kernel stepped at least once on `axis`' drive's own inputs since it was last
+    /// given a fault of gantry's own for it.
+    fn kernel_saw_the_drive(&self, axis: usize) -> bool {
+        // Inputs read in cycle `c` reach the kernel's state in cycle `c`'s step; a command
+        // applied at the start of cycle `c + 2` is judged on cycle `c + 1`'s, clean ones.
+        self.forced_faults_at
+            .get(axis)
+            .copied()
+            .flatten()
+            .is_none_or(|c| self.cycles >= c.saturating_add(2))
+    }
+
+    /// Resets that waited for the kernel to see their drive: applied once it has. One
+    /// whose drive's bus fault came back meanwhile fails (the axis stays in ErrorStop with
+    /// the communication fault; `gantry status` says why) rather than wait again: a bus
+    /// that keeps failing would bring the slave back and lose it over and over.
+    fn apply_seen_resets(&mut self) {
+        for axis in 0..self.unseen_resets.len() {
+            let fault_back = self.health.fault(self.bus.drive_of(axis)).is_some();
+            if !fault_back && !self.kernel_saw_the_drive(axis) {
+                continue;
+            }
+            let Some(id) = self.unseen_resets.get_mut(axis).and_then(Option::take) else {
+                continue;
+            };
+            let entry = if fault_back {
+                Entry {
+                    id,
+                    handle: None,
+                    status: CommandStatus::Error(CommandError::DriveResetFailed {
+                        code: COMMUNICATION_FAULT,
+                    }),
+                }
+            } else {
+                self.axis_reset(id, axis)
+            };
+            if let Some(slot) = self.tracked.iter_mut().find(|e| e.id == id) {
+                *slot = entry;
+            }
+        }
     }
 
     /// The kernel's Reset of `axis`, for request `id`.
@@ -436,7 +524,9 @@ impl<B: CycleBus> Engine<B> {
         let entry = match outcome {
             Ok(_) => {
                 self.health.clear();
-                self.axis_reset(id, axis)
+                // The kernel still holds this cycle's communication fault: the Reset
+                // waits until it has seen the drive (see `reset`).
+                self.reset_when_seen(id, axis)
             }
             Err(e) => Entry {
                 id,

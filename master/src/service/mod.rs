@@ -15,6 +15,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::config::{Config, ConfigError};
+use crate::drive_records;
 use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::runtime::controller::Controller;
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
@@ -76,9 +77,9 @@ pub const CYCLE_THREAD: &str = "gantry-cycle";
 pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
-/// pinned, memory locked) unless `real_time` is false, then the bus up to OP — its frame
-/// pump is started from here, so it inherits this thread's scheduling and CPU — and the
-/// engine with the late-reply policy of the mode (lost at the deadline in real time;
+/// pinned, memory locked) unless `real_time` is false, then the bus up to OP — this thread
+/// exchanges the frames itself; the in-process simulator's thread, if any, is started from
+/// here and inherits its scheduling and CPU — and the engine with the late-reply policy of the mode (lost at the deadline in real time;
 /// waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
 /// SCHED_FIFO (ethercrab's timers are off, see `ethercat::bus::NO_TIMERS`).
 pub fn start_cycle(
@@ -130,7 +131,23 @@ pub fn spawn_cycle_thread(
             let _ = ends.send(Ok(app));
             let engine = engine.run(period_ns, &stop);
             let counters = engine.counters();
-            engine.into_bus().shut_down(&mut log);
+            let bus = engine.into_bus();
+            let chain = bus.simulated_chain();
+            bus.shut_down(&mut log);
+            // What the simulated drives saw, the shutdown included.
+            if let (Some(path), Some(chain)) = (&config.bus.simulator_record, chain) {
+                match chain.lock() {
+                    Ok(chain) => {
+                        drive_records::report_at_exit(&config, &chain.records(), path, &mut log)
+                    }
+                    Err(_) => {
+                        let _ = writeln!(
+                            log,
+                            "gantry: the simulated chain is poisoned: no drive records"
+                        );
+                    }
+                }
+            }
             Some(counters)
         })
         .map_err(|source| ServiceError::Start {

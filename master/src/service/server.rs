@@ -9,9 +9,11 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gantry_drives::cia402::error_code::{describe, describe_fault};
+use crate::axis_fault::describe_fault;
+use gantry_drives::cia402::error_code::describe;
 use gantry_kernel::axis::command::{
-    BufferMode, Command, HaltMode, Jog, MoveDirection, MovePtp, PositioningMode, PowerCommand,
+    BufferMode, Command, CommandError, HaltMode, Jog, MoveDirection, MovePtp, PositioningMode,
+    PowerCommand,
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use serde_json::{json, Value};
@@ -157,7 +159,13 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
 
 fn status_name(s: CommandStatus) -> Value {
     match s {
-        CommandStatus::Error(e) => json!({"status": "Error", "error": e.to_string()}),
+        // `names_cause`: the text already says why the axis is in ErrorStop (a refusal
+        // there), so a client need not add the axis' error to it.
+        CommandStatus::Error(e) => json!({
+            "status": "Error",
+            "error": e.to_string(),
+            "names_cause": matches!(e, CommandError::InErrorStop { .. }),
+        }),
         other => json!({ "status": format!("{other:?}") }),
     }
 }

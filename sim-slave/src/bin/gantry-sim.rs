@@ -15,15 +15,14 @@
 //! master by it (`gantry_tests::invariant::assert_record_invariants`).
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::Parser;
-use gantry_sim::chain::SlaveChain;
 use gantry_sim::config::SimConfig;
-use gantry_sim::plant::record::DriveRecord;
+use gantry_sim::plant::record::write_records;
 use gantry_sim::realtime::{Gaps, WallClock};
 use gantry_sim::transport::raw_socket::RawSocket;
 
@@ -76,26 +75,6 @@ fn catch_stop_signals() -> Result<(), String> {
         }
     }
     Ok(())
-}
-
-/// What each device of `chain` recorded (`None` for devices that are no drive).
-fn records(chain: &SlaveChain) -> Vec<Option<DriveRecord>> {
-    chain
-        .slaves()
-        .iter()
-        .map(|s| s.device().record().copied())
-        .collect()
-}
-
-/// Writes the records of `chain` to `path` as JSON (through a temporary file, so a reader
-/// never sees half of it).
-fn write_records(chain: &SlaveChain, path: &Path) -> Result<(), String> {
-    let text =
-        serde_json::to_string_pretty(&records(chain)).map_err(|e| format!("drive records: {e}"))?;
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| format!("cannot write the drive records to {}: {e}", path.display()))
 }
 
 fn main() -> ExitCode {
@@ -172,7 +151,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     // The records are written however the loop ended: a test wants them most when the
     // network failed.
     if let Some(path) = &args.record {
-        write_records(&chain, path)?;
+        write_records(path, &chain.records())?;
         println!("gantry-sim: drive records written to {}", path.display());
     }
     served_result?;
@@ -214,20 +193,15 @@ mod tests {
         )
         .unwrap();
         let chain = config.chain().unwrap();
-        let dir = std::env::temp_dir().join(format!("gantry-sim-record-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("records.json");
-        write_records(&chain, &path).unwrap();
-        let back: Vec<Option<DriveRecord>> =
-            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-        assert_eq!(back, vec![Some(DriveRecord::default()); 2]);
-        assert!(!path.with_extension("tmp").exists());
-        let err = write_records(&chain, &dir.join("missing/records.json")).unwrap_err();
-        assert!(
-            err.starts_with("cannot write the drive records to "),
-            "{err}"
+        let path =
+            std::env::temp_dir().join(format!("gantry-sim-record-{}.json", std::process::id()));
+        write_records(&path, &chain.records()).unwrap();
+        let back = gantry_sim::plant::record::read_records(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(
+            back,
+            vec![Some(gantry_sim::plant::record::DriveRecord::default()); 2]
         );
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

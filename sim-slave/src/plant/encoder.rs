@@ -15,6 +15,7 @@
 //! from 0xFFFF_FFFF to 0 and cleared once it passes a third of the range or underflows;
 //! underflow mirrors it.
 
+use super::Exchange;
 use crate::esc::memory::Memory;
 
 /// Encoder inputs object (status, counter value, latch value).
@@ -192,10 +193,13 @@ impl EncoderModule {
     }
 
     /// One cycle: turn the shaft (if it turns by itself), count, act on the control word,
-    /// write inputs.
-    pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
+    /// write inputs, as far as `exchange` allows (the shaft turns and the counter counts
+    /// in every state; outside Op the control word is its safe state, zero).
+    pub fn step(&mut self, mem: &mut Memory, dt_s: f64, exchange: Exchange) {
         let mut out = [0u8; OUTPUT_BYTES];
-        mem.ecat_read(self.outputs_at, &mut out, false);
+        if exchange.outputs {
+            mem.ecat_read(self.outputs_at, &mut out, false);
+        }
         let control = u16::from_le_bytes([out[0], out[1]]);
         let set_value = u32::from_le_bytes([out[2], out[3], out[4], out[5]]);
         if self.shaft_speed_rev_s != 0.0 {
@@ -219,7 +223,9 @@ impl EncoderModule {
         inp[0..2].copy_from_slice(&self.status.to_le_bytes());
         inp[2..6].copy_from_slice(&self.counter.to_le_bytes());
         inp[6..10].copy_from_slice(&self.latch.to_le_bytes());
-        mem.pdi_write(self.inputs_at, &inp);
+        if exchange.inputs {
+            mem.pdi_write(self.inputs_at, &inp);
+        }
     }
 }
 
@@ -254,20 +260,39 @@ mod tests {
     }
 
     #[test]
+    fn outputs_count_only_in_op_and_inputs_from_safeop_on() {
+        use crate::esc::al::AlState;
+        let (mut mem, mut e) = module();
+        e.set_shaft_position(1.0);
+        // Init: the counter counts, nothing is published.
+        e.step(&mut mem, 0.001, Exchange::in_state(AlState::Init));
+        assert_eq!(inputs(&mem), (0, 0, 0));
+        // SafeOp: published; the master's "set counter" is not taken (safe outputs).
+        outputs(&mut mem, control::SET_COUNTER, 7);
+        e.step(&mut mem, 0.001, Exchange::in_state(AlState::SafeOp));
+        assert_eq!(inputs(&mem).1, 4096);
+        assert_eq!(inputs(&mem).0 & status::SET_COUNTER_DONE, 0);
+        // Op: taken.
+        e.step(&mut mem, 0.001, Exchange::in_state(AlState::Op));
+        assert_eq!(inputs(&mem).1, 7);
+        assert_ne!(inputs(&mem).0 & status::SET_COUNTER_DONE, 0);
+    }
+
+    #[test]
     fn counts_the_shaft_in_whole_counts_both_ways() {
         let (mut mem, mut e) = module();
         e.set_shaft_position(2.5);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).1, 10_240);
         // 1 rev/s for 1 ms at 4096 counts/rev: 4.096 counts, floor of the shaft position.
         e.drive(1.0, 0.001);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).1, 10_244);
         e.drive(1.0, 0.001);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).1, 10_248, "10 248.192: the fraction is kept");
         e.set_shaft_position(-1.0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).1, (-4096i32) as u32);
         assert_eq!(e.position_counts(), -4096);
     }
@@ -277,7 +302,7 @@ mod tests {
         let (mut mem, mut e) = module();
         e.shaft_speed_rev_s = 0.5;
         for _ in 0..1000 {
-            e.step(&mut mem, 0.001);
+            e.step(&mut mem, 0.001, Exchange::OP);
         }
         // 0.5 rev in 1000 steps of 2.048 counts: 2048 up to rounding of the sum.
         assert!(
@@ -291,14 +316,14 @@ mod tests {
     fn the_counter_wraps_and_flags_underflow_and_overflow() {
         let (mut mem, mut e) = module();
         e.set_shaft_position(-1.0 / 4096.0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
         assert_eq!(c, u32::MAX, "0 − 1 wraps to 0xFFFF_FFFF");
         assert_ne!(st & status::COUNTER_UNDERFLOW, 0);
         assert_eq!(st & status::COUNTER_OVERFLOW, 0);
         // Back over 0: overflow, which clears underflow.
         e.set_shaft_position(1.0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
         assert_eq!(c, 4096);
         assert_eq!(
@@ -307,7 +332,7 @@ mod tests {
         );
         // Past a third of the range the overflow flag clears.
         e.set_shaft_position(f64::from(THIRD) / 4096.0 + 1.0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).0 & status::COUNTER_OVERFLOW, 0);
     }
 
@@ -316,23 +341,23 @@ mod tests {
         let (mut mem, mut e) = module();
         e.set_shaft_position(1.0);
         outputs(&mut mem, 0, 1_000_000);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem), (status::INPUT_C, 4096, 0));
         outputs(&mut mem, control::SET_COUNTER, 1_000_000);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
         assert_eq!(c, 1_000_000);
         assert_ne!(st & status::SET_COUNTER_DONE, 0);
         // Held high: counting goes on from the set value, the value is not loaded again.
         e.set_shaft_position(1.5);
         outputs(&mut mem, control::SET_COUNTER, 7);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
         assert_eq!(c, 1_002_048);
         assert_ne!(st & status::SET_COUNTER_DONE, 0);
         // Cleared: the acknowledgement goes.
         outputs(&mut mem, 0, 7);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).0 & status::SET_COUNTER_DONE, 0);
         assert_eq!(inputs(&mem).1, 1_002_048);
     }
@@ -341,25 +366,25 @@ mod tests {
     fn latch_c_holds_the_counter_at_the_index_pulse() {
         let (mut mem, mut e) = module();
         e.set_shaft_position(0.75);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         outputs(&mut mem, control::ENABLE_LATCH_C, 0);
         // 3072 → 5000 passes the index at 4096.
         e.set_shaft_position(5000.0 / 4096.0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, latch) = inputs(&mem);
         assert_eq!((c, latch), (5000, 4096));
         assert_ne!(st & status::LATCH_C_VALID, 0);
         // Latched once: the next index does not overwrite it.
         e.set_shaft_position(2.5);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).2, 4096);
         // Re-armed, backwards from 10 240 passes 8192.
         outputs(&mut mem, 0, 0);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).0 & status::LATCH_C_VALID, 0);
         outputs(&mut mem, control::ENABLE_LATCH_C, 0);
         e.set_shaft_position(1.9);
-        e.step(&mut mem, 0.001);
+        e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).2, 8192);
         assert_ne!(inputs(&mem).0 & status::LATCH_C_VALID, 0);
     }

@@ -8,7 +8,36 @@ pub mod record;
 pub mod servo;
 pub mod switches;
 
+use crate::esc::al::AlState;
 use crate::esc::memory::Memory;
+
+/// What a slave's AL state lets its application exchange with the master (ETG.1000.6
+/// §6.4.1): inputs are valid from SafeOp on; outputs are taken only in Op (in SafeOp they
+/// stay in their safe state, all zero). The application itself (a shaft turning, a counter
+/// counting) runs in every state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Exchange {
+    /// The application writes its inputs.
+    pub inputs: bool,
+    /// The application takes the master's outputs.
+    pub outputs: bool,
+}
+
+impl Exchange {
+    /// Operational: both ways.
+    pub const OP: Self = Self {
+        inputs: true,
+        outputs: true,
+    };
+
+    /// What `state` allows.
+    pub fn in_state(state: AlState) -> Self {
+        Self {
+            inputs: matches!(state, AlState::SafeOp | AlState::Op),
+            outputs: state == AlState::Op,
+        }
+    }
+}
 
 /// The application of a slave.
 // A servo's model is larger than the others'; each slave holds one, built once.
@@ -62,10 +91,22 @@ impl DeviceModel {
     }
 
     /// Runs `dt_s` seconds of the application against the slave's memory: takes the
-    /// outputs, runs, publishes the inputs.
-    pub fn step(&mut self, mem: &mut Memory, dt_s: f64) {
-        self.take_outputs(mem);
-        self.run_and_publish(mem, dt_s);
+    /// outputs, runs, publishes the inputs, as far as `exchange` allows.
+    pub fn step(&mut self, mem: &mut Memory, dt_s: f64, exchange: Exchange) {
+        match self {
+            DeviceModel::None => {}
+            DeviceModel::Servo(s) => {
+                if exchange.outputs {
+                    s.take_outputs(mem);
+                }
+                s.run(dt_s);
+                if exchange.inputs {
+                    s.publish_inputs(mem);
+                }
+            }
+            DeviceModel::Encoder(e) => e.step(mem, dt_s, exchange),
+            DeviceModel::Switches(s) => s.step(mem, exchange),
+        }
     }
 
     /// Takes the outputs the master wrote, as a drive does at its SYNC0 edge (DC) or when
@@ -75,20 +116,6 @@ impl DeviceModel {
         match self {
             DeviceModel::Servo(s) => s.take_outputs(mem),
             DeviceModel::None | DeviceModel::Encoder(_) | DeviceModel::Switches(_) => {}
-        }
-    }
-
-    /// Runs `dt_s` seconds of the application on the outputs last taken and publishes its
-    /// inputs.
-    pub fn run_and_publish(&mut self, mem: &mut Memory, dt_s: f64) {
-        match self {
-            DeviceModel::None => {}
-            DeviceModel::Servo(s) => {
-                s.run(dt_s);
-                s.publish_inputs(mem);
-            }
-            DeviceModel::Encoder(e) => e.step(mem, dt_s),
-            DeviceModel::Switches(s) => s.step(mem),
         }
     }
 
@@ -126,9 +153,9 @@ impl DeviceModel {
     }
 
     /// The watched axis is at `position` (counts).
-    pub fn on_axis_position(&mut self, mem: &mut Memory, position: i64) {
+    pub fn on_axis_position(&mut self, mem: &mut Memory, position: i64, exchange: Exchange) {
         if let DeviceModel::Switches(s) = self {
-            s.sense(mem, position);
+            s.sense(mem, position, exchange);
         }
     }
 }

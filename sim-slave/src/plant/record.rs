@@ -182,9 +182,93 @@ impl DriveRecord {
     }
 }
 
+/// The drive records file could not be written or read.
+#[derive(Debug, Error)]
+pub enum RecordsFileError {
+    /// Writing it failed.
+    #[error("cannot write the drive records to {path}: {reason}")]
+    Write {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+    /// Reading it failed, or it is no records file.
+    #[error("{path}: {reason}")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// Writes `records` (one entry per chain position, `None` for devices that are no drive;
+/// see [`crate::chain::SlaveChain::records`]) to `path` as a JSON array, through a
+/// temporary file beside it so that a reader never sees half of it. `gantry-sim --record`,
+/// `gantry run` with `bus.simulator_record` and `gantry demo` write this file.
+pub fn write_records(
+    path: &std::path::Path,
+    records: &[Option<DriveRecord>],
+) -> Result<(), RecordsFileError> {
+    let write = |reason: String| RecordsFileError::Write {
+        path: path.display().to_string(),
+        reason,
+    };
+    let text = serde_json::to_string_pretty(records).map_err(|e| write(e.to_string()))?;
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| write(e.to_string()))
+}
+
+/// Reads a file [`write_records`] wrote.
+pub fn read_records(path: &std::path::Path) -> Result<Vec<Option<DriveRecord>>, RecordsFileError> {
+    let read = |reason: String| RecordsFileError::Read {
+        path: path.display().to_string(),
+        reason,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| read(e.to_string()))?;
+    serde_json::from_str(&text).map_err(|e| read(e.to_string()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_records_file_round_trips_and_errors_name_the_file() {
+        let mut r = DriveRecord::default();
+        r.target(1);
+        r.target(3);
+        let dir = std::env::temp_dir().join(format!("gantry-sim-records-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("records.json");
+        write_records(&path, &[Some(r), None]).unwrap();
+        assert!(!path.with_extension("tmp").exists());
+        let back = read_records(&path).unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!(back[0].map(|r| r.max_target_step_counts), Some(2));
+        assert!(back[1].is_none());
+        let missing = dir.join("missing/records.json");
+        let e = write_records(&missing, &[]).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!(
+                "cannot write the drive records to {}: ",
+                missing.display()
+            )),
+            "{e}"
+        );
+        std::fs::write(&path, "[{\"targets\": 1}]").unwrap();
+        let e = read_records(&path).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}: missing field", path.display())),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = read_records(&missing).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: ", missing.display())), "{e}");
+    }
 
     #[test]
     fn steps_are_measured_the_short_way_across_the_counter_wrap() {

@@ -13,6 +13,7 @@
 
 use thiserror::Error;
 
+use super::Exchange;
 use crate::esc::memory::Memory;
 
 /// Number of inputs.
@@ -152,14 +153,17 @@ impl SwitchesModule {
     }
 
     /// The axis is at `position` (counts): set the inputs accordingly.
-    pub fn sense(&mut self, mem: &mut Memory, position: i64) {
+    pub fn sense(&mut self, mem: &mut Memory, position: i64, exchange: Exchange) {
         self.position = Some(position);
-        self.step(mem);
+        self.step(mem, exchange);
     }
 
-    /// Writes the inputs for the last position.
-    pub fn step(&mut self, mem: &mut Memory) {
-        mem.pdi_write(self.inputs_at, &[self.inputs()]);
+    /// Writes the inputs for the last position (from SafeOp on: before, the master
+    /// reads what the process RAM held, not the switches).
+    pub fn step(&mut self, mem: &mut Memory, exchange: Exchange) {
+        if exchange.inputs {
+            mem.pdi_write(self.inputs_at, &[self.inputs()]);
+        }
     }
 }
 
@@ -188,11 +192,22 @@ mod tests {
     }
 
     #[test]
+    fn inputs_are_published_from_safeop_on() {
+        use crate::esc::al::AlState;
+        let mut m = SwitchesModule::new(PROCESS_RAM, 0, vec![REFERENCE]).unwrap();
+        let mut mem = Memory::new();
+        m.sense(&mut mem, 1500, Exchange::in_state(AlState::PreOp));
+        assert_eq!(read(&mem), 0, "PreOp: not published");
+        m.sense(&mut mem, 1500, Exchange::in_state(AlState::SafeOp));
+        assert_eq!(read(&mem), 0b1, "SafeOp: the reference cam");
+    }
+
+    #[test]
     fn cam_edges_are_exact_to_the_count() {
         let mut mem = Memory::new();
         let mut m = SwitchesModule::new(PROCESS_RAM, 0, vec![REFERENCE]).unwrap();
         for (p, on) in [(999, 0), (1000, 1), (1999, 1), (2000, 0), (-5, 0)] {
-            m.sense(&mut mem, p);
+            m.sense(&mut mem, p, Exchange::OP);
             assert_eq!(read(&mem), on, "at {p}");
         }
     }
@@ -202,13 +217,13 @@ mod tests {
         let mut mem = Memory::new();
         let mut m = SwitchesModule::new(PROCESS_RAM, 0, vec![REFERENCE, POSITIVE_LIMIT]).unwrap();
         // Before any position the switches rest: the NC contact reads high.
-        m.step(&mut mem);
+        m.step(&mut mem, Exchange::OP);
         assert_eq!(read(&mem), 0b10);
-        m.sense(&mut mem, 4999);
+        m.sense(&mut mem, 4999, Exchange::OP);
         assert_eq!(read(&mem), 0b10);
-        m.sense(&mut mem, 5000);
+        m.sense(&mut mem, 5000, Exchange::OP);
         assert_eq!(read(&mem), 0b00, "limit reached: the NC input drops");
-        m.sense(&mut mem, 1500);
+        m.sense(&mut mem, 1500, Exchange::OP);
         assert_eq!(read(&mem), 0b11);
     }
 
@@ -223,7 +238,7 @@ mod tests {
         };
         let mut m = SwitchesModule::new(PROCESS_RAM, 0, vec![far]).unwrap();
         for p in (-200_000..=999_999).step_by(997).chain([999_999]) {
-            m.sense(&mut mem, p);
+            m.sense(&mut mem, p, Exchange::OP);
             assert_eq!(read(&mem), 0, "at {p}");
         }
     }

@@ -1,0 +1,72 @@
+//! Applying commands to an axis, one module per command family: operand validation, how a
+//! new command joins the running one (aborting, buffered, blending, ramp break), and
+//! planning from the last set values.
+//!
+//! Everything here runs between two cycles with the state of the last cycle, so a new
+//! profile starts exactly where the old one was: no jump in position or velocity (nor in
+//! acceleration for S-curves).
+
+mod buffer;
+mod change;
+mod jog;
+mod operands;
+mod plan;
+mod position;
+mod power;
+mod ptp;
+mod reset;
+mod stop;
+mod velocity;
+
+use super::command::{Command, CommandError};
+use super::handle::{CommandStatus, HandleId, HandleTable};
+use super::state::{accepts, AxisState};
+use super::Axis;
+
+impl Axis {
+    /// Applies `cmd` with handle `h`. Returns the handle's initial status, or the error
+    /// that refused the command (the axis then goes on unchanged).
+    pub(crate) fn apply(
+        &mut self,
+        cmd: &Command,
+        h: HandleId,
+        handles: &mut HandleTable,
+    ) -> Result<CommandStatus, CommandError> {
+        let name = cmd.name();
+        let bookkeeping = matches!(cmd, Command::SetPosition { .. } | Command::SetHomed(_));
+        if !self.cfg.kind.is_commandable() && !bookkeeping {
+            return Err(CommandError::NotCommandable {
+                command: name,
+                kind: self.cfg.kind.name(),
+            });
+        }
+        if self.state == AxisState::ErrorStop && !accepts(self.state, cmd) {
+            // PLCopen: ErrorStop is left only through Reset; say why the axis is there.
+            return Err(CommandError::InErrorStop {
+                command: name,
+                cause: self.error_summary(),
+            });
+        }
+        if !accepts(self.state, cmd) {
+            return Err(CommandError::NotAllowedInState {
+                command: name,
+                state: self.state,
+            });
+        }
+        match *cmd {
+            Command::Power(p) => self.power(p, h, handles),
+            Command::Reset => self.reset(h),
+            Command::MovePtp(m) => self.move_ptp(m, h, handles),
+            Command::MoveVelocity(v) => self.move_velocity(v, h, handles),
+            Command::Reverse => self.reverse(handles),
+            Command::Jog(j) => self.jog(&j, h, handles),
+            Command::Change(what, value) => self.change(what, value),
+            Command::Halt { mode, deceleration } => self.halt(mode, deceleration, h, handles),
+            Command::Stop { deceleration } => self.stop(deceleration, h, handles),
+            Command::Release => self.release(),
+            Command::QuickStop => self.quick_stop(h, handles),
+            Command::SetPosition { position, relative } => self.set_position(position, relative),
+            Command::SetHomed(b) => self.set_homed(b),
+        }
+    }
+}
