@@ -1,6 +1,7 @@
 //! End-to-end tests of gantry: the master and the simulator together. The tests live in
 //! `tests/tests/`; what they share lives here and in the master (`gantry::ethercat`).
 
+pub mod cyclic_frame;
 pub mod dc_phase;
 pub mod invariant;
 pub mod lockstep;

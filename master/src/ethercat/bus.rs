@@ -11,7 +11,7 @@ use super::transition;
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::{DcConfiguration, HasDc, SafeOp};
 use ethercrab::{
-    MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
+    Command, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
 use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
@@ -22,6 +22,7 @@ use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
 use super::embedded::SimWire;
+use super::frame::{self, ProcessImage};
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::link::{FrameIo, Link};
 use super::mapping::map_pdos;
@@ -36,7 +37,12 @@ use crate::runtime::clock::now_ns;
 pub const MAX_SLAVES: usize = 64;
 /// Most process data bytes.
 pub const MAX_PDI: usize = 4096;
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
+/// Most data bytes in one datagram: a full Ethernet frame (1500 B of payload) less the
+/// EtherCAT header, one datagram header and its working counter, so that the process data
+/// of up to 1486 bytes goes in one LRW frame.
+pub const MAX_DATAGRAM: usize =
+    1500 - frame::ECAT_HEADER - frame::DATAGRAM_HEADER - frame::WORKING_COUNTER;
+const MAX_PDU_DATA: usize = PduStorage::element_size(MAX_DATAGRAM);
 static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 
 /// ethercrab's timeouts as gantry sets them: none. ethercrab times its frames and waits
@@ -183,6 +189,15 @@ pub struct EthercatBus {
     md: MainDevice<'static>,
     group: Groups,
     dc: DcStatus,
+    /// The reference clock's station address, when DC runs: the cycle reads its system
+    /// time (FRMW 0x0910) and so distributes it to the other clocks (ETG.1000.4 §9.3.6).
+    dc_reference: Option<u16>,
+    /// SYNC0 period (ns).
+    sync0_ns: u64,
+    /// The process data as the wire carries it (the cycle reads and writes it).
+    image: ProcessImage,
+    /// What the cycle sent.
+    frame_stats: FrameStats,
     drives: Vec<usize>,
     states: Vec<SubDeviceState>,
     /// The in-process simulator's chain, when the link is the wire to it.
@@ -372,14 +387,15 @@ impl EthercatBus {
         let group_ref = &group;
         let addresses: Vec<u16> =
             with_group!(group_ref, g => g.iter(&md).map(|sd| sd.configured_address()).collect());
-        // LRW: a slave with outputs counts 2, with inputs 1.
-        let expected_wkc = with_group!(group_ref, g => g
+        let image = with_group!(group_ref, g => ProcessImage::of_group(g, &md, MAX_DATAGRAM))
+            .map_err(|e| StartError::setup("the process data image")(e.into()))?;
+        // The reference clock: ethercrab's, the first slave with DC (`dc::configure_dc`).
+        let dc_reference = with_group!(group_ref, g => g
             .iter(&md)
-            .map(|sd| {
-                2 * u16::from(!sd.outputs_raw().is_empty())
-                    + u16::from(!sd.inputs_raw().is_empty())
-            })
-            .sum());
+            .find(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None))
+            .map(|sd| sd.configured_address()));
+        // LRW: a slave with outputs counts 2, with inputs 1 (per datagram).
+        let expected_wkc = image.expected_working_counter();
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
         let kernel = Kernel::new(dt, config.kernel_axes.clone())
             .map_err(|e| StartError::setup("the motion kernel")(e.into()))?;
@@ -402,13 +418,18 @@ impl EthercatBus {
             active: matches!(group, Groups::Dc(_)),
             ..DcStatus::default()
         };
+        let dc_reference = dc_reference.filter(|_| dc.active);
         Ok((
             Self {
                 md,
                 group,
                 dc,
+                dc_reference,
+                sync0_ns: u64::from(config.bus.cycle_us) * 1000,
+                image,
+                frame_stats: FrameStats::default(),
                 drives: config.axes.iter().map(|a| a.drive).collect(),
-                states: Vec::with_capacity(slaves),
+                states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
                 chain,
                 replies,
                 runner,
@@ -425,6 +446,26 @@ impl EthercatBus {
     /// accesses).
     pub fn replies(&self) -> u64 {
         self.replies.load(std::sync::atomic::Ordering::Acquire)
+    }
+
+    /// What the cyclic exchanges sent so far.
+    pub fn frame_stats(&self) -> FrameStats {
+        self.frame_stats
+    }
+
+    /// The process data image the cycle sends.
+    pub fn image(&self) -> &ProcessImage {
+        &self.image
+    }
+
+    /// Bytes on the wire per cycle when every slave answers as it should: the LRW
+    /// frames, the AL-status BRD and, with DC, the FRMW (both in the first LRW's frame).
+    pub fn cyclic_wire_bytes(&self) -> usize {
+        let dc = self
+            .dc_reference
+            .map_or(0, |_| frame::datagram_bytes(frame::DC_TIME_BYTES));
+        self.image
+            .wire_bytes(frame::datagram_bytes(frame::AL_STATUS_BYTES) + dc)
     }
 
     /// Distributed clocks as of the last exchange.
@@ -483,6 +524,67 @@ impl EthercatBus {
         // The capture flushed, the link closed (the simulator's thread stops with it).
         self.runner.finish_io();
     }
+}
+
+/// The DC system time register (ETG.1000.4 Table 60).
+const DC_SYSTEM_TIME: u16 = 0x0910;
+
+/// What the cyclic exchanges sent, counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameStats {
+    /// Cycles exchanged.
+    pub cycles: u64,
+    /// Cycles that also read every slave's AL status (at start, or after a wrong working
+    /// counter).
+    pub state_reads: u64,
+}
+
+/// One cycle's process data: the image's LRW datagrams and one BRD of the AL status of
+/// all `slaves`; then, if the working counter is not `expected` or a slave is not in OP
+/// (or at once, if `read_states` asks for it), every slave's AL status with ethercrab's
+/// `tx_rx` (its LRW again, with the same outputs, and one FPRD per slave), in the same
+/// exchange, so that the slave that left is named in the cycle that saw it go. Returns
+/// the working counter and whether `states` holds the slaves' states. The LRW's count is
+/// left in `lrw_count` for the caller, should the state read miss the deadline.
+#[allow(clippy::too_many_arguments)]
+async fn cyclic_exchange<DC>(
+    group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
+    md: &MainDevice<'static>,
+    image: &mut ProcessImage,
+    states: &mut Vec<SubDeviceState>,
+    stats: &mut FrameStats,
+    read_states: bool,
+    expected: u16,
+    slaves: u16,
+    lrw_count: &std::cell::Cell<Option<u16>>,
+) -> Result<(u16, bool), ethercrab::error::Error> {
+    stats.cycles += 1;
+    if !read_states {
+        // Beside the LRW, every slave's AL status in one BRD (each slave ORs its own in,
+        // ETG.1000.4 §5.4.1.2; the working counter counts those that answered): the
+        // LRW's count does not change when a slave goes from OP to SafeOp, whose output
+        // SyncManager stays active (ETG.1000.6 §6.4.1: SafeOp takes outputs, unused).
+        let al = Command::brd(recovery::AL_STATUS)
+            .with_wkc(slaves)
+            .receive::<u16>(md);
+        let (lrw, al) = futures_lite::future::zip(image.exchange(md), al).await;
+        let lrw = lrw?;
+        lrw_count.set(Some(lrw.working_counter));
+        let all_in_op = al.is_ok_and(|s| {
+            s & (recovery::AL_STATE_MASK | recovery::AL_ERROR_ACK) == recovery::AL_STATE_OP
+        });
+        if all_in_op && lrw.complete && lrw.working_counter == expected {
+            return Ok((lrw.working_counter, false));
+        }
+    }
+    stats.state_reads += 1;
+    image.put_outputs(group, md);
+    let reply = group.tx_rx(md).await?;
+    image.take_inputs(group, md);
+    states.clear();
+    // Within the capacity reserved at bring-up (one per slave): no allocation.
+    states.extend(reply.subdevice_states.iter().copied());
+    Ok((reply.working_counter, true))
 }
 
 /// Stack of the threads bring-up and shutdown run in.
@@ -586,19 +688,14 @@ impl CycleBus for EthercatBus {
                 cycle.comm_fault(axis)?;
                 continue;
             }
-            match with_group!(&self.group, g => g.subdevice(&self.md, drive)) {
-                Ok(sd) => cycle.read_inputs(axis, &sd.inputs_raw())?,
-                Err(_) => cycle.comm_fault(axis)?,
-            }
+            cycle.read_inputs(axis, self.image.inputs(drive))?;
         }
         Ok(())
     }
 
     fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError> {
         for (axis, &drive) in self.drives.iter().enumerate() {
-            if let Ok(sd) = with_group!(&self.group, g => g.subdevice(&self.md, drive)) {
-                cycle.write_outputs(axis, sd.io_raw_mut().outputs())?;
-            }
+            cycle.write_outputs(axis, self.image.outputs_mut(drive))?;
         }
         Ok(())
     }
@@ -618,42 +715,55 @@ impl CycleBus for EthercatBus {
         };
         let pending = recovering
             .or(asking.map(|k| (k, RegisterAccess::WriteAlControl(recovery::AL_STATE_OP))));
-        let (answer, accessed) = match &self.group {
-            Groups::Plain(g) => {
-                let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
-                let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
-                let (answer, accessed) =
-                    runner.run_both_until(g.tx_rx(md), access_fut, deadline_ns);
-                let answer =
-                    answer.map(|r| r.map(|r| (r.working_counter, r.subdevice_states, None)));
-                (answer, accessed)
+        // While the slaves are on their way to OP, and while anything is wrong, the states
+        // are read every cycle (ethercrab's `tx_rx`: one frame, as before); otherwise the
+        // LRW goes alone (see `BusHealth::reads_states`).
+        let read_states = health.reads_states();
+        let expected = health.expected_working_counter();
+        let (image, states, stats) = (&mut self.image, &mut self.states, &mut self.frame_stats);
+        let (dc_reference, group) = (self.dc_reference, &self.group);
+        // The LRW's count, kept if the state read after it misses the deadline.
+        let lrw_count = std::cell::Cell::new(None);
+        let (answer, accessed) = with_group!(group, g => {
+            let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
+            let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
+            let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, expected, g.len() as u16, &lrw_count);
+            // With DC the reference clock's time goes round too (one FRMW, its own frame).
+            let time = async {
+                match dc_reference {
+                    Some(reference) => Command::frmw(reference, DC_SYSTEM_TIME)
+                        .ignore_wkc()
+                        .receive::<u64>(md)
+                        .await
+                        .ok(),
+                    None => None,
+                }
+            };
+            // Queued in one poll, the LRW, the BRD and the FRMW go as one frame (the
+            // runner's exchange joins them, see `coalesce`).
+            runner.run_both_until(futures_lite::future::zip(cyclic, time), access_fut, deadline_ns)
+        });
+        let answer = match answer {
+            Some((cyclic, time)) => {
+                if let Some(time) = time {
+                    self.dc.system_time_ns = time;
+                    self.dc.cycle_offset_ns = time % self.sync0_ns.max(1);
+                }
+                cyclic.ok()
             }
-            // With DC the frame also carries the reference clock's time to the others.
-            Groups::Dc(g) => {
-                let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
-                let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
-                let (answer, accessed) =
-                    runner.run_both_until(g.tx_rx_dc(md), access_fut, deadline_ns);
-                let answer = answer
-                    .map(|r| r.map(|r| (r.working_counter, r.subdevice_states, Some(r.extra))));
-                (answer, accessed)
-            }
+            // The deadline: the LRW may still have come back before the state read.
+            None => lrw_count.get().map(|wkc| (wkc, false)),
         };
         match answer {
-            Some(Ok((working_counter, states, info))) => {
-                if let Some(info) = info {
-                    self.dc.system_time_ns = info.dc_system_time;
-                    self.dc.cycle_offset_ns = info.cycle_start_offset.as_nanos() as u64;
-                }
-                self.states.clear();
-                self.states.extend(states.iter().copied());
+            Some((working_counter, states_read)) => {
+                let states: &[SubDeviceState] = if states_read { &self.states } else { &[] };
                 health.record(Exchange::Answered {
                     working_counter,
-                    states: &self.states,
+                    states,
                 });
             }
             // No reply by the deadline, or the frame could not be sent.
-            Some(Err(_)) | None => health.record(Exchange::Lost),
+            None => health.record(Exchange::Lost),
         }
         if let Some(k) = asking {
             // Not taken (lost frame, no answer): the same slave again next cycle.

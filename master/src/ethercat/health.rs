@@ -122,7 +122,9 @@ pub enum Exchange<'a> {
     Answered {
         /// Working counter of the process data.
         working_counter: u16,
-        /// AL state of every slave, in order.
+        /// AL state of every slave, in order; empty when they were not read this cycle
+        /// (the cyclic frame reads them only when the working counter is wrong, and at
+        /// start).
         states: &'a [SubDeviceState],
     },
 }
@@ -172,6 +174,21 @@ impl BusHealth {
         self
     }
 
+    /// The working counter a cycle's process data comes back with when every slave
+    /// exchanged.
+    pub fn expected_working_counter(&self) -> u16 {
+        self.expected_wkc
+    }
+
+    /// Whether the next cycle reads every slave's AL state beside the process data: while
+    /// the slaves are on their way to OP, and while anything is wrong (a slave out of OP,
+    /// a wrong working counter, a bus fault) until a reset clears it. Otherwise the cycle
+    /// sends the process data alone and reads the states only in a cycle whose working
+    /// counter is wrong (as IgH and SOEM supervise).
+    pub fn reads_states(&self) -> bool {
+        self.starting.is_some() || self.wkc_run > 0 || self.any_fault()
+    }
+
     /// Whether the slaves are still on their way to OP.
     pub fn is_starting(&self) -> bool {
         self.starting.is_some()
@@ -195,6 +212,10 @@ impl BusHealth {
                 states,
             } => {
                 self.lost_run = 0;
+                if self.starting.is_some() && states.is_empty() {
+                    // Starting, the states are what tell: none this cycle, no news.
+                    return;
+                }
                 if let Some((left, waited_ms)) = self.starting {
                     let answering = !states.contains(&SubDeviceState::None);
                     if states.iter().all(|s| *s == SubDeviceState::Op) {
@@ -229,7 +250,7 @@ impl BusHealth {
                     }
                 }
                 // A slave that is gone explains the working counter; count it only when
-                // every slave says it is in OP.
+                // every slave says it is in OP (or the states were not read).
                 if working_counter != self.expected_wkc && lost_slave.is_none() {
                     self.wkc_total += 1;
                     self.wkc_run += 1;

@@ -17,6 +17,7 @@ use std::time::Instant;
 
 use ethercrab::{PduRx, PduTx};
 
+use super::coalesce::Coalescer;
 use crate::pcap::PcapWriter;
 
 /// Largest frame a link carries (an Ethernet frame without FCS is at most 1514 bytes;
@@ -66,6 +67,8 @@ pub struct FrameIo {
     stats: LinkStats,
     /// Replies handed back so far, shared with whoever watches the bus for silence.
     replies: Arc<AtomicU64>,
+    /// The frames queued since the last exchange, joined into one (see `coalesce`).
+    joined: Coalescer,
 }
 
 impl FrameIo {
@@ -85,11 +88,14 @@ impl FrameIo {
             started: Instant::now(),
             stats: LinkStats::default(),
             replies: Arc::new(AtomicU64::new(0)),
+            joined: Coalescer::default(),
         }
     }
 
-    /// Sends every frame ethercrab queued, then hands back every reply waiting; whether
-    /// a reply came (the caller polls its future again at once).
+    /// Sends every frame ethercrab queued — joined into one Ethernet frame as far as they
+    /// fit (`coalesce`): the frames one poll of the cycle queued (LRW, AL-status BRD, DC
+    /// FRMW) leave as one — then hands back every reply waiting, split into the replies of
+    /// the frames joined; whether a reply came (the caller polls its future again at once).
     pub fn exchange(&mut self) -> bool {
         let Self {
             tx,
@@ -100,25 +106,38 @@ impl FrameIo {
             started,
             stats,
             replies,
+            joined,
         } = self;
-        while let Some(frame) = tx.next_sendable_frame() {
-            let sent = frame.send_blocking(|bytes| {
-                // The frame goes on the wire first, the capture after it (a file write
-                // must not delay the frame); stamped with the time it was sent.
-                let at_us = started.elapsed().as_micros() as u64;
-                let sent = link
-                    .send(bytes)
-                    .map(|()| bytes.len())
-                    .map_err(|_| ethercrab::error::Error::SendFrame);
-                if let Some(c) = capture.as_mut() {
-                    let _ = c.frame(at_us, bytes);
-                }
-                sent
-            });
-            match sent {
-                Ok(_) => stats.sent += 1,
+        // The frame goes on the wire first, the capture after it (a file write must not
+        // delay the frame); stamped with the time it was sent.
+        let mut send = |bytes: &[u8]| {
+            let at_us = started.elapsed().as_micros() as u64;
+            match link.send(bytes) {
+                Ok(()) => stats.sent += 1,
                 Err(_) => stats.errors += 1,
             }
+            if let Some(c) = capture.as_mut() {
+                let _ = c.frame(at_us, bytes);
+            }
+        };
+        while let Some(frame) = tx.next_sendable_frame() {
+            let _ = frame.send_blocking(|bytes| {
+                if !joined.push(bytes) {
+                    // Full, or not one to join: what is waiting goes first.
+                    if !joined.is_empty() {
+                        send(joined.frame());
+                        joined.sent();
+                    }
+                    if !joined.push(bytes) {
+                        send(bytes);
+                    }
+                }
+                Ok(bytes.len())
+            });
+        }
+        if !joined.is_empty() {
+            send(joined.frame());
+            joined.sent();
         }
         let mut got = false;
         loop {
@@ -129,10 +148,12 @@ impl FrameIo {
                     // Counted before ethercrab sees it (and wakes the waiting future), so
                     // whoever got its reply also sees the count.
                     replies.fetch_add(1, Ordering::Release);
-                    if rx.receive_frame(frame).is_ok() {
-                        stats.received += 1;
-                        got = true;
-                    }
+                    joined.split(frame, |part| {
+                        if rx.receive_frame(part).is_ok() {
+                            stats.received += 1;
+                            got = true;
+                        }
+                    });
                     if let Some(c) = capture.as_mut() {
                         let _ = c.frame(at_us, frame);
                     }

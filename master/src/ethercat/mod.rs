@@ -3,10 +3,12 @@
 //! process data.
 
 pub mod bus;
+pub mod coalesce;
 pub mod cycle;
 pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
+pub mod frame;
 pub mod health;
 pub mod link;
 pub mod mapping;

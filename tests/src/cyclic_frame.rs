@@ -1,0 +1,264 @@
+//! The cyclic frame as it goes on the wire, read back from the bus' pcap capture: the
+//! scenario behind the README's bytes-per-cycle figures, run by one test file per slave
+//! count (one bus per process).
+//!
+//! On the wire (ETG.1000.4 §5.3, §5.4): Ethernet header (14 B), EtherCAT header (2 B: length
+//! in bits 0..11), then datagrams of command (1), index (1), address (4), length (2: bits
+//! 0..11, bit 15 "more datagrams follow"), IRQ (2), data, working counter (2).
+
+use gantry::ethercat::frame::{self, datagram_bytes, wire_bytes};
+use gantry_kernel::axis::handle::CommandStatus;
+
+use crate::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
+use crate::rig::Rig;
+
+/// EtherCAT command codes (ETG.1000.4 Table 18).
+pub const LRW: u8 = 12;
+/// FPRD.
+pub const FPRD: u8 = 4;
+/// FRMW.
+pub const FRMW: u8 = 14;
+/// BRD.
+pub const BRD: u8 = 7;
+
+/// One datagram as captured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Datagram {
+    /// Command code.
+    pub command: u8,
+    /// Data bytes.
+    pub len: usize,
+}
+
+/// One frame the master sent: its length as captured (no FCS) and its datagrams.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SentFrame {
+    /// Bytes captured (Ethernet header to the last working counter, or the padding).
+    pub bytes: usize,
+    /// Its datagrams.
+    pub datagrams: Vec<Datagram>,
+}
+
+impl SentFrame {
+    /// Bytes on the wire: the frame, padded to the minimum, with FCS, preamble and gap.
+    pub fn wire_bytes(&self) -> usize {
+        let datagrams: usize = self.datagrams.iter().map(|d| datagram_bytes(d.len)).sum();
+        wire_bytes(datagrams)
+    }
+}
+
+/// The frames the master sent, from a pcap file (replies, whose source MAC has the
+/// locally-administered bit the first slave sets, are left out).
+pub fn sent_frames(pcap: &[u8]) -> Result<Vec<SentFrame>, String> {
+    let mut at = 24;
+    let mut frames = Vec::new();
+    while at + 16 <= pcap.len() {
+        let caplen = u32::from_le_bytes(pcap[at + 8..at + 12].try_into().unwrap()) as usize;
+        let data = pcap
+            .get(at + 16..at + 16 + caplen)
+            .ok_or_else(|| format!("pcap record at byte {at} cut short"))?;
+        at += 16 + caplen;
+        if data.len() < 16 || data[6] & 0x02 != 0 || data[12..14] != [0x88, 0xA4] {
+            continue;
+        }
+        let ecat_len = usize::from(u16::from_le_bytes([data[14], data[15]]) & 0x07FF);
+        let mut d = 16;
+        let mut datagrams = Vec::new();
+        while d + 10 <= 16 + ecat_len {
+            let len_field = u16::from_le_bytes([data[d + 6], data[d + 7]]);
+            let len = usize::from(len_field & 0x07FF);
+            datagrams.push(Datagram {
+                command: data[d],
+                len,
+            });
+            d += datagram_bytes(len);
+            if len_field & 0x8000 == 0 {
+                break;
+            }
+        }
+        frames.push(SentFrame {
+            bytes: data.len(),
+            datagrams,
+        });
+    }
+    Ok(frames)
+}
+
+/// What one slave count measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Figures {
+    /// Slaves on the bus.
+    pub slaves: usize,
+    /// Process data bytes (the image).
+    pub mapped: usize,
+    /// Bytes on the wire per cycle in steady state (captured).
+    pub wire: usize,
+    /// The least: the mapped bytes in LRW frames alone.
+    pub minimum: usize,
+    /// Steady cycles found in the capture.
+    pub steady_cycles: usize,
+}
+
+/// `slaves` simulated servos with DC, two axes moving (the first and the last drive):
+/// every steady cycle's frames are the LRW (the mapped bytes) and the FRMW of the DC time,
+/// nothing per slave; then the cable before the last slave is pulled and the next cycle
+/// names it. Asserts the drive invariant over every drive; returns the figures.
+pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
+    let dir = std::env::temp_dir().join(format!("gantry-cyclic-frame-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let pcap = dir.join("bus.pcap");
+    // The drives ride through host stalls of a few hundred periods: this test is about
+    // the frame, and the simulator runs on the wall clock of a shared, loaded host.
+    let mut config = crate::sim_config_with(slaves, 1000, "[slave.al]\nsync_error_limit = 1000");
+    assert!(config.bus.dc, "DC is on by default");
+    config.bus.pcap = Some(pcap.display().to_string());
+    let mut rig = Rig::new(&config);
+    let last = slaves - 1;
+    let axes: Vec<usize> = if last == 0 { vec![0] } else { vec![0, last] };
+    for _ in 0..5000 {
+        if !rig.engine.health.is_starting() {
+            break;
+        }
+        rig.run(1);
+    }
+    for axis in 0..slaves {
+        assert_eq!(rig.bus_fault(axis), None, "axis {axis} after start");
+        let drive = &rig.snapshot().drives[axis];
+        assert_eq!(
+            drive.error_code,
+            Some(0),
+            "axis {axis} after start: {drive:?}"
+        );
+    }
+    for &axis in &axes {
+        rig.enable_and_home(axis);
+    }
+    let moves: Vec<_> = axes.iter().map(|&a| rig.start_move(a, 5.0)).collect();
+    let before = rig.engine.bus.frame_stats();
+    rig.run(50);
+    let after = rig.engine.bus.frame_stats();
+    assert_eq!(after.cycles - before.cycles, 50);
+    assert_eq!(
+        after.state_reads, before.state_reads,
+        "no AL status read while every slave is in OP"
+    );
+    let image_len = rig.engine.bus.image().len();
+    let expected_wire = rig.engine.bus.cyclic_wire_bytes();
+    let minimum = rig.engine.bus.image().minimum_wire_bytes();
+    let rig_chunks: Vec<usize> = rig
+        .engine
+        .bus
+        .image()
+        .chunks()
+        .iter()
+        .map(|c| c.bytes.len())
+        .collect();
+    for h in &moves {
+        assert_eq!(rig.finish(h, 5000), CommandStatus::Done);
+    }
+
+    // The cable before the last slave is pulled: the very next cycle names it (with one
+    // slave nothing answers at all: the frame is lost, counted in that cycle).
+    let lost_before = rig.engine.health.lost_total;
+    rig.chain.lock().unwrap().cut_before(Some(last));
+    rig.run(1);
+    if last == 0 {
+        assert_eq!(rig.engine.health.lost_total, lost_before + 1);
+    } else {
+        let address = 0x1000 + last;
+        let named =
+            format!("EtherCAT: slave {last} ({address:#06x}) does not answer (cable, power?)");
+        assert_eq!(
+            rig.bus_fault(last).as_deref(),
+            Some(named.as_str()),
+            "named in the cycle that saw it go"
+        );
+        assert!(rig.bus_fault(0).is_none(), "the others go on");
+    }
+    rig.run(5);
+    rig.chain.lock().unwrap().cut_before(None);
+    rig.run(5);
+    {
+        let chain = rig.chain.lock().unwrap();
+        assert_drive_invariants(
+            &chain,
+            &DriveUnderTest::of_config(&config)
+                .into_iter()
+                .filter(|d| axes.contains(&d.slave))
+                .collect::<Vec<_>>(),
+            1e-3,
+            TestConditions::default(),
+        );
+    }
+    let Rig { engine, .. } = rig;
+    engine.into_bus().shut_down(&mut std::io::sink());
+
+    let bytes = std::fs::read(&pcap).expect("the capture");
+    let frames = sent_frames(&bytes).expect("a readable capture");
+    // The steady cycles as captured: the longest run of frames that are each one LRW of
+    // the whole image, one FRMW of the DC time and one BRD of the AL status (the exchange
+    // joins them, queued together, into one frame; the image of up to 64 servos fits one
+    // datagram).
+    assert_eq!(rig_chunks, [image_len], "one LRW datagram");
+    let cyclic = [
+        Datagram {
+            command: LRW,
+            len: image_len,
+        },
+        Datagram {
+            command: FRMW,
+            len: frame::DC_TIME_BYTES,
+        },
+        Datagram {
+            command: BRD,
+            len: frame::AL_STATUS_BYTES,
+        },
+    ];
+    // In either order: the exchange takes them in the order of ethercrab's frame slots.
+    let is_cyclic = |f: &SentFrame| {
+        f.datagrams.len() == cyclic.len() && cyclic.iter().all(|d| f.datagrams.contains(d))
+    };
+    let (mut longest, mut run) = (0, 0);
+    let mut wire = None;
+    for f in &frames {
+        if is_cyclic(f) {
+            run += 1;
+            longest = longest.max(run);
+            let bytes = f.wire_bytes();
+            assert_eq!(
+                *wire.get_or_insert(bytes),
+                bytes,
+                "every steady cycle alike"
+            );
+        } else {
+            run = 0;
+        }
+    }
+    assert!(
+        longest >= 50,
+        "{longest} steady cycles in a row in the capture, 50 run"
+    );
+    let wire = wire.expect("steady cycles");
+    // Cycles that read the states carry an FPRD per slave (at start, after the cut).
+    assert!(frames
+        .iter()
+        .any(|f| f.datagrams.iter().filter(|d| d.command == FPRD).count() >= slaves));
+    assert_eq!(wire, expected_wire);
+    // The minimum's frame with two fixed datagrams more: 34 bytes whatever the slave
+    // count (the frame is past its 64-byte minimum from 16 slaves on; a single slave's
+    // LRW frame is padded, so there they cost less).
+    let fixed = datagram_bytes(frame::DC_TIME_BYTES) + datagram_bytes(frame::AL_STATUS_BYTES);
+    assert_eq!(
+        wire,
+        wire_bytes(datagram_bytes(image_len) + fixed),
+        "the mapped bytes + two fixed datagrams"
+    );
+    assert!(wire - minimum <= fixed);
+    Figures {
+        slaves,
+        mapped: image_len,
+        wire,
+        minimum,
+        steady_cycles: longest,
+    }
+}
