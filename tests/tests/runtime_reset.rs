@@ -98,7 +98,14 @@ fn lose_slave_1(rig: &mut Rig) {
             .command(i, Command::Power(PowerCommand::Enable))
             .unwrap();
     }
-    rig.run(100);
+    // The start takes its time (the phase lock holds, then each slave's 40 ms to Op, then
+    // the enable): up to a second, in steps of the snapshot's 10 cycles.
+    for _ in 0..100 {
+        if (0..2).all(|i| rig.state(i) == AxisState::Standstill) {
+            break;
+        }
+        rig.run(10);
+    }
     assert_eq!(rig.state(1), AxisState::Standstill);
     rig.chain.lock().unwrap().cut_before(Some(1));
     rig.run(250);
