@@ -6,7 +6,9 @@ use std::future::Future;
 use std::pin::pin;
 use std::task::{Context, Poll, Waker};
 
-use ethercrab::{PduRx, PduTx};
+use ethercrab::std::ethercat_now;
+use ethercrab::subdevice_group::Op;
+use ethercrab::{DefaultLock, MainDevice, PduRx, PduTx, SubDeviceGroup};
 use gantry_sim::chain::SlaveChain;
 
 /// Rewrites a reply frame in place.
@@ -68,5 +70,23 @@ impl Lockstep {
             }
             self.pump();
         }
+    }
+
+    /// Discovers the chain and takes it to Op the way gantry's cycle does (SafeOp, then Op
+    /// with the process data running: drives reach Op only with valid outputs): a group of
+    /// at most `N` slaves and `PDI` bytes of process image.
+    pub fn group_in_op<const N: usize, const PDI: usize>(
+        &mut self,
+        md: &MainDevice<'_>,
+    ) -> Result<SubDeviceGroup<N, PDI, DefaultLock, Op>, ethercrab::error::Error> {
+        let group = self.block_on(md.init_single_group::<N, PDI>(ethercat_now))?;
+        self.block_on(async {
+            gantry::ethercat::transition::into_op(
+                group.into_safe_op(md).await?,
+                md,
+                gantry::ethercat::transition::OP_TIMEOUT,
+            )
+            .await
+        })
     }
 }

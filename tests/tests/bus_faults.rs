@@ -6,7 +6,6 @@
 
 use std::time::Duration;
 
-use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::axis_fault::describe_fault;
@@ -14,7 +13,6 @@ use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, COMMUNICATION_FAULT};
 use gantry::ethercat::recovery::{access, Recovered, Recovery, RecoveryError, RECOVERY_TIMEOUT_NS};
-use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
@@ -49,15 +47,7 @@ impl Machine {
             ..gantry_tests::lockstep_timeouts()
         };
         let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-        let group = net
-            .block_on(md.init_single_group::<4, 64>(ethercat_now))
-            .unwrap();
-        let group: Group = net
-            .block_on(async {
-                transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT)
-                    .await
-            })
-            .unwrap();
+        let group: Group = net.group_in_op(&md).unwrap();
         let addresses = group.iter(&md).map(|sd| sd.configured_address()).collect();
         let axes = (0..DRIVES)
             .map(|i| AxisConfig::new(&format!("a{i}"), AxisKind::Real))

@@ -9,12 +9,10 @@
 
 use std::time::Duration;
 
-use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
-use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{
     Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode, PowerCommand,
 };
@@ -111,16 +109,7 @@ impl Rig {
             ..Timeouts::default()
         };
         let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-        let group = net
-            .block_on(md.init_single_group::<16, 256>(ethercat_now))
-            .unwrap();
-        // Drives reach Op only with valid outputs: the process data runs meanwhile.
-        let group: Group = net
-            .block_on(async {
-                transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT)
-                    .await
-            })
-            .unwrap();
+        let group: Group = net.group_in_op(&md).unwrap();
         let scalings: Vec<Scaling> = axes
             .iter()
             .map(|a| Scaling::new(a.scaling).unwrap())

@@ -7,12 +7,10 @@
 
 use std::time::Duration;
 
-use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
-use gantry::ethercat::transition;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
@@ -93,15 +91,7 @@ impl Rig {
             ..Timeouts::default()
         };
         let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-        let group = net
-            .block_on(md.init_single_group::<16, 256>(ethercat_now))
-            .unwrap();
-        let group: Group = net
-            .block_on(async {
-                transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT)
-                    .await
-            })
-            .unwrap();
+        let group: Group = net.group_in_op(&md).unwrap();
         let configs = vec![axis("a", TIMEOUT_S[0]), axis("b", TIMEOUT_S[1])];
         let drives = configs
             .iter()
