@@ -153,8 +153,18 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
         .iter()
         .map(|c| c.bytes.len())
         .collect();
-    for h in &moves {
-        assert_eq!(rig.finish(h, 5000), CommandStatus::Done);
+    for (h, &axis) in moves.iter().zip(&axes) {
+        let status = rig.finish(h, 5000);
+        let snap = rig.snapshot();
+        assert_eq!(
+            status,
+            CommandStatus::Done,
+            "axis {axis}: {:?}, drive {:?}, {} lost frames, {} overruns",
+            snap.axes[axis].error,
+            snap.drives[axis],
+            rig.engine.health.lost_total,
+            snap.figures.overruns
+        );
     }
 
     // The cable before the last slave is pulled: the very next cycle names it (with one
