@@ -115,6 +115,9 @@ pub struct SlaveChain {
     faults: Faults,
     /// The network's time (ns).
     now_ns: u64,
+    /// The period boundary at which [`SlaveChain::run_until`] last ran the applications:
+    /// a frame that carries the time past the next one leaves it due, not skipped.
+    applications_ran_ns: Option<u64>,
     timing: WireTiming,
     /// Per slave: logical datagrams that wrote its process data.
     process_data_writes: Vec<u64>,
@@ -132,6 +135,7 @@ impl SlaveChain {
             slaves,
             faults: Faults::default(),
             now_ns: 0,
+            applications_ran_ns: None,
             timing: WireTiming::default(),
             process_data_writes: vec![0; n],
         }
@@ -219,19 +223,31 @@ impl SlaveChain {
     /// `period_ns` of network time passed (at most [`MAX_CATCH_UP`] of them after a stall:
     /// beyond that the rest is skipped, not replayed), the clocks go exactly to `t_ns`. Real-time runs
     /// call this before every frame, so DC clocks and SYNC0 follow the host's clock to the
-    /// nanosecond rather than in whole periods.
+    /// nanosecond rather than in whole periods. A boundary that a frame's own time on the
+    /// wire carried the clocks past ([`SlaveChain::process`]) runs now, late by that much:
+    /// a device's application timer fires during a frame too.
     pub fn run_until(&mut self, t_ns: u64, period_ns: u64) {
         let period_ns = period_ns.max(1);
+        // Without a run of its own yet, the applications count as run at the last boundary.
+        let after = *self
+            .applications_ran_ns
+            .get_or_insert(self.now_ns / period_ns * period_ns);
+        let mut boundary = (after / period_ns + 1) * period_ns;
         let mut runs = 0;
-        while runs < MAX_CATCH_UP {
-            let boundary = (self.now_ns / period_ns + 1) * period_ns;
-            if boundary > t_ns {
+        while boundary <= t_ns {
+            if runs == MAX_CATCH_UP {
+                // The rest of a long stall is skipped.
+                self.applications_ran_ns = Some(t_ns / period_ns * period_ns);
                 break;
             }
             // The clocks were brought to the last frame's time, mid-period; the
             // applications still run whole periods.
-            self.advance_clocks(boundary - self.now_ns);
+            if boundary > self.now_ns {
+                self.advance_clocks(boundary - self.now_ns);
+            }
             self.run_applications(period_ns as f64 * 1e-9);
+            self.applications_ran_ns = Some(boundary);
+            boundary += period_ns;
             runs += 1;
         }
         if t_ns > self.now_ns {
@@ -245,6 +261,8 @@ impl SlaveChain {
         // The cast saturates (negative and NaN give 0).
         self.advance_clocks((dt_s * 1e9).round() as u64);
         self.run_applications(dt_s);
+        // Whoever ticks keeps the applications' time: `run_until` starts afresh.
+        self.applications_ran_ns = None;
     }
 
     /// The applications, then the couplings: every device that watches another slave's
@@ -682,6 +700,31 @@ mod tests {
             panic!("an encoder");
         };
         assert_eq!(e.position_counts(), 200 + i64::from(MAX_CATCH_UP));
+    }
+
+    #[test]
+    fn a_boundary_a_frame_carried_the_clocks_past_still_runs() {
+        use crate::catalog::{self, EncoderOptions};
+        use crate::plant::DeviceModel;
+        let encoder = catalog::encoder(EncoderOptions {
+            serial: 1,
+            counts_per_rev: 1000,
+            shaft_speed_rev_s: 1.0,
+        });
+        let mut c = SlaveChain::new(vec![encoder]);
+        // Each cycle the master's frame starts just before a boundary and is on the wire
+        // across it (a lockstep master in that phase): 100 cycles, 100 application runs.
+        let mut f = frame(Command::Brd, 0, TYPE, &[0, 0]);
+        let lead = frame_ns(f.len()) / 2;
+        for k in 1..=100u64 {
+            c.run_until(k * 1_000_000 - lead, 1_000_000);
+            let _ = c.process(&mut f);
+        }
+        c.run_until(100_500_000, 1_000_000);
+        let DeviceModel::Encoder(e) = c.slaves()[0].device() else {
+            panic!("an encoder");
+        };
+        assert_eq!(e.position_counts(), 100);
     }
 
     #[test]

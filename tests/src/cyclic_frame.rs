@@ -107,9 +107,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     let dir = std::env::temp_dir().join(format!("gantry-cyclic-frame-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let pcap = dir.join("bus.pcap");
-    // The drives ride through host stalls of a few hundred periods: this test is about
-    // the frame, and the simulator runs on the wall clock of a shared, loaded host.
-    let mut config = crate::sim_config_with(slaves, 1000, "[slave.al]\nsync_error_limit = 1000");
+    let mut config = crate::sim_config_strict(slaves, 1000);
     assert!(config.bus.dc, "DC is on by default");
     config.bus.pcap = Some(pcap.display().to_string());
     let mut rig = Rig::new(&config);

@@ -59,10 +59,24 @@ pub fn servo_chain(n: u32) -> gantry_sim::chain::SlaveChain {
 /// missed periods in a row before a sync error (the standard default, 4, is two).
 pub const STALL_TOLERANT_SYNC_ERROR_LIMIT: u16 = 32;
 
+/// 0x10F1:02 as drives ship it.
+pub use gantry_sim::esc::al::DEFAULT_SYNC_ERROR_LIMIT;
+
 /// A configuration of `axes` axes on simulated servos in this process (`[bus] simulator`),
 /// at `cycle_us`; the simulator's chain file is written to a temporary folder.
 pub fn sim_config(axes: usize, cycle_us: u32) -> gantry::config::Config {
     sim_config_with(axes, cycle_us, "")
+}
+
+/// As [`sim_config`], with the drives as strict as they come (0x10F1:02 = 4: two missed
+/// SYNC0 periods in a row take a drive out of Op): for the lockstep [`rig::Rig`], whose
+/// master is never late.
+pub fn sim_config_strict(axes: usize, cycle_us: u32) -> gantry::config::Config {
+    sim_config_with(
+        axes,
+        cycle_us,
+        &format!("[slave.al]\nsync_error_limit = {DEFAULT_SYNC_ERROR_LIMIT}"),
+    )
 }
 
 /// As [`sim_config`], with `servo` (TOML keys, e.g. `dc_drift_ppm = 300`) added to every

@@ -1,24 +1,23 @@
 //! gantry's engine over the in-process simulator, driven from one test thread: what `gantry
 //! run` runs (bring-up from a configuration, [`Engine`], requests through a
-//! [`Controller`]), minus the real-time thread. The test thread is not real time, so a late
-//! reply is this host's doing and the engine waits for it ([`LateReply::WAIT`]), and a late
-//! start is no overrun ([`Rig::cycle`]): the faults a test sees are the ones it injected.
+//! [`Controller`]), minus the real-time thread, in lockstep: the simulated network's time
+//! moves one cycle time per cycle (in phase with SYNC0, as [`Engine::run`] holds it) and
+//! each frame passes the chain in the test thread, so whatever the host does, the drives
+//! see a master exactly on time. The faults a test sees are the ones it injected.
 
 use std::sync::{Arc, Mutex};
 
 use gantry::config::Config;
-use gantry::ethercat::bus::EthercatBus;
-use gantry::runtime::clock::{CycleClock, Wake};
+use gantry::ethercat::bus::{EthercatBus, SimLink};
+use gantry::runtime::clock::{now_ns, Wake};
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::engine::{Engine, LateReply};
+use gantry::runtime::phase::PhaseLock;
 use gantry::runtime::protocol::Snapshot;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_sim::chain::SlaveChain;
-
-/// Cycle time of the rig (ns).
-pub const PERIOD_NS: u64 = 1_000_000;
 
 /// Engine, controller and the simulated chain.
 pub struct Rig {
@@ -28,33 +27,44 @@ pub struct Rig {
     pub ctl: Controller,
     /// The simulated chain, for injecting faults.
     pub chain: Arc<Mutex<SlaveChain>>,
-    clock: CycleClock,
+    /// The cycle time (ns).
+    period_ns: u64,
+    /// The network's time at the next cycle's start (frames themselves take time on the
+    /// chain: the cycle starts on its own clock, not so long after the last frame).
+    next_ns: u64,
 }
 
 impl Rig {
     /// Brings the bus of `config` (an in-process simulator) up and starts the engine.
     pub fn new(config: &Config) -> Self {
         let (bus, cycle, health) =
-            EthercatBus::bring_up(config, &mut std::io::sink()).expect("bus up");
+            EthercatBus::bring_up_with(config, SimLink::Lockstep, &mut std::io::sink())
+                .expect("bus up");
+        assert!(bus.step_by_hand(), "the chain in lockstep");
         let chain = bus.simulated_chain().expect("the in-process simulator");
+        let period_ns = u64::from(config.bus.cycle_us) * 1000;
+        let dc = bus.dc().active;
         let (mut engine, ends) = Engine::new(bus, cycle, health, config.rt.overrun_limit, 1024);
+        // Every reply is in before the exchange looks for it: no wait ever runs out.
         engine.set_late_reply(LateReply::WAIT);
+        if dc {
+            engine.set_phase_lock(Some(PhaseLock::new(period_ns)));
+        }
         let names = config.axes.iter().map(|a| a.name.clone()).collect();
+        let next_ns = chain.lock().expect("the chain").now_ns();
         Self {
             engine,
             ctl: Controller::new(ends, names),
             chain,
-            clock: CycleClock::start(PERIOD_NS),
+            period_ns,
+            next_ns,
         }
     }
 
-    /// One cycle at the next deadline. The test thread is not real time: a cycle that
-    /// starts late is this host's doing, and is not counted as an overrun (which would
-    /// stop every axis after `rt.overrun_limit` in a row on a busy host); a test injects
-    /// the overruns it means with [`Rig::wake`] and [`Rig::step`].
+    /// One cycle, on time (a test injects the overruns it means with [`Rig::wake`] and
+    /// [`Rig::step`]).
     pub fn cycle(&mut self) {
-        let mut wake = self.clock.wait();
-        wake.overrun = false;
+        let wake = self.wake();
         self.step(wake);
     }
 
@@ -63,9 +73,24 @@ impl Rig {
         assert!(self.engine.step(wake), "the engine ended");
     }
 
-    /// The next wake-up, for a test to alter before [`Rig::step`].
+    /// The next wake-up, for a test to alter before [`Rig::step`]: the network's time
+    /// moves one cycle time on, shifted as the engine holds the cycle in phase with SYNC0.
     pub fn wake(&mut self) -> Wake {
-        self.clock.wait()
+        let step =
+            i64::try_from(self.period_ns).unwrap_or(i64::MAX) + self.engine.phase_correction_ns();
+        self.next_ns = self.next_ns.saturating_add_signed(step);
+        self.chain
+            .lock()
+            .expect("the chain")
+            .run_until(self.next_ns, self.period_ns);
+        let now = now_ns();
+        Wake {
+            deadline_ns: now,
+            reply_by_ns: now + self.period_ns,
+            latency_ns: 0,
+            overrun: false,
+            period_ns: self.period_ns,
+        }
     }
 
     /// `n` cycles.
@@ -94,9 +119,13 @@ impl Rig {
 
     /// Enables `axis` and calls its position 0.
     pub fn enable_and_home(&mut self, axis: usize) {
+        let status = self.command(axis, Command::Power(PowerCommand::Enable));
         assert_eq!(
-            self.command(axis, Command::Power(PowerCommand::Enable)),
-            CommandStatus::Done
+            status,
+            CommandStatus::Done,
+            "enable axis {axis}: bus fault {:?}, drive {:?}",
+            self.bus_fault(axis),
+            self.snapshot().drives.get(axis)
         );
         let home = Command::SetPosition {
             position: 0.0,

@@ -13,7 +13,7 @@ use crate::rig::Rig;
 pub fn pull_the_cable_before_drive_2(
     stop_all: bool,
 ) -> (Rig, [gantry::runtime::controller::CommandHandle; 2]) {
-    let mut config = crate::sim_config(3, 1000);
+    let mut config = crate::sim_config_strict(3, 1000);
     config.bus.faults.stop_all_on_slave_loss = stop_all;
     let mut rig = Rig::new(&config);
     for axis in 0..3 {

@@ -21,7 +21,7 @@ fn overruns(rig: &mut Rig, n: usize) {
 
 #[test]
 fn overruns_in_a_row_stop_every_axis_with_0x6100_until_reset() {
-    let mut config = gantry_tests::sim_config(2, 1000);
+    let mut config = gantry_tests::sim_config_strict(2, 1000);
     config.rt.overrun_limit = 10;
     let mut rig = Rig::new(&config);
     for axis in 0..2 {

@@ -21,7 +21,7 @@ use thiserror::Error;
 use super::cycle::{CspCycle, CycleError};
 use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
-use super::embedded::SimWire;
+use super::embedded::{ChainLink, HostTime, SimWire};
 use super::frame::{self, ProcessImage};
 use super::health::{BusHealth, Exchange, HealthConfig};
 use super::link::{FrameIo, Link};
@@ -184,6 +184,18 @@ impl StartError {
     }
 }
 
+/// How the bus reaches an in-process simulator (`[bus] simulator`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimLink {
+    /// A thread of the simulator's own on the wall clock, at the end of a wire: the cycle
+    /// thread exchanges frames with it as with a network interface (`gantry run`).
+    Thread,
+    /// Each frame passes the chain in the thread that sends it; the chain's time follows
+    /// the host's through the bring-up, then stands still but for the steps of whoever
+    /// holds it ([`EthercatBus::step_by_hand`]): tests in lockstep, whatever the host does.
+    Lockstep,
+}
+
 /// The EtherCAT bus in OP.
 pub struct EthercatBus {
     md: MainDevice<'static>,
@@ -202,6 +214,8 @@ pub struct EthercatBus {
     states: Vec<SubDeviceState>,
     /// The in-process simulator's chain, when the link is the wire to it.
     chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
+    /// The chain's time on the host's clock, when it is reached in lockstep.
+    host_time: Option<HostTime>,
     /// Replies handed back so far (bring-up and shutdown watch it for silence).
     replies: Arc<AtomicU64>,
     /// Runs ethercrab's futures in the cycle thread without a lock, and exchanges their
@@ -239,12 +253,22 @@ impl EthercatBus {
         config: &Config,
         out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
-        on_large_stack("gantry-bring-up", || Self::bring_up_here(config, out))
+        Self::bring_up_with(config, SimLink::Thread, out)
+    }
+
+    /// [`EthercatBus::bring_up`], reaching an in-process simulator by `sim`.
+    pub fn bring_up_with(
+        config: &Config,
+        sim: SimLink,
+        out: &mut (dyn Write + Send),
+    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+        on_large_stack("gantry-bring-up", || Self::bring_up_here(config, sim, out))
             .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
     }
 
     fn bring_up_here(
         config: &Config,
+        sim_link: SimLink,
         out: &mut (dyn Write + Send),
     ) -> Result<(Self, CspCycle, BusHealth), StartError> {
         let bus_error = |step: &'static str| move |e: ethercrab::error::Error| step_error(step, e);
@@ -263,6 +287,7 @@ impl EthercatBus {
             .map_err(|_| StartError::NoLink("the EtherCAT bus can start once per process"))?;
         // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
         // the in-process simulator's thread.
+        let mut host_time = None;
         let (link, chain): (Box<dyn Link>, _) =
             match (&config.bus.interface, &config.bus.simulator) {
                 (Some(interface), _) => (
@@ -279,9 +304,22 @@ impl EthercatBus {
                         .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
                     let chain = Arc::new(Mutex::new(chain));
                     let period = Duration::from_micros(u64::from(sim.cycle_us));
-                    let wire = SimWire::start(chain.clone(), period)
-                        .map_err(|e| StartError::link("the simulator's thread")(e.into()))?;
-                    (Box::new(wire), Some(chain))
+                    let link: Box<dyn Link> = match sim_link {
+                        SimLink::Thread => {
+                            Box::new(SimWire::start(chain.clone(), period).map_err(|e| {
+                                StartError::link("the simulator's thread")(e.into())
+                            })?)
+                        }
+                        SimLink::Lockstep => {
+                            let time = chain
+                                .lock()
+                                .map(|c| HostTime::start(&c, period))
+                                .map_err(|_| StartError::NoLink("the simulated chain's lock"))?;
+                            host_time = Some(time.clone());
+                            Box::new(ChainLink::new(chain.clone(), time))
+                        }
+                    };
+                    (link, Some(chain))
                 }
                 (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
             };
@@ -431,6 +469,7 @@ impl EthercatBus {
                 drives: config.axes.iter().map(|a| a.drive).collect(),
                 states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
                 chain,
+                host_time,
                 replies,
                 runner,
                 recovery: None,
@@ -479,6 +518,12 @@ impl EthercatBus {
         &self,
     ) -> Option<std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>> {
         self.chain.clone()
+    }
+
+    /// From now on the in-process chain's time stands still but for its holder's steps
+    /// ([`SimLink::Lockstep`]); false (nothing changed) on any other link.
+    pub fn step_by_hand(&self) -> bool {
+        self.host_time.as_ref().map(HostTime::stop).is_some()
     }
 
     /// Takes the slaves down to PreOp and stops the link.

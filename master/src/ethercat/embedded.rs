@@ -33,7 +33,50 @@ pub struct ChainLink {
     /// Replies waiting to be handed back.
     replies: VecDeque<Vec<u8>>,
     /// Runs the chain on the wall clock (`None`: the caller advances it, lockstep).
-    wall_clock: Option<WallClock>,
+    wall_clock: Option<HostTime>,
+}
+
+impl ChainLink {
+    /// A link to `chain` whose time follows the host's until `time` is stopped; from then
+    /// on whoever holds the chain advances it ([`SlaveChain::run_until`]): lockstep.
+    pub fn new(chain: Arc<Mutex<SlaveChain>>, time: HostTime) -> Self {
+        Self {
+            chain,
+            replies: VecDeque::new(),
+            wall_clock: Some(time),
+        }
+    }
+}
+
+/// A chain's time on the host's clock until [`HostTime::stop`]: a bring-up needs time to
+/// pass (the slaves' state changes take their firmware time), a lockstep test then steps
+/// the chain one cycle at a time, so that no stall of the host is ever a stall of the bus.
+#[derive(Clone, Debug)]
+pub struct HostTime {
+    clock: WallClock,
+    on: Arc<AtomicBool>,
+}
+
+impl HostTime {
+    /// Time follows the host's from now on, from where `chain` is; the applications run
+    /// every `period`.
+    pub fn start(chain: &SlaveChain, period: Duration) -> Self {
+        Self {
+            clock: WallClock::start(chain, period),
+            on: Arc::new(AtomicBool::new(true)),
+        }
+    }
+
+    /// From now on the chain's time stands still but for its holder's steps.
+    pub fn stop(&self) {
+        self.on.store(false, Ordering::Release);
+    }
+
+    fn catch_up(&self, chain: &mut SlaveChain) {
+        if self.on.load(Ordering::Acquire) {
+            self.clock.catch_up(chain);
+        }
+    }
 }
 
 impl Link for ChainLink {
@@ -43,8 +86,8 @@ impl Link for ChainLink {
             .chain
             .lock()
             .map(|mut c| {
-                if let Some(clock) = &self.wall_clock {
-                    clock.catch_up(&mut c);
+                if let Some(time) = &self.wall_clock {
+                    time.catch_up(&mut c);
                 }
                 c.process(&mut wire).is_ok()
             })
@@ -65,8 +108,8 @@ impl Link for ChainLink {
     }
 
     fn idle(&mut self) {
-        if let (Some(clock), Ok(mut c)) = (&self.wall_clock, self.chain.lock()) {
-            clock.catch_up(&mut c);
+        if let (Some(time), Ok(mut c)) = (&self.wall_clock, self.chain.lock()) {
+            time.catch_up(&mut c);
         }
     }
 }
