@@ -114,7 +114,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     let last = slaves - 1;
     let axes: Vec<usize> = if last == 0 { vec![0] } else { vec![0, last] };
     for _ in 0..5000 {
-        if !rig.engine.health.is_starting() {
+        if !rig.engine.bus.health().is_starting() {
             break;
         }
         rig.run(1);
@@ -160,18 +160,18 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
             "axis {axis}: {:?}, drive {:?}, {} lost frames, {} overruns",
             snap.axes[axis].error,
             snap.drives[axis],
-            rig.engine.health.lost_total,
+            rig.engine.bus.health().lost_total,
             snap.figures.overruns
         );
     }
 
     // The cable before the last slave is pulled: the very next cycle names it (with one
     // slave nothing answers at all: the frame is lost, counted in that cycle).
-    let lost_before = rig.engine.health.lost_total;
+    let lost_before = rig.engine.bus.health().lost_total;
     rig.chain.lock().unwrap().cut_before(Some(last));
     rig.run(1);
     if last == 0 {
-        assert_eq!(rig.engine.health.lost_total, lost_before + 1);
+        assert_eq!(rig.engine.bus.health().lost_total, lost_before + 1);
     } else {
         let address = 0x1000 + last;
         let named =

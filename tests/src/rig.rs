@@ -9,8 +9,10 @@ use std::sync::{Arc, Mutex};
 
 use gantry::config::Config;
 use gantry::ethercat::bus::{EthercatBus, SimLink};
+use gantry::runtime::bus::CycleBus;
 use gantry::runtime::clock::{Clock, StepClock, Wake};
 use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry::runtime::protocol::Snapshot;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -37,12 +39,14 @@ impl Rig {
 
     /// [`Rig::new`], writing the bring-up's steps to `log`.
     pub fn logged(config: &Config, log: &mut (dyn std::io::Write + Send)) -> Self {
-        let (bus, cycle, health) = EthercatBus::bring_up_with(config, SimLink::Lockstep, log)
+        let bus = EthercatBus::bring_up_with(config, SimLink::Lockstep, log)
             .unwrap_or_else(|e| panic!("bus up: {}", gantry::error_chain::Chain(&e)));
+        let cycle = Cycle::from_config(config, &bus)
+            .unwrap_or_else(|e| panic!("the cycle: {}", gantry::error_chain::Chain(&e)));
         assert!(bus.step_by_hand(), "the chain in lockstep");
         let chain = bus.simulated_chain().expect("the in-process simulator");
         let period_ns = u64::from(config.bus.cycle_us) * 1000;
-        let (mut engine, ends) = Engine::new(bus, cycle, health, config.rt.overrun_limit, 1024);
+        let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
         // Every reply is in before the exchange looks for it: no wait ever runs out.
         engine.set_late_reply(LateReply::WAIT);
         let names = config.axes.iter().map(|a| a.name.clone()).collect();
@@ -144,6 +148,7 @@ impl Rig {
 
     /// Why the bus stopped `axis`' drive, as `gantry status` shows it.
     pub fn bus_fault(&self, axis: usize) -> Option<String> {
-        self.engine.health.fault(axis).map(|f| f.to_string())
+        let drive = self.engine.cycle.drive_of(axis);
+        self.engine.bus.fault(drive).map(|f| f.to_string())
     }
 }

@@ -17,6 +17,7 @@ use std::cell::{Cell, RefCell};
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry_kernel::axis::command::{
     Command, CommandError, HaltMode, MovePtp, PositioningMode, PowerCommand,
@@ -56,9 +57,10 @@ fn op() -> impl Strategy<Value = Op> {
 #[test]
 fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
     let config = gantry_tests::sim_config(AXES, 1000);
-    let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+    let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+    let cycle = Cycle::from_config(&config, &bus).unwrap();
     let chain = bus.simulated_chain().unwrap();
-    let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 1 << 12);
+    let (mut engine, ends) = Engine::new(bus, cycle, 1000, 1 << 12);
     // Not a real-time thread: a late reply is this host's doing, not a lost frame; but
     // frames are dropped on purpose here, so not ethercrab's 30 ms per lost frame either.
     engine.set_late_reply(LateReply::Wait { ns: 5_000_000 });

@@ -20,12 +20,12 @@ use gantry_sim::plant::record::{write_records, DriveRecord};
 
 use super::{DemoArgs, DemoError, DemoReport};
 use crate::drive_records::{judge, AxisBound, Conditions};
-use crate::ethercat::cycle::CspCycle;
 use crate::ethercat::cyclic::CspChannel;
 use crate::ethercat::embedded::EmbeddedBus;
 use crate::ethercat::mapping::map_pdos;
 use crate::pcap::PcapWriter;
 use crate::plot::{self, Panel};
+use crate::runtime::cycle::Cycle;
 use crate::status_table::{self, Live, Row};
 use crate::trace::Trace;
 use gantry_drives::cia402::pdo::PdoLayout;
@@ -121,7 +121,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     let layout = PdoLayout::csp();
     let channel =
         CspChannel::with_layout(scaling()?, &layout).map_err(bus_error("process data layout"))?;
-    let mut cycle = CspCycle::new(kernel, vec![channel; names.len()]);
+    let mut cycle = Cycle::new(kernel, vec![channel; names.len()]);
     let mut trace = Trace::new(
         names
             .iter()
@@ -351,7 +351,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
 fn check_drive_invariant(
     records: &[Option<DriveRecord>],
     names: &[&str],
-    cycle: &CspCycle,
+    cycle: &Cycle,
     dt: f64,
     out: &mut impl Write,
 ) -> Result<(), DemoError> {
@@ -416,7 +416,7 @@ mod tests {
     fn the_demo_fails_with_the_axis_and_the_rule_when_a_drive_saw_a_step() {
         let kernel = Kernel::new(1e-3, vec![axis("x"), axis("y")]).unwrap();
         let channel = CspChannel::new(scaling().unwrap());
-        let cycle = CspCycle::new(kernel, vec![channel.clone(), channel]);
+        let cycle = Cycle::new(kernel, vec![channel.clone(), channel]);
         // 250 mm/s at 2^17 counts per 5 mm: 6553.6 counts per ms, bound 6554.
         let mut ok = DriveRecord::default();
         ok.target(0);

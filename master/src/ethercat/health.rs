@@ -15,10 +15,6 @@
 use ethercrab::SubDeviceState;
 use thiserror::Error;
 
-/// Error code fed to the kernel for an axis whose drive cannot be reached (CiA 301
-/// emergency class 0x81xx, "communication"); the reason is in [`BusFault`].
-pub const COMMUNICATION_FAULT: u16 = 0x8100;
-
 /// How much trouble is ridden through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HealthConfig {

@@ -18,6 +18,7 @@ use crate::config::{Config, ConfigError};
 use crate::drive_records;
 use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::runtime::controller::Controller;
+use crate::runtime::cycle::{Cycle, SetupError};
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
 use crate::runtime::stats::{CycleCounters, CycleFigures};
@@ -45,6 +46,9 @@ pub enum ServiceError {
     /// The bus did not come up.
     #[error(transparent)]
     Bus(#[from] StartError),
+    /// The cycle does not fit the configuration or its bus.
+    #[error(transparent)]
+    Cycle(#[from] SetupError),
     /// A thread or the control socket's runtime could not be started.
     #[error("cannot start {what}")]
     Start {
@@ -93,9 +97,16 @@ pub fn start_cycle(
     // The channels first: made after the bus is in Op, their allocation would be a gap in
     // the process data that drives count as missed setpoints (see `Channels`).
     let channels = Channels::new(config.axes.len(), 1 << 16);
-    let (bus, cycle, health) = EthercatBus::bring_up(config, log)?;
-    let (mut engine, ends) =
-        Engine::with_channels(bus, cycle, health, config.rt.overrun_limit, channels);
+    let bus = EthercatBus::bring_up(config, log)?;
+    // The kernel and the drives' channels, for the bus as it came up.
+    let cycle = match Cycle::from_config(config, &bus) {
+        Ok(cycle) => cycle,
+        Err(e) => {
+            bus.shut_down(log);
+            return Err(e.into());
+        }
+    };
+    let (mut engine, ends) = Engine::with_channels(bus, cycle, config.rt.overrun_limit, channels);
     // Without real time a late reply is the host's fault, not the bus'.
     engine.set_late_reply(if real_time {
         LateReply::Lost

@@ -1,13 +1,76 @@
-//! One cycle of the EtherCAT master over CSP drives, without the wire: decode every
-//! drive's inputs, run the kernel, encode every drive's outputs. The same code runs
-//! lockstep (demo, tests) and in real time; nothing here allocates after `new`.
+//! One cycle over CSP drives, on any bus: read every axis' drive inputs from the bus,
+//! run the kernel, write every drive's outputs back. The same code runs lockstep (demo,
+//! tests) and in real time; nothing here allocates after it is built
+//! ([`Cycle::from_config`]).
 
 use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
+use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
 use thiserror::Error;
 
-use super::cyclic::{encode_outputs, CspChannel, CspInputs};
-use super::health::COMMUNICATION_FAULT;
+use super::bus::CycleBus;
+use crate::config::Config;
+use crate::ethercat::cyclic::{encode_outputs, CspChannel, CspInputs};
+
+/// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
+/// emergency class 0x81xx, "communication"); the reason is the bus' (see
+/// [`CycleBus::fault`]).
+pub const COMMUNICATION_FAULT: u16 = 0x8100;
+
+/// What made a step of the set-up fail, kept as the source of a [`SetupError`].
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why the cycle could not be built for a configuration and its bus.
+#[derive(Debug, Error)]
+pub enum SetupError {
+    /// The configuration names a drive that is not on the bus.
+    #[error("{path}: axis {axis:?} is on drive {drive}, but the bus has {slaves} slaves")]
+    MissingDrive {
+        /// The configuration file.
+        path: String,
+        /// The axis.
+        axis: String,
+        /// Its drive position.
+        drive: usize,
+        /// Positions on the bus.
+        slaves: usize,
+    },
+    /// An axis' configuration does not fit its drive (PDO layout, scaling).
+    #[error("axis {axis:?}: {key}: {reason}")]
+    Axis {
+        /// The axis.
+        axis: String,
+        /// The configuration key.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The bus carries fewer process data bytes for an axis' drive than its layout has.
+    #[error(
+        "axis {axis:?}: drive {drive} has {got} {what} bytes on the bus, its PDO layout has {need}"
+    )]
+    ShortImage {
+        /// The axis.
+        axis: String,
+        /// Its drive position.
+        drive: usize,
+        /// "input" or "output".
+        what: &'static str,
+        /// Bytes the bus carries.
+        got: usize,
+        /// Bytes the layout has.
+        need: usize,
+    },
+    /// The layout does not suit CSP, or the kernel refused the axes.
+    #[error("{what}")]
+    Setup {
+        /// What was being set up.
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Cause,
+    },
+}
 
 /// A drive's process data does not fit the CSP layout.
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
@@ -37,19 +100,23 @@ pub enum CycleError {
     NoDrive(usize),
 }
 
-/// The kernel and one CSP channel per axis (axis `i` on drive `i`).
+/// The kernel and one CSP channel per axis, each axis on its drive's position on the
+/// bus.
 #[derive(Debug)]
-pub struct CspCycle {
+pub struct Cycle {
     /// The motion kernel.
     pub kernel: Kernel,
     channels: Vec<CspChannel>,
     inputs: Vec<CspInputs>,
     feedback: Vec<AxisFeedback>,
     setpoints: Vec<AxisSetpoint>,
+    /// The bus position of each axis' drive.
+    drives: Vec<usize>,
 }
 
-impl CspCycle {
-    /// A cycle for `kernel`'s axes on these channels. Each channel counts its axis'
+impl Cycle {
+    /// A cycle for `kernel`'s axes on these channels, axis `i` on the drive at position
+    /// `i`. Each channel counts its axis'
     /// modulo period, taken from the kernel's configuration; a channel whose period cannot
     /// be counted faults its axis (check [`CspChannel::set_modulo`] first to refuse such a
     /// configuration with a message).
@@ -65,7 +132,98 @@ impl CspCycle {
             inputs: vec![CspInputs::default(); n],
             feedback: vec![AxisFeedback::default(); n],
             setpoints: vec![AxisSetpoint::default(); n],
+            drives: (0..n).collect(),
         }
+    }
+
+    /// The cycle of `config` on `bus`, as the service, the demo and the tests run it: the
+    /// kernel at the bus' cycle time with the configuration's axes, and one CSP channel
+    /// per axis on its drive (layout, scaling, modulo period), checked against what the
+    /// bus carries for that drive. Allocates; build it before the drives go operational.
+    pub fn from_config(config: &Config, bus: &impl CycleBus) -> Result<Self, SetupError> {
+        let mut channels = Vec::with_capacity(config.axes.len());
+        for a in &config.axes {
+            if a.drive >= bus.drives() {
+                return Err(SetupError::MissingDrive {
+                    path: config.path.clone(),
+                    axis: a.name.clone(),
+                    drive: a.drive,
+                    slaves: bus.drives(),
+                });
+            }
+            let axis_error = |(key, reason)| SetupError::Axis {
+                axis: a.name.clone(),
+                key,
+                reason,
+            };
+            let setup_error = |e: Cause| SetupError::Setup {
+                what: format!("axis {:?}", a.name),
+                source: e,
+            };
+            let layout = a.pdo_layout().map_err(axis_error)?;
+            let scaling = a.scaling().map_err(axis_error)?;
+            let mut channel =
+                CspChannel::with_layout(scaling, &layout).map_err(|e| setup_error(e.into()))?;
+            // A modulo period that cannot be counted is refused here, by name (the cycle
+            // would fault the axis).
+            channel
+                .set_modulo(a.modulo.and_then(Modulo::new))
+                .map_err(|e| setup_error(e.into()))?;
+            let short = |what, got, need| SetupError::ShortImage {
+                axis: a.name.clone(),
+                drive: a.drive,
+                what,
+                got,
+                need,
+            };
+            let (inputs, need) = (bus.inputs(a.drive).len(), channel.offsets.input_bytes);
+            if inputs < need {
+                return Err(short("input", inputs, need));
+            }
+            let (outputs, need) = (bus.outputs(a.drive).len(), channel.offsets.output_bytes);
+            if outputs < need {
+                return Err(short("output", outputs, need));
+            }
+            channels.push(channel);
+        }
+        let dt = f64::from(config.bus.cycle_us) * 1e-6;
+        let kernel =
+            Kernel::new(dt, config.kernel_axes.clone()).map_err(|e| SetupError::Setup {
+                what: "the motion kernel".into(),
+                source: e.into(),
+            })?;
+        let mut cycle = Self::new(kernel, channels);
+        cycle.drives = config.axes.iter().map(|a| a.drive).collect();
+        Ok(cycle)
+    }
+
+    /// The bus position of `axis`' drive (`usize::MAX`, no drive, if there is no such
+    /// axis).
+    pub fn drive_of(&self, axis: usize) -> usize {
+        self.drives.get(axis).copied().unwrap_or(usize::MAX)
+    }
+
+    /// Decodes every axis' drive inputs from `bus`; an axis whose drive the bus cannot
+    /// reach gets a communication fault instead ([`Cycle::comm_fault`]).
+    pub fn read_from(&mut self, bus: &impl CycleBus) -> Result<(), CycleError> {
+        for axis in 0..self.drives.len() {
+            let drive = self.drive_of(axis);
+            if bus.fault(drive).is_some() {
+                self.comm_fault(axis)?;
+                continue;
+            }
+            self.read_inputs(axis, bus.inputs(drive))?;
+        }
+        Ok(())
+    }
+
+    /// Encodes every axis' outputs into its drive's bytes on `bus`.
+    pub fn write_to(&mut self, bus: &mut impl CycleBus) -> Result<(), CycleError> {
+        for axis in 0..self.drives.len() {
+            let drive = self.drive_of(axis);
+            self.write_outputs(axis, bus.outputs_mut(drive))?;
+        }
+        Ok(())
     }
 
     /// Number of drives.
@@ -210,12 +368,12 @@ mod tests {
             invert: false,
         })
         .unwrap();
-        let mut c = CspCycle::new(kernel, vec![CspChannel::new(scaling)]);
+        let mut c = Cycle::new(kernel, vec![CspChannel::new(scaling)]);
         c.kernel
             .command(0, Command::Power(PowerCommand::Enable))
             .unwrap();
         let mut out = [0u8; 6];
-        let cycle = |c: &mut CspCycle, out: &mut [u8; 6]| {
+        let cycle = |c: &mut Cycle, out: &mut [u8; 6]| {
             c.read_inputs(0, &enabled_at(0)).unwrap();
             c.step();
             c.write_outputs(0, out).unwrap();
@@ -281,14 +439,14 @@ mod tests {
         })
         .unwrap();
         let limit = (vmax * 1e-3 * 1000.0) as i32 + 1;
-        let mut c = CspCycle::new(kernel, vec![CspChannel::new(scaling)]);
+        let mut c = Cycle::new(kernel, vec![CspChannel::new(scaling)]);
         c.kernel
             .command(0, Command::Power(PowerCommand::Enable))
             .unwrap();
         // The drive: enabled, its position actual value two cycles behind its target.
         let mut sent: Vec<i32> = vec![0, 0];
         let mut out = [0u8; 6];
-        let mut cycle = |c: &mut CspCycle, inputs: Option<[u8; 6]>, sent: &mut Vec<i32>| {
+        let mut cycle = |c: &mut Cycle, inputs: Option<[u8; 6]>, sent: &mut Vec<i32>| {
             match inputs {
                 Some(bytes) => c.read_inputs(0, &bytes).unwrap(),
                 None => c.comm_fault(0).unwrap(),
