@@ -511,3 +511,175 @@ mod tests {
         );
     }
 }
+
+/// [`Cycle::from_config`] and the cycle's reads and writes on a bus that is no EtherCAT:
+/// a plain image per bus position, as a second bus (CANopen) would hand them over.
+#[cfg(test)]
+mod on_a_bus {
+    use super::*;
+    use crate::runtime::bus::{BusCounters, Reply, Restored, Unreachable};
+    use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
+    use gantry_kernel::axis::status::AxisFault;
+
+    /// Bytes per position, and a fault per position.
+    struct Image {
+        inputs: Vec<Vec<u8>>,
+        outputs: Vec<Vec<u8>>,
+        faults: Vec<Option<Unreachable>>,
+    }
+
+    impl Image {
+        /// `n` positions of `bytes` input and output bytes.
+        fn new(n: usize, bytes: usize) -> Self {
+            Self {
+                inputs: vec![vec![0; bytes]; n],
+                outputs: vec![vec![0; bytes]; n],
+                faults: vec![None; n],
+            }
+        }
+    }
+
+    impl CycleBus for Image {
+        fn drives(&self) -> usize {
+            self.inputs.len()
+        }
+        fn inputs(&self, drive: usize) -> &[u8] {
+            self.inputs.get(drive).map_or(&[], Vec::as_slice)
+        }
+        fn outputs(&self, drive: usize) -> &[u8] {
+            self.outputs.get(drive).map_or(&[], Vec::as_slice)
+        }
+        fn outputs_mut(&mut self, drive: usize) -> &mut [u8] {
+            self.outputs
+                .get_mut(drive)
+                .map_or(&mut [], Vec::as_mut_slice)
+        }
+        fn exchange(&mut self, _deadline_ns: u64) -> Reply {
+            Reply::Answered
+        }
+        fn fault(&self, drive: usize) -> Option<&Unreachable> {
+            self.faults.get(drive)?.as_ref()
+        }
+        fn any_fault(&self) -> bool {
+            self.faults.iter().any(Option::is_some)
+        }
+        fn clear_faults(&mut self) {
+            self.faults.iter_mut().for_each(|f| *f = None);
+        }
+        fn counters(&self) -> BusCounters {
+            BusCounters::default()
+        }
+        fn start_operation(&mut self) {}
+        fn start_restore(&mut self, _drive: usize, _now_ns: u64, _timeout_ns: u64) -> bool {
+            false
+        }
+        fn take_restored(&mut self) -> Option<Result<Restored, CommandError>> {
+            None
+        }
+        fn restore_timeout_ns(&self) -> u64 {
+            0
+        }
+    }
+
+    /// Axis "a" on drive 2 and "b" on drive 0, both with the minimal CSP mapping
+    /// (statusword + position actual value in, controlword + target position out: 6 bytes
+    /// each way).
+    fn config() -> Config {
+        let axis = |name: &str, drive: usize| {
+            format!(
+                "[[axis]]\nname = \"{name}\"\ndrive = {drive}\npdo = \"csp-minimal\"\n\
+                 homing_required = false\n\
+                 scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+                 max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n"
+            )
+        };
+        let text = format!(
+            "[bus]\nkind = \"ethercat\"\ninterface = \"none\"\ncycle_us = 1000\n{}{}",
+            axis("a", 2),
+            axis("b", 0)
+        );
+        Config::parse(&text, "g.toml").unwrap()
+    }
+
+    /// Inputs of a drive in Operation enabled at `position` counts.
+    fn enabled_at(position: i32) -> Vec<u8> {
+        let mut b = vec![0u8; 6];
+        b[0..2].copy_from_slice(&0x0637u16.to_le_bytes());
+        b[2..6].copy_from_slice(&position.to_le_bytes());
+        b
+    }
+
+    #[test]
+    fn each_axis_reads_and_writes_its_own_drive_by_its_position() {
+        let mut bus = Image::new(3, 6);
+        let mut cycle = Cycle::from_config(&config(), &bus).unwrap();
+        assert_eq!((cycle.drive_of(0), cycle.drive_of(1)), (2, 0));
+        assert_eq!(cycle.drive_of(2), usize::MAX, "no such axis");
+        bus.inputs[2] = enabled_at(1500);
+        bus.inputs[0] = enabled_at(-250);
+        cycle.read_from(&bus).unwrap();
+        assert_eq!(cycle.inputs(0).unwrap().position, 1500);
+        assert_eq!(cycle.inputs(1).unwrap().position, -250);
+        cycle.step();
+        cycle.write_to(&mut bus).unwrap();
+        // Each drive is held where it stands; position 1 has no axis and is not touched.
+        let target = |b: &[u8]| i32::from_le_bytes([b[2], b[3], b[4], b[5]]);
+        assert_eq!(target(&bus.outputs[2]), 1500);
+        assert_eq!(target(&bus.outputs[0]), -250);
+        assert_eq!(bus.outputs[1], vec![0; 6]);
+        let status = cycle.kernel.axis_status(0).unwrap();
+        assert!((status.actual_position - 1.5).abs() < 1e-12, "{status:?}");
+    }
+
+    #[test]
+    fn an_axis_whose_drive_the_bus_cannot_reach_gets_the_communication_fault() {
+        let mut bus = Image::new(3, 6);
+        let mut cycle = Cycle::from_config(&config(), &bus).unwrap();
+        bus.inputs = vec![enabled_at(0); 3];
+        for axis in 0..2 {
+            cycle
+                .kernel
+                .command(axis, Command::Power(PowerCommand::Enable))
+                .unwrap();
+        }
+        for _ in 0..3 {
+            cycle.read_from(&bus).unwrap();
+            cycle.step();
+            cycle.write_to(&mut bus).unwrap();
+        }
+        bus.faults[2] = Some(Unreachable::new(&"gone"));
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        let error = |axis| cycle.kernel.axis_status(axis).unwrap().error;
+        assert_eq!(
+            error(0),
+            Some(AxisFault::Drive {
+                code: COMMUNICATION_FAULT
+            })
+        );
+        assert_eq!(error(1), None, "the other drive is reachable");
+    }
+
+    #[test]
+    fn a_configuration_that_does_not_fit_its_bus_is_refused_naming_the_axis() {
+        let e = Cycle::from_config(&config(), &Image::new(2, 6)).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "g.toml: axis \"a\" is on drive 2, but the bus has 2 slaves"
+        );
+        let mut bus = Image::new(3, 6);
+        bus.inputs[2] = vec![0; 4];
+        let e = Cycle::from_config(&config(), &bus).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "axis \"a\": drive 2 has 4 input bytes on the bus, its PDO layout has 6"
+        );
+        let mut bus = Image::new(3, 6);
+        bus.outputs[0] = vec![0; 5];
+        let e = Cycle::from_config(&config(), &bus).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "axis \"b\": drive 0 has 5 output bytes on the bus, its PDO layout has 6"
+        );
+    }
+}
