@@ -193,7 +193,8 @@ pub enum SimLink {
     Lockstep,
 }
 
-/// The EtherCAT bus in OP.
+/// The EtherCAT bus: its slaves in SafeOp after the bring-up with the process data
+/// running, taken to OP by the cycle ([`CycleBus::start_operation`]).
 pub struct EthercatBus {
     md: MainDevice<'static>,
     group: Groups,

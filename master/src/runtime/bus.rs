@@ -98,7 +98,7 @@ pub struct Unreachable {
 
 impl Unreachable {
     /// The reason `reason` displays (without allocating; a text longer than
-    /// [`REASON_BYTES`] is cut at a character boundary).
+    /// 160 bytes is cut at a character boundary).
     pub fn new(reason: &impl fmt::Display) -> Self {
         let mut text = Text {
             len: 0,

@@ -81,10 +81,12 @@ pub const CYCLE_THREAD: &str = "gantry-cycle";
 pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
-/// pinned, memory locked) unless `real_time` is false, then the bus up to OP — this thread
-/// exchanges the frames itself; the in-process simulator's thread, if any, is started from
-/// here and inherits its scheduling and CPU — and the engine with the late-reply policy of the mode (lost at the deadline in real time;
-/// waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
+/// pinned, memory locked) unless `real_time` is false, then the bus up to SafeOp — this
+/// thread exchanges the frames itself; the in-process simulator's thread, if any, is
+/// started from here and inherits its scheduling and CPU — the cycle (kernel and drive
+/// channels) built for it from the configuration ([`Cycle::from_config`]; the cycle takes
+/// the slaves on to OP), and the engine with the late-reply policy of the mode (lost at the
+/// deadline in real time; waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
 /// SCHED_FIFO (ethercrab's timers are off, see `ethercat::bus::NO_TIMERS`).
 pub fn start_cycle(
     config: &Config,
