@@ -25,8 +25,9 @@ use super::objects::{self, ObjectId};
 use super::pdo::PdoLayout;
 use super::{Controlword, Statusword};
 
-/// The objects a view knows in the outputs (RxPDO, master → drive), in slot order.
-const OUTPUT_OBJECTS: [ObjectId; 6] = [
+/// The objects the views know in the outputs (RxPDO, master → drive): what a drive that
+/// codes its process data through them can take (the simulated servo's mappable set).
+pub const OUTPUT_OBJECTS: [ObjectId; 6] = [
     objects::CONTROLWORD,
     objects::TARGET_POSITION,
     objects::TARGET_VELOCITY,
@@ -41,8 +42,8 @@ const TARGET_TORQUE: usize = 3;
 const MODES_OF_OPERATION: usize = 4;
 const TOUCH_PROBE_FUNCTION: usize = 5;
 
-/// The objects a view knows in the inputs (TxPDO, drive → master), in slot order.
-const INPUT_OBJECTS: [ObjectId; 10] = [
+/// The objects the views know in the inputs (TxPDO, drive → master).
+pub const INPUT_OBJECTS: [ObjectId; 10] = [
     objects::STATUSWORD,
     objects::POSITION_ACTUAL_VALUE,
     objects::VELOCITY_ACTUAL_VALUE,
@@ -153,273 +154,265 @@ fn offset(at: &[Option<usize>], known: &[ObjectId], object: ObjectId) -> Option<
     at.get(i).copied().flatten()
 }
 
-/// `N` bytes at `at`, if `at` is mapped and the buffer holds them.
-fn read<const N: usize>(buf: &[u8], at: Option<usize>) -> Option<[u8; N]> {
-    let at = at?;
-    buf.get(at..at.checked_add(N)?)?.try_into().ok()
+/// A buffer and the offsets of one direction: what both views are made of.
+#[derive(Debug)]
+struct Fields<'m, T> {
+    buffer: T,
+    at: &'m [Option<usize>],
 }
 
-/// Writes `value` at `at`, if `at` is mapped and the buffer holds it.
-fn write(buf: &mut [u8], at: Option<usize>, value: &[u8]) {
-    let Some(at) = at else { return };
-    let Some(end) = at.checked_add(value.len()) else {
-        return;
-    };
-    if let Some(dst) = buf.get_mut(at..end) {
-        dst.copy_from_slice(value);
+impl<'m, T: AsRef<[u8]>> Fields<'m, T> {
+    fn new_checked(
+        buffer: T,
+        at: &'m [Option<usize>],
+        direction: Direction,
+        need: usize,
+    ) -> Result<Self, ImageError> {
+        let got = buffer.as_ref().len();
+        if got < need {
+            return Err(ImageError {
+                direction,
+                got,
+                need,
+            });
+        }
+        Ok(Self { buffer, at })
+    }
+
+    /// The `N` bytes of the object in `slot`, if it is mapped.
+    fn get<const N: usize>(&self, slot: usize) -> Option<[u8; N]> {
+        let at = self.at.get(slot).copied().flatten()?;
+        self.buffer
+            .as_ref()
+            .get(at..at.checked_add(N)?)?
+            .try_into()
+            .ok()
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Fields<'_, T> {
+    /// Writes `value` as the object in `slot`, if it is mapped.
+    fn put(&mut self, slot: usize, value: &[u8]) {
+        let Some(at) = self.at.get(slot).copied().flatten() else {
+            return;
+        };
+        let Some(end) = at.checked_add(value.len()) else {
+            return;
+        };
+        if let Some(dst) = self.buffer.as_mut().get_mut(at..end) {
+            dst.copy_from_slice(value);
+        }
     }
 }
 
 /// The outputs of one drive (RxPDO: what the master commands).
 #[derive(Debug)]
-pub struct OutputImage<'m, T> {
-    buffer: T,
-    map: &'m PdoMap,
-}
+pub struct OutputImage<'m, T>(Fields<'m, T>);
 
 impl<'m, T: AsRef<[u8]>> OutputImage<'m, T> {
     /// A view of `buffer` as the outputs `map` describes; fails when the buffer is
     /// shorter than the mapped outputs (longer is fine: the rest is not looked at).
     pub fn new_checked(buffer: T, map: &'m PdoMap) -> Result<Self, ImageError> {
-        let got = buffer.as_ref().len();
-        if got < map.output_bytes {
-            return Err(ImageError {
-                direction: Direction::Outputs,
-                got,
-                need: map.output_bytes,
-            });
-        }
-        Ok(Self { buffer, map })
+        Fields::new_checked(buffer, &map.outputs, Direction::Outputs, map.output_bytes).map(Self)
     }
 
     /// The buffer back.
     pub fn into_inner(self) -> T {
-        self.buffer
-    }
-
-    fn get<const N: usize>(&self, slot: usize) -> Option<[u8; N]> {
-        read(
-            self.buffer.as_ref(),
-            self.map.outputs.get(slot).copied().flatten(),
-        )
+        self.0.buffer
     }
 
     /// 0x6040 Controlword.
     pub fn controlword(&self) -> Option<Controlword> {
-        self.get(CONTROLWORD)
+        self.0
+            .get(CONTROLWORD)
             .map(u16::from_le_bytes)
             .map(Controlword)
     }
 
     /// 0x607A Target position (increments).
     pub fn target_position(&self) -> Option<i32> {
-        self.get(TARGET_POSITION).map(i32::from_le_bytes)
+        self.0.get(TARGET_POSITION).map(i32::from_le_bytes)
     }
 
     /// 0x60FF Target velocity (increments/s).
     pub fn target_velocity(&self) -> Option<i32> {
-        self.get(TARGET_VELOCITY).map(i32::from_le_bytes)
+        self.0.get(TARGET_VELOCITY).map(i32::from_le_bytes)
     }
 
     /// 0x6071 Target torque (per mille of the rated torque).
     pub fn target_torque(&self) -> Option<i16> {
-        self.get(TARGET_TORQUE).map(i16::from_le_bytes)
+        self.0.get(TARGET_TORQUE).map(i16::from_le_bytes)
     }
 
     /// 0x6060 Modes of operation (raw: a drive decides which it has).
     pub fn modes_of_operation(&self) -> Option<i8> {
-        self.get(MODES_OF_OPERATION).map(i8::from_le_bytes)
+        self.0.get(MODES_OF_OPERATION).map(i8::from_le_bytes)
     }
 
     /// 0x60B8 Touch probe function.
     pub fn touch_probe_function(&self) -> Option<u16> {
-        self.get(TOUCH_PROBE_FUNCTION).map(u16::from_le_bytes)
+        self.0.get(TOUCH_PROBE_FUNCTION).map(u16::from_le_bytes)
     }
 }
 
 impl<T: AsRef<[u8]> + AsMut<[u8]>> OutputImage<'_, T> {
-    fn put(&mut self, slot: usize, value: &[u8]) {
-        write(
-            self.buffer.as_mut(),
-            self.map.outputs.get(slot).copied().flatten(),
-            value,
-        );
-    }
-
     /// Sets 0x6040 Controlword (nothing when not mapped).
     pub fn set_controlword(&mut self, value: Controlword) {
-        self.put(CONTROLWORD, &value.0.to_le_bytes());
+        self.0.put(CONTROLWORD, &value.0.to_le_bytes());
     }
 
     /// Sets 0x607A Target position (nothing when not mapped).
     pub fn set_target_position(&mut self, value: i32) {
-        self.put(TARGET_POSITION, &value.to_le_bytes());
+        self.0.put(TARGET_POSITION, &value.to_le_bytes());
     }
 
     /// Sets 0x60FF Target velocity (nothing when not mapped).
     pub fn set_target_velocity(&mut self, value: i32) {
-        self.put(TARGET_VELOCITY, &value.to_le_bytes());
+        self.0.put(TARGET_VELOCITY, &value.to_le_bytes());
     }
 
     /// Sets 0x6071 Target torque (nothing when not mapped).
     pub fn set_target_torque(&mut self, value: i16) {
-        self.put(TARGET_TORQUE, &value.to_le_bytes());
+        self.0.put(TARGET_TORQUE, &value.to_le_bytes());
     }
 
     /// Sets 0x6060 Modes of operation (nothing when not mapped).
     pub fn set_modes_of_operation(&mut self, value: i8) {
-        self.put(MODES_OF_OPERATION, &value.to_le_bytes());
+        self.0.put(MODES_OF_OPERATION, &value.to_le_bytes());
     }
 
     /// Sets 0x60B8 Touch probe function (nothing when not mapped).
     pub fn set_touch_probe_function(&mut self, value: u16) {
-        self.put(TOUCH_PROBE_FUNCTION, &value.to_le_bytes());
+        self.0.put(TOUCH_PROBE_FUNCTION, &value.to_le_bytes());
     }
 }
 
 /// The inputs of one drive (TxPDO: what the drive reports).
 #[derive(Debug)]
-pub struct InputImage<'m, T> {
-    buffer: T,
-    map: &'m PdoMap,
-}
+pub struct InputImage<'m, T>(Fields<'m, T>);
 
 impl<'m, T: AsRef<[u8]>> InputImage<'m, T> {
     /// A view of `buffer` as the inputs `map` describes; fails when the buffer is shorter
     /// than the mapped inputs (longer is fine: the rest is not looked at).
     pub fn new_checked(buffer: T, map: &'m PdoMap) -> Result<Self, ImageError> {
-        let got = buffer.as_ref().len();
-        if got < map.input_bytes {
-            return Err(ImageError {
-                direction: Direction::Inputs,
-                got,
-                need: map.input_bytes,
-            });
-        }
-        Ok(Self { buffer, map })
+        Fields::new_checked(buffer, &map.inputs, Direction::Inputs, map.input_bytes).map(Self)
     }
 
     /// The buffer back.
     pub fn into_inner(self) -> T {
-        self.buffer
-    }
-
-    fn get<const N: usize>(&self, slot: usize) -> Option<[u8; N]> {
-        read(
-            self.buffer.as_ref(),
-            self.map.inputs.get(slot).copied().flatten(),
-        )
+        self.0.buffer
     }
 
     /// 0x6041 Statusword.
     pub fn statusword(&self) -> Option<Statusword> {
-        self.get(STATUSWORD).map(u16::from_le_bytes).map(Statusword)
+        self.0
+            .get(STATUSWORD)
+            .map(u16::from_le_bytes)
+            .map(Statusword)
     }
 
     /// 0x6064 Position actual value (increments; the drive's 32-bit counter).
     pub fn position_actual_value(&self) -> Option<i32> {
-        self.get(POSITION_ACTUAL_VALUE).map(i32::from_le_bytes)
+        self.0.get(POSITION_ACTUAL_VALUE).map(i32::from_le_bytes)
     }
 
     /// 0x606C Velocity actual value (increments/s).
     pub fn velocity_actual_value(&self) -> Option<i32> {
-        self.get(VELOCITY_ACTUAL_VALUE).map(i32::from_le_bytes)
+        self.0.get(VELOCITY_ACTUAL_VALUE).map(i32::from_le_bytes)
     }
 
     /// 0x6077 Torque actual value (per mille of the rated torque).
     pub fn torque_actual_value(&self) -> Option<i16> {
-        self.get(TORQUE_ACTUAL_VALUE).map(i16::from_le_bytes)
+        self.0.get(TORQUE_ACTUAL_VALUE).map(i16::from_le_bytes)
     }
 
     /// 0x60F4 Following error actual value (increments).
     pub fn following_error_actual_value(&self) -> Option<i32> {
-        self.get(FOLLOWING_ERROR_ACTUAL_VALUE)
+        self.0
+            .get(FOLLOWING_ERROR_ACTUAL_VALUE)
             .map(i32::from_le_bytes)
     }
 
     /// 0x603F Error code.
     pub fn error_code(&self) -> Option<u16> {
-        self.get(ERROR_CODE).map(u16::from_le_bytes)
+        self.0.get(ERROR_CODE).map(u16::from_le_bytes)
     }
 
     /// 0x6061 Modes of operation display (raw).
     pub fn modes_of_operation_display(&self) -> Option<i8> {
-        self.get(MODES_OF_OPERATION_DISPLAY).map(i8::from_le_bytes)
+        self.0
+            .get(MODES_OF_OPERATION_DISPLAY)
+            .map(i8::from_le_bytes)
     }
 
     /// 0x60B9 Touch probe status.
     pub fn touch_probe_status(&self) -> Option<u16> {
-        self.get(TOUCH_PROBE_STATUS).map(u16::from_le_bytes)
+        self.0.get(TOUCH_PROBE_STATUS).map(u16::from_le_bytes)
     }
 
     /// 0x60BA Touch probe position 1 positive value (increments).
     pub fn touch_probe_pos1_pos_value(&self) -> Option<i32> {
-        self.get(TOUCH_PROBE_POS1_POS_VALUE).map(i32::from_le_bytes)
+        self.0
+            .get(TOUCH_PROBE_POS1_POS_VALUE)
+            .map(i32::from_le_bytes)
     }
 
     /// 0x60FD Digital inputs (see [`objects::digital_inputs`]).
     pub fn digital_inputs(&self) -> Option<u32> {
-        self.get(DIGITAL_INPUTS).map(u32::from_le_bytes)
+        self.0.get(DIGITAL_INPUTS).map(u32::from_le_bytes)
     }
 }
 
 impl<T: AsRef<[u8]> + AsMut<[u8]>> InputImage<'_, T> {
-    fn put(&mut self, slot: usize, value: &[u8]) {
-        write(
-            self.buffer.as_mut(),
-            self.map.inputs.get(slot).copied().flatten(),
-            value,
-        );
-    }
-
     /// Sets 0x6041 Statusword (nothing when not mapped).
     pub fn set_statusword(&mut self, value: Statusword) {
-        self.put(STATUSWORD, &value.0.to_le_bytes());
+        self.0.put(STATUSWORD, &value.0.to_le_bytes());
     }
 
     /// Sets 0x6064 Position actual value (nothing when not mapped).
     pub fn set_position_actual_value(&mut self, value: i32) {
-        self.put(POSITION_ACTUAL_VALUE, &value.to_le_bytes());
+        self.0.put(POSITION_ACTUAL_VALUE, &value.to_le_bytes());
     }
 
     /// Sets 0x606C Velocity actual value (nothing when not mapped).
     pub fn set_velocity_actual_value(&mut self, value: i32) {
-        self.put(VELOCITY_ACTUAL_VALUE, &value.to_le_bytes());
+        self.0.put(VELOCITY_ACTUAL_VALUE, &value.to_le_bytes());
     }
 
     /// Sets 0x6077 Torque actual value (nothing when not mapped).
     pub fn set_torque_actual_value(&mut self, value: i16) {
-        self.put(TORQUE_ACTUAL_VALUE, &value.to_le_bytes());
+        self.0.put(TORQUE_ACTUAL_VALUE, &value.to_le_bytes());
     }
 
     /// Sets 0x60F4 Following error actual value (nothing when not mapped).
     pub fn set_following_error_actual_value(&mut self, value: i32) {
-        self.put(FOLLOWING_ERROR_ACTUAL_VALUE, &value.to_le_bytes());
+        self.0
+            .put(FOLLOWING_ERROR_ACTUAL_VALUE, &value.to_le_bytes());
     }
 
     /// Sets 0x603F Error code (nothing when not mapped).
     pub fn set_error_code(&mut self, value: u16) {
-        self.put(ERROR_CODE, &value.to_le_bytes());
+        self.0.put(ERROR_CODE, &value.to_le_bytes());
     }
 
     /// Sets 0x6061 Modes of operation display (nothing when not mapped).
     pub fn set_modes_of_operation_display(&mut self, value: i8) {
-        self.put(MODES_OF_OPERATION_DISPLAY, &value.to_le_bytes());
+        self.0.put(MODES_OF_OPERATION_DISPLAY, &value.to_le_bytes());
     }
 
     /// Sets 0x60B9 Touch probe status (nothing when not mapped).
     pub fn set_touch_probe_status(&mut self, value: u16) {
-        self.put(TOUCH_PROBE_STATUS, &value.to_le_bytes());
+        self.0.put(TOUCH_PROBE_STATUS, &value.to_le_bytes());
     }
 
     /// Sets 0x60BA Touch probe position 1 positive value (nothing when not mapped).
     pub fn set_touch_probe_pos1_pos_value(&mut self, value: i32) {
-        self.put(TOUCH_PROBE_POS1_POS_VALUE, &value.to_le_bytes());
+        self.0.put(TOUCH_PROBE_POS1_POS_VALUE, &value.to_le_bytes());
     }
 
     /// Sets 0x60FD Digital inputs (nothing when not mapped).
     pub fn set_digital_inputs(&mut self, value: u32) {
-        self.put(DIGITAL_INPUTS, &value.to_le_bytes());
+        self.0.put(DIGITAL_INPUTS, &value.to_le_bytes());
     }
 }
 
