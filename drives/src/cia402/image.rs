@@ -11,8 +11,8 @@
 //! bytes. A getter of an object the layout does not map gives `None`, a setter does
 //! nothing: the mapping, not the view, says what a drive exchanges.
 //!
-//! Objects are little-endian at the offset the layout's order gives (ETG.1000.6 §5.6.7.4:
-//! the process data is the mapped objects back to back, in mapping order). An object is
+//! Objects are little-endian at the offset the layout's order gives (CiA 301 §7.5.2: a
+//! PDO is its mapped objects back to back, in the order of the mapping entries). An object is
 //! recognised by index, sub-index and data type; one the view does not know takes its
 //! bytes in the image and is not readable through it. Mapped twice, an object is read and
 //! written at its first place.

@@ -35,8 +35,9 @@
 //! setpoint continues along the last slope, and after that the demand stays where it got
 //! to (a drive starved of setpoints does not run away).
 //!
-//! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
-//! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
+//! Process data follows the PDO layout the master mapped (see `coe::pdo`), read and
+//! written through the view the master codes through too (`gantry_drives::cia402::image`);
+//! until then the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
 //! inputs `0x6041 statusword: u16, 0x6064 position actual value: i32`.
 //!
 //! Each application period is three calls, so that the ESC side can sample the outputs
