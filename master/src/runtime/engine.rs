@@ -9,7 +9,7 @@ use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
 use super::bus::CycleBus;
-use super::clock::{now_ns, CycleClock, Wake};
+use super::clock::{now_ns, Clock, CycleClock, Wake};
 use super::phase::PhaseLock;
 use super::protocol::{
     DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
@@ -269,21 +269,33 @@ impl<B: CycleBus> Engine<B> {
     /// Runs cycles every `period_ns` until shut down (a [`Request::Shutdown`], or `stop`
     /// set from outside, e.g. by a signal handler), in phase with SYNC0 when the bus has
     /// distributed clocks. Returns the engine for the bus' shutdown.
-    pub fn run(mut self, period_ns: u64, stop: &AtomicBool) -> Self {
-        if self.phase_lock.is_none() && self.bus.dc_offset_ns().is_some() {
-            self.phase_lock = Some(PhaseLock::new(period_ns));
-        }
-        let mut clock = CycleClock::start(period_ns);
+    pub fn run(self, period_ns: u64, stop: &AtomicBool) -> Self {
+        self.run_on(&mut CycleClock::start(period_ns), stop)
+    }
+
+    /// [`Engine::run`] on `clock`.
+    pub fn run_on(mut self, clock: &mut impl Clock, stop: &AtomicBool) -> Self {
         loop {
-            let wake = clock.wait();
             if stop.load(Ordering::Relaxed) && self.phase == Phase::Running {
                 self.begin_shutdown();
             }
-            if !self.step(wake) {
+            if !self.cycle(clock) {
                 return self;
             }
-            clock.shift(self.phase_correction_ns());
         }
+    }
+
+    /// One cycle on `clock`: waits for its start, runs it, holds the clock in phase with
+    /// SYNC0 (with distributed clocks; the lock starts with the first cycle). False once
+    /// the engine has ended.
+    pub fn cycle(&mut self, clock: &mut impl Clock) -> bool {
+        let wake = clock.wait();
+        if self.phase_lock.is_none() && self.bus.dc_offset_ns().is_some() {
+            self.phase_lock = Some(PhaseLock::new(wake.period_ns));
+        }
+        let running = self.step(wake);
+        clock.shift(self.phase_correction_ns());
+        running
     }
 
     /// One cycle; false once the engine has ended.
