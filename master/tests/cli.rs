@@ -278,7 +278,7 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
             l.starts_with(&format!("   {axis}: Standstill, set 0.0000, actual ")),
             "{l}"
         );
-        assert!(l.ends_with("drive OperationEnabled"), "{l}");
+        assert!(l.ends_with("drive Operation enabled"), "{l}");
     }
     let said = line(&text, ">> c: crossed its wrap (360 → 0) ");
     // The kernel's set position of c wraps, forward at positive speed and backward at

@@ -5,7 +5,7 @@
 //! as Controller commands: enable, set position, PTP moves buffered and blended, a modulo
 //! axis across its wrap both ways and turning several periods, a halt, a stop.
 //!
-//! Lockstep: each frame passes the simulated chain in the demo's thread and the network's
+//! LockstepEngine: each frame passes the simulated chain in the demo's thread and the network's
 //! time moves one cycle per cycle ([`StepClock`]), so the run is deterministic, needs no
 //! root and no real-time thread, and the drives — as strict as shipped (two SYNC0 periods
 //! without a setpoint take one out of Op) — see a master exactly on time.
@@ -71,7 +71,7 @@ const SHUTDOWN_LIMIT_CYCLES: u64 = 6_000;
 const TAIL_CYCLES: u64 = 300;
 
 /// gantry's engine over the demo's bus, stepped by the demo's thread.
-pub struct Lockstep {
+pub struct LockstepEngine {
     /// The engine of `gantry run`.
     pub engine: Engine<EthercatBus>,
     /// The application's side of it.
@@ -81,7 +81,7 @@ pub struct Lockstep {
     clock: StepClock<Box<dyn FnMut(u64) + Send>>,
 }
 
-impl Lockstep {
+impl LockstepEngine {
     /// One cycle; false once the engine has ended (after a shutdown).
     fn cycle(&mut self) -> bool {
         self.engine.cycle(&mut self.clock)
@@ -93,7 +93,7 @@ impl Lockstep {
 /// minus the real-time thread: the network's time then moves one cycle time per cycle,
 /// in phase with SYNC0 as the engine holds it. One function, so that a change of the
 /// bring-up's steps (who builds the kernel) is made here alone.
-pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<Lockstep, DemoError> {
+pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEngine, DemoError> {
     let (bus, cycle, health) = EthercatBus::bring_up_with(config, SimLink::Lockstep, out)?;
     if !bus.step_by_hand() {
         return Err(DemoError::Network(
@@ -111,7 +111,7 @@ pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<Lockstep, 
     let stepped = chain.clone();
     let advance: Box<dyn FnMut(u64) + Send> =
         Box::new(move |to_ns| lock(&stepped).run_until(to_ns, period_ns));
-    Ok(Lockstep {
+    Ok(LockstepEngine {
         engine,
         ctl: Controller::new(ends, config.axes.iter().map(|a| a.name.clone()).collect()),
         chain,
@@ -428,7 +428,7 @@ impl Run {
     /// period, the status table, and every fault (which fails the demo at once).
     fn cycle(
         &mut self,
-        net: &mut Lockstep,
+        net: &mut LockstepEngine,
         last: &[Option<(&'static str, CommandHandle)>],
         out: &mut (dyn Write + Send),
     ) -> Result<(), DemoError> {
@@ -517,7 +517,7 @@ impl Run {
     /// Waits for every slave to report OP, shows the bus, then runs the script to its end.
     fn script(
         &mut self,
-        net: &mut Lockstep,
+        net: &mut LockstepEngine,
         out: &mut (dyn Write + Send),
     ) -> Result<(), DemoError> {
         let mut last: Vec<Option<(&'static str, CommandHandle)>> = vec![None; self.names.len()];
@@ -604,18 +604,19 @@ impl Run {
                 a.state.name(),
                 a.set.p,
                 a.actual_position,
-                d.state
-                    .map_or_else(|| "not reporting".into(), |s| format!("{s:?}"))
+                drive_state(d.state)
             );
         }
         Ok(())
     }
 
     /// The bus as the master sees it once every slave is in OP.
-    fn say_bus(&self, net: &Lockstep, cycles: u64, out: &mut (dyn Write + Send)) {
+    fn say_bus(&self, net: &LockstepEngine, cycles: u64, out: &mut (dyn Write + Send)) {
         let bus = &net.engine.bus;
         let image = bus.image();
-        let slaves = net.engine.health.expected_working_counter();
+        let expected_wkc = net.engine.health.expected_working_counter();
+        // The demo's chain: the bring-up found as many slaves (it said so above).
+        let slaves = lock(&net.chain).slaves().len();
         let _ = writeln!(
             out,
             ">> every slave reported OP {cycles} cycles after the bring-up (the cycle asks \
@@ -625,12 +626,13 @@ impl Run {
         // The image is cloned for its per-slave output sizes (it hands out outputs only
         // mutably): a few hundred bytes, once.
         let mut outputs = image.clone();
-        let mut position = 0;
-        while !image.inputs(position).is_empty() || !outputs.outputs_mut(position).is_empty() {
+        for position in 0..slaves {
             let axis = (0..self.names.len())
                 .find(|&a| bus.drive_of(a) == position)
                 .and_then(|a| self.names.get(a))
                 .map_or("-", String::as_str);
+            // In OP: the health monitor read every slave's AL state as OP before it let
+            // the start end, and has seen none leave since.
             let state = match net.engine.health.fault(position) {
                 None => "OP".to_string(),
                 Some(f) => f.to_string(),
@@ -641,12 +643,11 @@ impl Run {
                 image.inputs(position).len(),
                 outputs.outputs_mut(position).len()
             );
-            position += 1;
         }
         let wire = bus.cyclic_wire_bytes();
         let _ = writeln!(
             out,
-            ">> process data: {} B in {} LRW datagram(s), expected working counter {slaves}; \
+            ">> process data: {} B in {} LRW datagram(s), expected working counter {expected_wkc}; \
              {wire} B on the wire per cycle ({:.1} µs at 100 Mbit/s)",
             image.len(),
             image.chunks().len(),
@@ -721,7 +722,7 @@ impl Run {
     /// SIGTERM.
     fn shut_down(
         &mut self,
-        net: &mut Lockstep,
+        net: &mut LockstepEngine,
         out: &mut (dyn Write + Send),
     ) -> Result<(), DemoError> {
         net.ctl
@@ -841,6 +842,13 @@ fn short_way(x: f64, reference: f64, period: f64) -> f64 {
     (x - reference + period / 2.0).rem_euclid(period) - period / 2.0
 }
 
+/// A drive's CiA-402 state as the status table names it.
+fn drive_state(state: Option<gantry_drives::cia402::State>) -> String {
+    state
+        .map_or("not reporting", gantry_drives::cia402::State::name)
+        .into()
+}
+
 /// Fails on what an application must not run past: an axis in ErrorStop, a drive whose
 /// bus stopped it, a command of the script that failed.
 fn check_faults(
@@ -859,8 +867,8 @@ fn check_faults(
                     .error
                     .map_or_else(|| "no reason given".into(), |e| describe_fault(&e));
                 return Err(DemoError::Fault(format!(
-                    "axis {name} in ErrorStop: {why} (drive {:?}, statusword 0x{:04X}, error code {})",
-                    drive.state,
+                    "axis {name} in ErrorStop: {why} (drive {}, statusword 0x{:04X}, error code {})",
+                    drive_state(drive.state),
                     drive.statusword,
                     drive.error_code.map_or_else(|| "-".into(), |c| format!("0x{c:04X}"))
                 )));
@@ -970,6 +978,34 @@ mod tests {
         assert_eq!(sim.chain().unwrap().slaves().len(), config.axes.len());
         assert_eq!(sim.cycle_us, config.bus.cycle_us);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_axis_in_error_stop_or_a_bus_fault_stops_the_demo_with_what_and_why() {
+        use crate::ethercat::health::BusFault;
+        use gantry_kernel::axis::status::AxisFault;
+        let names: Vec<String> = ["x", "y", "c"].map(String::from).into();
+        let mut snap = Snapshot::sized(3);
+        check_faults(&snap, &names, &[None, None, None]).unwrap();
+        snap.axes[2].state = AxisState::ErrorStop;
+        snap.axes[2].error = Some(AxisFault::Drive { code: 0x8611 });
+        snap.drives[2].state = Some(gantry_drives::cia402::State::Fault);
+        snap.drives[2].statusword = 0x0218;
+        snap.drives[2].error_code = Some(0x8611);
+        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("the demo stopped: axis c in ErrorStop: drive fault 0x8611: ")
+                && e.to_string()
+                    .ends_with("(drive Fault, statusword 0x0218, error code 0x8611)"),
+            "{e}"
+        );
+        snap.drives[0].bus_fault = Some(BusFault::FramesLost { count: 3, limit: 3 });
+        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "the demo stopped: axis x: bus fault: EtherCAT: 3 frames lost in a row (limit 3)"
+        );
     }
 
     #[test]
