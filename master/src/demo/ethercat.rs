@@ -18,7 +18,7 @@
 
 use std::collections::HashMap;
 use std::io::{IsTerminal, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
@@ -316,8 +316,7 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     net.engine.into_bus().shut_down(out);
     let records = lock(&chain).records();
     write_records(&args.out.join("drive-records.json"), &records)?;
-    result?;
-    ended?;
+    // The cycle figures, also when the demo failed: they may say why.
     let _ = writeln!(
         out,
         ">> cycles: {} ({} with every slave's AL state read: at start and after a wrong \
@@ -332,6 +331,8 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
         figures.compute.p50_us,
         figures.compute.p99_us
     );
+    result?;
+    ended?;
     if lost != 0 || wkc != 0 {
         return Err(DemoError::Fault(format!(
             "{lost} frames lost and {wkc} working-counter errors on a lockstep network"
@@ -339,7 +340,13 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     }
     let verdict = judge_records(&records, &config)?;
     run.wraps_said(&verdict, &records, &config, out);
-    run.write_files(&args.out, &config)
+    let (csv, svg) = run.write_files(&args.out, &config)?;
+    Ok(DemoReport {
+        csv,
+        svg,
+        simulated_s: counters.cycles as f64 * f64::from(config.bus.cycle_us) * 1e-6,
+        cycles: counters.cycles,
+    })
 }
 
 /// The drive invariant (issue 10 §6) on what each simulated drive recorded: no target
@@ -739,7 +746,7 @@ impl Run {
     }
 
     /// The trace (CSV) and the plot (SVG).
-    fn write_files(&self, dir: &Path, config: &Config) -> Result<DemoReport, DemoError> {
+    fn write_files(&self, dir: &Path, config: &Config) -> Result<(PathBuf, PathBuf), DemoError> {
         let mut channels = Vec::new();
         for n in &self.names {
             channels.extend([format!("{n}.set"), format!("{n}.actual"), format!("{n}.v")]);
@@ -760,7 +767,8 @@ impl Run {
         }
         let width = channels.len();
         let mut trace = Trace::new(channels, self.samples.len().max(1));
-        let mut turns = vec![0.0f64; modulo.len()];
+        // Whole periods crossed so far by each modulo axis' set and actual position.
+        let mut turns = vec![(0.0f64, 0.0f64); modulo.len()];
         let mut row = Vec::with_capacity(width);
         for (k, s) in self.samples.iter().enumerate() {
             row.clear();
@@ -769,10 +777,10 @@ impl Run {
             }
             for (m, &(i, p)) in modulo.iter().enumerate() {
                 if let Some(prev) = k.checked_sub(1).and_then(|k| self.samples.get(k)) {
-                    turns[m] += f64::from(wrap_crossed(prev, s, i, p)) * p;
+                    turns[m].0 += f64::from(crossing(prev.set[i], s.set[i], p)) * p;
+                    turns[m].1 += f64::from(crossing(prev.actual[i], s.actual[i], p)) * p;
                 }
-                let set = s.set[i] + turns[m];
-                row.extend([set, set + short_way(s.actual[i], s.set[i], p)]);
+                row.extend([s.set[i] + turns[m].0, s.actual[i] + turns[m].1]);
             }
             trace.push(s.time_s, &row)?;
         }
@@ -810,22 +818,22 @@ impl Run {
             ],
         );
         std::fs::write(&svg, doc).map_err(io_error(&svg))?;
-        let last = self.samples.last();
-        Ok(DemoReport {
-            csv,
-            svg,
-            simulated_s: last.map_or(0.0, |s| s.time_s),
-            cycles: self.samples.len() as u64,
-        })
+        Ok((csv, svg))
     }
 }
 
 /// Whether axis `i`'s set position, wrapped into `[0, period)`, went across the wrap
-/// between two consecutive samples: +1 forward (from near `period` to near 0), -1
-/// backward, 0 not. Between two cycles an axis moves far less than a quarter period: a
-/// larger jump is a new reference (SetPosition), not a crossing.
+/// between two consecutive samples (see [`crossing`]).
 fn wrap_crossed(a: &TraceSample, b: &TraceSample, i: usize, period: f64) -> i32 {
-    let (jump, moved) = (b.set[i] - a.set[i], short_way(b.set[i], a.set[i], period));
+    crossing(a.set[i], b.set[i], period)
+}
+
+/// Whether a position wrapped into `[0, period)` went across the wrap from `before` to
+/// `after`, one cycle later: +1 forward (from near `period` to near 0), -1 backward, 0
+/// not. Between two cycles an axis moves far less than a quarter period: a larger jump is
+/// a new reference (SetPosition), not a crossing.
+fn crossing(before: f64, after: f64, period: f64) -> i32 {
+    let (jump, moved) = (after - before, short_way(after, before, period));
     if jump.abs() <= period / 2.0 || moved.abs() > period / 4.0 {
         0
     } else if moved > 0.0 {
