@@ -412,7 +412,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "\ndemo done: {:.2} s simulated in {} cycles of {} ms\ntrace: {}\nplot:  {}",
                 report.simulated_s,
                 report.cycles,
-                args.cycle_s * 1e3,
+                report.cycle_s * 1e3,
                 report.csv.display(),
                 report.svg.display()
             )?;

@@ -35,7 +35,8 @@ pub struct DemoArgs {
     pub out: PathBuf,
     /// Simulated seconds per wall-clock second (0: as fast as possible).
     pub speed: f64,
-    /// Cycle time (s).
+    /// Cycle time (s) of the bus-less demo (the EtherCAT demo's is its configuration's,
+    /// `bus.cycle_us`).
     pub cycle_s: f64,
     /// Write every EtherCAT frame here (the EtherCAT demo).
     pub pcap: Option<PathBuf>,
@@ -63,6 +64,8 @@ pub struct DemoReport {
     pub simulated_s: f64,
     /// Cycles run.
     pub cycles: u64,
+    /// Their cycle time (s).
+    pub cycle_s: f64,
 }
 
 /// Why the demo failed.
@@ -577,6 +580,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         svg,
         simulated_s: kernel.time(),
         cycles: kernel.tick(),
+        cycle_s: args.cycle_s,
     })
 }
 
