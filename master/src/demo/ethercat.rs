@@ -265,11 +265,11 @@ pub fn script() -> Vec<Step> {
     ]
 }
 
-/// Writes the demo's configuration and simulated chain to `dir` and loads the
-/// configuration from there, as `gantry run --config` would; with a capture to `pcap`.
-fn write_config(dir: &Path, pcap: Option<&Path>) -> Result<Config, DemoError> {
+/// Writes the demo's configuration and the simulated chain `servos` to `dir` and loads
+/// the configuration from there, as `gantry run --config` would; with a capture to `pcap`.
+fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config, DemoError> {
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-    for (name, text) in [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, SERVOS_TOML)] {
+    for (name, text) in [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, servos)] {
         let path = dir.join(name);
         std::fs::write(&path, text).map_err(io_error(&path))?;
     }
@@ -291,7 +291,18 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
 
 /// Runs the demo.
 pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, DemoError> {
-    let config = write_config(&args.out, args.pcap.as_deref())?;
+    run_on(args, SERVOS_TOML, out)
+}
+
+/// Runs the demo on the simulated chain `servos` (a gantry-sim TOML, a servo per axis in
+/// the demo's order) instead of its own: drives that cannot follow, or fewer drives than
+/// axes, show how it fails. Once per process (the EtherCAT bus starts once per process).
+pub fn run_on(
+    args: &DemoArgs,
+    servos: &str,
+    out: &mut (dyn Write + Send),
+) -> Result<DemoReport, DemoError> {
+    let config = write_config(&args.out, servos, args.pcap.as_deref())?;
     let _ = writeln!(
         out,
         ">> gantry demo: {} CiA-402 servos simulated on an in-process EtherCAT network, \
@@ -981,7 +992,7 @@ mod tests {
     #[test]
     fn the_demos_chain_file_is_a_valid_simulator_configuration_with_a_servo_per_axis() {
         let dir = std::env::temp_dir().join(format!("gantry-demo-config-{}", std::process::id()));
-        let config = write_config(&dir, None).unwrap();
+        let config = write_config(&dir, SERVOS_TOML, None).unwrap();
         let sim =
             gantry_sim::config::SimConfig::load(config.bus.simulator.as_deref().unwrap()).unwrap();
         assert_eq!(sim.chain().unwrap().slaves().len(), config.axes.len());
