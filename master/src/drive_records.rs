@@ -5,7 +5,7 @@
 //! one is injected, and no setpoint is missed or doubled once the phase lock holds.
 //!
 //! `gantry run` on the in-process simulator writes the records when it exits
-//! (`bus.simulator_record`) and prints [`Verdict::summary`]; `gantry demo --bus ethercat`
+//! (`bus.simulator_record`) and prints [`Verdict::summary`]; `gantry demo`
 //! fails on a broken invariant; the tests judge with [`judge`].
 
 use std::io::Write;
