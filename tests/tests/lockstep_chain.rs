@@ -11,10 +11,10 @@
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::transition;
 use gantry::runtime::cycle::Cycle;
 use gantry_drives::cia402::State;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;

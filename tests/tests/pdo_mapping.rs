@@ -8,12 +8,12 @@
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry::axis_fault::describe_fault;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::mapping::map_pdos;
 use gantry::ethercat::transition;
 use gantry::runtime::cycle::Cycle;
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};

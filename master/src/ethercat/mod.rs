@@ -4,7 +4,6 @@
 
 pub mod bus;
 pub mod coalesce;
-pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
 pub mod frame;

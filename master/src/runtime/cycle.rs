@@ -10,7 +10,8 @@ use thiserror::Error;
 
 use super::bus::CycleBus;
 use crate::config::Config;
-use crate::ethercat::cyclic::{encode_outputs, CspChannel, CspInputs};
+use crate::drive_axis::AxisChannel;
+use gantry_drives::csp::{encode_outputs, CspChannel, CspInputs};
 
 /// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
 /// emergency class 0x81xx, "communication"); the reason is the bus' (see
@@ -334,11 +335,11 @@ impl Cycle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ethercat::cyclic::COUNT_RANGE_FAULT;
+    use gantry_drives::csp::COUNT_RANGE_FAULT;
+    use gantry_drives::scaling::{Scaling, ScalingConfig};
     use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity, PowerCommand};
     use gantry_kernel::axis::state::AxisState;
     use gantry_kernel::axis::status::AxisFault;
-    use gantry_kernel::mechanics::{Scaling, ScalingConfig};
     use gantry_kernel::{AxisConfig, AxisKind};
 
     /// A drive that is Operation enabled at `position` counts (minimal mapping).
