@@ -15,4 +15,5 @@
     )
 )]
 
+pub mod canopen;
 pub mod cia402;
