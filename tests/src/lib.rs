@@ -13,7 +13,7 @@ pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 
-use gantry_kernel::mechanics::{Scaling, ScalingConfig};
+use gantry_drives::scaling::{Scaling, ScalingConfig};
 
 /// The axis the end-to-end tests drive: a 5 mm ball screw on a 2^17-count motor.
 pub fn ball_screw_5mm() -> Scaling {

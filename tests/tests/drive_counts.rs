@@ -12,13 +12,14 @@ use std::time::Duration;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
+use gantry_drives::csp::CspChannel;
+use gantry_drives::scaling::{Scaling, ScalingConfig};
 use gantry_kernel::axis::command::{
     Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode, PowerCommand,
 };
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::mechanics::{Direction, Modulo, MotionKind, Scaling, ScalingConfig};
+use gantry_kernel::mechanics::{Direction, Modulo, MotionKind};
 use gantry_kernel::profile::Limits;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_sim::catalog::{self, ServoOptions};

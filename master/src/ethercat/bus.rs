@@ -19,7 +19,6 @@ use gantry_sim::config::SimConfig;
 use thiserror::Error;
 
 use super::cycle::{CspCycle, CycleError};
-use super::cyclic::CspChannel;
 use super::doorbell::{BlockOn, StepStalled};
 use super::embedded::{ChainLink, HostTime, SimWire};
 use super::frame::{self, ProcessImage};
@@ -29,9 +28,11 @@ use super::mapping::map_pdos;
 use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
+use crate::drive_axis::AxisChannel;
 use crate::pcap::PcapWriter;
 use crate::runtime::bus::CycleBus;
 use crate::runtime::clock::now_ns;
+use gantry_drives::csp::CspChannel;
 
 /// Most slaves on one bus.
 pub const MAX_SLAVES: usize = 64;

@@ -6,8 +6,9 @@ use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
 use gantry_kernel::Kernel;
 use thiserror::Error;
 
-use super::cyclic::{encode_outputs, CspChannel, CspInputs};
 use super::health::COMMUNICATION_FAULT;
+use crate::drive_axis::AxisChannel;
+use gantry_drives::csp::{encode_outputs, CspChannel, CspInputs};
 
 /// A drive's process data does not fit the CSP layout.
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
@@ -176,11 +177,11 @@ impl CspCycle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ethercat::cyclic::COUNT_RANGE_FAULT;
+    use gantry_drives::csp::COUNT_RANGE_FAULT;
+    use gantry_drives::scaling::{Scaling, ScalingConfig};
     use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity, PowerCommand};
     use gantry_kernel::axis::state::AxisState;
     use gantry_kernel::axis::status::AxisFault;
-    use gantry_kernel::mechanics::{Scaling, ScalingConfig};
     use gantry_kernel::{AxisConfig, AxisKind};
 
     /// A drive that is Operation enabled at `position` counts (minimal mapping).

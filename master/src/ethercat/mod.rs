@@ -5,7 +5,6 @@
 pub mod bus;
 pub mod coalesce;
 pub mod cycle;
-pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
 pub mod frame;
