@@ -184,7 +184,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         matches!(self.state, State::Idle)
     }
 
-    /// The data of the last completed upload.
+    /// The data of the last completed upload (empty once another transfer starts).
     pub fn data(&self) -> &[u8] {
         self.buf.as_ref().get(..self.uploaded).unwrap_or(&[])
     }
@@ -209,6 +209,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         now_ns: u64,
     ) -> Result<(), SdoClientError> {
         self.busy(mux)?;
+        // The buffer is about to hold the download: the last upload is gone.
+        self.uploaded = 0;
         let len = data.len();
         let capacity = self.buf.as_ref().len();
         let too_large = SdoClientError::TooLarge {
