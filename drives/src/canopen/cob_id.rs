@@ -6,9 +6,9 @@ use thiserror::Error;
 
 /// Node id 0 addresses all nodes in an NMT command (CiA 301 §7.2.8.3.1).
 pub const ALL_NODES: u8 = 0;
-/// Smallest node id a device may have (CiA 301 §7.3.1).
+/// Smallest node id a device may have (CiA 301 predefined connection set: 7-bit node id, 0 is "all nodes" in NMT).
 pub const MIN_NODE_ID: u8 = 1;
-/// Largest node id a device may have (CiA 301 §7.3.1).
+/// Largest node id a device may have (CiA 301 predefined connection set: 7-bit node id, 0 is "all nodes" in NMT).
 pub const MAX_NODE_ID: u8 = 127;
 
 /// NMT node control (CiA 301 Table 74).
@@ -34,7 +34,7 @@ pub const NMT_ERROR_CONTROL_BASE: u16 = 0x700;
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
 pub enum CobIdError {
     /// A node id outside 1..=127.
-    #[error("node id {0} is outside 1..=127 (CiA 301 §7.3.1)")]
+    #[error("node id {0} is outside 1..=127 (CiA 301: 7-bit node id, 0 reserved)")]
     NodeId(u8),
     /// A PDO number outside 1..=4 (the predefined set has four of each).
     #[error("PDO number {0} is outside 1..=4 (CiA 301 Table 75 predefines PDO 1 to 4)")]

@@ -1,13 +1,13 @@
 //! Emergency (EMCY, CiA 301 §7.2.7): a node reports an internal error once, when it
 //! occurs (and error code 0x0000 when it is gone), on 0x080 + node id. 8 data bytes:
-//! the error code (little-endian, Table 26 classes; CiA 402 adds drive codes), the error
+//! the error code (little-endian, the classes of CiA 301 §7.2.7.1; CiA 402 adds drive codes), the error
 //! register (object 0x1001) and 5 manufacturer-specific bytes.
 
 use super::cob_id::{CobId, NodeId};
 use super::frame::CanFrame;
 use thiserror::Error;
 
-/// Error code 0x0000: error reset or no error (CiA 301 Table 26).
+/// Error code 0x0000: error reset or no error (CiA 301 §7.2.7.1).
 pub const ERROR_RESET: u16 = 0x0000;
 /// Data length of an EMCY frame.
 pub const EMCY_LEN: usize = 8;
@@ -91,8 +91,8 @@ mod tests {
 
     #[test]
     fn fixture_heartbeat_error_of_node_1() {
-        // CiA 301 §7.2.7.3.1 layout; 0x8130 "life guard or heartbeat error" (Table 26),
-        // register 0x11 = generic error | communication error (Table 48).
+        // CiA 301 §7.2.7.3.1 layout; 0x8130 "life guard or heartbeat error" (§7.2.7.1),
+        // register 0x11 = generic error | communication error (object 0x1001 bits 0 and 4).
         static BYTES: [u8; 8] = [0x30, 0x81, 0x11, 0xDE, 0xAD, 0xBE, 0xEF, 0x01];
         let frame = CanFrame::new(0x081, &BYTES).unwrap();
         let e = Emergency::parse(&frame).unwrap();

@@ -7,7 +7,7 @@ use super::cob_id::{CobId, NodeId};
 use super::frame::CanFrame;
 use thiserror::Error;
 
-/// Boot-up (CiA 301 Table 66).
+/// Boot-up (CiA 301 §7.2.8.3.2, heartbeat protocol).
 pub const STATE_BOOT_UP: u8 = 0x00;
 /// Stopped.
 pub const STATE_STOPPED: u8 = 0x04;
@@ -36,7 +36,7 @@ pub enum HeartbeatError {
         len: usize,
     },
     /// An unknown state (bits 6–0).
-    #[error("heartbeat: 0x{id:03X} byte 0 state 0x{state:02X} is not 0x00, 0x04, 0x05 or 0x7F (CiA 301 Table 66)")]
+    #[error("heartbeat: 0x{id:03X} byte 0 state 0x{state:02X} is not 0x00, 0x04, 0x05 or 0x7F (CiA 301 §7.2.8.3.2, heartbeat protocol)")]
     State {
         /// The COB-ID.
         id: u16,
@@ -45,7 +45,7 @@ pub enum HeartbeatError {
     },
 }
 
-/// The NMT state a node reports (CiA 301 Table 66).
+/// The NMT state a node reports (CiA 301 §7.2.8.3.2, heartbeat protocol).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum NmtState {
     /// Boot-up: the node has just initialised (then it is pre-operational).
@@ -148,7 +148,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// CiA 301 §7.2.8.3.2: 0x700 + node, one byte with the Table 66 state.
+    /// CiA 301 §7.2.8.3.2: 0x700 + node, one byte with the NMT state.
     static FIXTURES: &[(u32, u8, NmtState)] = &[
         (0x705, 0x00, NmtState::BootUp),
         (0x705, 0x04, NmtState::Stopped),

@@ -39,7 +39,7 @@ pub enum NmtError {
     Node(u8),
 }
 
-/// An NMT node-control command (CiA 301 Table 59–63 services).
+/// An NMT node-control command (CiA 301 §7.2.8.2.1 NMT node control services).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum NmtCommand {
     /// Start remote node.

@@ -6,7 +6,7 @@ use super::cob_id::SYNC_COB_ID;
 use super::frame::CanFrame;
 use thiserror::Error;
 
-/// Largest counter overflow value of 0x1019 (CiA 301 §7.5.2.22).
+/// Largest counter overflow value of 0x1019 (object 0x1019, CiA 301 §7.5.2).
 pub const MAX_COUNTER: u8 = 240;
 
 /// Why a frame is not a SYNC.

@@ -292,7 +292,7 @@ pub enum ClientCommand {
         /// Bytes 1–2: CRC of the whole data (0 when CRC is not used).
         crc: u16,
     },
-    /// ccs = 5, cs = 0: initiate block upload (§7.2.4.3.12).
+    /// ccs = 5, cs = 0: initiate block upload (§7.2.4.3.13).
     BlockUploadInitiate {
         /// Object.
         mux: Multiplexer,
@@ -303,16 +303,16 @@ pub enum ClientCommand {
         /// Byte 5: protocol switch threshold (0: no switch).
         pst: u8,
     },
-    /// ccs = 5, cs = 3: start upload (§7.2.4.3.12).
+    /// ccs = 5, cs = 3: start upload (§7.2.4.3.13).
     BlockUploadStart,
-    /// ccs = 5, cs = 2: sub-block response (§7.2.4.3.13).
+    /// ccs = 5, cs = 2: sub-block response (§7.2.4.3.14).
     BlockUploadAck {
         /// Byte 1: last segment received in sequence (0: none).
         ackseq: u8,
         /// Byte 2: segments in the next sub-block.
         block_size: u8,
     },
-    /// ccs = 5, cs = 1: end block upload response (§7.2.4.3.14).
+    /// ccs = 5, cs = 1: end block upload response (§7.2.4.3.15).
     BlockUploadEnd,
 }
 
@@ -642,7 +642,7 @@ impl ServerCommand {
     }
 }
 
-/// A segment of a block sub-block (CiA 301 §7.2.4.3.10/.13): byte 0 is `c` (bit 7, last
+/// A segment of a block sub-block (CiA 301 §7.2.4.3.10/.14): byte 0 is `c` (bit 7, last
 /// segment of the transfer) and the sequence number 1..=127; bytes 1–7 are data (the
 /// number of valid bytes in the last one comes with the end frame).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

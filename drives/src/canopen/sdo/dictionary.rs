@@ -6,7 +6,7 @@
 use super::abort::AbortCode;
 use super::command::Multiplexer;
 
-/// Access right of an entry (CiA 306 `AccessType`; CiA 301 §7.4.5).
+/// Access right of an entry (CiA 306 `AccessType`: ro, wo, rw, const).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Access {
     /// Read only (may change, e.g. a status).

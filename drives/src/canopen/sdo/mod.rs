@@ -81,7 +81,7 @@ pub struct SdoConfig {
     /// Without it a lost last segment ends in a timeout; with it, in a retransmission.
     pub sub_block_timeout_ns: Option<u64>,
     /// Client, block upload: protocol switch threshold sent to the server (0: none); the
-    /// server may answer a smaller object with a normal upload (§7.2.4.3.12).
+    /// server may answer a smaller object with a normal upload (§7.2.4.3.13).
     pub pst: u8,
     /// Client, segmented and block download: whether to indicate the size.
     pub indicate_size: bool,

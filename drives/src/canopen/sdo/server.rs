@@ -389,7 +389,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                 let block_size = check_block_size(block_size).map_err(|c| (mux, c))?;
                 let len = self.read_object(mux, od).map_err(|c| (mux, c))?;
                 if pst > 0 && len <= pst as usize {
-                    // Protocol switch (CiA 301 §7.2.4.3.12): small objects go the normal way.
+                    // Protocol switch (CiA 301 §7.2.4.3.13): small objects go the normal way.
                     return Ok(self.normal_upload(mux, len, now_ns));
                 }
                 let crc = crc && self.config.crc;
