@@ -12,6 +12,7 @@
 //! do) and emitted as 0.
 
 use super::abort::AbortCode;
+use super::packet::{command_byte, SdoPacket};
 use thiserror::Error;
 
 /// Every SDO frame has 8 data bytes (CiA 301 §7.2.4.3: "DLC 8").
@@ -136,12 +137,10 @@ impl Initiate {
         })
     }
 
-    fn parse(b0: u8, field: [u8; 4]) -> Self {
-        let e = b0 & 0x02 != 0;
-        let s = b0 & 0x01 != 0;
-        if e {
-            let n = (b0 >> 2) & 0x03;
-            let len = s.then_some(4 - n);
+    fn parse<T: AsRef<[u8]>>(p: &SdoPacket<T>) -> Self {
+        let field = p.data();
+        if p.expedited() {
+            let len = p.size_indicated().then_some(4 - p.expedited_unused());
             let mut data = field;
             // Bytes past the indicated size carry no data: keep them zero.
             for (i, d) in data.iter_mut().enumerate() {
@@ -152,7 +151,7 @@ impl Initiate {
             Self::Expedited { data, len }
         } else {
             Self::Segmented {
-                size: s.then_some(u32::from_le_bytes(field)),
+                size: p.size_indicated().then_some(p.size()),
             }
         }
     }
@@ -160,22 +159,22 @@ impl Initiate {
     /// Byte 0 flags (n, e, s) and bytes 4–7.
     fn emit(&self) -> (u8, [u8; 4]) {
         match *self {
-            Self::Expedited { data, len: None } => (0x02, data),
+            Self::Expedited { data, len: None } => (command_byte::initiate(0, true, false), data),
             Self::Expedited {
                 data,
                 len: Some(len),
             } => {
                 let len = len.clamp(1, 4);
                 let mut out = [0u8; 4];
-                for (i, (o, d)) in out.iter_mut().zip(data).enumerate() {
-                    if i < len as usize {
-                        *o = d;
-                    }
+                for (o, d) in out.iter_mut().zip(data).take(len as usize) {
+                    *o = d;
                 }
-                (((4 - len) << 2) | 0x03, out)
+                (command_byte::initiate(4 - len, true, true), out)
             }
-            Self::Segmented { size: None } => (0x00, [0; 4]),
-            Self::Segmented { size: Some(s) } => (0x01, s.to_le_bytes()),
+            Self::Segmented { size: None } => (command_byte::initiate(0, false, false), [0; 4]),
+            Self::Segmented { size: Some(s) } => {
+                (command_byte::initiate(0, false, true), s.to_le_bytes())
+            }
         }
     }
 }
@@ -215,10 +214,9 @@ impl Segment {
         self.data.get(..self.len as usize).unwrap_or(&self.data)
     }
 
-    fn parse(b0: u8, rest: [u8; 7]) -> Self {
-        let n = (b0 >> 1) & 0x07;
-        let len = 7 - n;
-        let mut data = rest;
+    fn parse<T: AsRef<[u8]>>(p: &SdoPacket<T>) -> Self {
+        let len = 7 - p.segment_unused();
+        let mut data = p.segment_data();
         // Bytes past 7 − n carry no data: keep them zero.
         for (i, d) in data.iter_mut().enumerate() {
             if i >= len as usize {
@@ -226,24 +224,25 @@ impl Segment {
             }
         }
         Self {
-            toggle: b0 & 0x10 != 0,
-            last: b0 & 0x01 != 0,
+            toggle: p.toggle(),
+            last: p.segment_last(),
             data,
             len,
         }
     }
 
-    fn emit(&self, cs: u8) -> [u8; SDO_LEN] {
+    fn emit_into<T: AsRef<[u8]> + AsMut<[u8]>>(&self, cs: u8, p: &mut SdoPacket<T>) {
         let len = self.len.min(7);
-        let n = 7 - len;
-        let mut out = [0u8; SDO_LEN];
-        out[0] = (cs << 5) | ((self.toggle as u8) << 4) | (n << 1) | self.last as u8;
-        for (i, (o, d)) in out.iter_mut().skip(1).zip(self.data).enumerate() {
-            if i < len as usize {
-                *o = d;
-            }
+        p.set_command(
+            command_byte::cs(cs)
+                | command_byte::toggle(self.toggle)
+                | command_byte::segment(7 - len, self.last),
+        );
+        let mut data = [0u8; SEGMENT_DATA];
+        for (o, d) in data.iter_mut().zip(self.data).take(len as usize) {
+            *o = d;
         }
-        out
+        p.set_segment_data(data);
     }
 }
 
@@ -316,144 +315,153 @@ pub enum ClientCommand {
     BlockUploadEnd,
 }
 
-fn mux_of(b: &[u8; SDO_LEN]) -> Multiplexer {
+fn mux_of<T: AsRef<[u8]>>(p: &SdoPacket<T>) -> Multiplexer {
     Multiplexer {
-        index: u16::from_le_bytes([b[1], b[2]]),
-        sub: b[3],
+        index: p.index(),
+        sub: p.sub_index(),
     }
 }
 
-fn field_of(b: &[u8; SDO_LEN]) -> [u8; 4] {
-    [b[4], b[5], b[6], b[7]]
+/// Writes a frame with a multiplexer: byte 0, index, sub-index, bytes 4–7.
+fn emit_with_mux<T: AsRef<[u8]> + AsMut<[u8]>>(
+    p: &mut SdoPacket<T>,
+    b0: u8,
+    mux: Multiplexer,
+    field: [u8; 4],
+) {
+    p.set_command(b0);
+    p.set_index(mux.index);
+    p.set_sub_index(mux.sub);
+    p.set_data(field);
 }
 
-fn rest_of(b: &[u8; SDO_LEN]) -> [u8; 7] {
-    [b[1], b[2], b[3], b[4], b[5], b[6], b[7]]
+/// Writes a frame of byte 0 and zeros.
+fn emit_bare<T: AsRef<[u8]> + AsMut<[u8]>>(p: &mut SdoPacket<T>, b0: u8) {
+    p.set_command(b0);
+    p.set_segment_data([0; SEGMENT_DATA]);
 }
 
-fn with_mux(b0: u8, mux: Multiplexer, field: [u8; 4]) -> [u8; SDO_LEN] {
-    let [i0, i1] = mux.index.to_le_bytes();
-    let [f0, f1, f2, f3] = field;
-    [b0, i0, i1, mux.sub, f0, f1, f2, f3]
+/// Writes a block sub-block response.
+fn emit_ack<T: AsRef<[u8]> + AsMut<[u8]>>(p: &mut SdoPacket<T>, b0: u8, ackseq: u8, bs: u8) {
+    emit_bare(p, b0);
+    p.set_ack(ackseq, bs);
 }
 
-fn eight(data: &[u8]) -> Result<&[u8; SDO_LEN], SdoWireError> {
-    data.try_into()
-        .map_err(|_| SdoWireError::Length(data.len()))
+/// Writes a block end frame.
+fn emit_end<T: AsRef<[u8]> + AsMut<[u8]>>(p: &mut SdoPacket<T>, cs: u8, unused: u8, crc: u16) {
+    emit_bare(
+        p,
+        command_byte::cs(cs) | command_byte::block_end(unused, SUB_END),
+    );
+    p.set_crc(crc);
+}
+
+fn to_bytes(emit: impl FnOnce(&mut SdoPacket<&mut [u8]>)) -> [u8; SDO_LEN] {
+    let mut out = [0u8; SDO_LEN];
+    emit(&mut SdoPacket::new_unchecked(&mut out[..]));
+    out
 }
 
 impl ClientCommand {
     /// Parses the 8 data bytes of a client → server frame.
     pub fn parse(data: &[u8]) -> Result<Self, SdoWireError> {
-        let b = eight(data)?;
-        let b0 = b[0];
-        let sub = b0 & 0x03;
-        let bad = || SdoWireError::CommandSpecifier {
-            direction: "request",
-            byte: b0,
-            cs: b0 >> 5,
-        };
-        Ok(match b0 >> 5 {
-            CCS_DOWNLOAD_SEGMENT => Self::DownloadSegment(Segment::parse(b0, rest_of(b))),
+        let p = SdoPacket::new_checked(data)?;
+        Ok(match p.command_specifier() {
+            CCS_DOWNLOAD_SEGMENT => Self::DownloadSegment(Segment::parse(&p)),
             CCS_INITIATE_DOWNLOAD => Self::InitiateDownload {
-                mux: mux_of(b),
-                payload: Initiate::parse(b0, field_of(b)),
+                mux: mux_of(&p),
+                payload: Initiate::parse(&p),
             },
-            CCS_INITIATE_UPLOAD => Self::InitiateUpload { mux: mux_of(b) },
-            CCS_UPLOAD_SEGMENT => Self::UploadSegment {
-                toggle: b0 & 0x10 != 0,
-            },
+            CCS_INITIATE_UPLOAD => Self::InitiateUpload { mux: mux_of(&p) },
+            CCS_UPLOAD_SEGMENT => Self::UploadSegment { toggle: p.toggle() },
             CS_ABORT => Self::Abort {
-                mux: mux_of(b),
-                code: AbortCode(u32::from_le_bytes(field_of(b))),
+                mux: mux_of(&p),
+                code: AbortCode(p.size()),
             },
-            CCS_BLOCK_UPLOAD => match sub {
+            CCS_BLOCK_UPLOAD => match p.block_subcommand() {
                 SUB_INITIATE => Self::BlockUploadInitiate {
-                    mux: mux_of(b),
-                    crc: b0 & 0x04 != 0,
-                    block_size: b[4],
-                    pst: b[5],
+                    mux: mux_of(&p),
+                    crc: p.crc_supported(),
+                    block_size: p.init_block_size(),
+                    pst: p.pst(),
                 },
                 SUB_START => Self::BlockUploadStart,
                 SUB_ACK => Self::BlockUploadAck {
-                    ackseq: b[1],
-                    block_size: b[2],
+                    ackseq: p.ackseq(),
+                    block_size: p.ack_block_size(),
                 },
                 _ => Self::BlockUploadEnd,
             },
-            CCS_BLOCK_DOWNLOAD => {
-                if b0 & 0x01 == SUB_INITIATE {
-                    Self::BlockDownloadInitiate {
-                        mux: mux_of(b),
-                        crc: b0 & 0x04 != 0,
-                        size: (b0 & 0x02 != 0).then_some(u32::from_le_bytes(field_of(b))),
-                    }
-                } else {
-                    Self::BlockDownloadEnd {
-                        unused: (b0 >> 2) & 0x07,
-                        crc: u16::from_le_bytes([b[1], b[2]]),
-                    }
+            // Bit 0 alone tells initiate (0) from end (1): bit 1 is `s` of an initiate.
+            CCS_BLOCK_DOWNLOAD if p.block_subcommand() & SUB_END == SUB_INITIATE => {
+                Self::BlockDownloadInitiate {
+                    mux: mux_of(&p),
+                    crc: p.crc_supported(),
+                    size: p.block_size_indicated().then_some(p.size()),
                 }
             }
-            _ => return Err(bad()),
+            CCS_BLOCK_DOWNLOAD => Self::BlockDownloadEnd {
+                unused: p.end_unused(),
+                crc: p.crc(),
+            },
+            cs => {
+                return Err(SdoWireError::CommandSpecifier {
+                    direction: "request",
+                    byte: p.command(),
+                    cs,
+                })
+            }
         })
     }
 
-    /// The 8 data bytes.
-    pub fn emit(&self) -> [u8; SDO_LEN] {
+    /// Writes the frame into a view over 8 bytes (every byte written; reserved ones 0).
+    pub fn emit_into<T: AsRef<[u8]> + AsMut<[u8]>>(&self, p: &mut SdoPacket<T>) {
+        use command_byte as b;
         match *self {
             Self::InitiateDownload { mux, payload } => {
                 let (flags, field) = payload.emit();
-                with_mux((CCS_INITIATE_DOWNLOAD << 5) | flags, mux, field)
+                emit_with_mux(p, b::cs(CCS_INITIATE_DOWNLOAD) | flags, mux, field);
             }
-            Self::DownloadSegment(s) => s.emit(CCS_DOWNLOAD_SEGMENT),
-            Self::InitiateUpload { mux } => with_mux(CCS_INITIATE_UPLOAD << 5, mux, [0; 4]),
-            Self::UploadSegment { toggle } => [
-                (CCS_UPLOAD_SEGMENT << 5) | ((toggle as u8) << 4),
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            ],
-            Self::Abort { mux, code } => with_mux(CS_ABORT << 5, mux, code.0.to_le_bytes()),
+            Self::DownloadSegment(s) => s.emit_into(CCS_DOWNLOAD_SEGMENT, p),
+            Self::InitiateUpload { mux } => {
+                emit_with_mux(p, b::cs(CCS_INITIATE_UPLOAD), mux, [0; 4]);
+            }
+            Self::UploadSegment { toggle } => {
+                emit_bare(p, b::cs(CCS_UPLOAD_SEGMENT) | b::toggle(toggle));
+            }
+            Self::Abort { mux, code } => {
+                emit_with_mux(p, b::cs(CS_ABORT), mux, code.0.to_le_bytes());
+            }
             Self::BlockDownloadInitiate { mux, crc, size } => {
-                let b0 = (CCS_BLOCK_DOWNLOAD << 5)
-                    | ((crc as u8) << 2)
-                    | ((size.is_some() as u8) << 1)
-                    | SUB_INITIATE;
-                with_mux(b0, mux, size.unwrap_or(0).to_le_bytes())
+                let b0 = b::cs(CCS_BLOCK_DOWNLOAD)
+                    | b::block_initiate(crc, size.is_some(), SUB_INITIATE);
+                emit_with_mux(p, b0, mux, size.unwrap_or(0).to_le_bytes());
             }
             Self::BlockDownloadEnd { unused, crc } => {
-                let [c0, c1] = crc.to_le_bytes();
-                let b0 = (CCS_BLOCK_DOWNLOAD << 5) | ((unused & 0x07) << 2) | SUB_END;
-                [b0, c0, c1, 0, 0, 0, 0, 0]
+                emit_end(p, CCS_BLOCK_DOWNLOAD, unused, crc);
             }
             Self::BlockUploadInitiate {
                 mux,
                 crc,
                 block_size,
                 pst,
-            } => with_mux(
-                (CCS_BLOCK_UPLOAD << 5) | ((crc as u8) << 2) | SUB_INITIATE,
-                mux,
-                [block_size, pst, 0, 0],
-            ),
-            Self::BlockUploadStart => [(CCS_BLOCK_UPLOAD << 5) | SUB_START, 0, 0, 0, 0, 0, 0, 0],
-            Self::BlockUploadAck { ackseq, block_size } => [
-                (CCS_BLOCK_UPLOAD << 5) | SUB_ACK,
-                ackseq,
-                block_size,
-                0,
-                0,
-                0,
-                0,
-                0,
-            ],
-            Self::BlockUploadEnd => [(CCS_BLOCK_UPLOAD << 5) | SUB_END, 0, 0, 0, 0, 0, 0, 0],
+            } => {
+                let b0 = b::cs(CCS_BLOCK_UPLOAD) | b::block_initiate(crc, false, SUB_INITIATE);
+                emit_with_mux(p, b0, mux, [0; 4]);
+                p.set_init_block_size(block_size);
+                p.set_pst(pst);
+            }
+            Self::BlockUploadStart => emit_bare(p, b::cs(CCS_BLOCK_UPLOAD) | SUB_START),
+            Self::BlockUploadAck { ackseq, block_size } => {
+                emit_ack(p, b::cs(CCS_BLOCK_UPLOAD) | SUB_ACK, ackseq, block_size);
+            }
+            Self::BlockUploadEnd => emit_bare(p, b::cs(CCS_BLOCK_UPLOAD) | SUB_END),
         }
+    }
+
+    /// The 8 data bytes.
+    pub fn emit(&self) -> [u8; SDO_LEN] {
+        to_bytes(|p| self.emit_into(p))
     }
 }
 
@@ -525,120 +533,98 @@ pub enum ServerCommand {
 impl ServerCommand {
     /// Parses the 8 data bytes of a server → client frame.
     pub fn parse(data: &[u8]) -> Result<Self, SdoWireError> {
-        let b = eight(data)?;
-        let b0 = b[0];
-        let bad = || SdoWireError::CommandSpecifier {
+        let p = SdoPacket::new_checked(data)?;
+        let bad = |cs| SdoWireError::CommandSpecifier {
             direction: "response",
-            byte: b0,
-            cs: b0 >> 5,
+            byte: p.command(),
+            cs,
         };
-        Ok(match b0 >> 5 {
-            SCS_UPLOAD_SEGMENT => Self::UploadSegment(Segment::parse(b0, rest_of(b))),
-            SCS_DOWNLOAD_SEGMENT => Self::DownloadSegment {
-                toggle: b0 & 0x10 != 0,
-            },
+        Ok(match p.command_specifier() {
+            SCS_UPLOAD_SEGMENT => Self::UploadSegment(Segment::parse(&p)),
+            SCS_DOWNLOAD_SEGMENT => Self::DownloadSegment { toggle: p.toggle() },
             SCS_INITIATE_UPLOAD => Self::InitiateUpload {
-                mux: mux_of(b),
-                payload: Initiate::parse(b0, field_of(b)),
+                mux: mux_of(&p),
+                payload: Initiate::parse(&p),
             },
-            SCS_INITIATE_DOWNLOAD => Self::InitiateDownload { mux: mux_of(b) },
+            SCS_INITIATE_DOWNLOAD => Self::InitiateDownload { mux: mux_of(&p) },
             CS_ABORT => Self::Abort {
-                mux: mux_of(b),
-                code: AbortCode(u32::from_le_bytes(field_of(b))),
+                mux: mux_of(&p),
+                code: AbortCode(p.size()),
             },
-            SCS_BLOCK_DOWNLOAD => match b0 & 0x03 {
+            SCS_BLOCK_DOWNLOAD => match p.block_subcommand() {
                 SUB_INITIATE => Self::BlockDownloadInitiate {
-                    mux: mux_of(b),
-                    crc: b0 & 0x04 != 0,
-                    block_size: b[4],
+                    mux: mux_of(&p),
+                    crc: p.crc_supported(),
+                    block_size: p.init_block_size(),
                 },
                 SUB_END => Self::BlockDownloadEnd,
                 SUB_ACK => Self::BlockDownloadAck {
-                    ackseq: b[1],
-                    block_size: b[2],
+                    ackseq: p.ackseq(),
+                    block_size: p.ack_block_size(),
                 },
-                _ => return Err(bad()),
+                _ => return Err(bad(SCS_BLOCK_DOWNLOAD)),
             },
-            SCS_BLOCK_UPLOAD => {
-                if b0 & 0x01 == SUB_INITIATE {
-                    Self::BlockUploadInitiate {
-                        mux: mux_of(b),
-                        crc: b0 & 0x04 != 0,
-                        size: (b0 & 0x02 != 0).then_some(u32::from_le_bytes(field_of(b))),
-                    }
-                } else {
-                    Self::BlockUploadEnd {
-                        unused: (b0 >> 2) & 0x07,
-                        crc: u16::from_le_bytes([b[1], b[2]]),
-                    }
+            // Bit 0 alone tells initiate (0) from end (1): bit 1 is `s` of an initiate.
+            SCS_BLOCK_UPLOAD if p.block_subcommand() & SUB_END == SUB_INITIATE => {
+                Self::BlockUploadInitiate {
+                    mux: mux_of(&p),
+                    crc: p.crc_supported(),
+                    size: p.block_size_indicated().then_some(p.size()),
                 }
             }
-            _ => return Err(bad()),
+            SCS_BLOCK_UPLOAD => Self::BlockUploadEnd {
+                unused: p.end_unused(),
+                crc: p.crc(),
+            },
+            cs => return Err(bad(cs)),
         })
     }
 
-    /// The 8 data bytes.
-    pub fn emit(&self) -> [u8; SDO_LEN] {
+    /// Writes the frame into a view over 8 bytes (every byte written; reserved ones 0).
+    pub fn emit_into<T: AsRef<[u8]> + AsMut<[u8]>>(&self, p: &mut SdoPacket<T>) {
+        use command_byte as b;
         match *self {
-            Self::InitiateDownload { mux } => with_mux(SCS_INITIATE_DOWNLOAD << 5, mux, [0; 4]),
-            Self::DownloadSegment { toggle } => [
-                (SCS_DOWNLOAD_SEGMENT << 5) | ((toggle as u8) << 4),
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            ],
+            Self::InitiateDownload { mux } => {
+                emit_with_mux(p, b::cs(SCS_INITIATE_DOWNLOAD), mux, [0; 4]);
+            }
+            Self::DownloadSegment { toggle } => {
+                emit_bare(p, b::cs(SCS_DOWNLOAD_SEGMENT) | b::toggle(toggle));
+            }
             Self::InitiateUpload { mux, payload } => {
                 let (flags, field) = payload.emit();
-                with_mux((SCS_INITIATE_UPLOAD << 5) | flags, mux, field)
+                emit_with_mux(p, b::cs(SCS_INITIATE_UPLOAD) | flags, mux, field);
             }
-            Self::UploadSegment(s) => s.emit(SCS_UPLOAD_SEGMENT),
-            Self::Abort { mux, code } => with_mux(CS_ABORT << 5, mux, code.0.to_le_bytes()),
+            Self::UploadSegment(s) => s.emit_into(SCS_UPLOAD_SEGMENT, p),
+            Self::Abort { mux, code } => {
+                emit_with_mux(p, b::cs(CS_ABORT), mux, code.0.to_le_bytes());
+            }
             Self::BlockDownloadInitiate {
                 mux,
                 crc,
                 block_size,
-            } => with_mux(
-                (SCS_BLOCK_DOWNLOAD << 5) | ((crc as u8) << 2) | SUB_INITIATE,
-                mux,
-                [block_size, 0, 0, 0],
-            ),
-            Self::BlockDownloadAck { ackseq, block_size } => [
-                (SCS_BLOCK_DOWNLOAD << 5) | SUB_ACK,
-                ackseq,
-                block_size,
-                0,
-                0,
-                0,
-                0,
-                0,
-            ],
-            Self::BlockDownloadEnd => [(SCS_BLOCK_DOWNLOAD << 5) | SUB_END, 0, 0, 0, 0, 0, 0, 0],
-            Self::BlockUploadInitiate { mux, crc, size } => with_mux(
-                (SCS_BLOCK_UPLOAD << 5)
-                    | ((crc as u8) << 2)
-                    | ((size.is_some() as u8) << 1)
-                    | SUB_INITIATE,
-                mux,
-                size.unwrap_or(0).to_le_bytes(),
-            ),
+            } => {
+                let b0 = b::cs(SCS_BLOCK_DOWNLOAD) | b::block_initiate(crc, false, SUB_INITIATE);
+                emit_with_mux(p, b0, mux, [0; 4]);
+                p.set_init_block_size(block_size);
+            }
+            Self::BlockDownloadAck { ackseq, block_size } => {
+                emit_ack(p, b::cs(SCS_BLOCK_DOWNLOAD) | SUB_ACK, ackseq, block_size);
+            }
+            Self::BlockDownloadEnd => emit_bare(p, b::cs(SCS_BLOCK_DOWNLOAD) | SUB_END),
+            Self::BlockUploadInitiate { mux, crc, size } => {
+                let b0 =
+                    b::cs(SCS_BLOCK_UPLOAD) | b::block_initiate(crc, size.is_some(), SUB_INITIATE);
+                emit_with_mux(p, b0, mux, size.unwrap_or(0).to_le_bytes());
+            }
             Self::BlockUploadEnd { unused, crc } => {
-                let [c0, c1] = crc.to_le_bytes();
-                [
-                    (SCS_BLOCK_UPLOAD << 5) | ((unused & 0x07) << 2) | SUB_END,
-                    c0,
-                    c1,
-                    0,
-                    0,
-                    0,
-                    0,
-                    0,
-                ]
+                emit_end(p, SCS_BLOCK_UPLOAD, unused, crc);
             }
         }
+    }
+
+    /// The 8 data bytes.
+    pub fn emit(&self) -> [u8; SDO_LEN] {
+        to_bytes(|p| self.emit_into(p))
     }
 }
 
@@ -657,36 +643,31 @@ pub struct BlockSegment {
 
 /// Byte 0 of an abort frame: inside a sub-block it cannot be a segment (seqno 0), so a
 /// receiver tells an abort from a segment by it.
-pub const ABORT_BYTE0: u8 = CS_ABORT << 5;
+pub const ABORT_BYTE0: u8 = command_byte::cs(CS_ABORT);
 
 impl BlockSegment {
     /// Parses a block segment. Sequence number 0 is refused (0x80 is an abort frame).
     pub fn parse(data: &[u8]) -> Result<Self, SdoWireError> {
-        let b = eight(data)?;
-        let seqno = b[0] & 0x7F;
-        if seqno == 0 {
-            return Err(SdoWireError::SequenceNumber(b[0]));
+        let p = SdoPacket::new_checked(data)?;
+        if p.seqno() == 0 {
+            return Err(SdoWireError::SequenceNumber(p.command()));
         }
         Ok(Self {
-            seqno,
-            last: b[0] & 0x80 != 0,
-            data: rest_of(b),
+            seqno: p.seqno(),
+            last: p.block_last(),
+            data: p.segment_data(),
         })
+    }
+
+    /// Writes the segment into a view over 8 bytes.
+    pub fn emit_into<T: AsRef<[u8]> + AsMut<[u8]>>(&self, p: &mut SdoPacket<T>) {
+        p.set_command(command_byte::block_segment(self.last, self.seqno));
+        p.set_segment_data(self.data);
     }
 
     /// The 8 data bytes.
     pub fn emit(&self) -> [u8; SDO_LEN] {
-        let [d0, d1, d2, d3, d4, d5, d6] = self.data;
-        [
-            ((self.last as u8) << 7) | (self.seqno & 0x7F),
-            d0,
-            d1,
-            d2,
-            d3,
-            d4,
-            d5,
-            d6,
-        ]
+        to_bytes(|p| self.emit_into(p))
     }
 }
 

@@ -3,7 +3,8 @@
 //! confirmed exchange) and block (sub-blocks of up to 127 unconfirmed segments, one
 //! acknowledgement each, CRC over the whole).
 //!
-//! [`command`] has the wire formats, [`abort`] the abort codes, [`crc`] the block CRC,
+//! [`packet`] is the typed view over an SDO frame's bytes, [`command`] the commands parsed
+//! from it, [`abort`] the abort codes, [`crc`] the block CRC,
 //! [`dictionary`] what the server serves; [`SdoClient`] and [`SdoServer`] are the protocol
 //! machines. Both are sans-I/O: feed them each received frame with the time
 //! ([`SdoClient::receive`], [`SdoServer::receive`]), call `poll` with the time for
@@ -17,12 +18,14 @@ pub mod client;
 pub mod command;
 pub mod crc;
 pub mod dictionary;
+pub mod packet;
 pub mod server;
 
 pub use abort::AbortCode;
 pub use client::{DownloadMode, SdoClient, SdoClientError, UploadMode};
 pub use command::{BlockSegment, ClientCommand, Initiate, Multiplexer, Segment, ServerCommand};
 pub use dictionary::{Access, EntryInfo, ObjectDictionary, ObjectSize};
+pub use packet::SdoPacket;
 pub use server::SdoServer;
 
 use thiserror::Error;

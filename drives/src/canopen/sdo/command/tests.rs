@@ -1,4 +1,5 @@
 use super::*;
+use crate::canopen::sdo::packet::SdoPacket;
 use proptest::prelude::*;
 
 const M: Multiplexer = Multiplexer::new(0x1018, 0x01);
@@ -364,4 +365,26 @@ proptest! {
             prop_assert_eq!(&bytes[..], &data[..]);
         }
     }
+}
+
+#[test]
+fn emit_into_writes_every_byte_over_a5() {
+    for (bytes, repr) in client_fixtures() {
+        let mut buf = [0xA5u8; 8];
+        repr.emit_into(&mut SdoPacket::new_unchecked(&mut buf[..]));
+        assert_eq!(buf, bytes, "{repr:?}");
+    }
+    for (bytes, repr) in server_fixtures() {
+        let mut buf = [0xA5u8; 8];
+        repr.emit_into(&mut SdoPacket::new_unchecked(&mut buf[..]));
+        assert_eq!(buf, bytes, "{repr:?}");
+    }
+    let seg = BlockSegment {
+        seqno: 3,
+        last: true,
+        data: [1, 2, 3, 4, 5, 6, 7],
+    };
+    let mut buf = [0xA5u8; 8];
+    seg.emit_into(&mut SdoPacket::new_unchecked(&mut buf[..]));
+    assert_eq!(buf, [0x83, 1, 2, 3, 4, 5, 6, 7]);
 }
