@@ -114,6 +114,9 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     }
 
     /// The next frame to send, if any. Call until None after every `receive` and `poll`.
+    /// One answer is held at a time (a block sub-block is generated segment by segment from
+    /// the buffer): a frame not taken before the next `receive` may be replaced by the
+    /// next answer, e.g. by an abort, which supersedes it anyway.
     pub fn transmit(&mut self) -> Option<CanFrame> {
         let id = CobId::SdoTx(self.node).id();
         if let Some(bytes) = self.pending.take() {

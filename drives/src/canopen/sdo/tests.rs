@@ -330,6 +330,50 @@ fn server_takes_expedited_without_size_from_object_size() {
 }
 
 #[test]
+fn client_takes_uploads_without_size() {
+    // Expedited, size not indicated (e = 1, s = 0): the 4 bytes.
+    let mut client = SdoClient::new(node(), SdoConfig::default(), vec![0u8; 64]).unwrap();
+    client.upload(U32, UploadMode::Normal, 0).unwrap();
+    client.transmit();
+    let f = CanFrame::new(0x585, &[0x42, 0x01, 0x20, 0x01, 1, 2, 3, 4]).unwrap();
+    assert_eq!(
+        client.receive(&f, 1),
+        Some(Outcome::Uploaded { mux: U32, len: 4 })
+    );
+    assert_eq!(client.data(), &[1, 2, 3, 4]);
+    // Segmented, size not indicated: the segments say when it ends.
+    client.upload(DOMAIN, UploadMode::Normal, 2).unwrap();
+    assert_eq!(client.transmit().unwrap().data()[0], 0x40);
+    let f = |d: &[u8]| CanFrame::new(0x585, d).unwrap();
+    assert_eq!(
+        client.receive(&f(&[0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0]), 3),
+        None
+    );
+    assert_eq!(client.transmit().unwrap().data()[0], 0x60);
+    assert_eq!(client.receive(&f(&[0x00, 1, 2, 3, 4, 5, 6, 7]), 4), None);
+    assert_eq!(client.transmit().unwrap().data()[0], 0x70);
+    assert_eq!(
+        client.receive(&f(&[0x1B, 8, 9, 0, 0, 0, 0, 0]), 5),
+        Some(Outcome::Uploaded {
+            mux: DOMAIN,
+            len: 9
+        })
+    );
+    assert_eq!(client.data(), &[1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    // Segmented with size 9 but 10 bytes arrive: too high.
+    client.upload(DOMAIN, UploadMode::Normal, 6).unwrap();
+    client.transmit();
+    client.receive(&f(&[0x41, 0x00, 0x20, 0x00, 9, 0, 0, 0]), 7);
+    client.transmit();
+    client.receive(&f(&[0x00, 1, 2, 3, 4, 5, 6, 7]), 8);
+    client.transmit();
+    assert_eq!(
+        client.receive(&f(&[0x19, 8, 9, 10, 0, 0, 0, 0]), 9),
+        aborted(DOMAIN, AbortCode::LENGTH_TOO_HIGH, Side::Client)
+    );
+}
+
+#[test]
 fn protocol_switch_below_pst() {
     let c = SdoConfig {
         pst: 8,
@@ -1013,6 +1057,30 @@ proptest! {
         client.poll(u64::MAX / 2);
         server.poll(u64::MAX / 2);
         prop_assert!(client.is_idle() && server.is_idle());
+    }
+
+    /// Any length, kind and block sizes over a clean link: the exact bytes, both ways.
+    #[test]
+    fn random_transfers_round_trip(
+        len in 0usize..2000,
+        kind in 0u8..3,
+        up_block in any::<bool>(),
+        client_bs in 1u8..=127,
+        server_bs in 1u8..=127,
+        crc in any::<(bool, bool)>(),
+    ) {
+        let c = SdoConfig { block_size: client_bs, crc: crc.0, ..SdoConfig::default() };
+        let s = SdoConfig { block_size: server_bs, crc: crc.1, ..SdoConfig::default() };
+        let mut rig = Rig::new(c, s);
+        let data: Vec<u8> = (0..len).map(|i| (i * 13 + len) as u8).collect();
+        let mode = [DownloadMode::Auto, DownloadMode::Segmented, DownloadMode::Block][kind as usize];
+        let d = Some(Outcome::Downloaded { mux: DOMAIN, len });
+        prop_assert_eq!(rig.download(DOMAIN, &data, mode), (d, d));
+        prop_assert_eq!(rig.od.value(0x2000, 0), &data[..]);
+        let up = if up_block { UploadMode::Block } else { UploadMode::Normal };
+        let u = Some(Outcome::Uploaded { mux: DOMAIN, len });
+        prop_assert_eq!(rig.upload(DOMAIN, up), (u, u));
+        prop_assert_eq!(rig.client.data(), &data[..]);
     }
 
     /// Any length and block size through a link that drops random block segments: the
