@@ -14,6 +14,7 @@
     )
 )]
 
+pub mod canopen;
 pub mod cia402;
 pub mod csp;
 pub mod scaling;
