@@ -7,7 +7,7 @@
 //! position).
 
 use gantry::runtime::controller::CommandHandle;
-use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
+use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::rig::Rig;
 
