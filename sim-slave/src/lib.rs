@@ -24,4 +24,3 @@ pub mod fault;
 pub mod plant;
 pub mod realtime;
 pub mod slave;
-pub mod transport;

@@ -22,7 +22,7 @@ static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
 pub enum ScanError {
     /// The interface could not be opened.
     #[error(transparent)]
-    Socket(#[from] gantry_sim::transport::raw_socket::RawSocketError),
+    Socket(#[from] gantry_link::raw_socket::RawSocketError),
     /// The pcap file could not be written.
     #[error("pcap {path}")]
     Pcap {

@@ -6,7 +6,7 @@ use std::io;
 use std::os::fd::{AsRawFd, BorrowedFd};
 
 use ethercrab::{PduRx, PduTx};
-use gantry_sim::transport::raw_socket::{RawSocket, RawSocketError};
+use gantry_link::raw_socket::{RawSocket, RawSocketError};
 
 use super::link::{Capture, FrameIo, Link, LinkStats};
 use super::pump::FramePump;

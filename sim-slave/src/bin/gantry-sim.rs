@@ -21,10 +21,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use gantry_link::raw_socket::RawSocket;
 use gantry_sim::config::SimConfig;
 use gantry_sim::plant::record::write_records;
 use gantry_sim::realtime::{Gaps, WallClock};
-use gantry_sim::transport::raw_socket::RawSocket;
 
 /// The simulated EtherCAT network on a network interface.
 #[derive(Parser, Debug)]

@@ -9,7 +9,9 @@ use std::time::Duration;
 
 use thiserror::Error;
 
-use crate::esc::frame::ETHERTYPE;
+/// The EtherType of EtherCAT frames (ETG.1000.4 §5.3.1: an Ethernet II frame of type 0x88A4): the
+/// only frames the socket receives.
+pub const ETHERTYPE_ETHERCAT: u16 = 0x88A4;
 
 /// `PACKET_IGNORE_OUTGOING` (Linux ≥ 4.20): do not hand our own frames back to us.
 const PACKET_IGNORE_OUTGOING: libc::c_int = 23;
@@ -66,7 +68,7 @@ impl RawSocket {
         if ifindex == 0 {
             return Err(RawSocketError::NoInterface(interface.into()));
         }
-        let protocol = ETHERTYPE.to_be();
+        let protocol = ETHERTYPE_ETHERCAT.to_be();
         // SAFETY: plain syscall; the descriptor is owned right after.
         let raw = unsafe {
             libc::socket(

@@ -1,3 +1,0 @@
-//! How frames reach the simulated chain from outside the process.
-
-pub mod raw_socket;
