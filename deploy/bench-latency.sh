@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-10}
-cargo build --release -p gantry --bin gantry >/dev/null
+cargo build --release -p gantry-cli --bin gantry >/dev/null
 for cycle in 1000 250; do
   echo "== cycle ${cycle} µs"
   ./target/release/gantry rt-check --cycle-us "$cycle" --seconds "$seconds" | tail -4

@@ -1,20 +1,18 @@
-//! gantry, the motion master: the CLI's commands, the demo, trace and plot output.
+//! gantry, the motion master as a library: the configuration, the real-time engine and
+//! its [`runtime::controller::Controller`], the buses (EtherCAT on a network interface, or
+//! on any [`ethercat::link::Link`] a caller plugs in), the service and the trace.
 //!
-//! The buses, the real-time runtime and the configuration file come in later issues; today
-//! the master runs the motion kernel on simulated axes.
+//! The `gantry` binary (package `gantry-cli`) adds the command line, the demo, the plot,
+//! the status table and the in-process simulator's links; this library knows nothing of
+//! the simulator.
 #![deny(missing_docs)]
 
 pub mod axis_fault;
-pub mod cli;
 pub mod config;
-pub mod demo;
 pub mod drive_axis;
-pub mod drive_records;
 pub mod error_chain;
 pub mod ethercat;
 pub mod pcap;
-pub mod plot;
 pub mod runtime;
 pub mod service;
-pub mod status_table;
 pub mod trace;

@@ -10,6 +10,7 @@ use gantry::runtime::clock::CycleClock;
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry::runtime::phase::PhaseLock;
+use gantry_cli::simulator::{SimLink, Simulator};
 
 /// Cycle time (ns).
 pub const PERIOD_NS: u64 = 1_000_000;
@@ -40,7 +41,9 @@ fn median(v: &mut [i64]) -> i64 {
 /// host's timing would only blur the figures.
 pub fn run() -> PhaseFigures {
     let config = crate::sim_config_with(2, 1000, "dc_drift_ppm = 300");
-    let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).expect("bus up");
+    let bus = Simulator::new(SimLink::Thread)
+        .bring_up(&config, &mut std::io::sink())
+        .expect("bus up");
     let cycle = Cycle::from_config(&config, &bus).expect("the cycle");
     assert!(bus.dc().active);
     let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 16);

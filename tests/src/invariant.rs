@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-use gantry::drive_records::{judge, AxisBound, AxisLimit};
+use gantry_cli::drive_records::{judge, AxisBound, AxisLimit};
 use gantry_drives::scaling::Scaling;
 use gantry_kernel::AxisConfig;
 use gantry_sim::chain::SlaveChain;
@@ -77,7 +77,7 @@ impl DriveUnderTest {
 /// What the test says about itself: whether it injects a following-error fault, and
 /// whether the master's cycle is locked to SYNC0 (then no setpoint may be missed or
 /// doubled).
-pub type TestConditions = gantry::drive_records::Conditions;
+pub type TestConditions = gantry_cli::drive_records::Conditions;
 
 /// Checks every drive's record; the message names each axis that broke the invariant and
 /// how. `records[i]` is the record of the drive at chain position `i` (`None`: that

@@ -1,5 +1,6 @@
 //! End-to-end tests of gantry: the master and the simulator together. The tests live in
-//! `tests/tests/`; what they share lives here and in the master (`gantry::ethercat`).
+//! `tests/tests/`; what they share lives here, in the master (`gantry::ethercat`) and in the binary's
+//! in-process simulator (`gantry_cli::simulator`, `gantry_cli::embedded`).
 
 pub mod cyclic_frame;
 pub mod dc_phase;
@@ -11,7 +12,7 @@ pub mod seccomp;
 pub mod slave_loss;
 pub mod threads;
 
-pub use gantry::ethercat::embedded::EmbeddedBus;
+pub use gantry_cli::embedded::EmbeddedBus;
 
 use gantry_drives::scaling::{Scaling, ScalingConfig};
 

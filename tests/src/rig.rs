@@ -8,13 +8,14 @@
 use std::sync::{Arc, Mutex};
 
 use gantry::config::Config;
-use gantry::ethercat::bus::{EthercatBus, SimLink};
+use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::bus::CycleBus;
 use gantry::runtime::clock::{Clock, StepClock, Wake};
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry::runtime::protocol::Snapshot;
+use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -39,12 +40,14 @@ impl Rig {
 
     /// [`Rig::new`], writing the bring-up's steps to `log`.
     pub fn logged(config: &Config, log: &mut (dyn std::io::Write + Send)) -> Self {
-        let bus = EthercatBus::bring_up_with(config, SimLink::Lockstep, log)
+        let simulator = Simulator::new(SimLink::Lockstep);
+        let bus = simulator
+            .bring_up(config, log)
             .unwrap_or_else(|e| panic!("bus up: {}", gantry::error_chain::Chain(&e)));
         let cycle = Cycle::from_config(config, &bus)
             .unwrap_or_else(|e| panic!("the cycle: {}", gantry::error_chain::Chain(&e)));
-        assert!(bus.step_by_hand(), "the chain in lockstep");
-        let chain = bus.simulated_chain().expect("the in-process simulator");
+        assert!(simulator.step_by_hand(), "the chain in lockstep");
+        let chain = simulator.chain().expect("the in-process simulator");
         let period_ns = u64::from(config.bus.cycle_us) * 1000;
         let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
         // Every reply is in before the exchange looks for it: no wait ever runs out.

@@ -9,19 +9,20 @@
 //! deadline). That the next cycle starts on time, as README says, is asserted where
 //! `gantry run` runs the cycle, in a real-time thread: `runtime_late_reply_rt.rs`.
 
-use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
+use gantry_cli::simulator::{SimLink, Simulator};
 
 const PERIOD_NS: u64 = 1_000_000;
 
 #[test]
 fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     let config = gantry_tests::sim_config(1, 1000);
-    let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+    let simulator = Simulator::new(SimLink::Thread);
+    let bus = simulator.bring_up(&config, &mut std::io::sink()).unwrap();
     let cycle = Cycle::from_config(&config, &bus).unwrap();
-    let chain = bus.simulated_chain().unwrap();
+    let chain = simulator.chain().unwrap();
     let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 1024);
     let mut clock = CycleClock::start(PERIOD_NS);
     for _ in 0..100 {

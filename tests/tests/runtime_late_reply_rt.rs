@@ -11,10 +11,10 @@
 //! holds: the lost frame costs its own cycle, and it ends within a quarter period after
 //! the reply deadline but for a stall of this VM now and then (see the assertion). Needs root; `deploy/test.sh` runs it.
 
-use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
+use gantry_cli::simulator::{SimLink, Simulator};
 
 const PERIOD_NS: u64 = 1_000_000;
 const DROPS: usize = 20;
@@ -30,9 +30,10 @@ fn in_real_time_a_lost_frame_leaves_the_next_cycle_on_time() {
         };
         gantry::runtime::rt::enter(&rt).expect("real time (run as root)");
         let config = gantry_tests::sim_config(1, 1000);
-        let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let simulator = Simulator::new(SimLink::Thread);
+        let bus = simulator.bring_up(&config, &mut std::io::sink()).unwrap();
         let cycle = Cycle::from_config(&config, &bus).unwrap();
-        let chain = bus.simulated_chain().unwrap();
+        let chain = simulator.chain().unwrap();
         let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 1024);
         engine.set_late_reply(LateReply::Lost);
         let mut clock = CycleClock::start(PERIOD_NS);

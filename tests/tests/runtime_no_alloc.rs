@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use gantry::runtime::controller::Controller;
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
+use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 
@@ -44,13 +45,14 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
         .name(CYCLE_THREAD.into())
         .stack_size(CYCLE_STACK_BYTES)
         .spawn(move || {
-            let (engine, ends) = start_cycle(&config, true, &mut std::io::sink()).unwrap();
+            let simulator = Simulator::new(SimLink::Thread);
+            let (engine, ends) =
+                start_cycle(&config, true, &simulator, &mut std::io::sink()).unwrap();
             assert!(
                 engine.bus().dc().active,
                 "SYNC0 runs: Engine::run phase-locks"
             );
-            tx.send((ends, engine.bus().simulated_chain().unwrap()))
-                .unwrap();
+            tx.send((ends, simulator.chain().unwrap())).unwrap();
             // The counter counts: one allocation while watching is seen.
             counting::watch(true);
             std::hint::black_box(vec![1u8; 16]);

@@ -10,6 +10,7 @@ use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
+use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -33,9 +34,10 @@ impl Rig {
             1000,
             &format!("[slave.al]\nsafeop_to_op_ms = {SAFEOP_TO_OP_MS}\n"),
         );
-        let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let simulator = Simulator::new(SimLink::Thread);
+        let bus = simulator.bring_up(&config, &mut std::io::sink()).unwrap();
         let cycle = Cycle::from_config(&config, &bus).unwrap();
-        let chain = bus.simulated_chain().unwrap();
+        let chain = simulator.chain().unwrap();
         let (mut engine, ends) = Engine::new(bus, cycle, 1000, 16);
         // Not a real-time thread: a late reply is this host's doing, not a lost frame
         // (so every frame counted below is answered).

@@ -13,9 +13,10 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
-use gantry::ethercat::embedded::SIM_THREAD;
 use gantry::runtime::controller::Controller;
 use gantry::service::{spawn_cycle_thread, CYCLE_THREAD};
+use gantry_cli::embedded::SIM_THREAD;
+use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::threads::threads;
@@ -31,7 +32,8 @@ fn only_the_cycle_and_the_simulator_run_in_real_time_and_ethercrab_starts_no_rea
     gantry::runtime::rt::check(&config.rt, false).expect("this test needs root (SCHED_FIFO)");
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel();
-    let cycle = spawn_cycle_thread(config, true, 1_000_000, stop.clone(), tx).unwrap();
+    let simulator = Arc::new(Simulator::new(SimLink::Thread));
+    let cycle = spawn_cycle_thread(config, true, 1_000_000, stop.clone(), simulator, tx).unwrap();
     let ends = rx.recv().unwrap().expect("the cycle started");
     let ctl = Controller::new(ends, vec!["a0".into(), "a1".into()]);
     for i in 0..2 {

@@ -102,9 +102,13 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
                 nix::sched::setns(ns, nix::sched::CloneFlags::CLONE_NEWNET)
                     .map_err(|e| e.to_string())?;
                 // Real time, bring-up and engine exactly as `gantry run` makes them.
-                let (engine, ends) =
-                    gantry::service::start_cycle(&config, true, &mut std::io::sink())
-                        .map_err(|e| gantry::error_chain::Chain(&e).to_string())?;
+                let (engine, ends) = gantry::service::start_cycle(
+                    &config,
+                    true,
+                    &gantry::ethercat::link::InterfaceOnly,
+                    &mut std::io::sink(),
+                )
+                .map_err(|e| gantry::error_chain::Chain(&e).to_string())?;
                 tx.send(ends).map_err(|e| e.to_string())?;
                 let engine = engine.run(PERIOD_NS, &stop);
                 let ended = Ended {

@@ -11,14 +11,16 @@ pub struct BusSection {
     /// Network interface wired to the drives.
     #[serde(default)]
     pub interface: Option<String>,
-    /// Instead of an interface: a `gantry-sim` chain file, simulated in this process.
+    /// Instead of an interface: a `gantry-sim` chain file, simulated in this process by the
+    /// `gantry` binary (the library opens no simulator: the binary hands the service its
+    /// link, see `ethercat::link::LinkFactory`).
     #[serde(default)]
     pub simulator: Option<String>,
     /// Cycle time (µs), 250 to 4000.
     pub cycle_us: u32,
     /// With `simulator`: when gantry exits, write what each simulated drive saw of the
     /// setpoints it took here (JSON, as `gantry-sim --record` writes it), so that a run on
-    /// the simulator can be judged afterwards (see `crate::drive_records`).
+    /// the simulator can be judged afterwards (the binary's `drive_records`).
     #[serde(default)]
     pub simulator_record: Option<String>,
     /// Write every frame to this pcap file.

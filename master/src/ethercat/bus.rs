@@ -1,10 +1,10 @@
 //! gantry's EtherCAT bus for a configuration: bring-up (discover, check the axes' drives
 //! exist, map their PDOs by SDO in PreOp, go to OP) and the cycle's exchange, over a
-//! network interface or the in-process simulator.
+//! network interface or on a link the caller plugs in ([`LinkFactory`]).
 
 use std::io::Write;
 use std::sync::atomic::AtomicU64;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 use super::transition;
@@ -14,14 +14,12 @@ use ethercrab::{
     Command, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
 use gantry_kernel::axis::command::CommandError;
-use gantry_sim::config::SimConfig;
 use thiserror::Error;
 
 use super::doorbell::BlockOn;
-use super::embedded::{ChainLink, HostTime, SimWire};
 use super::frame::{self, ProcessImage};
 use super::health::{BusFault, BusHealth, Exchange, HealthConfig};
-use super::link::{Capture, FrameIo, Link};
+use super::link::{Capture, FrameIo, InterfaceOnly, Link, LinkFactory};
 use super::mapping::map_pdos;
 use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
@@ -113,10 +111,11 @@ pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
 /// error's source (printed after it, see `crate::error_chain`).
 #[derive(Debug, Error)]
 pub enum StartError {
-    /// The configuration gives no link, or the bus is already up in this process.
+    /// No link for the configuration (no interface, and no factory of the caller's opens
+    /// its simulator), or the bus is already up in this process.
     #[error("{0}")]
     NoLink(&'static str),
-    /// The link (interface, simulator, pcap file) could not be opened.
+    /// The link (interface, a plugged-in link, pcap file) could not be opened.
     #[error("{what}")]
     Link {
         /// What was being opened.
@@ -168,8 +167,8 @@ pub enum StartError {
 }
 
 impl StartError {
-    /// A link that could not be opened.
-    fn link(what: impl Into<String>) -> impl FnOnce(Cause) -> Self {
+    /// A link that could not be opened: what it was.
+    pub fn link(what: impl Into<String>) -> impl FnOnce(Cause) -> Self {
         let what = what.into();
         move |source| Self::Link { what, source }
     }
@@ -179,18 +178,6 @@ impl StartError {
         let what = what.into();
         move |source| Self::Setup { what, source }
     }
-}
-
-/// How the bus reaches an in-process simulator (`[bus] simulator`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SimLink {
-    /// A thread of the simulator's own on the wall clock, at the end of a wire: the cycle
-    /// thread exchanges frames with it as with a network interface (`gantry run`).
-    Thread,
-    /// Each frame passes the chain in the thread that sends it; the chain's time follows
-    /// the host's through the bring-up, then stands still but for the steps of whoever
-    /// holds it ([`EthercatBus::step_by_hand`]): tests in lockstep, whatever the host does.
-    Lockstep,
 }
 
 /// The EtherCAT bus: its slaves in SafeOp after the bring-up with the process data
@@ -214,10 +201,6 @@ pub struct EthercatBus {
     faults: Vec<Option<(BusFault, Unreachable)>>,
     /// Every slave's AL state, when the last exchange read them.
     states: Vec<SubDeviceState>,
-    /// The in-process simulator's chain, when the link is the wire to it.
-    chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
-    /// The chain's time on the host's clock, when it is reached in lockstep.
-    host_time: Option<HostTime>,
     /// Replies handed back so far (bring-up and shutdown watch it for silence).
     replies: Arc<AtomicU64>,
     /// Runs ethercrab's futures in the cycle thread without a lock, and exchanges their
@@ -252,33 +235,52 @@ impl EthercatBus {
     /// The steps run in a short-lived thread of their own with a large stack
     /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
     /// stack per level in debug builds), started from the calling thread so that it — and
-    /// the simulator's thread it may start — inherit the caller's scheduling and CPU.
+    /// the thread a link's factory may start — inherit the caller's scheduling and CPU.
+    ///
+    /// The link is a raw socket on `[bus] interface`; this library opens no other (see
+    /// [`EthercatBus::bring_up_from`]).
     pub fn bring_up(config: &Config, out: &mut (dyn Write + Send)) -> Result<Self, StartError> {
-        Self::bring_up_with(config, SimLink::Thread, out)
+        Self::bring_up_from(config, &InterfaceOnly, out)
     }
 
-    /// [`EthercatBus::bring_up`], reaching an in-process simulator by `sim`.
-    pub fn bring_up_with(
+    /// [`EthercatBus::bring_up`], asking `links` for the link when the configuration has
+    /// no `[bus] interface` (the binary's in-process simulator for `[bus] simulator`).
+    pub fn bring_up_from(
         config: &Config,
-        sim: SimLink,
+        links: &dyn LinkFactory,
         out: &mut (dyn Write + Send),
     ) -> Result<Self, StartError> {
-        on_large_stack("gantry-bring-up", || Self::bring_up_here(config, sim, out))
-            .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
+        on_large_stack("gantry-bring-up", || {
+            Self::bring_up_here(config, || open_link(config, links), out)
+        })
+        .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
     }
 
-    /// The bring-up's steps, in order.
+    /// [`EthercatBus::bring_up`] on `link`, whatever the configuration's `[bus]` says of
+    /// interfaces and simulators (its cycle time, DC, pcap and faults hold).
+    pub fn bring_up_on(
+        config: &Config,
+        link: Box<dyn Link>,
+        out: &mut (dyn Write + Send),
+    ) -> Result<Self, StartError> {
+        on_large_stack("gantry-bring-up", || {
+            Self::bring_up_here(config, || Ok(link), out)
+        })
+        .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
+    }
+
+    /// The bring-up's steps, in order, on the link `open_link` opens.
     fn bring_up_here(
         config: &Config,
-        sim_link: SimLink,
+        open_link: impl FnOnce() -> Result<Box<dyn Link>, StartError>,
         out: &mut (dyn Write + Send),
     ) -> Result<Self, StartError> {
         let capture = open_capture(config)?;
         let (tx, rx, pdu_loop) = PDU_STORAGE
             .try_split()
             .map_err(|_| StartError::NoLink("the EtherCAT bus can start once per process"))?;
-        let opened = open_link(config, sim_link)?;
-        let io = FrameIo::new(tx, rx, opened.link, capture);
+        let link = open_link()?;
+        let io = FrameIo::new(tx, rx, link, capture);
         let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
         let runner =
@@ -311,8 +313,6 @@ impl EthercatBus {
             health,
             faults: vec![None; slaves],
             states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
-            chain: opened.chain,
-            host_time: opened.host_time,
             replies,
             runner,
             recovery: None,
@@ -367,20 +367,6 @@ impl EthercatBus {
     /// Distributed clocks as of the last exchange.
     pub fn dc(&self) -> DcStatus {
         self.dc
-    }
-
-    /// The simulated chain, when the bus is the in-process simulator (for tests and
-    /// diagnostics).
-    pub fn simulated_chain(
-        &self,
-    ) -> Option<std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>> {
-        self.chain.clone()
-    }
-
-    /// From now on the in-process chain's time stands still but for its holder's steps
-    /// ([`SimLink::Lockstep`]); false (nothing changed) on any other link.
-    pub fn step_by_hand(&self) -> bool {
-        self.host_time.as_ref().map(HostTime::stop).is_some()
     }
 
     /// Takes the slaves down to PreOp and stops the link.
@@ -530,64 +516,22 @@ fn open_capture(config: &Config) -> Result<Option<Capture>, StartError> {
         .map_err(StartError::link(format!("pcap {path}")))
 }
 
-/// The link a bring-up opened, and the in-process chain behind it, if it is one.
-struct OpenedLink {
-    link: Box<dyn Link>,
-    chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
-    host_time: Option<HostTime>,
-}
-
 /// Bring-up, step 2: the link the cycle thread exchanges its frames on itself — a raw
-/// socket on `[bus] interface`, or the wire to the in-process simulator of
-/// `[bus] simulator`, reached by `sim_link`.
-fn open_link(config: &Config, sim_link: SimLink) -> Result<OpenedLink, StartError> {
-    match (&config.bus.interface, &config.bus.simulator) {
-        (Some(interface), _) => Ok(OpenedLink {
-            link: Box::new(
-                RawLink::open(interface)
-                    .map_err(|e| StartError::link(format!("interface {interface}"))(e.into()))?,
-            ),
-            chain: None,
-            host_time: None,
-        }),
-        (None, Some(sim)) => start_simulator(sim, sim_link),
+/// socket on `[bus] interface`, or the link `links` opens for the configuration (the
+/// binary's in-process simulator for `[bus] simulator`).
+fn open_link(config: &Config, links: &dyn LinkFactory) -> Result<Box<dyn Link>, StartError> {
+    if let Some(interface) = &config.bus.interface {
+        let link = RawLink::open(interface)
+            .map_err(|e| StartError::link(format!("interface {interface}"))(e.into()))?;
+        return Ok(Box::new(link));
+    }
+    match (links.open(config)?, &config.bus.simulator) {
+        (Some(link), _) => Ok(link),
+        (None, Some(_)) => Err(StartError::NoLink(
+            "[bus] simulator: this program has no in-process simulator (the gantry binary has)",
+        )),
         (None, None) => Err(StartError::NoLink("no interface and no simulator")),
     }
-}
-
-/// The in-process simulator of the configuration file `sim`, reached by `sim_link`.
-fn start_simulator(sim: &str, sim_link: SimLink) -> Result<OpenedLink, StartError> {
-    let sim = SimConfig::load(sim)
-        .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
-    let chain = sim
-        .chain()
-        .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
-    let chain = Arc::new(Mutex::new(chain));
-    let period = Duration::from_micros(u64::from(sim.cycle_us));
-    let (link, host_time): (Box<dyn Link>, _) = match sim_link {
-        SimLink::Thread => (
-            Box::new(
-                SimWire::start(chain.clone(), period)
-                    .map_err(|e| StartError::link("the simulator's thread")(e.into()))?,
-            ),
-            None,
-        ),
-        SimLink::Lockstep => {
-            let time = chain
-                .lock()
-                .map(|c| HostTime::start(&c, period))
-                .map_err(|_| StartError::NoLink("the simulated chain's lock"))?;
-            (
-                Box::new(ChainLink::new(chain.clone(), time.clone())),
-                Some(time),
-            )
-        }
-    };
-    Ok(OpenedLink {
-        link,
-        chain: Some(chain),
-        host_time,
-    })
 }
 
 /// Bring-up, step 3: discovery (every slave's EEPROM read, the DC delays measured); prints

@@ -1,5 +1,7 @@
 //! Links and the frame exchange over them. A [`Link`] moves whole Ethernet frames: a raw
-//! socket on an interface (the production path), or the wire to a simulated chain. A
+//! socket on an interface (the production path, `raw.rs`), or whatever link the caller
+//! plugs in — the `gantry` binary's wire to its in-process simulator, a test's chain —
+//! through a [`LinkFactory`], so that this library knows no simulator. A
 //! [`FrameIo`] takes the frames ethercrab queued (`PduTx`), sends them on its link and
 //! hands the replies back (`PduRx`), capturing both to pcap when asked.
 //!
@@ -17,7 +19,9 @@ use std::time::Instant;
 
 use ethercrab::{PduRx, PduTx};
 
+use super::bus::StartError;
 use super::coalesce::Coalescer;
+use crate::config::Config;
 use crate::pcap::PcapWriter;
 
 /// Largest frame a link carries (an Ethernet frame without FCS is at most 1514 bytes;
@@ -39,6 +43,33 @@ pub trait Link: Send {
     /// Called when nothing was sent or received for a while (a simulated chain on the
     /// wall clock lives on: its timers, its watchdog).
     fn idle(&mut self) {}
+}
+
+/// Opens the links of configurations the library cannot open itself: the binary's
+/// in-process simulator for `[bus] simulator`, a test's chain. The library opens
+/// `[bus] interface` itself and asks its factory for anything else
+/// (`EthercatBus::bring_up_from`, `service::run`).
+pub trait LinkFactory: Send + Sync {
+    /// The link for `config`'s bus, opened in the thread that will run the cycle (a
+    /// simulator's thread started here inherits its scheduling and CPU); `None` when the
+    /// configuration's bus is not one of this factory's.
+    fn open(&self, config: &Config) -> Result<Option<Box<dyn Link>>, StartError>;
+
+    /// The bus on the link this factory opened was shut down and its link closed: report
+    /// what there is to report to `out` (the simulated drives' records).
+    fn closed(&self, config: &Config, out: &mut (dyn std::io::Write + Send)) {
+        let _ = (config, out);
+    }
+}
+
+/// No links but the library's own: `[bus] interface`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct InterfaceOnly;
+
+impl LinkFactory for InterfaceOnly {
+    fn open(&self, _: &Config) -> Result<Option<Box<dyn Link>>, StartError> {
+        Ok(None)
+    }
 }
 
 /// A pcap file the frames are written to.

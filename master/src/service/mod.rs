@@ -15,8 +15,8 @@ use std::time::Duration;
 use thiserror::Error;
 
 use crate::config::{Config, ConfigError};
-use crate::drive_records;
 use crate::ethercat::bus::{EthercatBus, StartError};
+use crate::ethercat::link::LinkFactory;
 use crate::runtime::controller::Controller;
 use crate::runtime::cycle::{Cycle, SetupError};
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
@@ -82,8 +82,9 @@ pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
 /// pinned, memory locked) unless `real_time` is false, then the bus up to SafeOp — this
-/// thread exchanges the frames itself; the in-process simulator's thread, if any, is
-/// started from here and inherits its scheduling and CPU — the cycle (kernel and drive
+/// thread exchanges the frames itself on `[bus] interface` or on the link `links` opens
+/// (the binary's in-process simulator, whose thread, started from here, inherits this
+/// thread's scheduling and CPU) — the cycle (kernel and drive
 /// channels) built for it from the configuration ([`Cycle::from_config`]; the cycle takes
 /// the slaves on to OP), and the engine with the late-reply policy of the mode (lost at the
 /// deadline in real time; waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
@@ -91,6 +92,7 @@ pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 pub fn start_cycle(
     config: &Config,
     real_time: bool,
+    links: &dyn LinkFactory,
     log: &mut (dyn Write + Send),
 ) -> Result<(Engine<EthercatBus>, AppEnds), ServiceError> {
     if real_time {
@@ -99,7 +101,7 @@ pub fn start_cycle(
     // The channels first: made after the bus is in Op, their allocation would be a gap in
     // the process data that drives count as missed setpoints (see `Channels`).
     let channels = Channels::new(config.axes.len(), 1 << 16);
-    let bus = EthercatBus::bring_up(config, log)?;
+    let bus = EthercatBus::bring_up_from(config, links, log)?;
     // The kernel and the drives' channels, for the bus as it came up.
     let cycle = match Cycle::from_config(config, &bus) {
         Ok(cycle) => cycle,
@@ -120,13 +122,15 @@ pub fn start_cycle(
 
 /// Starts the cycle thread ([`CYCLE_THREAD`]): [`start_cycle`], the application's ends
 /// (or why it could not start) sent to `ends`, then [`Engine::run`] every `period_ns`
-/// until `stop`, then the bus down to PreOp. Returns the cycle's counters at the end (the
+/// until `stop`, then the bus down to PreOp and `links` told its link is closed
+/// ([`LinkFactory::closed`]). Returns the cycle's counters at the end (the
 /// figures come from the controller, [`Controller::figures`]).
 pub fn spawn_cycle_thread(
     config: Config,
     real_time: bool,
     period_ns: u64,
     stop: Arc<AtomicBool>,
+    links: Arc<dyn LinkFactory>,
     ends: mpsc::Sender<Result<AppEnds, ServiceError>>,
 ) -> Result<std::thread::JoinHandle<Option<CycleCounters>>, ServiceError> {
     std::thread::Builder::new()
@@ -134,7 +138,7 @@ pub fn spawn_cycle_thread(
         .stack_size(CYCLE_STACK_BYTES)
         .spawn(move || -> Option<CycleCounters> {
             let mut log = std::io::stdout();
-            let (engine, app) = match start_cycle(&config, real_time, &mut log) {
+            let (engine, app) = match start_cycle(&config, real_time, &*links, &mut log) {
                 Ok(started) => started,
                 Err(e) => {
                     let _ = ends.send(Err(e));
@@ -144,23 +148,9 @@ pub fn spawn_cycle_thread(
             let _ = ends.send(Ok(app));
             let engine = engine.run(period_ns, &stop);
             let counters = engine.counters();
-            let bus = engine.into_bus();
-            let chain = bus.simulated_chain();
-            bus.shut_down(&mut log);
-            // What the simulated drives saw, the shutdown included.
-            if let (Some(path), Some(chain)) = (&config.bus.simulator_record, chain) {
-                match chain.lock() {
-                    Ok(chain) => {
-                        drive_records::report_at_exit(&config, &chain.records(), path, &mut log)
-                    }
-                    Err(_) => {
-                        let _ = writeln!(
-                            log,
-                            "gantry: the simulated chain is poisoned: no drive records"
-                        );
-                    }
-                }
-            }
+            engine.into_bus().shut_down(&mut log);
+            // What the link's other end has to say, the shutdown included.
+            links.closed(&config, &mut log);
             Some(counters)
         })
         .map_err(|source| ServiceError::Start {
@@ -169,8 +159,13 @@ pub fn spawn_cycle_thread(
         })
 }
 
-/// Runs the service until shut down.
-pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures, ServiceError> {
+/// Runs the service until shut down, its bus on `[bus] interface` or on the link `links`
+/// opens (the `gantry` binary hands it its in-process simulator's).
+pub fn run(
+    args: &RunArgs,
+    links: Arc<dyn LinkFactory>,
+    out: &mut (dyn Write + Send),
+) -> Result<CycleFigures, ServiceError> {
     let config = Config::load(&args.config)?;
     let real_time = !args.no_rt;
     if real_time {
@@ -184,7 +179,14 @@ pub fn run(args: &RunArgs, out: &mut (dyn Write + Send)) -> Result<CycleFigures,
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel::<Result<AppEnds, ServiceError>>();
-    let cycle_thread = spawn_cycle_thread(config.clone(), real_time, period_ns, stop.clone(), tx)?;
+    let cycle_thread = spawn_cycle_thread(
+        config.clone(),
+        real_time,
+        period_ns,
+        stop.clone(),
+        links,
+        tx,
+    )?;
     let ends = match rx.recv() {
         Ok(Ok(ends)) => ends,
         Ok(Err(e)) => {

@@ -20,6 +20,7 @@ use std::time::Duration;
 
 use gantry::runtime::controller::Controller;
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
+use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::seccomp::forbid_futex_in_this_thread;
@@ -82,13 +83,14 @@ fn engine() {
         .spawn(move || {
             // As `gantry run` starts its cycle thread: SCHED_FIFO, memory locked, the bus
             // (and its pump) brought up from it, late replies lost at the deadline.
-            let (engine, ends) =
-                start_cycle(&config, true, &mut std::io::sink()).unwrap_or_else(|e| {
+            let simulator = Simulator::new(SimLink::Thread);
+            let (engine, ends) = start_cycle(&config, true, &simulator, &mut std::io::sink())
+                .unwrap_or_else(|e| {
                     eprintln!("start: {}", gantry::error_chain::Chain(&e));
                     std::process::exit(4)
                 });
             let dc = engine.bus().dc().active;
-            let _ = tx.send((ends, engine.bus().simulated_chain(), dc));
+            let _ = tx.send((ends, simulator.chain(), dc));
             // From the first cycle of Engine::run to its end (the shutdown included).
             if let Err(e) = forbid_futex_in_this_thread() {
                 eprintln!("seccomp: {e}");

@@ -10,7 +10,7 @@ use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use gantry::config::Config;
-use gantry::drive_records::{judge, AxisBound, Conditions};
+use gantry_cli::drive_records::{judge, AxisBound, Conditions};
 use gantry_sim::plant::record::read_records;
 
 /// The unprivileged user the test runs gantry as (nobody).
@@ -18,7 +18,7 @@ const NOBODY: u32 = 65534;
 
 fn deploy(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../deploy")
+        .join("../../deploy")
         .join(name)
 }
 

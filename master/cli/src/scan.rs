@@ -9,8 +9,8 @@ use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, Timeouts
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::ethercat::raw::RawBus;
-use crate::pcap::{PcapError, PcapWriter};
+use gantry::ethercat::raw::RawBus;
+use gantry::pcap::{PcapError, PcapWriter};
 
 const MAX_SLAVES: usize = 64;
 const MAX_PDI: usize = 4096;

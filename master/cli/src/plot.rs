@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use crate::trace::Trace;
+use gantry::trace::Trace;
 
 /// One panel: a title and the channels drawn in it.
 #[derive(Clone, Debug)]

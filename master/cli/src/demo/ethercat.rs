@@ -32,20 +32,21 @@ use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::record::{write_records, DriveRecord};
 
 use super::{DemoArgs, DemoError, DemoReport, Step, Wait};
-use crate::axis_fault::describe_fault;
-use crate::config::Config;
 use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
-use crate::ethercat::bus::{EthercatBus, SimLink};
-use crate::ethercat::frame;
 use crate::plot::{self, Panel};
-use crate::runtime::bus::CycleBus;
-use crate::runtime::clock::StepClock;
-use crate::runtime::controller::{CommandHandle, Controller};
-use crate::runtime::cycle::Cycle;
-use crate::runtime::engine::{Engine, LateReply};
-use crate::runtime::protocol::{Snapshot, TraceSample};
+use crate::simulator::{SimLink, Simulator};
 use crate::status_table::{self, Live, Row};
-use crate::trace::Trace;
+use gantry::axis_fault::describe_fault;
+use gantry::config::Config;
+use gantry::ethercat::bus::EthercatBus;
+use gantry::ethercat::frame;
+use gantry::runtime::bus::CycleBus;
+use gantry::runtime::clock::StepClock;
+use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
+use gantry::runtime::engine::{Engine, LateReply};
+use gantry::runtime::protocol::{Snapshot, TraceSample};
+use gantry::trace::Trace;
 
 /// The demo's configuration, written to its output folder as [`CONFIG_FILE`].
 pub const CONFIG_TOML: &str = include_str!("gantry.toml");
@@ -95,14 +96,15 @@ impl LockstepEngine {
 /// in phase with SYNC0 as the engine holds it. One function, so that a change of the
 /// bring-up's steps (who builds the kernel) is made here alone.
 pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEngine, DemoError> {
-    let bus = EthercatBus::bring_up_with(config, SimLink::Lockstep, out)?;
-    if !bus.step_by_hand() {
+    let simulator = Simulator::new(SimLink::Lockstep);
+    let bus = simulator.bring_up(config, out)?;
+    if !simulator.step_by_hand() {
         return Err(DemoError::Network(
             "the demo's configuration has no in-process simulator",
         ));
     }
-    let chain = bus
-        .simulated_chain()
+    let chain = simulator
+        .chain()
         .ok_or(DemoError::Network("no simulated chain"))?;
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
     let cycle = Cycle::from_config(config, &bus)?;
@@ -1004,8 +1006,8 @@ mod tests {
 
     #[test]
     fn an_axis_in_error_stop_or_a_bus_fault_stops_the_demo_with_what_and_why() {
-        use crate::ethercat::health::BusFault;
-        use crate::runtime::bus::Unreachable;
+        use gantry::ethercat::health::BusFault;
+        use gantry::runtime::bus::Unreachable;
         use gantry_kernel::axis::status::AxisFault;
         let names: Vec<String> = ["x", "y", "c"].map(String::from).into();
         let mut snap = Snapshot::sized(3);
@@ -1039,9 +1041,9 @@ mod tests {
         let sample = |set: f64, v: f64| {
             let mut s = TraceSample {
                 time_s: 0.0,
-                set: [0.0; crate::runtime::protocol::TRACE_AXES],
-                set_velocity: [0.0; crate::runtime::protocol::TRACE_AXES],
-                actual: [0.0; crate::runtime::protocol::TRACE_AXES],
+                set: [0.0; gantry::runtime::protocol::TRACE_AXES],
+                set_velocity: [0.0; gantry::runtime::protocol::TRACE_AXES],
+                actual: [0.0; gantry::runtime::protocol::TRACE_AXES],
             };
             (s.set[1], s.set_velocity[1]) = (set, v);
             s

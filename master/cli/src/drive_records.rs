@@ -14,7 +14,7 @@ use std::path::Path;
 use gantry_drives::scaling::Scaling;
 use gantry_sim::plant::record::{max_step_counts, write_records, DriveRecord, Expectation};
 
-use crate::config::Config;
+use gantry::config::Config;
 
 /// One axis' drive and the largest target step the axis may send it in a cycle.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -280,7 +280,7 @@ mod tests {
     fn the_bounds_of_the_example_configuration() {
         let path = concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../deploy/examples/sim-4-axes.toml"
+            "/../../deploy/examples/sim-4-axes.toml"
         );
         let config = Config::load(path).unwrap();
         let bounds = AxisBound::of_config(&config).unwrap();

@@ -8,7 +8,7 @@ use gantry_kernel::profile::{plan_position, KinematicState, Limits, Profile, Ram
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::error_chain::Chain;
+use gantry::error_chain::Chain;
 
 /// One planning request (the `--batch` line format; the flags use the same names).
 #[derive(Clone, Debug, Deserialize, PartialEq)]

@@ -22,9 +22,9 @@ use gantry_sim::chain::SlaveChain;
 use gantry_sim::realtime::WallClock;
 use nix::sys::eventfd::{EfdFlags, EventFd};
 
-use super::doorbell::Doorbell;
-use super::link::{Capture, FrameIo, Link, MAX_FRAME};
-use super::pump::FramePump;
+use gantry::ethercat::doorbell::Doorbell;
+use gantry::ethercat::link::{Capture, FrameIo, Link, MAX_FRAME};
+use gantry::ethercat::pump::FramePump;
 
 /// A simulated chain as a link: each frame passes it in the sending thread.
 pub struct ChainLink {

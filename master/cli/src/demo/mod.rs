@@ -26,7 +26,7 @@ pub mod ethercat;
 
 use crate::plot::{self, Panel};
 use crate::status_table::{self, Live, Row};
-use crate::trace::{Trace, TraceError};
+use gantry::trace::{Trace, TraceError};
 
 /// Options of `gantry demo`.
 #[derive(Clone, Debug)]
@@ -98,13 +98,13 @@ pub enum DemoError {
     Trace(#[from] TraceError),
     /// The demo's configuration file was refused (a bug in the demo).
     #[error(transparent)]
-    Configuration(#[from] crate::config::ConfigError),
+    Configuration(#[from] gantry::config::ConfigError),
     /// The EtherCAT network did not come up.
     #[error(transparent)]
-    Start(#[from] crate::ethercat::bus::StartError),
+    Start(#[from] gantry::ethercat::bus::StartError),
     /// The cycle does not fit the configuration or its bus.
     #[error(transparent)]
-    Cycle(#[from] crate::runtime::cycle::SetupError),
+    Cycle(#[from] gantry::runtime::cycle::SetupError),
     /// The demo's in-process network cannot run.
     #[error("EtherCAT: {0}")]
     Network(&'static str),

@@ -4,8 +4,8 @@
 //! still writes the drives' records. Its own process: the EtherCAT bus starts once per
 //! process.
 
-use gantry::demo::ethercat::{run_on, SERVOS_TOML};
-use gantry::demo::{DemoArgs, DemoError};
+use gantry_cli::demo::ethercat::{run_on, SERVOS_TOML};
+use gantry_cli::demo::{DemoArgs, DemoError};
 
 #[test]
 fn the_demo_stops_at_a_drive_fault_and_says_which_axis_and_why() {

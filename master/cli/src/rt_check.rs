@@ -7,9 +7,9 @@
 use std::io::Write;
 use std::process::Command;
 
-use crate::config::RtSection;
-use crate::runtime::clock::CycleClock;
-use crate::runtime::histogram::{Histogram, Summary};
+use gantry::config::RtSection;
+use gantry::runtime::clock::CycleClock;
+use gantry::runtime::histogram::{Histogram, Summary};
 
 /// One check: what was found and, if it is not right, what to do.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
@@ -53,11 +53,11 @@ pub fn findings(rt: &RtSection, interface: Option<&str>) -> Vec<Finding> {
     });
     f.push(Finding {
         check: "capabilities",
-        found: match crate::runtime::rt::check(rt, interface.is_some()) {
+        found: match gantry::runtime::rt::check(rt, interface.is_some()) {
             Ok(()) => "SCHED_FIFO, memory locking and raw sockets allowed".into(),
             Err(e) => e.to_string(),
         },
-        advice: crate::runtime::rt::check(rt, interface.is_some())
+        advice: gantry::runtime::rt::check(rt, interface.is_some())
             .err()
             .map(|_| {
                 "grant the capabilities named above (deploy/gantry.service grants them to the service)".into()
@@ -171,7 +171,7 @@ pub fn measure(priority: u8, cycle_us: u32, seconds: f64) -> (Summary, bool) {
             lock_memory: true,
             overrun_limit: 1,
         };
-        let real_time = crate::runtime::rt::enter(&rt).is_ok();
+        let real_time = gantry::runtime::rt::enter(&rt).is_ok();
         let mut h = Histogram::new(20_000);
         let n = (seconds * 1e6 / f64::from(cycle_us)).max(1.0) as u64;
         let mut clock = CycleClock::start(u64::from(cycle_us) * 1000);

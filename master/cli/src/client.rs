@@ -10,8 +10,8 @@ use serde_json::{json, Value};
 use thiserror::Error;
 
 use crate::plot::{self, Panel};
-use crate::service::protocol::{MoveMode, Request};
-use crate::trace::{Trace, TraceError};
+use gantry::service::protocol::{MoveMode, Request};
+use gantry::trace::{Trace, TraceError};
 
 /// Why a client command failed.
 #[derive(Debug, Error)]

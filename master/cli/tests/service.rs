@@ -11,7 +11,7 @@ use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use gantry::config::Config;
-use gantry::drive_records::{judge, AxisBound, Conditions};
+use gantry_cli::drive_records::{judge, AxisBound, Conditions};
 use gantry_sim::plant::record::read_records;
 
 fn gantry() -> Command {
@@ -20,7 +20,7 @@ fn gantry() -> Command {
 
 fn example(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../deploy/examples")
+        .join("../../deploy/examples")
         .join(name)
 }
 

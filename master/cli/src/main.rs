@@ -2,15 +2,17 @@
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use gantry::cli::client::{self, Client};
-use gantry::cli::profile::{self, Request};
-use gantry::cli::scan;
-use gantry::demo::{self, DemoArgs};
 use gantry::service::protocol::{BufferMode, JogDirection, MoveMode, Request as Line};
 use gantry::service::{self, server, RunArgs};
+use gantry_cli::client::{self, Client};
+use gantry_cli::demo::{self, DemoArgs};
+use gantry_cli::profile::{self, Request};
+use gantry_cli::scan;
+use gantry_cli::simulator::{SimLink, Simulator};
 
 /// Options of the commands that talk to a running gantry.
 #[derive(clap::Args, Debug)]
@@ -427,7 +429,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 no_rt,
                 socket: socket.unwrap_or_else(server::default_socket),
             };
-            service::run(&args, &mut std::io::stdout())?;
+            // `[bus] simulator` runs in this process, on a thread of its own.
+            let simulator = Arc::new(Simulator::new(SimLink::Thread));
+            service::run(&args, simulator, &mut std::io::stdout())?;
         }
         Cmd::Status { client: opts } => {
             let mut c = opts.connect()?;
@@ -464,7 +468,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 (50..=100_000).contains(&cycle),
                 "--cycle-us {cycle} must be 50 to 100000"
             );
-            gantry::cli::rt_check::run(
+            gantry_cli::rt_check::run(
                 &rt,
                 interface.as_deref(),
                 cycle,

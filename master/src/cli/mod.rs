@@ -1,6 +1,0 @@
-//! The `gantry` subcommands.
-
-pub mod client;
-pub mod profile;
-pub mod rt_check;
-pub mod scan;
