@@ -11,7 +11,7 @@ use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeou
 use gantry::axis_fault::describe_fault;
 use gantry::ethercat::cycle::CspCycle;
 use gantry::ethercat::cyclic::CspChannel;
-use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, COMMUNICATION_FAULT};
+use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, States, COMMUNICATION_FAULT};
 use gantry::ethercat::recovery::{access, Recovered, Recovery, RecoveryError, RECOVERY_TIMEOUT_NS};
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
@@ -56,7 +56,12 @@ impl Machine {
             Kernel::new(1e-3, axes).unwrap(),
             vec![CspChannel::new(ball_screw_5mm()); DRIVES],
         );
-        let health = BusHealth::new(HealthConfig::default(), addresses, 3 * DRIVES as u16);
+        let health = BusHealth::new(
+            HealthConfig::default(),
+            addresses,
+            // Each servo has inputs and outputs: 1 + 2 in the LRW (ETG.1000.4 §5.4.3).
+            vec![3; DRIVES],
+        );
         Self {
             net,
             md,
@@ -85,7 +90,7 @@ impl Machine {
         match self.net.block_on(self.group.tx_rx(&self.md)) {
             Ok(r) => self.health.record(Exchange::Answered {
                 working_counter: r.working_counter,
-                states: &r.subdevice_states,
+                states: States::Each(&r.subdevice_states),
             }),
             Err(_) => self.health.record(Exchange::Lost),
         }

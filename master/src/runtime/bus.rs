@@ -34,4 +34,10 @@ pub trait CycleBus {
     fn dc_offset_ns(&self) -> Option<u64> {
         None
     }
+    /// Whether the last exchange measured [`CycleBus::dc_offset_ns`] afresh (a cycle
+    /// may read something else in its place: the offset is then the one before, already
+    /// corrected for).
+    fn dc_measured(&self) -> bool {
+        true
+    }
 }
