@@ -106,18 +106,19 @@ pub struct Figures {
 /// Cycles the steady window runs (three summaries).
 const STEADY: usize = 3 * AL_STATUS_EVERY as usize;
 
-/// `slaves` simulated servos with DC, two axes moving (the first and the last drive):
-/// every steady cycle's frame is the LRW (the mapped bytes) and the FRMW of the DC time,
-/// but one in [`AL_STATUS_EVERY`] whose BRD of AL status takes the FRMW's place; nothing
-/// per slave. Then the cable before the last slave is pulled: the working counter of that
+/// `slaves` simulated servos, with DC or without, two axes moving (the first and the last
+/// drive): every steady cycle's frame is the LRW (the mapped bytes) and, with DC, the FRMW
+/// of the DC time, but one in [`AL_STATUS_EVERY`] which carries the BRD of AL status (in
+/// the FRMW's place); nothing per slave. Then the cable before the last slave is pulled: the working counter of that
 /// very cycle shows it (no inputs of that reply reach the axes), the next cycle reads the
 /// states and names it. Asserts the drive invariant over every drive; returns the figures.
-pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
+pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
     let dir = std::env::temp_dir().join(format!("gantry-cyclic-frame-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let pcap = dir.join("bus.pcap");
     let mut config = crate::sim_config_strict(slaves, 1000);
     assert!(config.bus.dc, "DC is on by default");
+    config.bus.dc = dc;
     config.bus.pcap = Some(pcap.display().to_string());
     let mut rig = Rig::new(&config);
     let last = slaves - 1;
@@ -259,15 +260,18 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
         len: frame::AL_STATUS_BYTES,
     };
     // In either order: the exchange takes them in the order of ethercrab's frame slots.
-    let is = |f: &SentFrame, fixed: Datagram| {
-        f.datagrams.len() == 2 && f.datagrams.contains(&lrw) && f.datagrams.contains(&fixed)
+    let is = |f: &SentFrame, fixed: Option<Datagram>| {
+        f.datagrams.len() == 1 + usize::from(fixed.is_some())
+            && f.datagrams.contains(&lrw)
+            && fixed.is_none_or(|d| f.datagrams.contains(&d))
     };
+    let steady_fixed = dc.then_some(frmw);
     let (mut longest, mut run) = (0, 0);
     let (mut wire, mut summary_wire) = (None, None);
     let mut summaries_at = Vec::new();
     let mut longest_summaries = Vec::new();
     for f in &frames {
-        let (steady, summary) = (is(f, frmw), is(f, brd));
+        let (steady, summary) = (is(f, steady_fixed), is(f, Some(brd)));
         if steady || summary {
             run += 1;
             let slot = if summary {
@@ -318,20 +322,28 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
         .any(|f| f.datagrams.iter().filter(|d| d.command == FPRD).count() >= slaves));
     assert_eq!(wire, expected_wire);
     assert_eq!(summary_wire, expected_summary_wire);
-    // The minimum's frame with one fixed datagram more: 20 bytes (14 in the summary
-    // cycle) whatever the slave count; a single slave's LRW frame is padded to the 64-byte
-    // minimum, so there they cost less.
-    let fixed = datagram_bytes(frame::DC_TIME_BYTES);
+    // The minimum's frame with one fixed datagram more with DC (20 bytes; the summary
+    // cycle's BRD, 14), the minimum itself without, whatever the slave count; a single
+    // slave's LRW frame is padded to the 64-byte minimum, so there they cost less.
+    let fixed = if dc {
+        datagram_bytes(frame::DC_TIME_BYTES)
+    } else {
+        0
+    };
     assert_eq!(
         wire,
         wire_bytes(datagram_bytes(image_len) + fixed),
-        "the mapped bytes + one fixed datagram"
+        "the mapped bytes + at most one fixed datagram"
     );
+    if !dc {
+        assert_eq!(wire, minimum, "without DC the LRW alone");
+    }
     assert_eq!(
         summary_wire,
         wire_bytes(datagram_bytes(image_len) + datagram_bytes(frame::AL_STATUS_BYTES))
     );
-    assert!(wire - minimum <= fixed && summary_wire <= wire);
+    assert!(wire - minimum <= fixed);
+    assert!(summary_wire - minimum <= datagram_bytes(frame::AL_STATUS_BYTES));
     Figures {
         slaves,
         mapped: image_len,

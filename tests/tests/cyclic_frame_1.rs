@@ -6,6 +6,6 @@
 
 #[test]
 fn the_cyclic_frame_is_the_mapped_bytes_plus_one_fixed_datagram_with_1_slaves() {
-    let f = gantry_tests::cyclic_frame::steady_frame_and_a_pulled_slave(1);
+    let f = gantry_tests::cyclic_frame::steady_frame_and_a_pulled_slave(1, true);
     eprintln!("{f:?}");
 }

@@ -6,6 +6,6 @@
 
 #[test]
 fn the_cyclic_frame_is_the_mapped_bytes_plus_one_fixed_datagram_with_16_slaves() {
-    let f = gantry_tests::cyclic_frame::steady_frame_and_a_pulled_slave(16);
+    let f = gantry_tests::cyclic_frame::steady_frame_and_a_pulled_slave(16, true);
     eprintln!("{f:?}");
 }
