@@ -1,9 +1,8 @@
-//! CiA-402 drive layer, bus-agnostic: object indices, the controlword/statusword state
-//! machine shared by the master and the simulated drives, and modes of operation.
-//!
-//! Written so far (issue 3, first part): [`cia402`] objects, statusword decoding,
-//! controlword commands, the one state-machine table, modes of operation. Not yet: PDO
-//! layouts, scaling to counts on the wire, touch probe, homing-method table.
+//! CiA-402 drive layer, bus-agnostic, shared by the master and the simulated drives:
+//! [`cia402`] objects, the controlword/statusword state machine, modes of operation, PDO
+//! layouts and the typed process-data view ([`cia402::image`]); user units ⇄ drive
+//! counts ([`scaling`]); and the master's side of a drive in cyclic synchronous position
+//! mode ([`csp`]). It depends on no other gantry crate. Not yet: homing-method table.
 #![deny(missing_docs)]
 #![cfg_attr(
     not(test),
@@ -15,4 +14,7 @@
     )
 )]
 
+pub mod canopen;
 pub mod cia402;
+pub mod csp;
+pub mod scaling;

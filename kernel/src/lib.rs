@@ -2,7 +2,7 @@
 //!
 //! Pure and deterministic: no I/O, no clocks (time is cycle ticks passed in), and no
 //! heap allocation in [`Kernel::step`]. Positions are `f64` in user units; the drive layer
-//! converts them to integer counts with [`mechanics::Scaling`].
+//! converts them to integer counts (`gantry_drives::scaling`, not a dependency of this crate).
 #![deny(missing_docs)]
 // The RT path must not panic: no unwrap, expect, panics or unchecked indexing outside tests.
 #![cfg_attr(

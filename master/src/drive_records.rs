@@ -5,13 +5,13 @@
 //! one is injected, and no setpoint is missed or doubled once the phase lock holds.
 //!
 //! `gantry run` on the in-process simulator writes the records when it exits
-//! (`bus.simulator_record`) and prints [`Verdict::summary`]; `gantry demo --bus ethercat`
+//! (`bus.simulator_record`) and prints [`Verdict::summary`]; `gantry demo`
 //! fails on a broken invariant; the tests judge with [`judge`].
 
 use std::io::Write;
 use std::path::Path;
 
-use gantry_kernel::mechanics::Scaling;
+use gantry_drives::scaling::Scaling;
 use gantry_sim::plant::record::{max_step_counts, write_records, DriveRecord, Expectation};
 
 use crate::config::Config;
@@ -206,7 +206,7 @@ pub fn report_at_exit(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gantry_kernel::mechanics::ScalingConfig;
+    use gantry_drives::scaling::ScalingConfig;
 
     fn bound(axis: &str, drive: usize) -> AxisBound {
         let scaling = Scaling::new(ScalingConfig {

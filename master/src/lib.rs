@@ -8,6 +8,7 @@ pub mod axis_fault;
 pub mod cli;
 pub mod config;
 pub mod demo;
+pub mod drive_axis;
 pub mod drive_records;
 pub mod error_chain;
 pub mod ethercat;

@@ -128,19 +128,21 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
-    /// Run the scripted demo on simulated axes; writes a trace (CSV) and a plot (SVG).
+    /// Run the scripted demo: simulated CiA-402 drives on an in-process EtherCAT network,
+    /// brought up and driven by gantry's engine; prints the bus, writes a trace (CSV) and
+    /// a plot (SVG).
     Demo {
-        /// Folder for trace.csv and plot.svg.
+        /// Folder for the demo's configuration, trace.csv, plot.svg and the drives' records.
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
         /// Simulated seconds per wall-clock second (0: as fast as possible).
         #[arg(long, default_value_t = 4.0)]
         speed: f64,
-        /// `sim`: kernel-simulated axes; `ethercat`: simulated CiA-402 drives on an
-        /// in-process EtherCAT network, brought up and driven by the master.
-        #[arg(long, default_value = "sim", value_parser = ["sim", "ethercat"])]
+        /// `ethercat`: simulated CiA-402 drives on an in-process EtherCAT network, brought
+        /// up and driven by the master; `none`: the motion kernel alone on simulated axes.
+        #[arg(long, default_value = "ethercat", value_parser = ["ethercat", "none"])]
         bus: String,
-        /// With `--bus ethercat`: write every frame sent and received to this pcap file.
+        /// Write every EtherCAT frame sent and received to this pcap file.
         #[arg(long)]
         pcap: Option<PathBuf>,
     },
@@ -387,7 +389,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             anyhow::ensure!(
                 pcap.is_none() || bus == "ethercat",
-                "--pcap needs --bus ethercat (the simulated-axes demo has no bus)"
+                "--pcap needs the EtherCAT demo (--bus none has no bus)"
             );
             anyhow::ensure!(
                 speed.is_finite() && speed >= 0.0,
@@ -410,7 +412,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "\ndemo done: {:.2} s simulated in {} cycles of {} ms\ntrace: {}\nplot:  {}",
                 report.simulated_s,
                 report.cycles,
-                args.cycle_s * 1e3,
+                report.cycle_s * 1e3,
                 report.csv.display(),
                 report.svg.display()
             )?;

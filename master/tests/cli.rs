@@ -129,43 +129,196 @@ fn profile_batch_answers_every_line() {
 }
 
 #[test]
-fn demo_runs_and_prints_where_its_files_are() {
+fn bus_less_demo_runs_and_prints_where_its_files_are() {
     let dir = std::env::temp_dir().join(format!("gantry-cli-demo-{}", std::process::id()));
-    let text = demo(&dir, &[]);
+    let text = demo(&dir, &["--bus", "none"]);
+    assert!(text.contains("Halt AtActualPosition"), "{text}");
+    assert!(!text.contains("EtherCAT"), "{text}");
     assert!(text.contains("demo done"));
     assert!(dir.join("trace.csv").exists() && dir.join("plot.svg").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The first line of `text` starting with `prefix`.
+fn line<'a>(text: &'a str, prefix: &str) -> &'a str {
+    text.lines()
+        .find(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no line starting with {prefix:?}:\n{text}"))
+}
+
+/// The number in `line` just before `unit` (e.g. "152" before " B on the wire").
+fn number_before(line: &str, unit: &str) -> f64 {
+    let head = &line[..line
+        .find(unit)
+        .unwrap_or_else(|| panic!("{unit:?} in {line:?}"))];
+    let word = head.rsplit(' ').next().unwrap();
+    word.parse()
+        .unwrap_or_else(|_| panic!("a number before {unit:?} in {line:?}"))
+}
+
+/// The CSV trace as columns by name.
+fn columns(csv: &str) -> std::collections::HashMap<String, Vec<f64>> {
+    let mut lines = csv.lines();
+    let names: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    for l in lines {
+        for (c, v) in cols.iter_mut().zip(l.split(',')) {
+            c.push(v.parse().unwrap());
+        }
+    }
+    names.into_iter().zip(cols).collect()
+}
+
 #[test]
-fn ethercat_demo_moves_simulated_drives_over_the_in_process_network() {
+fn demo_moves_simulated_drives_over_the_in_process_network() {
     let dir = std::env::temp_dir().join(format!("gantry-cli-ecat-{}", std::process::id()));
-    // The demo exits with an error when a drive saw the invariant broken (issue 10 §6),
-    // which `demo` turns into a failure here; it says so when it holds.
-    let text = demo(&dir, &["--bus", "ethercat"]);
-    assert!(text.contains("found 2 EtherCAT slaves"), "{text}");
-    assert!(text.contains("moves done"), "{text}");
-    assert!(text.contains(">> drive invariant holds"), "{text}");
+    // No flag: the EtherCAT demo. It exits with an error when a drive faulted or saw the
+    // invariant broken (issue 10 §6), which `demo` turns into a failure here; it says so
+    // when it holds.
+    let text = demo(&dir, &[]);
+    assert!(text.contains("found 3 EtherCAT slaves"), "{text}");
+    assert!(
+        text.contains(">> the drives' verdict (drive-records.json): no fault"),
+        "{text}"
+    );
+    // What it ran is a configuration a user can run: written beside the trace.
+    let config = std::fs::read_to_string(dir.join("gantry.toml")).unwrap();
+    assert!(
+        config.contains("simulator = \"demo-servos.toml\""),
+        "{config}"
+    );
+    assert!(dir.join("demo-servos.toml").exists());
     // The drives' own records are written beside the trace.
     let records = json(&std::fs::read(dir.join("drive-records.json")).unwrap());
     let records = records.as_array().unwrap();
-    assert_eq!(records.len(), 2);
+    assert_eq!(records.len(), 3);
     for r in records {
         assert!(r["targets"].as_u64().unwrap() > 1000, "{r}");
-        assert_eq!(r["following_error_faults"], 0, "{r}");
+        assert_eq!(r["faults"], 0, "{r}");
+        assert_eq!(r["sync_missed"], 0, "{r}");
+        assert_eq!(r["sync_doubled"], 0, "{r}");
     }
-    // The trace: both axes end where they started (0 mm), set and actual.
-    let csv = std::fs::read_to_string(dir.join("ethercat-trace.csv")).unwrap();
-    let last: Vec<f64> = csv
-        .lines()
-        .last()
-        .unwrap()
-        .split(',')
-        .map(|v| v.parse().unwrap())
-        .collect();
-    for v in &last[1..] {
-        assert!(v.abs() < 0.01, "ends at home: {last:?}");
+    // The trace: every axis ends where it was homed (0), set and actual.
+    let trace = columns(&std::fs::read_to_string(dir.join("trace.csv")).unwrap());
+    for name in ["x.set", "x.actual", "y.set", "y.actual"] {
+        let end = *trace[name].last().unwrap();
+        assert!(end.abs() < 0.01, "{name} ends at {end}");
     }
+    // c at 0° after whole turns.
+    for name in ["c.set_unwrapped", "c.actual_unwrapped"] {
+        let end = *trace[name].last().unwrap();
+        let off = (end + 180.0).rem_euclid(360.0) - 180.0;
+        assert!(off.abs() < 0.01 && end > 359.0, "{name} ends at {end}");
+    }
+    assert!(dir.join("plot.svg").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// What a commissioning engineer reads of the bus, and the modulo axis across its wrap:
+/// the kernel's set position wraps from near 360° to near 0° (and back), while the drive's
+/// own record shows its target never stepped beyond `vmax · T` in a cycle.
+#[test]
+fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-bus-{}", std::process::id()));
+    let text = demo(&dir, &["--bus", "ethercat"]);
+    // The slaves found: position, station address, name, vendor and product.
+    for i in 0..3 {
+        let l = line(&text, &format!("  {i}: "));
+        assert!(
+            l.starts_with(&format!(
+                "  {i}: {:#06x} SIM-SERVO (vendor: 0x00000a5a, product 0x00000402",
+                0x1000 + i
+            )),
+            "{l}"
+        );
+    }
+    // AL state and process data per slave, as the master has them once in OP.
+    line(&text, ">> every slave reported OP");
+    for (i, axis) in ["x", "y", "c"].iter().enumerate() {
+        let l = line(&text, &format!("   {i}      "));
+        let words: Vec<&str> = l.split_whitespace().collect();
+        assert_eq!(
+            words,
+            [&i.to_string(), "OP", "15", "B", "7", "B", axis],
+            "{l}"
+        );
+    }
+    let image = line(&text, ">> process data: ");
+    assert!(
+        image.starts_with(">> process data: 66 B in 1 LRW datagram(s), expected working counter 9"),
+        "{image}"
+    );
+    // Bytes on the wire: the image and every header, the same at start and at the end.
+    let wire = number_before(image, " B on the wire per cycle");
+    assert!(wire >= 66.0 + 14.0 + 2.0 + 10.0 + 2.0 + 4.0, "{image}");
+    let end = line(&text, ">> on the wire: ");
+    assert_eq!(number_before(end, " B per cycle"), wire, "{end}");
+    // Distributed clocks: SYNC0 at the cycle time, the frames held a quarter period after
+    // SYNC0 all through OP.
+    let dc = line(&text, ">> distributed clocks: SYNC0 every 1000 µs; ");
+    assert!(dc.contains("(the cycle holds them at 250.0 µs)"), "{dc}");
+    let held = line(&text, ">> distributed clocks: in OP the frames reached");
+    let (lo, hi) = (
+        number_before(held, " and "),
+        number_before(held, " µs into the SYNC0 period"),
+    );
+    assert!((240.0..=hi).contains(&lo) && hi <= 260.0, "{held}");
+    // Cycle figures: nothing lost on a lockstep network.
+    let cycles = line(&text, ">> cycles: ");
+    assert!(
+        cycles.contains("lost frames 0; working-counter errors 0; overruns 0"),
+        "{cycles}"
+    );
+    assert!(number_before(cycles, " (") > 3000.0, "{cycles}");
+    // Every axis at the end, at home, its drive still enabled before the shutdown.
+    line(&text, ">> the axes at the end:");
+    for axis in ["x", "y", "c"] {
+        let l = line(&text, &format!("   {axis}: "));
+        assert!(
+            l.starts_with(&format!("   {axis}: Standstill, set 0.0000, actual ")),
+            "{l}"
+        );
+        assert!(l.ends_with("drive Operation enabled"), "{l}");
+    }
+    let said = line(&text, ">> c: crossed its wrap (360 → 0) ");
+    // The kernel's set position of c wraps, forward at positive speed and backward at
+    // negative, as the demo says.
+    let trace = columns(&std::fs::read_to_string(dir.join("trace.csv")).unwrap());
+    let (set, v) = (&trace["c.set"], &trace["c.v"]);
+    let (mut forward, mut backward) = (0, 0);
+    for k in 1..set.len() {
+        if set[k - 1] > 350.0 && set[k] < 10.0 && v[k] > 0.0 {
+            forward += 1;
+        }
+        if set[k - 1] < 10.0 && set[k] > 350.0 && v[k] < 0.0 {
+            backward += 1;
+        }
+    }
+    assert!(
+        forward >= 2 && backward >= 1,
+        "{forward} forward, {backward} backward"
+    );
+    assert!(
+        said.contains(&format!("{forward} times forward and {backward} backward")),
+        "{said}"
+    );
+    // The drive saw no step: c's target changed at most vmax · T + 1 count per cycle —
+    // 720°/s through 10:1 on 2^17 counts per motor revolution, 1 ms: 2621.44 counts.
+    let bound = (720.0 / 360.0 * 10.0 * 131_072.0 * 1e-3_f64).floor() as u64 + 1;
+    let records = json(&std::fs::read(dir.join("drive-records.json")).unwrap());
+    let c = &records[2];
+    let step = c["max_target_step_counts"].as_u64().unwrap();
+    assert!(
+        step <= bound && step > bound / 2,
+        "c's largest step {step}, bound {bound}"
+    );
+    assert_eq!(c["faults"], 0, "{c}");
+    assert!(
+        said.contains(&format!(
+            "at most {step} counts in a cycle (vmax · T: {bound} counts)"
+        )),
+        "{said}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -178,7 +331,7 @@ fn pcap_of_the_ethercat_demo_dissects_clean_in_tshark() {
     std::fs::create_dir_all(&dir).unwrap();
     let pcap = dir.join("run.pcap");
     let out = gantry()
-        .args(["demo", "--bus", "ethercat", "--speed", "0", "--out"])
+        .args(["demo", "--speed", "0", "--out"])
         .arg(&dir)
         .arg("--pcap")
         .arg(&pcap)

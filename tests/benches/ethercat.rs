@@ -19,10 +19,10 @@ use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
 use gantry::ethercat::bus::MAX_DATAGRAM;
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::frame::{self, datagram_bytes, wire_bytes, wire_us, ProcessImage};
 use gantry::ethercat::transition;
+use gantry::runtime::cycle::Cycle;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::ball_screw_5mm;
@@ -39,7 +39,7 @@ struct Bench {
     md: MainDevice<'static>,
     group: Group,
     net: Lockstep,
-    cycle: CspCycle,
+    cycle: Cycle,
     image: ProcessImage,
 }
 
@@ -130,7 +130,7 @@ fn setup() -> Bench {
             transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
         })
         .unwrap();
-    let mut cycle = CspCycle::new(kernel(), vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
+    let mut cycle = Cycle::new(kernel(), vec![CspChannel::new(ball_screw_5mm()); DRIVES]);
     for i in 0..DRIVES {
         cycle
             .kernel

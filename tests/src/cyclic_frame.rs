@@ -124,7 +124,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
     let last = slaves - 1;
     let axes: Vec<usize> = if last == 0 { vec![0] } else { vec![0, last] };
     for _ in 0..5000 {
-        if !rig.engine.health.is_starting() {
+        if !rig.engine.bus.health().is_starting() {
             break;
         }
         rig.run(1);
@@ -176,7 +176,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
             "axis {axis}: {:?}, drive {:?}, {} lost frames, {} overruns",
             snap.axes[axis].error,
             snap.drives[axis],
-            rig.engine.health.lost_total,
+            rig.engine.bus.health().lost_total,
             snap.figures.overruns
         );
     }
@@ -185,14 +185,14 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
     // the frame is lost, counted in that cycle. Else the working counter of that cycle
     // is short: no slave's inputs from that reply are taken (whose bytes are stale is not
     // known yet), and the next cycle reads the states and names it.
-    let lost_before = rig.engine.health.lost_total;
+    let lost_before = rig.engine.bus.health().lost_total;
     let last_inputs = rig.engine.bus.image().inputs(last).to_vec();
     rig.chain.lock().unwrap().cut_before(Some(last));
     rig.run(1);
     if last == 0 {
-        assert_eq!(rig.engine.health.lost_total, lost_before + 1);
+        assert_eq!(rig.engine.bus.health().lost_total, lost_before + 1);
     } else {
-        let health = &rig.engine.health;
+        let health = &rig.engine.bus.health();
         assert!(
             (0..slaves).all(|i| !health.inputs_fresh(i)),
             "seen in the cycle it happened, by the working counter"
@@ -209,7 +209,7 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
             "named the cycle after"
         );
         assert!(rig.bus_fault(0).is_none(), "the others go on");
-        let health = &rig.engine.health;
+        let health = &rig.engine.bus.health();
         assert!(health.inputs_fresh(0) && !health.inputs_fresh(last));
         assert_eq!(
             rig.engine.bus.image().inputs(last),

@@ -7,6 +7,7 @@
 
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::CycleClock;
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry::runtime::phase::PhaseLock;
 
@@ -39,10 +40,10 @@ fn median(v: &mut [i64]) -> i64 {
 /// host's timing would only blur the figures.
 pub fn run() -> PhaseFigures {
     let config = crate::sim_config_with(2, 1000, "dc_drift_ppm = 300");
-    let (bus, cycle, health) =
-        EthercatBus::bring_up(&config, &mut std::io::sink()).expect("bus up");
+    let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).expect("bus up");
+    let cycle = Cycle::from_config(&config, &bus).expect("the cycle");
     assert!(bus.dc().active);
-    let (mut engine, _ends) = Engine::new(bus, cycle, health, 1000, 16);
+    let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 16);
     engine.set_late_reply(LateReply::WAIT);
     let lock = PhaseLock::new(PERIOD_NS);
     let mut clock = CycleClock::start(PERIOD_NS);

@@ -11,7 +11,7 @@
 use std::path::Path;
 
 use gantry::drive_records::{judge, AxisBound, AxisLimit};
-use gantry_kernel::mechanics::Scaling;
+use gantry_drives::scaling::Scaling;
 use gantry_kernel::AxisConfig;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::record::{max_step_counts, DriveRecord};

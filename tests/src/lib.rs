@@ -13,7 +13,7 @@ pub mod threads;
 
 pub use gantry::ethercat::embedded::EmbeddedBus;
 
-use gantry_kernel::mechanics::{Scaling, ScalingConfig};
+use gantry_drives::scaling::{Scaling, ScalingConfig};
 
 /// The axis the end-to-end tests drive: a 5 mm ball screw on a 2^17-count motor.
 pub fn ball_screw_5mm() -> Scaling {
@@ -85,8 +85,9 @@ pub fn sim_config_with(axes: usize, cycle_us: u32, servo: &str) -> gantry::confi
     let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let sim = dir.join("sim.toml");
-    // These tests run the simulator on the host's clock, on shared machines without
-    // PREEMPT_RT whose threads stall for milliseconds now and then. A DC drive counts each
+    // The real-time tests run the simulator on the host's clock, on shared machines
+    // without PREEMPT_RT whose threads stall for milliseconds now and then (the lockstep
+    // rig's tests take `sim_config_strict`: their master is never late). A DC drive counts each
     // SYNC0 period without a setpoint (+3, -1 per setpoint; 0x10F1:02 = 4 by default:
     // two periods in a row take it out of Op, as on real drives): these drives are set to
     // ride through a stall of about ten periods. The strict default is what the lockstep

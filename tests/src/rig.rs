@@ -9,10 +9,11 @@ use std::sync::{Arc, Mutex};
 
 use gantry::config::Config;
 use gantry::ethercat::bus::{EthercatBus, SimLink};
-use gantry::runtime::clock::{now_ns, Wake};
+use gantry::runtime::bus::CycleBus;
+use gantry::runtime::clock::{Clock, StepClock, Wake};
 use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
-use gantry::runtime::phase::PhaseLock;
 use gantry::runtime::protocol::Snapshot;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -27,70 +28,60 @@ pub struct Rig {
     pub ctl: Controller,
     /// The simulated chain, for injecting faults.
     pub chain: Arc<Mutex<SlaveChain>>,
-    /// The cycle time (ns).
-    period_ns: u64,
-    /// The network's time at the next cycle's start (frames themselves take time on the
-    /// chain: the cycle starts on its own clock, not so long after the last frame).
-    next_ns: u64,
+    clock: StepClock<Box<dyn FnMut(u64)>>,
 }
 
 impl Rig {
     /// Brings the bus of `config` (an in-process simulator) up and starts the engine.
     pub fn new(config: &Config) -> Self {
-        let (bus, cycle, health) =
-            EthercatBus::bring_up_with(config, SimLink::Lockstep, &mut std::io::sink())
-                .expect("bus up");
+        Self::logged(config, &mut std::io::sink())
+    }
+
+    /// [`Rig::new`], writing the bring-up's steps to `log`.
+    pub fn logged(config: &Config, log: &mut (dyn std::io::Write + Send)) -> Self {
+        let bus = EthercatBus::bring_up_with(config, SimLink::Lockstep, log)
+            .unwrap_or_else(|e| panic!("bus up: {}", gantry::error_chain::Chain(&e)));
+        let cycle = Cycle::from_config(config, &bus)
+            .unwrap_or_else(|e| panic!("the cycle: {}", gantry::error_chain::Chain(&e)));
         assert!(bus.step_by_hand(), "the chain in lockstep");
         let chain = bus.simulated_chain().expect("the in-process simulator");
         let period_ns = u64::from(config.bus.cycle_us) * 1000;
-        let dc = bus.dc().active;
-        let (mut engine, ends) = Engine::new(bus, cycle, health, config.rt.overrun_limit, 1024);
+        let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
         // Every reply is in before the exchange looks for it: no wait ever runs out.
         engine.set_late_reply(LateReply::WAIT);
-        if dc {
-            engine.set_phase_lock(Some(PhaseLock::new(period_ns)));
-        }
         let names = config.axes.iter().map(|a| a.name.clone()).collect();
-        let next_ns = chain.lock().expect("the chain").now_ns();
+        let start_ns = chain.lock().expect("the chain").now_ns();
+        let stepped = chain.clone();
+        let advance: Box<dyn FnMut(u64)> = Box::new(move |to_ns| {
+            stepped
+                .lock()
+                .expect("the chain")
+                .run_until(to_ns, period_ns)
+        });
         Self {
             engine,
             ctl: Controller::new(ends, names),
             chain,
-            period_ns,
-            next_ns,
+            clock: StepClock::new(period_ns, start_ns, advance),
         }
     }
 
     /// One cycle, on time (a test injects the overruns it means with [`Rig::wake`] and
     /// [`Rig::step`]).
     pub fn cycle(&mut self) {
-        let wake = self.wake();
-        self.step(wake);
+        assert!(self.engine.cycle(&mut self.clock), "the engine ended");
     }
 
     /// One cycle with this wake-up (a test may mark it overrun).
     pub fn step(&mut self, wake: Wake) {
         assert!(self.engine.step(wake), "the engine ended");
+        self.clock.shift(self.engine.phase_correction_ns());
     }
 
     /// The next wake-up, for a test to alter before [`Rig::step`]: the network's time
-    /// moves one cycle time on, shifted as the engine holds the cycle in phase with SYNC0.
+    /// moves one cycle time on.
     pub fn wake(&mut self) -> Wake {
-        let step =
-            i64::try_from(self.period_ns).unwrap_or(i64::MAX) + self.engine.phase_correction_ns();
-        self.next_ns = self.next_ns.saturating_add_signed(step);
-        self.chain
-            .lock()
-            .expect("the chain")
-            .run_until(self.next_ns, self.period_ns);
-        let now = now_ns();
-        Wake {
-            deadline_ns: now,
-            reply_by_ns: now + self.period_ns,
-            latency_ns: 0,
-            overrun: false,
-            period_ns: self.period_ns,
-        }
+        self.clock.wait()
     }
 
     /// `n` cycles.
@@ -157,6 +148,7 @@ impl Rig {
 
     /// Why the bus stopped `axis`' drive, as `gantry status` shows it.
     pub fn bus_fault(&self, axis: usize) -> Option<String> {
-        self.engine.health.fault(axis).map(|f| f.to_string())
+        let drive = self.engine.cycle.drive_of(axis);
+        self.engine.bus.fault(drive).map(|f| f.to_string())
     }
 }

@@ -9,10 +9,11 @@ use std::time::Duration;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::axis_fault::describe_fault;
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
-use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, States, COMMUNICATION_FAULT};
+use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, States};
 use gantry::ethercat::recovery::{access, Recovered, Recovery, RecoveryError, RECOVERY_TIMEOUT_NS};
+use gantry::runtime::cycle::Cycle;
+use gantry::runtime::cycle::COMMUNICATION_FAULT;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
@@ -31,7 +32,7 @@ struct Machine {
     net: Lockstep,
     md: MainDevice<'static>,
     group: Group,
-    cycle: CspCycle,
+    cycle: Cycle,
     health: BusHealth,
 }
 
@@ -52,7 +53,7 @@ impl Machine {
         let axes = (0..DRIVES)
             .map(|i| AxisConfig::new(&format!("a{i}"), AxisKind::Real))
             .collect();
-        let cycle = CspCycle::new(
+        let cycle = Cycle::new(
             Kernel::new(1e-3, axes).unwrap(),
             vec![CspChannel::new(ball_screw_5mm()); DRIVES],
         );

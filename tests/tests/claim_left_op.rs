@@ -50,8 +50,8 @@ fn slaves_that_left_op_are_named_after_lost_frames_and_by_the_summary() {
     for i in 1..3 {
         assert_eq!(rig.bus_fault(i).as_deref(), Some(named(i).as_str()));
     }
-    assert_eq!(rig.engine.health.lost_total, 2);
-    assert_eq!(rig.engine.health.wkc_total, 0);
+    assert_eq!(rig.engine.bus.health().lost_total, 2);
+    assert_eq!(rig.engine.bus.health().wkc_total, 0);
     // Reset brings each slave back to OP, the drives' sync error reset: Disabled (their
     // power went with the fault), enabled again.
     for axis in 0..3 {
@@ -61,7 +61,7 @@ fn slaves_that_left_op_are_named_after_lost_frames_and_by_the_summary() {
     for axis in 0..3 {
         rig.enable_and_home(axis);
     }
-    assert!(!rig.engine.health.any_fault());
+    assert!(!rig.engine.bus.health().any_fault());
     let moving = rig.start_move(0, 50.0);
     rig.run(10);
 
@@ -86,7 +86,8 @@ fn slaves_that_left_op_are_named_after_lost_frames_and_by_the_summary() {
         "one summary, then one read of the states, named in {cycles} cycles"
     );
     assert_eq!(
-        rig.engine.health.wkc_total, 0,
+        rig.engine.bus.health().wkc_total,
+        0,
         "the working counter stayed right"
     );
     assert!(rig.bus_fault(0).is_none() && rig.bus_fault(2).is_none());

@@ -2,7 +2,7 @@
 //! stops every axis, the others with "EtherCAT: stopped with slave N". End to end over the
 //! in-process simulator with the cable pulled in front of drive 2.
 
-use gantry::ethercat::health::COMMUNICATION_FAULT;
+use gantry::runtime::cycle::COMMUNICATION_FAULT;
 use gantry_kernel::axis::command::CommandError;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;

@@ -5,7 +5,7 @@
 //! OP (its SyncManagers deactivated by its application: its part of the LRW is not
 //! served and not counted), so only the working counter tells.
 
-use gantry::ethercat::health::COMMUNICATION_FAULT;
+use gantry::runtime::cycle::COMMUNICATION_FAULT;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::status::AxisFault;
@@ -32,10 +32,10 @@ fn wrong_working_counters_stop_every_axis_with_the_reason_and_reset_recovers() {
     // unserved), and the axes standing on the other drives stand on.
     rig.chain.lock().unwrap().stop_process_data(Some(1));
     rig.run(2);
-    assert!((0..3).all(|i| !rig.engine.health.inputs_fresh(i)));
+    assert!((0..3).all(|i| !rig.engine.bus.health().inputs_fresh(i)));
     rig.chain.lock().unwrap().stop_process_data(None);
     rig.run(20);
-    assert_eq!(rig.engine.health.wkc_total, 2);
+    assert_eq!(rig.engine.bus.health().wkc_total, 2);
     assert!(rig.bus_fault(0).is_none());
     assert_eq!(moving.status(), Some(CommandStatus::Active));
     for axis in 1..3 {
@@ -103,5 +103,5 @@ fn wrong_working_counters_stop_every_axis_with_the_reason_and_reset_recovers() {
         let moved = rig.start_move(axis, 10.0);
         assert_eq!(rig.finish(&moved, 3000), CommandStatus::Done, "axis {axis}");
     }
-    assert_eq!(rig.engine.health.lost_total, 0);
+    assert_eq!(rig.engine.bus.health().lost_total, 0);
 }

@@ -1,4 +1,4 @@
-//! Drive counts end to end (issue 10 §1): gantry's `CspCycle` drives catalog servos in the
+//! Drive counts end to end (issue 10 §1): gantry's `Cycle` drives catalog servos in the
 //! in-process simulator, lockstep, and the drives judge what reached them (the drive
 //! invariant, `gantry_tests::invariant`) and where they ended.
 //!
@@ -11,14 +11,15 @@ use std::time::Duration;
 
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
+use gantry::runtime::cycle::Cycle;
+use gantry_drives::csp::CspChannel;
+use gantry_drives::scaling::{Scaling, ScalingConfig};
 use gantry_kernel::axis::command::{
     Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode, PowerCommand,
 };
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::mechanics::{Direction, Modulo, MotionKind, Scaling, ScalingConfig};
+use gantry_kernel::mechanics::{Direction, Modulo, MotionKind};
 use gantry_kernel::profile::Limits;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_sim::catalog::{self, ServoOptions};
@@ -75,12 +76,12 @@ fn axis(name: &str, period: Option<f64>, vmax: f64) -> AxisConfig {
     c
 }
 
-/// A chain of catalog servos driven by a `CspCycle`, one exchange per `cycle()`.
+/// A chain of catalog servos driven by a `Cycle`, one exchange per `cycle()`.
 struct Rig {
     net: Lockstep,
     md: MainDevice<'static>,
     group: Group,
-    cycle: CspCycle,
+    cycle: Cycle,
     drives: Vec<DriveUnderTest>,
     scalings: Vec<Scaling>,
 }
@@ -122,7 +123,7 @@ impl Rig {
             .collect();
         let kernel = Kernel::new(DT, axes.iter().map(|a| a.config.clone()).collect()).unwrap();
         let channels = scalings.iter().map(|s| CspChannel::new(*s)).collect();
-        let cycle = CspCycle::new(kernel, channels);
+        let cycle = Cycle::new(kernel, channels);
         net.chain.tick(DT);
         Self {
             net,

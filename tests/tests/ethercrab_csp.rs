@@ -8,7 +8,7 @@ use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry::ethercat::transition;
 use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
-use gantry_kernel::mechanics::{Scaling, ScalingConfig};
+use gantry_drives::scaling::{Scaling, ScalingConfig};
 use gantry_kernel::profile::{plan_position, KinematicState, Limits, RampType};
 use gantry_sim::catalog::{INPUTS_AT, OUTPUTS_AT};
 use gantry_sim::chain::SlaveChain;

@@ -7,10 +7,10 @@
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{AlStatusCode, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::transition;
+use gantry::runtime::cycle::Cycle;
 use gantry_drives::cia402::State;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -31,7 +31,7 @@ const AL_OP_WITH_ACK: u16 = 0x08 | 0x10;
 
 type Group = SubDeviceGroup<2, 64, ethercrab::DefaultLock, Op>;
 
-fn cycle(net: &mut Lockstep, md: &MainDevice<'static>, group: &Group, c: &mut CspCycle) {
+fn cycle(net: &mut Lockstep, md: &MainDevice<'static>, group: &Group, c: &mut Cycle) {
     let sd = group.subdevice(md, 0).unwrap();
     c.read_inputs(0, &sd.inputs_raw()).unwrap();
     c.step();
@@ -66,7 +66,7 @@ fn silent_master_trips_the_watchdog_and_the_master_recovers() {
         })
         .unwrap();
     let kernel = Kernel::new(1e-3, vec![AxisConfig::new("x", AxisKind::Real)]).unwrap();
-    let mut c = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm())]);
+    let mut c = Cycle::new(kernel, vec![CspChannel::new(ball_screw_5mm())]);
     c.kernel
         .command(0, Command::Power(PowerCommand::Enable))
         .unwrap();

@@ -1,6 +1,6 @@
 //! A whole machine on the simulated bus, lockstep in one thread: 8 catalog servos, an
 //! encoder module and a digital-input module whose switch cams sit on servo 0's travel.
-//! ethercrab brings all 10 slaves to OP; gantry's `CspCycle` enables the 8 drives and runs
+//! ethercrab brings all 10 slaves to OP; gantry's `Cycle` enables the 8 drives and runs
 //! a PTP move on each; every cycle the test also reads the encoder (whose shaft it turns,
 //! and whose counter the master sets once) and the switch inputs.
 //!
@@ -11,10 +11,10 @@
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::transition;
+use gantry::runtime::cycle::Cycle;
 use gantry_drives::cia402::State;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -202,7 +202,7 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
     let channels = (0..DRIVES)
         .map(|_| CspChannel::new(ball_screw_5mm()))
         .collect();
-    let mut c = CspCycle::new(kernel, channels);
+    let mut c = Cycle::new(kernel, channels);
     for i in 0..DRIVES {
         c.kernel
             .command(i, Command::Power(PowerCommand::Enable))

@@ -1,5 +1,5 @@
 //! Target position monitoring through the simulator (issue 11 §5), lockstep: gantry's
-//! `CspCycle` drives two catalog servos tuned slow (a soft velocity loop and a low position
+//! `Cycle` drives two catalog servos tuned slow (a soft velocity loop and a low position
 //! gain, as an untuned or heavily loaded axis is), and a move is Done only once the drive's
 //! own position has settled in the target window for the dwell; on the drive whose timeout
 //! is shorter than it needs to settle, the move fails with the position, window and time
@@ -9,13 +9,13 @@ use std::time::Duration;
 
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
+use gantry::runtime::cycle::Cycle;
+use gantry_drives::csp::CspChannel;
+use gantry_drives::scaling::Scaling;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::TargetMonitoring;
-use gantry_kernel::mechanics::Scaling;
 use gantry_kernel::profile::Limits;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_sim::catalog::{self, ServoOptions};
@@ -75,7 +75,7 @@ struct Rig {
     net: Lockstep,
     md: MainDevice<'static>,
     group: Group,
-    cycle: CspCycle,
+    cycle: Cycle,
     drives: Vec<DriveUnderTest>,
 }
 
@@ -99,7 +99,7 @@ impl Rig {
             .map(|(i, c)| DriveUnderTest::new(i, c, ball_screw_5mm()))
             .collect();
         let kernel = Kernel::new(DT, configs).unwrap();
-        let cycle = CspCycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); 2]);
+        let cycle = Cycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); 2]);
         net.chain.tick(DT);
         Self {
             net,

@@ -11,9 +11,9 @@ use std::time::Duration;
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::transition;
+use gantry::runtime::cycle::Cycle;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 use gantry_tests::lockstep::Lockstep;
 use gantry_tests::{ball_screw_5mm, servo_chain};
@@ -86,7 +86,7 @@ fn garbled_replies_never_panic_the_master_and_the_exchange_recovers() {
         AxisConfig::new("x", AxisKind::Real),
         AxisConfig::new("y", AxisKind::Real),
     ];
-    let mut cycle = CspCycle::new(
+    let mut cycle = Cycle::new(
         Kernel::new(1e-3, axes).unwrap(),
         vec![CspChannel::new(ball_screw_5mm()); 2],
     );

@@ -8,12 +8,12 @@
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use gantry::axis_fault::describe_fault;
-use gantry::ethercat::cycle::CspCycle;
-use gantry::ethercat::cyclic::CspChannel;
 use gantry::ethercat::mapping::map_pdos;
 use gantry::ethercat::transition;
+use gantry::runtime::cycle::Cycle;
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
+use gantry_drives::csp::CspChannel;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
@@ -74,13 +74,13 @@ fn the_master_maps_pdos_in_preop_and_the_drives_exchange_them() {
     let channels = (0..2)
         .map(|_| CspChannel::with_layout(ball_screw_5mm(), &layout).unwrap())
         .collect();
-    let mut c = CspCycle::new(Kernel::new(1e-3, axes).unwrap(), channels);
+    let mut c = Cycle::new(Kernel::new(1e-3, axes).unwrap(), channels);
     for i in 0..2 {
         c.kernel
             .command(i, Command::Power(PowerCommand::Enable))
             .unwrap();
     }
-    let cycle = |net: &mut Lockstep, c: &mut CspCycle| {
+    let cycle = |net: &mut Lockstep, c: &mut Cycle| {
         for i in 0..2 {
             let sd = group.subdevice(&md, i).unwrap();
             c.read_inputs(i, &sd.inputs_raw()).unwrap();

@@ -120,7 +120,7 @@ fn a_reset_after_lost_frames_returns_each_axis_to_what_its_drive_is() {
     lose_frames(&mut rig);
     let first = rig.ctl.reset(0).unwrap();
     let mut cycles = 0;
-    while rig.engine.health.any_fault() {
+    while rig.engine.bus.health().any_fault() {
         rig.cycle();
         cycles += 1;
         assert!(cycles < 1000, "the bus fault was never cleared");

@@ -5,8 +5,8 @@
 //! panics or ends, every request is answered (a status, an error naming what is wrong),
 //! set values stay finite, and afterwards a reset brings every axis back to a move.
 //!
-//! The test thread is both the application and the cycle thread (at 1 kHz, not
-//! real-time), so what it sends is taken by the next cycle.
+//! The test thread is both the application and the cycle thread (in lockstep, see
+//! `gantry_tests::rig`), so what it sends is taken by the next cycle.
 
 mod commands {
     include!("../../kernel/tests/common/commands.rs");
@@ -14,15 +14,14 @@ mod commands {
 
 use std::cell::{Cell, RefCell};
 
-use gantry::ethercat::bus::EthercatBus;
-use gantry::runtime::clock::CycleClock;
-use gantry::runtime::controller::{CommandHandle, Controller};
-use gantry::runtime::engine::{Engine, LateReply};
+use gantry::runtime::controller::CommandHandle;
+use gantry::runtime::engine::LateReply;
 use gantry_kernel::axis::command::{
     Command, CommandError, HaltMode, MovePtp, PositioningMode, PowerCommand,
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
+use gantry_tests::rig::Rig;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRng, TestRunner};
 
@@ -55,24 +54,17 @@ fn op() -> impl Strategy<Value = Op> {
 
 #[test]
 fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
-    let config = gantry_tests::sim_config(AXES, 1000);
-    let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
-    let chain = bus.simulated_chain().unwrap();
-    let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 1 << 12);
-    // Not a real-time thread: a late reply is this host's doing, not a lost frame; but
-    // frames are dropped on purpose here, so not ethercrab's 30 ms per lost frame either.
-    engine.set_late_reply(LateReply::Wait { ns: 5_000_000 });
-    // The simulated drives run on the wall clock, so the cycles do too.
-    let engine = RefCell::new((engine, CycleClock::start(1_000_000)));
-    let ctl = Controller::new(ends, (0..AXES).map(|i| format!("a{i}")).collect());
+    let mut rig = Rig::new(&gantry_tests::sim_config_strict(AXES, 1000));
+    // Frames are dropped on purpose here: in lockstep a reply is in at once or never.
+    rig.engine.set_late_reply(LateReply::Wait { ns: 1_000_000 });
+    let chain = rig.chain.clone();
+    let rig = RefCell::new(rig);
     let run = |cycles: usize| {
-        let (e, clock) = &mut *engine.borrow_mut();
-        for _ in 0..cycles {
-            assert!(e.step(clock.wait()), "the cycle ended");
-        }
+        let mut r = rig.borrow_mut();
+        r.run(cycles);
         // Drain the trace as an application would, so it never fills.
         let mut t = Vec::new();
-        ctl.drain_trace(&mut t);
+        r.ctl.drain_trace(&mut t);
     };
     // Back to a known state: the bus whole, every axis reset, on, homed and at rest (a
     // reset does not stop a moving axis: halt it first; a stopped one is released).
@@ -84,30 +76,35 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
         }
         run(5);
         for i in 0..AXES {
-            let _ = ctl.command(
+            let _ = rig.borrow().ctl.command(
                 i,
                 Command::Halt {
                     mode: HaltMode::Normal,
                     deceleration: Some(2000.0),
                 },
             );
-            let _ = ctl.command(i, Command::Release);
+            let _ = rig.borrow().ctl.command(i, Command::Release);
             // A reset whose slave left OP waits for it to come back (its firmware takes
             // milliseconds): enable once the reset is through.
-            let reset = ctl.reset(i).unwrap();
+            let reset = rig.borrow().ctl.reset(i).unwrap();
             for _ in 0..1500 {
                 run(10);
                 if reset.status().is_some_and(|s| s.is_final()) {
                     break;
                 }
             }
-            ctl.command(i, Command::Power(PowerCommand::Enable))
+            rig.borrow()
+                .ctl
+                .command(i, Command::Power(PowerCommand::Enable))
                 .unwrap();
-            ctl.command(i, Command::SetHomed(true)).unwrap();
+            rig.borrow()
+                .ctl
+                .command(i, Command::SetHomed(true))
+                .unwrap();
         }
         for _ in 0..200 {
             run(10);
-            let snap = ctl.snapshot();
+            let snap = rig.borrow().ctl.snapshot();
             if snap.axes.iter().all(|a| a.state == AxisState::Standstill) {
                 break;
             }
@@ -130,8 +127,8 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
             let mut handles: Vec<(Op, CommandHandle)> = Vec::new();
             for (wait, op) in &seq {
                 let sent = match *op {
-                    Op::Command(axis, command) => ctl.command(axis, command).ok(),
-                    Op::Reset(axis) => ctl.reset(axis).ok(),
+                    Op::Command(axis, command) => rig.borrow().ctl.command(axis, command).ok(),
+                    Op::Reset(axis) => rig.borrow().ctl.reset(axis).ok(),
                     Op::DropFrames(n) => {
                         chain.lock().unwrap().drop_frames(n);
                         None
@@ -152,7 +149,7 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
             }
             // The snapshot is published every few cycles.
             run(12);
-            let snap = ctl.snapshot();
+            let snap = rig.borrow().ctl.snapshot();
             prop_assert!(!snap.ended);
             for (op, h) in &handles {
                 let status = h.status();
@@ -191,7 +188,7 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
 
     // Afterwards the machine still works: every axis moves to a target and gets there.
     restore();
-    let snap = ctl.snapshot();
+    let snap = rig.borrow().ctl.snapshot();
     for (i, a) in snap.axes.iter().enumerate() {
         assert_eq!(
             a.state,
@@ -208,7 +205,7 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
                 .speed(150.0)
                 .accel(2000.0, 2000.0)
                 .jerk(40_000.0);
-            ctl.command(i, Command::MovePtp(m)).unwrap()
+            rig.borrow().ctl.command(i, Command::MovePtp(m)).unwrap()
         })
         .collect();
     for _ in 0..8000 {
@@ -222,7 +219,7 @@ fn any_command_sequence_is_answered_and_never_stops_the_cycle() {
         }
     }
     run(12);
-    let snap = ctl.snapshot();
+    let snap = rig.borrow().ctl.snapshot();
     for (i, h) in moves.iter().enumerate() {
         assert_eq!(
             h.status(),

@@ -1,46 +1,29 @@
 //! Distributed clocks through gantry's own bring-up: with the simulated servos (which have
 //! DC), `EthercatBus` configures SYNC0 at the cycle time; the engine exchanges with
 //! `tx_rx_dc` every cycle (the reference clock's time goes to the others); the slaves
-//! pulse SYNC0 once per cycle and their system times agree; the snapshot reports where
+//! pulse SYNC0 once per cycle (in lockstep: exactly once) and their system times agree; the snapshot reports where
 //! in the SYNC0 period the frames arrive.
 
-use gantry::ethercat::bus::EthercatBus;
-use gantry::runtime::clock::CycleClock;
-use gantry::runtime::controller::Controller;
-use gantry::runtime::engine::{Engine, LateReply};
+use gantry_tests::rig::Rig;
 
 #[test]
 fn gantry_runs_the_bus_with_sync0_at_the_cycle_time() {
-    let config = gantry_tests::sim_config(3, 1000);
     let mut log = Vec::new();
-    let (bus, cycle, health) = match EthercatBus::bring_up(&config, &mut log) {
-        Ok(up) => up,
-        Err(e) => panic!("{e}\n{}", String::from_utf8_lossy(&log)),
-    };
+    let mut rig = Rig::logged(&gantry_tests::sim_config_strict(3, 1000), &mut log);
     let log = String::from_utf8(log).unwrap();
     assert!(
         log.contains("distributed clocks: SYNC0 every 1000 µs"),
         "{log}"
     );
-    assert!(bus.dc().active);
-    let chain = bus.simulated_chain().unwrap();
-    let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 16);
-    // Not a real-time thread: a late reply is this host's doing, not a lost frame.
-    engine.set_late_reply(LateReply::WAIT);
-    let ctl = Controller::new(ends, vec!["a0".into(), "a1".into(), "a2".into()]);
-    let mut clock = CycleClock::start(1_000_000);
+    assert!(rig.engine.bus.dc().active);
     // SYNC0 starts 100 ms after configuration; then count pulses over 1000 cycles.
-    for _ in 0..300 {
-        engine.step(clock.wait());
-    }
+    rig.run(300);
     let pulses = |c: &gantry_sim::chain::SlaveChain| -> Vec<u64> {
         c.slaves().iter().map(|s| s.sync0_events()).collect()
     };
-    let before = pulses(&chain.lock().unwrap());
-    for _ in 0..1000 {
-        engine.step(clock.wait());
-    }
-    let c = chain.lock().unwrap();
+    let before = pulses(&rig.chain.lock().unwrap());
+    rig.run(1000);
+    let c = rig.chain.lock().unwrap();
     let after = pulses(&c);
     let now = c.now_ns();
     let times: Vec<u64> = c
@@ -49,23 +32,19 @@ fn gantry_runs_the_bus_with_sync0_at_the_cycle_time() {
         .map(|s| s.dc_system_time(now).unwrap())
         .collect();
     drop(c);
-    let snapshot = ctl.snapshot();
-    for (b, a) in before.iter().zip(&after) {
-        // The simulator runs on the wall clock in this real-time test and the cycle on
-        // this non-real-time host: 1000 cycles take 1000 periods only when no cycle
-        // overran.
-        assert!(
-            (900..=1100).contains(&(a - b)),
-            "SYNC0 pulses in 1000 cycles: {}",
-            a - b
-        );
-    }
+    let snapshot = rig.snapshot();
+    let counted: Vec<u64> = after.iter().zip(&before).map(|(a, b)| a - b).collect();
+    assert_eq!(counted, [1000; 3], "SYNC0 pulses in 1000 cycles");
     let spread = times.iter().max().unwrap() - times.iter().min().unwrap();
+    let offset = snapshot.dc_offset_ns.expect("the snapshot reports DC");
     eprintln!(
-        "SYNC0 pulses in 1000 cycles: {:?}; system time spread {spread} ns; frames {} µs into the SYNC0 period",
-        after.iter().zip(&before).map(|(a, b)| a - b).collect::<Vec<_>>(),
-        snapshot.dc_offset_ns.unwrap_or(0) as f64 / 1000.0
+        "system time spread {spread} ns; frames {} µs into the SYNC0 period",
+        offset as f64 / 1000.0
     );
     assert!(spread < 5_000, "slaves agree on system time: {spread} ns");
-    assert!(snapshot.dc_offset_ns.is_some(), "the snapshot reports DC");
+    // The cycle holds its frames a quarter period after SYNC0 (the phase lock's target).
+    assert!(
+        (240_000..=260_000).contains(&offset),
+        "frames {offset} ns into the SYNC0 period"
+    );
 }

@@ -11,6 +11,7 @@
 
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 
 const PERIOD_NS: u64 = 1_000_000;
@@ -18,21 +19,22 @@ const PERIOD_NS: u64 = 1_000_000;
 #[test]
 fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     let config = gantry_tests::sim_config(1, 1000);
-    let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+    let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+    let cycle = Cycle::from_config(&config, &bus).unwrap();
     let chain = bus.simulated_chain().unwrap();
-    let (mut engine, _ends) = Engine::new(bus, cycle, health, 1000, 1024);
+    let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 1024);
     let mut clock = CycleClock::start(PERIOD_NS);
     for _ in 0..100 {
         engine.step(clock.wait());
     }
-    let lost_before = engine.health.lost_total;
+    let lost_before = engine.bus.health().lost_total;
 
     // The default: lost at the deadline.
     chain.lock().unwrap().drop_frames(1);
     let wake = clock.wait();
     assert!(engine.step(wake));
     let over = now_ns().saturating_sub(wake.reply_by_ns);
-    assert_eq!(engine.health.lost_total, lost_before + 1);
+    assert_eq!(engine.bus.health().lost_total, lost_before + 1);
     eprintln!("Lost: the cycle ended {over} ns after its reply deadline");
     // Within the period it was lost in; the PDU timeout would be 29 ms more.
     assert!(over < PERIOD_NS, "{over} ns past the reply deadline");
@@ -43,7 +45,7 @@ fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     let wake = clock.wait();
     assert!(engine.step(wake));
     let took = now_ns().saturating_sub(wake.deadline_ns);
-    assert_eq!(engine.health.lost_total, lost_before + 2);
+    assert_eq!(engine.bus.health().lost_total, lost_before + 2);
     eprintln!("WAIT: the cycle took {took} ns");
     assert!(took >= 30_000_000, "{took} ns: waited for the PDU timeout");
 
@@ -51,5 +53,5 @@ fn a_lost_frame_costs_one_cycle_not_the_pdu_timeout() {
     for _ in 0..20 {
         engine.step(clock.wait());
     }
-    assert_eq!(engine.health.lost_total, lost_before + 2);
+    assert_eq!(engine.bus.health().lost_total, lost_before + 2);
 }

@@ -13,6 +13,7 @@
 
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::{now_ns, CycleClock};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 
 const PERIOD_NS: u64 = 1_000_000;
@@ -29,9 +30,10 @@ fn in_real_time_a_lost_frame_leaves_the_next_cycle_on_time() {
         };
         gantry::runtime::rt::enter(&rt).expect("real time (run as root)");
         let config = gantry_tests::sim_config(1, 1000);
-        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let cycle = Cycle::from_config(&config, &bus).unwrap();
         let chain = bus.simulated_chain().unwrap();
-        let (mut engine, _ends) = Engine::new(bus, cycle, health, 1000, 1024);
+        let (mut engine, _ends) = Engine::new(bus, cycle, 1000, 1024);
         engine.set_late_reply(LateReply::Lost);
         let mut clock = CycleClock::start(PERIOD_NS);
         for _ in 0..100 {
@@ -42,12 +44,12 @@ fn in_real_time_a_lost_frame_leaves_the_next_cycle_on_time() {
         // keeps a real-time thread waiting now and then): reported.
         let mut others = 0;
         for k in 0..DROPS {
-            let lost_before = engine.health.lost_total;
+            let lost_before = engine.bus.health().lost_total;
             chain.lock().unwrap().drop_frames(1);
             let wake = clock.wait();
             assert!(engine.step(wake));
             let end = now_ns();
-            assert_eq!(engine.health.lost_total, lost_before + 1, "drop {k}");
+            assert_eq!(engine.bus.health().lost_total, lost_before + 1, "drop {k}");
             overs.push(end as i64 - wake.reply_by_ns as i64);
             let next = clock.wait();
             late_next.push((next.overrun, next.latency_ns));
@@ -55,7 +57,7 @@ fn in_real_time_a_lost_frame_leaves_the_next_cycle_on_time() {
             for _ in 0..20 {
                 engine.step(clock.wait());
             }
-            others += engine.health.lost_total - lost_before - 1;
+            others += engine.bus.health().lost_total - lost_before - 1;
         }
         eprintln!(
             "frames lost besides the {DROPS} dropped: {others} in {} cycles",

@@ -60,7 +60,7 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
             let engine = engine.run(1_000_000, &cycle_stop);
             counting::watch(false);
             let allocations = counting::take_count();
-            let lost = engine.health.lost_total;
+            let lost = engine.bus.health().lost_total;
             (allocations, engine.counters().cycles, lost)
         })
         .unwrap();

@@ -8,6 +8,7 @@
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -32,9 +33,10 @@ impl Rig {
             1000,
             &format!("[slave.al]\nsafeop_to_op_ms = {SAFEOP_TO_OP_MS}\n"),
         );
-        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let cycle = Cycle::from_config(&config, &bus).unwrap();
         let chain = bus.simulated_chain().unwrap();
-        let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 16);
+        let (mut engine, ends) = Engine::new(bus, cycle, 1000, 16);
         // Not a real-time thread: a late reply is this host's doing, not a lost frame
         // (so every frame counted below is answered).
         engine.set_late_reply(LateReply::WAIT);

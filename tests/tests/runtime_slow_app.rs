@@ -11,6 +11,7 @@ use std::time::Duration;
 use gantry::ethercat::bus::EthercatBus;
 use gantry::runtime::clock::CycleClock;
 use gantry::runtime::controller::Controller;
+use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -26,8 +27,9 @@ fn buffered_moves_from_a_stalling_10ms_task_run_without_standstill() {
     config.kernel_axes[0].target_monitoring.enabled = false;
     let (tx, rx) = mpsc::channel();
     let cycle_thread = std::thread::spawn(move || {
-        let (bus, cycle, health) = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
-        let (mut engine, ends) = Engine::new(bus, cycle, health, 1000, 100_000);
+        let bus = EthercatBus::bring_up(&config, &mut std::io::sink()).unwrap();
+        let cycle = Cycle::from_config(&config, &bus).unwrap();
+        let (mut engine, ends) = Engine::new(bus, cycle, 1000, 100_000);
         // Not a real-time thread: a late reply is this host's doing, not a lost frame.
         engine.set_late_reply(LateReply::WAIT);
         tx.send(ends).unwrap();

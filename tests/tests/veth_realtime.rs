@@ -14,8 +14,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
-use gantry::ethercat::health::COMMUNICATION_FAULT;
 use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::COMMUNICATION_FAULT;
 use gantry::runtime::protocol::TraceSample;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
@@ -108,8 +108,8 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
                 tx.send(ends).map_err(|e| e.to_string())?;
                 let engine = engine.run(PERIOD_NS, &stop);
                 let ended = Ended {
-                    lost: engine.health.lost_total,
-                    wkc_errors: engine.health.wkc_total,
+                    lost: engine.bus.health().lost_total,
+                    wkc_errors: engine.bus.health().wkc_total,
                 };
                 engine.into_bus().shut_down(&mut std::io::sink());
                 Ok(ended)

@@ -1,7 +1,8 @@
 //! `[[axis]]`: one axis — which drive, its mechanics and units, its limits and defaults.
 
 use gantry_drives::cia402::pdo::PdoLayout;
-use gantry_kernel::mechanics::{Direction, Mechanics, Modulo, MotionKind, Scaling, ScalingConfig};
+use gantry_drives::scaling::{Scaling, ScalingConfig};
+use gantry_kernel::mechanics::{Direction, Mechanics, Modulo, MotionKind};
 use gantry_kernel::profile::{Limits, RampType};
 use gantry_kernel::{AxisConfig, AxisKind};
 use serde::Deserialize;

@@ -1,381 +1,374 @@
-//! `gantry demo --bus ethercat`: the same kind of demo on *simulated drives on an
-//! in-process EtherCAT network*: two CiA-402 servos (CoE, CSP) emulated by `gantry-sim`,
-//! brought up by ethercrab, driven by the kernel through gantry's CiA-402 layer every
-//! 1 ms cycle. Lockstep: the drives advance one cycle per exchange, so the run is
-//! deterministic and needs no real-time thread.
+//! `gantry demo` (the default; `--bus ethercat`): the product as a newcomer first sees it.
+//! Three CiA-402 servos simulated on the in-process EtherCAT network are brought up and
+//! driven by what `gantry run` runs — the configuration file, the bus bring-up, the
+//! [`Engine`], requests through a [`Controller`], the kernel — with the script's moves sent
+//! as Controller commands: enable, set position, PTP moves buffered and blended, a modulo
+//! axis across its wrap both ways and turning several periods, a halt, a stop.
+//!
+//! LockstepEngine: each frame passes the simulated chain in the demo's thread and the network's
+//! time moves one cycle per cycle ([`StepClock`]), so the run is deterministic, needs no
+//! root and no real-time thread, and the drives — as strict as shipped (two SYNC0 periods
+//! without a setpoint take one out of Op) — see a master exactly on time.
+//!
+//! It prints what a commissioning engineer looks at: the slaves found, their AL state and
+//! process data, distributed clocks and where the frames land in the SYNC0 period, the
+//! cycle figures at the end, and each axis' final state. The drives judge what reached
+//! them ([`crate::drive_records`]): any drive fault, axis error, bus fault or broken
+//! invariant fails the demo with what went wrong.
 
-use std::io::Write;
-use std::time::Duration;
+use std::collections::HashMap;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
-use crate::ethercat::transition;
-use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
-use gantry_kernel::axis::command::{BufferMode, Command, MovePtp, PositioningMode, PowerCommand};
-use gantry_kernel::mechanics::{Scaling, ScalingConfig};
-use gantry_kernel::profile::{Limits, RampType};
-use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_sim::catalog::{self, ServoOptions};
+use gantry_kernel::axis::command::{
+    BufferMode, Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode,
+    PowerCommand,
+};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::record::{write_records, DriveRecord};
 
-use super::{DemoArgs, DemoError, DemoReport};
-use crate::drive_records::{judge, AxisBound, Conditions};
-use crate::ethercat::cycle::CspCycle;
-use crate::ethercat::cyclic::CspChannel;
-use crate::ethercat::embedded::EmbeddedBus;
-use crate::ethercat::mapping::map_pdos;
-use crate::pcap::PcapWriter;
+use super::{DemoArgs, DemoError, DemoReport, Step, Wait};
+use crate::axis_fault::describe_fault;
+use crate::config::Config;
+use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
+use crate::ethercat::bus::{EthercatBus, SimLink};
+use crate::ethercat::frame;
 use crate::plot::{self, Panel};
+use crate::runtime::bus::CycleBus;
+use crate::runtime::clock::StepClock;
+use crate::runtime::controller::{CommandHandle, Controller};
+use crate::runtime::cycle::Cycle;
+use crate::runtime::engine::{Engine, LateReply};
+use crate::runtime::protocol::{Snapshot, TraceSample};
 use crate::status_table::{self, Live, Row};
 use crate::trace::Trace;
-use gantry_drives::cia402::pdo::PdoLayout;
 
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
-static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+/// The demo's configuration, written to its output folder as [`CONFIG_FILE`].
+pub const CONFIG_TOML: &str = include_str!("gantry.toml");
+/// The simulated chain it names, written beside it as [`SERVOS_FILE`].
+pub const SERVOS_TOML: &str = include_str!("demo-servos.toml");
+/// File name of the configuration in the output folder.
+pub const CONFIG_FILE: &str = "gantry.toml";
+/// File name of the simulated chain in the output folder (as `[bus] simulator` names it).
+pub const SERVOS_FILE: &str = "demo-servos.toml";
 
-/// An error of the EtherCAT network at `step`, its cause kept.
-fn bus_error<E>(step: impl Into<String>) -> impl FnOnce(E) -> DemoError
-where
-    E: std::error::Error + Send + Sync + 'static,
-{
-    let step = step.into();
-    move |e| DemoError::Bus {
-        step,
-        source: Box::new(e),
+/// Trace samples the engine's ring holds between two drains (the demo drains every
+/// [`DRAIN_EVERY`] cycles).
+const TRACE_RING: usize = 4096;
+const DRAIN_EVERY: u64 = 100;
+/// Cycles between two status frames (250 ms of the network's time).
+const FRAME_CYCLES: u64 = 250;
+/// Longest the slaves may take to report OP (the health monitor gives them 5 s).
+const OP_LIMIT_CYCLES: u64 = 10_000;
+/// Longest the script may run.
+const SCRIPT_LIMIT_CYCLES: u64 = 60_000;
+/// The engine's own shutdown (quick stop, disable) takes at most 5000 cycles.
+const SHUTDOWN_LIMIT_CYCLES: u64 = 6_000;
+/// Cycles run after the last move, so the trace shows the axes at rest.
+const TAIL_CYCLES: u64 = 300;
+
+/// gantry's engine over the demo's bus, stepped by the demo's thread.
+pub struct LockstepEngine {
+    /// The engine of `gantry run`.
+    pub engine: Engine<EthercatBus>,
+    /// The application's side of it.
+    pub ctl: Controller,
+    /// The simulated chain (its drives' records).
+    pub chain: Arc<Mutex<SlaveChain>>,
+    clock: StepClock<Box<dyn FnMut(u64) + Send>>,
+}
+
+impl LockstepEngine {
+    /// One cycle; false once the engine has ended (after a shutdown).
+    fn cycle(&mut self) -> bool {
+        self.engine.cycle(&mut self.clock)
     }
 }
 
-/// 5 mm ball screws on 2^17-count motors.
-fn scaling() -> Result<Scaling, DemoError> {
-    Scaling::new(ScalingConfig {
-        counts_per_motor_rev: 1 << 17,
-        motor_revs: 1,
-        load_revs: 1,
-        units_per_load_rev: 5.0,
-        invert: false,
+/// Brings the bus of `config` up — its `[bus] simulator` in this process, each frame
+/// passing the chain in this thread — and builds the engine on it as `gantry run` does,
+/// minus the real-time thread: the network's time then moves one cycle time per cycle,
+/// in phase with SYNC0 as the engine holds it. One function, so that a change of the
+/// bring-up's steps (who builds the kernel) is made here alone.
+pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEngine, DemoError> {
+    let bus = EthercatBus::bring_up_with(config, SimLink::Lockstep, out)?;
+    if !bus.step_by_hand() {
+        return Err(DemoError::Network(
+            "the demo's configuration has no in-process simulator",
+        ));
+    }
+    let chain = bus
+        .simulated_chain()
+        .ok_or(DemoError::Network("no simulated chain"))?;
+    let period_ns = u64::from(config.bus.cycle_us) * 1000;
+    let cycle = Cycle::from_config(config, &bus)?;
+    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, TRACE_RING);
+    // Every reply is in before the exchange looks for it: no wait ever runs out.
+    engine.set_late_reply(LateReply::WAIT);
+    let start_ns = lock(&chain).now_ns();
+    let stepped = chain.clone();
+    let advance: Box<dyn FnMut(u64) + Send> =
+        Box::new(move |to_ns| lock(&stepped).run_until(to_ns, period_ns));
+    Ok(LockstepEngine {
+        engine,
+        ctl: Controller::new(ends, config.axes.iter().map(|a| a.name.clone()).collect()),
+        chain,
+        clock: StepClock::new(period_ns, start_ns, advance),
     })
-    .map_err(bus_error("scaling"))
 }
 
-fn axis(name: &str) -> AxisConfig {
-    let mut c = AxisConfig::new(name, AxisKind::Real);
-    c.max = Limits {
-        vmax: 250.0,
-        amax: 2500.0,
-        dmax: 2500.0,
-        jmax: 50_000.0,
-    };
-    c.defaults.speed = 150.0;
-    c.defaults.acceleration = 1500.0;
-    c.defaults.deceleration = 1500.0;
-    c.defaults.jerk = 30_000.0;
-    c.defaults.ramp = RampType::SCurve;
-    c.defaults.target_window = 0.05;
-    c
+/// The chain, even if a thread panicked holding it (the demo's thread is the only one
+/// that steps it; its state is whole between two calls).
+fn lock(chain: &Mutex<SlaveChain>) -> std::sync::MutexGuard<'_, SlaveChain> {
+    chain.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// Runs the EtherCAT demo.
-pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoError> {
-    let names = ["x", "y"];
-    let chain = SlaveChain::new(
-        (0..names.len() as u32)
-            .map(|i| {
-                catalog::servo(ServoOptions {
-                    serial: i + 1,
-                    // Absolute encoders: the drives power up away from zero.
-                    start_counts: (i as i32) * 300_000,
-                    ..ServoOptions::default()
-                })
-            })
-            .collect(),
-    );
-    let (tx, rx, pdu_loop) = PDU_STORAGE
-        .try_split()
-        .map_err(|_| DemoError::Network("the EtherCAT demo runs once per process"))?;
-    let capture = match &args.pcap {
-        Some(path) => {
-            let file = std::fs::File::create(path).map_err(|source| DemoError::Io {
-                path: path.display().to_string(),
-                source,
-            })?;
-            Some(
-                PcapWriter::new(std::io::BufWriter::new(file))
-                    .map_err(bus_error(format!("capture to {}", path.display())))?,
-            )
-        }
-        None => None,
+/// The script, sent through the [`Controller`] as an application would.
+pub fn script() -> Vec<Step> {
+    use PositioningMode::*;
+    let step = |wait, axis, command, label, says| Step {
+        wait,
+        axis,
+        command,
+        label,
+        says,
     };
-    let bus = EmbeddedBus::start_with_capture(tx, rx, chain, capture);
-    let chain = bus.chain.clone();
-    // The chain runs on lockstep time here: it moves only by each frame's time on the
-    // wire, so a busy EEPROM (250 µs) takes dozens of polls, each a round trip between
-    // threads. ethercrab's EEPROM timeout is host time (10 ms): give it a loaded host's slack.
-    let timeouts = Timeouts {
-        eeprom: std::time::Duration::from_millis(500),
-        ..Timeouts::default()
+    let enable = Command::Power(PowerCommand::Enable);
+    let set = |position| Command::SetPosition {
+        position,
+        relative: false,
     };
-    let maindevice = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-    let dt = args.cycle_s;
-    let kernel = Kernel::new(dt, names.iter().map(|n| axis(n)).collect())?;
-    // The process data every drive is mapped to in PreOp (by SDO, from this layout).
-    let layout = PdoLayout::csp();
-    let channel =
-        CspChannel::with_layout(scaling()?, &layout).map_err(bus_error("process data layout"))?;
-    let mut cycle = CspCycle::new(kernel, vec![channel; names.len()]);
-    let mut trace = Trace::new(
-        names
-            .iter()
-            .flat_map(|n| [format!("{n}.set"), format!("{n}.actual")])
-            .collect(),
-        20_000,
-    );
-    let mut live = Live::new(false);
-    let result = futures_lite::future::block_on(async {
-        let group = maindevice
-            .init_single_group::<8, 64>(ethercat_now)
-            .await
-            .map_err(bus_error("scan"))?;
-        let _ = writeln!(out, ">> found {} EtherCAT slaves:", group.len());
-        for sd in group.iter(&maindevice) {
-            let _ = writeln!(
-                out,
-                "   {:#06x} {} ({})",
-                sd.configured_address(),
-                sd.name(),
-                sd.identity()
-            );
-        }
-        for sd in group.iter(&maindevice) {
-            map_pdos(&sd, &layout)
-                .await
-                .map_err(bus_error("PDO mapping"))?;
-        }
-        let _ = writeln!(
-            out,
-            ">> PDOs mapped by SDO: outputs {} B (controlword, target position, mode), inputs {} B (statusword, position, velocity, torque, error code, mode display)",
-            layout.output_bytes(),
-            layout.input_bytes()
-        );
-        let group = async {
-            let group = group.into_safe_op(&maindevice).await?;
-            transition::into_op(group, &maindevice, transition::OP_TIMEOUT).await
-        }
-        .await
-        .map_err(bus_error("to OP"))?;
-        let _ = writeln!(out, ">> all slaves in OP; enabling drives (CiA-402)");
-        for (i, name) in names.iter().enumerate() {
-            cycle
-                .kernel
-                .command(i, Command::Power(PowerCommand::Enable))
-                .map_err(|error| step_error("enable", name, error))?;
-        }
-        let mut phase = 0;
-        let mut handles = Vec::new();
-        let mut max_following = [0.0f64; 2];
-        for n in 0..60_000u64 {
-            for i in 0..names.len() {
-                let sd = group
-                    .subdevice(&maindevice, i)
-                    .map_err(|e| bus_error(format!("cycle {n}: slave {i}"))(e))?;
-                cycle
-                    .read_inputs(i, &sd.inputs_raw())
-                    .map_err(|e| bus_error(format!("cycle {n}: inputs"))(e))?;
-            }
-            cycle.step();
-            let mut sample = Vec::with_capacity(4);
-            for (i, following) in max_following.iter_mut().enumerate() {
-                let sd = group
-                    .subdevice(&maindevice, i)
-                    .map_err(|e| bus_error(format!("cycle {n}: slave {i}"))(e))?;
-                cycle
-                    .write_outputs(i, sd.io_raw_mut().outputs())
-                    .map_err(|e| bus_error(format!("cycle {n}: outputs"))(e))?;
-                let status = cycle.kernel.axis_status(i).copied().unwrap_or_default();
-                sample.push(status.set.p);
-                sample.push(status.actual_position);
-                if phase >= 2 {
-                    *following = following.max((status.set.p - status.actual_position).abs());
-                }
-            }
-            trace.push(cycle.kernel.time(), &sample)?;
-            group
-                .tx_rx(&maindevice)
-                .await
-                .map_err(|e| bus_error(format!("cycle {n}"))(e))?;
-            if let Ok(mut c) = chain.lock() {
-                c.tick(dt);
-            }
-            // The script: enable, home, move, come back.
-            let enabled = (0..names.len()).all(|i| {
-                cycle
-                    .kernel
-                    .axis_status(i)
-                    .is_some_and(|s| s.state == gantry_kernel::axis::state::AxisState::Standstill)
-            });
-            if phase == 0 && enabled {
-                let _ = writeln!(
-                    out,
-                    ">> drives enabled after {n} cycles; homing by SetPosition 0"
-                );
-                for (i, name) in names.iter().enumerate() {
-                    let home = Command::SetPosition {
-                        position: 0.0,
-                        relative: false,
-                    };
-                    cycle
-                        .kernel
-                        .command(i, home)
-                        .map_err(|error| step_error("home", name, error))?;
-                }
-                phase = 1;
-            } else if phase == 1 {
-                let _ = writeln!(
-                    out,
-                    ">> x: MovePtp 100 mm then back; y: 60 mm, 20 mm, back (S-curve, buffered)"
-                );
-                let moves: [(usize, f64, BufferMode); 5] = [
-                    (0, 100.0, BufferMode::Aborting),
-                    (0, 0.0, BufferMode::Buffered),
-                    (1, 60.0, BufferMode::Aborting),
-                    (1, 20.0, BufferMode::BlendingNext),
-                    (1, 0.0, BufferMode::Buffered),
-                ];
-                for (axis, to, buffer) in moves {
-                    let h = cycle
-                        .kernel
-                        .command(
-                            axis,
-                            Command::MovePtp(
-                                MovePtp::new(PositioningMode::AbsNormal, to).buffered(buffer),
-                            ),
-                        )
-                        .map_err(|error| step_error("move", names[axis], error))?;
-                    handles.push(h);
-                }
-                phase = 2;
-            } else if phase == 2
-                && handles
-                    .iter()
-                    .all(|h| cycle.kernel.command_status(*h).is_final())
-            {
-                phase = 3;
-                let _ = writeln!(out, ">> moves done after {n} cycles");
-            } else if phase == 3 {
-                break;
-            }
-            if n % 250 == 0 {
-                let rows: Vec<Row> = names
-                    .iter()
-                    .enumerate()
-                    .map(|(i, n)| {
-                        let status = cycle.kernel.axis_status(i).copied().unwrap_or_default();
-                        Row {
-                            axis: (*n).into(),
-                            status,
-                            command: String::new(),
-                            error: status
-                                .error
-                                .map(|e| crate::axis_fault::describe_fault(&e))
-                                .unwrap_or_default(),
-                        }
-                    })
-                    .collect();
-                let _ = out.write_all(
-                    live.frame(&status_table::render(cycle.kernel.time(), &rows))
-                        .as_bytes(),
-                );
-                if args.speed > 0.0 {
-                    std::thread::sleep(Duration::from_secs_f64(0.25 / args.speed));
-                }
-            }
-        }
-        for h in &handles {
-            if let gantry_kernel::axis::handle::CommandStatus::Error(error) =
-                cycle.kernel.command_status(*h)
-            {
-                return Err(step_error("move", "x/y", error));
-            }
-        }
-        if phase != 3 {
-            return Err(DemoError::Timeout("EtherCAT moves"));
-        }
-        let _ = writeln!(
-            out,
-            ">> largest following error: x {:.3} mm, y {:.3} mm (drive loop 200 Hz + 2 cycles transport)",
-            max_following[0], max_following[1]
-        );
-        Ok(())
-    });
-    let frames = bus.stop();
-    result?;
-    let records = match chain.lock() {
-        Ok(c) => c.records(),
-        Err(_) => return Err(DemoError::Network("the simulated chain is poisoned")),
-    };
-    check_drive_invariant(&records, &names, &cycle, dt, out)?;
+    let ptp = |mode, target| Command::MovePtp(MovePtp::new(mode, target));
+    vec![
+        step(
+            Wait::Now,
+            "x",
+            enable,
+            "x-on",
+            "enable the drives (CiA-402: Shutdown, Switch on, Enable operation)",
+        ),
+        step(Wait::Now, "y", enable, "y-on", ""),
+        step(Wait::Now, "c", enable, "c-on", ""),
+        step(
+            Wait::Done("x-on"),
+            "x",
+            set(0.0),
+            "x-home",
+            "set reference: x = y = 0 mm, c = 300° (the drives' encoders stand elsewhere)",
+        ),
+        step(Wait::Done("y-on"), "y", set(0.0), "y-home", ""),
+        step(Wait::Done("c-on"), "c", set(300.0), "c-home", ""),
+        step(
+            Wait::Done("x-home"),
+            "x",
+            ptp(AbsNormal, 150.0),
+            "x-ptp",
+            "x: S-curve MovePtp 150 mm",
+        ),
+        step(
+            Wait::Done("y-home"),
+            "y",
+            ptp(AbsNormal, 60.0),
+            "y-1",
+            "y: trapezoid MovePtp 60, Buffered +40, BlendingNext 200 (no stop between them)",
+        ),
+        step(
+            Wait::Now,
+            "y",
+            Command::MovePtp(MovePtp::new(RelTarget, 40.0).buffered(BufferMode::Buffered)),
+            "y-2",
+            "",
+        ),
+        step(
+            Wait::Now,
+            "y",
+            Command::MovePtp(
+                MovePtp::new(AbsNormal, 200.0)
+                    .speed(80.0)
+                    .buffered(BufferMode::BlendingNext),
+            ),
+            "y-3",
+            "",
+        ),
+        step(
+            Wait::Done("c-home"),
+            "c",
+            ptp(AbsModuloPos, 60.0),
+            "c-1",
+            "c: AbsModuloPos 60 from 300: forward across 360° = 0°",
+        ),
+        step(
+            Wait::Done("c-1"),
+            "c",
+            ptp(AbsModuloAuto, 300.0),
+            "c-2",
+            "c: AbsModuloAuto 300: the short way, back across the wrap",
+        ),
+        step(
+            Wait::Done("x-ptp"),
+            "x",
+            ptp(RelActual, -50.0),
+            "x-rel",
+            "x: MovePtp RelActual -50",
+        ),
+        step(
+            Wait::Done("c-2"),
+            "c",
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 540.0)),
+            "c-vel",
+            "c: MoveVelocity +540°/s: turns on across the wrap",
+        ),
+        step(
+            Wait::Done("x-rel"),
+            "x",
+            Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 120.0)),
+            "x-vel",
+            "x: MoveVelocity +120 mm/s",
+        ),
+        step(
+            Wait::Seconds(0.5),
+            "x",
+            Command::Halt {
+                mode: HaltMode::Normal,
+                deceleration: Some(600.0),
+            },
+            "x-halt",
+            "x: Halt",
+        ),
+        step(
+            Wait::Seconds(0.6),
+            "c",
+            Command::Stop {
+                deceleration: Some(3600.0),
+            },
+            "c-stop",
+            "c: Stop",
+        ),
+        step(Wait::Done("c-stop"), "c", Command::Release, "c-release", ""),
+        step(
+            Wait::Done("x-halt"),
+            "x",
+            ptp(AbsNormal, 0.0),
+            "x-zero",
+            "all axes home: x, y to 0 mm, c to 0° the short way",
+        ),
+        step(Wait::Done("y-3"), "y", ptp(AbsNormal, 0.0), "y-zero", ""),
+        step(
+            Wait::Done("c-release"),
+            "c",
+            ptp(AbsModuloAuto, 0.0),
+            "c-zero",
+            "",
+        ),
+    ]
+}
+
+/// Writes the demo's configuration and the simulated chain `servos` to `dir` and loads
+/// the configuration from there, as `gantry run --config` would; with a capture to `pcap`.
+fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config, DemoError> {
+    std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    for (name, text) in [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, servos)] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(io_error(&path))?;
+    }
+    let mut config = Config::load(&dir.join(CONFIG_FILE).display().to_string())?;
+    if let Some(path) = pcap {
+        // Said here with the file's name, before anything else is done.
+        std::fs::File::create(path).map_err(io_error(path))?;
+        config.bus.pcap = Some(path.display().to_string());
+    }
+    Ok(config)
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
+    move |source| DemoError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+/// Runs the demo.
+pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, DemoError> {
+    run_on(args, SERVOS_TOML, out)
+}
+
+/// Runs the demo on the simulated chain `servos` (a gantry-sim TOML, a servo per axis in
+/// the demo's order) instead of its own: drives that cannot follow, or fewer drives than
+/// axes, show how it fails. Once per process (the EtherCAT bus starts once per process).
+pub fn run_on(
+    args: &DemoArgs,
+    servos: &str,
+    out: &mut (dyn Write + Send),
+) -> Result<DemoReport, DemoError> {
+    let config = write_config(&args.out, servos, args.pcap.as_deref())?;
     let _ = writeln!(
         out,
-        ">> {frames} EtherCAT frames exchanged with the simulated drives"
+        ">> gantry demo: {} CiA-402 servos simulated on an in-process EtherCAT network, \
+         driven by gantry's engine in lockstep (configuration: {})",
+        config.axes.len(),
+        args.out.join(CONFIG_FILE).display()
     );
-    std::fs::create_dir_all(&args.out).map_err(|source| DemoError::Io {
-        path: args.out.display().to_string(),
-        source,
-    })?;
-    // What the drives recorded, for whoever wants to judge the run again.
+    let _ = writeln!(out, ">> EtherCAT bring-up");
+    let mut net = start(&config, out)?;
+    let mut run = Run::new(&config, args);
+    let result = run.script(&mut net, out);
+    // Whatever happened, the drives are disabled, the bus goes down to PreOp (the capture
+    // is flushed) and the drives' records are kept for whoever looks into it.
+    let ended = run.shut_down(&mut net, out);
+    let counters = net.engine.counters();
+    let figures = net.ctl.figures();
+    let lost = net.engine.bus.health().lost_total;
+    let wkc = net.engine.bus.health().wkc_total;
+    let stats = net.engine.bus.frame_stats();
+    let wire = net.engine.bus.cyclic_wire_bytes();
+    let chain = net.chain.clone();
+    net.engine.into_bus().shut_down(out);
+    let records = lock(&chain).records();
     write_records(&args.out.join("drive-records.json"), &records)?;
-    let csv = args.out.join("ethercat-trace.csv");
-    let svg = args.out.join("ethercat-plot.svg");
-    trace.write_csv(&csv)?;
-    let doc = plot::svg(
-        &trace,
-        &[Panel {
-            title: "set and actual position (mm) over EtherCAT".into(),
-            channels: vec![0, 1, 2, 3],
-        }],
+    // The cycle figures, also when the demo failed: they may say why.
+    let _ = writeln!(
+        out,
+        ">> cycles: {} ({} with every slave's AL state read: at start and after a wrong \
+         working counter); lost frames {lost}; working-counter errors {wkc}; overruns {}",
+        counters.cycles, stats.state_reads, counters.overruns
     );
-    std::fs::write(&svg, doc).map_err(|source| DemoError::Io {
-        path: svg.display().to_string(),
-        source,
-    })?;
+    let _ = writeln!(
+        out,
+        ">> on the wire: {wire} B per cycle ({:.1} µs at 100 Mbit/s); the master's work per \
+         cycle p50 {:.1} µs, p99 {:.1} µs (host time)",
+        frame::wire_us(wire),
+        figures.compute.p50_us,
+        figures.compute.p99_us
+    );
+    result?;
+    ended?;
+    if lost != 0 || wkc != 0 {
+        return Err(DemoError::Fault(format!(
+            "{lost} frames lost and {wkc} working-counter errors on a lockstep network"
+        )));
+    }
+    let verdict = judge_records(&records, &config)?;
+    run.wraps_said(&verdict, &records, &config, out);
+    let (csv, svg) = run.write_files(&args.out, &config)?;
     Ok(DemoReport {
         csv,
         svg,
-        simulated_s: cycle.kernel.time(),
-        cycles: cycle.kernel.tick(),
+        simulated_s: counters.cycles as f64 * f64::from(config.bus.cycle_us) * 1e-6,
+        cycles: counters.cycles,
+        cycle_s: f64::from(config.bus.cycle_us) * 1e-6,
     })
 }
 
 /// The drive invariant (issue 10 §6) on what each simulated drive recorded: no target
 /// step beyond the axis' `vmax · T` plus one count, no following-error fault, and — the
-/// demo runs lockstep, one frame per drive cycle — no missed or doubled setpoint.
-fn check_drive_invariant(
-    records: &[Option<DriveRecord>],
-    names: &[&str],
-    cycle: &CspCycle,
-    dt: f64,
-    out: &mut impl Write,
-) -> Result<(), DemoError> {
-    let bounds: Vec<AxisBound> = names
-        .iter()
-        .enumerate()
-        .filter_map(|(i, name)| {
-            let (channel, axis) = (cycle.channel(i)?, cycle.kernel.axes().get(i)?);
-            Some(AxisBound::new(
-                name,
-                i,
-                &channel.scaling,
-                axis.config().max.vmax,
-                dt,
-            ))
-        })
-        .collect();
-    if bounds.len() != names.len() {
-        return Err(DemoError::Invariant(format!(
-            "{} axes, {} drives in the cycle",
-            names.len(),
-            bounds.len()
-        )));
-    }
+/// demo runs lockstep, one frame per SYNC0 period — no missed or doubled setpoint; and no
+/// drive fault of any kind.
+fn judge_records(records: &[Option<DriveRecord>], config: &Config) -> Result<Verdict, DemoError> {
+    let bounds = AxisBound::of_config(config).map_err(DemoError::Invariant)?;
     let verdict = judge(
         records,
         &bounds,
@@ -384,60 +377,585 @@ fn check_drive_invariant(
             phase_locked: true,
         },
     );
+    check_verdict(&verdict, records, &bounds)?;
+    Ok(verdict)
+}
+
+/// Fails on a broken invariant, then on any drive that faulted.
+fn check_verdict(
+    verdict: &Verdict,
+    records: &[Option<DriveRecord>],
+    bounds: &[AxisBound],
+) -> Result<(), DemoError> {
     if !verdict.holds() {
         return Err(DemoError::Invariant(verdict.broken.join("; ")));
     }
-    let _ = writeln!(
-        out,
-        ">> drive invariant holds: no following-error fault, no missed or doubled setpoint; {}",
-        verdict.summary.join("; ")
-    );
-    Ok(())
+    let faulted: Vec<String> = bounds
+        .iter()
+        .filter_map(|b| {
+            let r = records.get(b.drive)?.as_ref()?;
+            (r.faults > 0).then(|| {
+                format!(
+                    "axis {} (drive {}): {} fault(s), the last 0x{:04X}",
+                    b.axis, b.drive, r.faults, r.last_fault_code
+                )
+            })
+        })
+        .collect();
+    if faulted.is_empty() {
+        Ok(())
+    } else {
+        Err(DemoError::Fault(format!(
+            "a drive faulted: {}",
+            faulted.join("; ")
+        )))
+    }
 }
 
-fn step_error(
-    label: &'static str,
-    axis: &'static str,
-    error: gantry_kernel::axis::command::CommandError,
-) -> DemoError {
-    DemoError::Step {
-        label,
-        axis,
-        command: label,
-        error,
+/// What the script keeps while it runs.
+struct Run {
+    names: Vec<String>,
+    /// Per axis, its modulo period.
+    periods: Vec<Option<f64>>,
+    speed: f64,
+    started: Instant,
+    live: Live,
+    samples: Vec<TraceSample>,
+    /// Per modulo axis: wraps of the set position forward and backward.
+    wraps: Vec<(u32, u32)>,
+    /// Where in the SYNC0 period the frames reached the reference clock (ns), since OP.
+    dc_offsets: Option<(u64, u64)>,
+    in_op: bool,
+    cycle_us: u32,
+}
+
+impl Run {
+    fn new(config: &Config, args: &DemoArgs) -> Self {
+        Self {
+            names: config.axes.iter().map(|a| a.name.clone()).collect(),
+            periods: config.axes.iter().map(|a| a.modulo).collect(),
+            speed: args.speed,
+            started: Instant::now(),
+            live: Live::new(std::io::stdout().is_terminal()),
+            samples: Vec::new(),
+            wraps: vec![(0, 0); config.axes.len()],
+            dc_offsets: None,
+            in_op: false,
+            cycle_us: config.bus.cycle_us,
+        }
     }
+
+    /// One cycle and what the demo watches: the trace, where the frames land in the SYNC0
+    /// period, the status table, and every fault (which fails the demo at once).
+    fn cycle(
+        &mut self,
+        net: &mut LockstepEngine,
+        last: &[Option<(&'static str, CommandHandle)>],
+        out: &mut (dyn Write + Send),
+    ) -> Result<(), DemoError> {
+        if !net.cycle() {
+            return Err(DemoError::Fault("the engine ended".into()));
+        }
+        let n = net.engine.counters().cycles;
+        if let (true, Some(offset)) = (self.in_op, net.engine.bus.dc_offset_ns()) {
+            let (lo, hi) = self.dc_offsets.get_or_insert((offset, offset));
+            (*lo, *hi) = ((*lo).min(offset), (*hi).max(offset));
+        }
+        if n % DRAIN_EVERY == 0 {
+            self.drain(&net.ctl);
+        }
+        // The snapshot is published every 10 cycles.
+        if n % 10 == 0 {
+            let snap = net.ctl.snapshot();
+            check_faults(&snap, &self.names, last)?;
+            if n % FRAME_CYCLES == 0 {
+                self.frame(&snap, last, out);
+            }
+        }
+        Ok(())
+    }
+
+    /// Trace samples since the last drain; counts the modulo axes' wraps.
+    fn drain(&mut self, ctl: &Controller) {
+        let from = self.samples.len();
+        ctl.drain_trace(&mut self.samples);
+        for k in from.max(1)..self.samples.len() {
+            let (a, b) = (&self.samples[k - 1], &self.samples[k]);
+            for (i, period) in self.periods.iter().enumerate() {
+                let (Some(p), Some(w)) = (period, self.wraps.get_mut(i)) else {
+                    continue;
+                };
+                // Moving across it: not an axis at rest on 0 whose set follows its
+                // actual to just below it.
+                match (wrap_crossed(a, b, i, *p), b.set_velocity[i]) {
+                    (1, v) if v > 0.0 => w.0 += 1,
+                    (-1, v) if v < 0.0 => w.1 += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+
+    fn frame(
+        &mut self,
+        snap: &Snapshot,
+        last: &[Option<(&'static str, CommandHandle)>],
+        out: &mut (dyn Write + Send),
+    ) {
+        let rows: Vec<Row> = self
+            .names
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                let status = snap.axes.get(i).copied().unwrap_or_default();
+                Row {
+                    axis: name.clone(),
+                    status,
+                    command: last
+                        .get(i)
+                        .and_then(Option::as_ref)
+                        .and_then(|(_, h)| h.status())
+                        .map(|s| s.name().to_string())
+                        .unwrap_or_default(),
+                    error: status.error.map(|e| describe_fault(&e)).unwrap_or_default(),
+                }
+            })
+            .collect();
+        let _ = out.write_all(
+            self.live
+                .frame(&status_table::render(snap.time_s, &rows))
+                .as_bytes(),
+        );
+        let _ = out.flush();
+        if self.speed > 0.0 {
+            let due = Duration::from_secs_f64(snap.time_s / self.speed);
+            if let Some(wait) = due.checked_sub(self.started.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
+    }
+
+    /// Waits for every slave to report OP, shows the bus, then runs the script to its end.
+    fn script(
+        &mut self,
+        net: &mut LockstepEngine,
+        out: &mut (dyn Write + Send),
+    ) -> Result<(), DemoError> {
+        let mut last: Vec<Option<(&'static str, CommandHandle)>> = vec![None; self.names.len()];
+        // The engine asks the slaves for OP once its frames are held in phase with SYNC0;
+        // the health monitor says when every slave has reported OP.
+        let mut waited = 0;
+        while net.engine.bus.health().is_starting() || net.engine.bus.health().any_fault() {
+            if waited >= OP_LIMIT_CYCLES || !net.engine.bus.health().is_starting() {
+                let snap = net.ctl.snapshot();
+                check_faults(&snap, &self.names, &last)?;
+                return Err(DemoError::Fault(format!(
+                    "the slaves did not report OP in {waited} cycles"
+                )));
+            }
+            self.cycle(net, &last, out)?;
+            waited += 1;
+        }
+        self.in_op = true;
+        self.say_bus(net, waited, out);
+        let mut handles: HashMap<&'static str, CommandHandle> = HashMap::new();
+        let limit = net.engine.counters().cycles + SCRIPT_LIMIT_CYCLES;
+        for step in script() {
+            let waited_from = net.engine.cycle.kernel.time();
+            loop {
+                let ready = match step.wait {
+                    Wait::Now => true,
+                    Wait::Seconds(s) => net.engine.cycle.kernel.time() - waited_from >= s - 1e-9,
+                    Wait::Done(label) => {
+                        let h = handles.get(label).ok_or(DemoError::Script(label))?;
+                        h.status().is_some_and(|s| s.is_final())
+                    }
+                };
+                if ready {
+                    break;
+                }
+                if net.engine.counters().cycles > limit {
+                    return Err(DemoError::Timeout(step.label));
+                }
+                self.cycle(net, &last, out)?;
+            }
+            let axis = self
+                .names
+                .iter()
+                .position(|n| n == step.axis)
+                .ok_or(DemoError::Script(step.axis))?;
+            let h = net
+                .ctl
+                .command(axis, step.command)
+                .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
+            if !step.says.is_empty() {
+                let _ = writeln!(out, ">> {}", step.says);
+            }
+            handles.insert(step.label, h.clone());
+            if let Some(slot) = last.get_mut(axis) {
+                *slot = Some((step.label, h));
+            }
+        }
+        // The last moves to their end (in position), then the axes at rest a while.
+        while last
+            .iter()
+            .flatten()
+            .any(|(_, h)| !h.status().is_some_and(|s| s.is_final()))
+        {
+            if net.engine.counters().cycles > limit {
+                return Err(DemoError::Timeout("final moves"));
+            }
+            self.cycle(net, &last, out)?;
+        }
+        for _ in 0..TAIL_CYCLES {
+            self.cycle(net, &last, out)?;
+        }
+        self.drain(&net.ctl);
+        let snap = net.ctl.snapshot();
+        check_faults(&snap, &self.names, &last)?;
+        self.frame(&snap, &last, out);
+        let _ = writeln!(out, ">> the axes at the end:");
+        for (i, name) in self.names.iter().enumerate() {
+            let (Some(a), Some(d)) = (snap.axes.get(i), snap.drives.get(i)) else {
+                continue;
+            };
+            let _ = writeln!(
+                out,
+                "   {name}: {}, set {:.4}, actual {:.4}, drive {}",
+                a.state.name(),
+                a.set.p,
+                a.actual_position,
+                drive_state(d.state)
+            );
+        }
+        Ok(())
+    }
+
+    /// The bus as the master sees it once every slave is in OP.
+    fn say_bus(&self, net: &LockstepEngine, cycles: u64, out: &mut (dyn Write + Send)) {
+        let bus = &net.engine.bus;
+        let image = bus.image();
+        let expected_wkc = net.engine.bus.health().expected_working_counter();
+        // The demo's chain: the bring-up found as many slaves (it said so above).
+        let slaves = lock(&net.chain).slaves().len();
+        let _ = writeln!(
+            out,
+            ">> every slave reported OP {cycles} cycles after the bring-up (the cycle asks \
+             each for OP once its frames are held in phase with SYNC0)"
+        );
+        let _ = writeln!(out, "   slave  AL state  inputs  outputs  axis");
+        // The image is cloned for its per-slave output sizes (it hands out outputs only
+        // mutably): a few hundred bytes, once.
+        let mut outputs = image.clone();
+        for position in 0..slaves {
+            let axis = (0..self.names.len())
+                .find(|&a| net.engine.cycle.drive_of(a) == position)
+                .and_then(|a| self.names.get(a))
+                .map_or("-", String::as_str);
+            // In OP: the health monitor read every slave's AL state as OP before it let
+            // the start end, and has seen none leave since.
+            let state = match net.engine.bus.health().fault(position) {
+                None => "OP".to_string(),
+                Some(f) => f.to_string(),
+            };
+            let _ = writeln!(
+                out,
+                "   {position:<5}  {state:<8}  {:>4} B  {:>5} B  {axis}",
+                image.inputs(position).len(),
+                outputs.outputs_mut(position).len()
+            );
+        }
+        let wire = bus.cyclic_wire_bytes();
+        let _ = writeln!(
+            out,
+            ">> process data: {} B in {} LRW datagram(s), expected working counter {expected_wkc}; \
+             {wire} B on the wire per cycle ({:.1} µs at 100 Mbit/s)",
+            image.len(),
+            image.chunks().len(),
+            frame::wire_us(wire)
+        );
+        let dc = bus.dc();
+        let snap = net.ctl.snapshot();
+        match (dc.active, snap.dc_offset_ns, snap.dc_target_ns) {
+            (true, Some(offset), Some(target)) => {
+                let _ = writeln!(
+                    out,
+                    ">> distributed clocks: SYNC0 every {} µs; the frames reach the reference \
+                     clock {:.1} µs into the SYNC0 period (the cycle holds them at {:.1} µs)",
+                    self.cycle_us,
+                    offset as f64 / 1e3,
+                    target as f64 / 1e3
+                );
+            }
+            _ => {
+                let _ = writeln!(out, ">> distributed clocks: off (free run)");
+            }
+        }
+    }
+
+    /// After the run: the modulo axes' wraps and what their drives' targets did meanwhile.
+    fn wraps_said(
+        &self,
+        verdict: &Verdict,
+        records: &[Option<DriveRecord>],
+        config: &Config,
+        out: &mut (dyn Write + Send),
+    ) {
+        if let Some((lo, hi)) = self.dc_offsets {
+            let _ = writeln!(
+                out,
+                ">> distributed clocks: in OP the frames reached the reference clock between \
+                 {:.1} and {:.1} µs into the SYNC0 period",
+                lo as f64 / 1e3,
+                hi as f64 / 1e3
+            );
+        }
+        for (i, a) in config.axes.iter().enumerate() {
+            let (Some(period), Some((fwd, back))) = (a.modulo, self.wraps.get(i)) else {
+                continue;
+            };
+            let bound = AxisBound::of_config(config)
+                .ok()
+                .and_then(|b| b.into_iter().find(|b| b.axis == a.name));
+            let step = records
+                .get(a.drive)
+                .and_then(Option::as_ref)
+                .map(|r| r.max_target_step_counts);
+            if let (Some(bound), Some(step)) = (bound, step) {
+                let _ = writeln!(
+                    out,
+                    ">> {}: crossed its wrap ({period} → 0) {fwd} times forward and {back} \
+                     backward; its drive's target moved at most {step} counts in a cycle \
+                     (vmax · T: {} counts) — no step at the wrap",
+                    a.name, bound.max_step_counts
+                );
+            }
+        }
+        let _ = writeln!(
+            out,
+            ">> the drives' verdict (drive-records.json): no fault, no missed or doubled \
+             setpoint; {}",
+            verdict.summary.join("; ")
+        );
+    }
+
+    /// Quick stop and disable through the engine's own shutdown, as `gantry run` on
+    /// SIGTERM.
+    fn shut_down(
+        &mut self,
+        net: &mut LockstepEngine,
+        out: &mut (dyn Write + Send),
+    ) -> Result<(), DemoError> {
+        net.ctl
+            .shutdown()
+            .map_err(|e| DemoError::Fault(format!("shutdown: {e}")))?;
+        for _ in 0..SHUTDOWN_LIMIT_CYCLES {
+            if !net.cycle() {
+                self.drain(&net.ctl);
+                let _ = writeln!(out, ">> drives disabled; the bus goes to PreOp");
+                return Ok(());
+            }
+        }
+        Err(DemoError::Timeout("shutdown"))
+    }
+
+    /// The trace (CSV) and the plot (SVG).
+    fn write_files(&self, dir: &Path, config: &Config) -> Result<(PathBuf, PathBuf), DemoError> {
+        let mut channels = Vec::new();
+        for n in &self.names {
+            channels.extend([format!("{n}.set"), format!("{n}.actual"), format!("{n}.v")]);
+        }
+        // Modulo axes once more, unwrapped, so that the plot shows their travel.
+        let modulo: Vec<(usize, f64)> = self
+            .periods
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.map(|p| (i, p)))
+            .collect();
+        for &(i, _) in &modulo {
+            let n = &self.names[i];
+            channels.extend([
+                format!("{n}.set_unwrapped"),
+                format!("{n}.actual_unwrapped"),
+            ]);
+        }
+        let width = channels.len();
+        let mut trace = Trace::new(channels, self.samples.len().max(1));
+        // Whole periods crossed so far by each modulo axis' set and actual position.
+        let mut turns = vec![(0.0f64, 0.0f64); modulo.len()];
+        let mut row = Vec::with_capacity(width);
+        for (k, s) in self.samples.iter().enumerate() {
+            row.clear();
+            for i in 0..self.names.len() {
+                row.extend([s.set[i], s.actual[i], s.set_velocity[i]]);
+            }
+            for (m, &(i, p)) in modulo.iter().enumerate() {
+                if let Some(prev) = k.checked_sub(1).and_then(|k| self.samples.get(k)) {
+                    turns[m].0 += f64::from(crossing(prev.set[i], s.set[i], p)) * p;
+                    turns[m].1 += f64::from(crossing(prev.actual[i], s.actual[i], p)) * p;
+                }
+                row.extend([s.set[i] + turns[m].0, s.actual[i] + turns[m].1]);
+            }
+            trace.push(s.time_s, &row)?;
+        }
+        let csv = dir.join("trace.csv");
+        let svg = dir.join("plot.svg");
+        trace.write_csv(&csv)?;
+        let linear: Vec<usize> = (0..self.names.len())
+            .filter(|&i| self.periods[i].is_none())
+            .flat_map(|i| [i * 3, i * 3 + 1])
+            .collect();
+        let rotary: Vec<usize> = (0..modulo.len())
+            .flat_map(|m| {
+                [
+                    self.names.len() * 3 + 2 * m,
+                    self.names.len() * 3 + 2 * m + 1,
+                ]
+            })
+            .collect();
+        let units = |i: usize| config.axes.get(i).map_or("", |a| a.units.as_str());
+        let doc = plot::svg(
+            &trace,
+            &[
+                Panel {
+                    title: format!("set and actual position ({}) over EtherCAT", units(0)),
+                    channels: linear,
+                },
+                Panel {
+                    title: "modulo axes, unwrapped: set and actual position".into(),
+                    channels: rotary,
+                },
+                Panel {
+                    title: "set velocity (units/s)".into(),
+                    channels: (0..self.names.len()).map(|i| i * 3 + 2).collect(),
+                },
+            ],
+        );
+        std::fs::write(&svg, doc).map_err(io_error(&svg))?;
+        Ok((csv, svg))
+    }
+}
+
+/// Whether axis `i`'s set position, wrapped into `[0, period)`, went across the wrap
+/// between two consecutive samples (see [`crossing`]).
+fn wrap_crossed(a: &TraceSample, b: &TraceSample, i: usize, period: f64) -> i32 {
+    crossing(a.set[i], b.set[i], period)
+}
+
+/// Whether a position wrapped into `[0, period)` went across the wrap from `before` to
+/// `after`, one cycle later: +1 forward (from near `period` to near 0), -1 backward, 0
+/// not. Between two cycles an axis moves far less than a quarter period: a larger jump is
+/// a new reference (SetPosition), not a crossing.
+fn crossing(before: f64, after: f64, period: f64) -> i32 {
+    let (jump, moved) = (after - before, short_way(after, before, period));
+    if jump.abs() <= period / 2.0 || moved.abs() > period / 4.0 {
+        0
+    } else if moved > 0.0 {
+        1
+    } else {
+        -1
+    }
+}
+
+/// `x - reference` wrapped into `[-period/2, period/2)`: how far apart two positions of a
+/// modulo axis are, the short way (the actual follows the set within far less than half
+/// a period).
+fn short_way(x: f64, reference: f64, period: f64) -> f64 {
+    (x - reference + period / 2.0).rem_euclid(period) - period / 2.0
+}
+
+/// A drive's CiA-402 state as the status table names it.
+fn drive_state(state: Option<gantry_drives::cia402::State>) -> String {
+    state
+        .map_or("not reporting", gantry_drives::cia402::State::name)
+        .into()
+}
+
+/// Fails on what an application must not run past: an axis in ErrorStop, a drive whose
+/// bus stopped it, a command of the script that failed.
+fn check_faults(
+    snap: &Snapshot,
+    names: &[String],
+    last: &[Option<(&'static str, CommandHandle)>],
+) -> Result<(), DemoError> {
+    for (i, name) in names.iter().enumerate() {
+        let drive = snap.drives.get(i).copied().unwrap_or_default();
+        if let Some(fault) = drive.bus_fault {
+            return Err(DemoError::Fault(format!("axis {name}: bus fault: {fault}")));
+        }
+        if let Some(a) = snap.axes.get(i) {
+            if a.state == AxisState::ErrorStop {
+                let why = a
+                    .error
+                    .map_or_else(|| "no reason given".into(), |e| describe_fault(&e));
+                return Err(DemoError::Fault(format!(
+                    "axis {name} in ErrorStop: {why} (drive {}, statusword 0x{:04X}, error code {})",
+                    drive_state(drive.state),
+                    drive.statusword,
+                    drive.error_code.map_or_else(|| "-".into(), |c| format!("0x{c:04X}"))
+                )));
+            }
+        }
+        if let Some((label, h)) = last.get(i).and_then(Option::as_ref) {
+            if let Some(CommandStatus::Error(e)) = h.status() {
+                return Err(DemoError::Fault(format!(
+                    "step {label} on axis {name}: {e}"
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn config() -> Config {
+        Config::parse(CONFIG_TOML, CONFIG_FILE).expect("the demo's configuration")
+    }
+
     #[test]
-    fn the_demo_fails_with_the_axis_and_the_rule_when_a_drive_saw_a_step() {
-        let kernel = Kernel::new(1e-3, vec![axis("x"), axis("y")]).unwrap();
-        let channel = CspChannel::new(scaling().unwrap());
-        let cycle = CspCycle::new(kernel, vec![channel.clone(), channel]);
-        // 250 mm/s at 2^17 counts per 5 mm: 6553.6 counts per ms, bound 6554.
+    fn the_demo_fails_with_the_axis_and_the_rule_when_a_drive_saw_a_step_or_faulted() {
+        let config = config();
+        let bounds = AxisBound::of_config(&config).unwrap();
+        // x: 250 mm/s at 2^17 counts per 5 mm: 6553.6 counts per ms, bound 6554.
+        assert_eq!(bounds[0].max_step_counts, 6554);
         let mut ok = DriveRecord::default();
         ok.target(0);
         ok.target(6554);
         let mut step = ok;
         step.target(6554 + 6555);
-        let mut text = Vec::new();
-        check_drive_invariant(&[Some(ok), Some(ok)], &["x", "y"], &cycle, 1e-3, &mut text).unwrap();
-        let text = String::from_utf8(text).unwrap();
-        assert!(
-            text.contains("x: largest target step 6554 counts (bound 6554), 2 targets"),
-            "{text}"
+        // c: 720°/s through 10:1 on 2^17 counts per motor revolution: bound 2622.
+        assert_eq!(bounds[2].max_step_counts, 2622);
+        let mut c = DriveRecord::default();
+        c.target(0);
+        c.target(-2622);
+        let records = [Some(ok), Some(ok), Some(c)];
+        let verdict = judge(
+            &records,
+            &bounds,
+            Conditions {
+                injects_following_error: false,
+                phase_locked: true,
+            },
         );
-        let e = check_drive_invariant(
-            &[Some(ok), Some(step)],
-            &["x", "y"],
-            &cycle,
-            1e-3,
-            &mut Vec::new(),
-        )
-        .unwrap_err();
+        check_verdict(&verdict, &records, &bounds).unwrap();
+        assert!(
+            verdict.summary[0]
+                .starts_with("x: largest target step 6554 counts (bound 6554), 2 targets"),
+            "{verdict:?}"
+        );
+        let records = [Some(ok), Some(step), Some(c)];
+        let verdict = judge(
+            &records,
+            &bounds,
+            Conditions {
+                injects_following_error: false,
+                phase_locked: true,
+            },
+        );
+        let e = check_verdict(&verdict, &records, &bounds).unwrap_err();
         assert!(
             e.to_string().starts_with(
                 "drive invariant broken: axis y (drive 1): target stepped 6555 counts in one \
@@ -445,12 +963,101 @@ mod tests {
             ),
             "{e}"
         );
-        let e = check_drive_invariant(&[Some(ok)], &["x", "y"], &cycle, 1e-3, &mut Vec::new())
-            .unwrap_err();
+        // A fault of any kind fails the demo, with its code.
+        let mut faulted = c;
+        faulted.fault(0xFF01);
+        let records = [Some(ok), Some(ok), Some(faulted)];
+        let verdict = judge(
+            &records,
+            &bounds,
+            Conditions {
+                injects_following_error: false,
+                phase_locked: true,
+            },
+        );
+        let e = check_verdict(&verdict, &records, &bounds).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "the demo stopped: a drive faulted: axis c (drive 2): 1 fault(s), the last 0xFF01"
+        );
+        // A drive missing from the chain.
+        let records = [Some(ok), Some(ok)];
+        let verdict = judge(&records, &bounds, Conditions::default());
+        let e = check_verdict(&verdict, &records, &bounds).unwrap_err();
         assert!(
             e.to_string()
-                .contains("axis y (drive 1): no drive record at that chain position"),
+                .contains("axis c (drive 2): no drive record at that chain position"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_demos_chain_file_is_a_valid_simulator_configuration_with_a_servo_per_axis() {
+        let dir = std::env::temp_dir().join(format!("gantry-demo-config-{}", std::process::id()));
+        let config = write_config(&dir, SERVOS_TOML, None).unwrap();
+        let sim =
+            gantry_sim::config::SimConfig::load(config.bus.simulator.as_deref().unwrap()).unwrap();
+        assert_eq!(sim.chain().unwrap().slaves().len(), config.axes.len());
+        assert_eq!(sim.cycle_us, config.bus.cycle_us);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_axis_in_error_stop_or_a_bus_fault_stops_the_demo_with_what_and_why() {
+        use crate::ethercat::health::BusFault;
+        use crate::runtime::bus::Unreachable;
+        use gantry_kernel::axis::status::AxisFault;
+        let names: Vec<String> = ["x", "y", "c"].map(String::from).into();
+        let mut snap = Snapshot::sized(3);
+        check_faults(&snap, &names, &[None, None, None]).unwrap();
+        snap.axes[2].state = AxisState::ErrorStop;
+        snap.axes[2].error = Some(AxisFault::Drive { code: 0x8611 });
+        snap.drives[2].state = Some(gantry_drives::cia402::State::Fault);
+        snap.drives[2].statusword = 0x0218;
+        snap.drives[2].error_code = Some(0x8611);
+        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("the demo stopped: axis c in ErrorStop: drive fault 0x8611: ")
+                && e.to_string()
+                    .ends_with("(drive Fault, statusword 0x0218, error code 0x8611)"),
+            "{e}"
+        );
+        snap.drives[0].bus_fault = Some(Unreachable::new(&BusFault::FramesLost {
+            count: 3,
+            limit: 3,
+        }));
+        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "the demo stopped: axis x: bus fault: EtherCAT: 3 frames lost in a row (limit 3)"
+        );
+    }
+
+    #[test]
+    fn a_wrap_is_crossed_only_moving_across_it() {
+        let sample = |set: f64, v: f64| {
+            let mut s = TraceSample {
+                time_s: 0.0,
+                set: [0.0; crate::runtime::protocol::TRACE_AXES],
+                set_velocity: [0.0; crate::runtime::protocol::TRACE_AXES],
+                actual: [0.0; crate::runtime::protocol::TRACE_AXES],
+            };
+            (s.set[1], s.set_velocity[1]) = (set, v);
+            s
+        };
+        let cross = |a: (f64, f64), b: (f64, f64)| {
+            wrap_crossed(&sample(a.0, a.1), &sample(b.0, b.1), 1, 360.0)
+        };
+        assert_eq!(cross((359.5, 300.0), (0.2, 300.0)), 1);
+        assert_eq!(cross((0.2, -300.0), (359.5, -300.0)), -1);
+        assert_eq!(cross((10.0, 300.0), (12.0, 300.0)), 0);
+        // SetPosition 300 on an axis at rest at 85°: a new reference, no crossing.
+        assert_eq!(cross((85.0, 0.0), (300.0, 0.0)), 0);
+        // An axis at rest on 0 whose set follows its actual to just below it does cross
+        // (the trace unwraps it), but not moving: the demo does not count it.
+        assert_eq!(cross((0.0, 0.0), (359.9999, 0.0)), -1);
+        assert!((short_way(359.9, 0.1, 360.0) + 0.2).abs() < 1e-9);
+        assert!((short_way(0.1, 359.9, 360.0) - 0.2).abs() < 1e-9);
     }
 }

@@ -1,11 +1,11 @@
-//! `gantry demo`: the first thing a newcomer runs. Three simulated axes (actual = set, as
+//! `gantry demo --bus none`: the motion kernel alone. Three simulated axes (actual = set, as
 //! SPEC §1 defines) go through a scripted sequence of PTP moves in several modes, buffered
 //! and blended moves, a velocity move with reverse, jogs with merge and a halt at the
 //! actual position; a status table shows it live; the trace (CSV) and a plot (SVG) are
 //! written to a folder it prints. No root, no network, no configuration file.
 //!
-//! The axes are *simulated* axes of the kernel for now; a later issue puts simulated
-//! drives on an in-process EtherCAT bus under them.
+//! `gantry demo` itself, the newcomer's first look, runs the product over simulated drives
+//! on the in-process EtherCAT network ([`ethercat`]).
 
 use std::collections::HashMap;
 use std::io::{IsTerminal, Write};
@@ -35,9 +35,10 @@ pub struct DemoArgs {
     pub out: PathBuf,
     /// Simulated seconds per wall-clock second (0: as fast as possible).
     pub speed: f64,
-    /// Cycle time (s).
+    /// Cycle time (s) of the bus-less demo (the EtherCAT demo's is its configuration's,
+    /// `bus.cycle_us`).
     pub cycle_s: f64,
-    /// Write every EtherCAT frame here (the `--bus ethercat` demo).
+    /// Write every EtherCAT frame here (the EtherCAT demo).
     pub pcap: Option<PathBuf>,
 }
 
@@ -63,6 +64,8 @@ pub struct DemoReport {
     pub simulated_s: f64,
     /// Cycles run.
     pub cycles: u64,
+    /// Their cycle time (s).
+    pub cycle_s: f64,
 }
 
 /// Why the demo failed.
@@ -93,18 +96,21 @@ pub enum DemoError {
     /// Writing the output failed.
     #[error(transparent)]
     Trace(#[from] TraceError),
-    /// The EtherCAT network failed.
-    #[error("EtherCAT {step}")]
-    Bus {
-        /// What the demo was doing.
-        step: String,
-        /// Why it failed.
-        #[source]
-        source: Box<dyn std::error::Error + Send + Sync + 'static>,
-    },
+    /// The demo's configuration file was refused (a bug in the demo).
+    #[error(transparent)]
+    Configuration(#[from] crate::config::ConfigError),
+    /// The EtherCAT network did not come up.
+    #[error(transparent)]
+    Start(#[from] crate::ethercat::bus::StartError),
+    /// The cycle does not fit the configuration or its bus.
+    #[error(transparent)]
+    Cycle(#[from] crate::runtime::cycle::SetupError),
     /// The demo's in-process network cannot run.
     #[error("EtherCAT: {0}")]
     Network(&'static str),
+    /// An axis, a drive or the bus failed while the demo ran: what and why.
+    #[error("the demo stopped: {0}")]
+    Fault(String),
     /// The drives' records could not be written.
     #[error(transparent)]
     Records(#[from] gantry_sim::plant::record::RecordsFileError),
@@ -577,6 +583,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
         svg,
         simulated_s: kernel.time(),
         cycles: kernel.tick(),
+        cycle_s: args.cycle_s,
     })
 }
 

@@ -13,24 +13,21 @@ use ethercrab::subdevice_group::{DcConfiguration, HasDc, SafeOp};
 use ethercrab::{
     Command, MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, SubDeviceState, Timeouts,
 };
-use gantry_kernel::mechanics::Modulo;
-use gantry_kernel::Kernel;
+use gantry_kernel::axis::command::CommandError;
 use gantry_sim::config::SimConfig;
 use thiserror::Error;
 
-use super::cycle::{CspCycle, CycleError};
-use super::cyclic::CspChannel;
-use super::doorbell::{BlockOn, StepStalled};
+use super::doorbell::BlockOn;
 use super::embedded::{ChainLink, HostTime, SimWire};
 use super::frame::{self, ProcessImage};
-use super::health::{BusHealth, Exchange, HealthConfig, States};
-use super::link::{FrameIo, Link};
+use super::health::{BusFault, BusHealth, Exchange, HealthConfig, States};
+use super::link::{Capture, FrameIo, Link};
 use super::mapping::map_pdos;
 use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
 use crate::pcap::PcapWriter;
-use crate::runtime::bus::CycleBus;
+use crate::runtime::bus::{BusCounters, CycleBus, Reply, Restored, Unreachable};
 use crate::runtime::clock::now_ns;
 
 /// Most slaves on one bus.
@@ -76,7 +73,7 @@ const DISCOVERY_LIMIT_NS: u64 = 60_000_000_000;
 const STEP_LIMIT_NS: u64 = 10_000_000_000;
 
 // The groups stay SafeOp-typed: ethercrab exchanges process data from SafeOp on, and
-// the cycle asks each slave for OP itself (`EthercatBus::request_op`), so that ethercrab's
+// the cycle asks each slave for OP itself (`EthercatBus::start_operation`), so that ethercrab's
 // own transition, which polls without process data, is never used.
 type Group = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp>;
 type GroupDc = SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, HasDc>;
@@ -196,7 +193,8 @@ pub enum SimLink {
     Lockstep,
 }
 
-/// The EtherCAT bus in OP.
+/// The EtherCAT bus: its slaves in SafeOp after the bring-up with the process data
+/// running, taken to OP by the cycle ([`CycleBus::start_operation`]).
 pub struct EthercatBus {
     md: MainDevice<'static>,
     group: Groups,
@@ -213,7 +211,11 @@ pub struct EthercatBus {
     image: ProcessImage,
     /// What the cycle sent.
     frame_stats: FrameStats,
-    drives: Vec<usize>,
+    /// What the exchanges said about the network.
+    health: BusHealth,
+    /// Per slave: the fault in force and its reason as the cycle hands it on.
+    faults: Vec<Option<(BusFault, Unreachable)>>,
+    /// Every slave's AL state, when the last exchange read them.
     states: Vec<SubDeviceState>,
     /// The in-process simulator's chain, when the link is the wire to it.
     chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
@@ -224,16 +226,16 @@ pub struct EthercatBus {
     /// Runs ethercrab's futures in the cycle thread without a lock, and exchanges their
     /// frames on the link.
     runner: BlockOn,
-    /// The slave being brought back to OP: the axis that asked, and the machine.
+    /// The slave being brought back to OP: its position, and the machine.
     recovery: Option<(usize, Recovery)>,
     /// A finished recovery, until the engine takes it.
-    recovered: Option<(usize, Result<Recovered, RecoveryError>)>,
+    recovered: Option<Result<Recovered, RecoveryError>>,
     /// Asking the slaves for OP at start.
     op_request: OpRequest,
 }
 
 /// The slaves are asked for OP by the cycle, one AL control write per cycle beside the
-/// process data, once the cycle is ready (`CycleBus::request_op`).
+/// process data, once the cycle is ready (`CycleBus::start_operation`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum OpRequest {
     /// Not yet: the slaves wait in SafeOp with the process data running.
@@ -245,17 +247,16 @@ enum OpRequest {
 }
 
 impl EthercatBus {
-    /// Brings the bus of `config` up to OP; returns it with the cycle (kernel + CiA-402
-    /// channels) and the health monitor. Prints its steps to `out`.
+    /// Brings the bus of `config` up: its slaves in SafeOp with the process data mapped
+    /// for the configuration's axes, ready for the cycle ([`crate::runtime::cycle::Cycle`]
+    /// is built on it from the same configuration) to take them to OP. Prints its steps to
+    /// `out`.
     ///
     /// The steps run in a short-lived thread of their own with a large stack
     /// ([`BRING_UP_STACK_BYTES`]; ethercrab's bring-up futures take hundreds of kB of
     /// stack per level in debug builds), started from the calling thread so that it — and
     /// the simulator's thread it may start — inherit the caller's scheduling and CPU.
-    pub fn bring_up(
-        config: &Config,
-        out: &mut (dyn Write + Send),
-    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+    pub fn bring_up(config: &Config, out: &mut (dyn Write + Send)) -> Result<Self, StartError> {
         Self::bring_up_with(config, SimLink::Thread, out)
     }
 
@@ -264,223 +265,81 @@ impl EthercatBus {
         config: &Config,
         sim: SimLink,
         out: &mut (dyn Write + Send),
-    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
+    ) -> Result<Self, StartError> {
         on_large_stack("gantry-bring-up", || Self::bring_up_here(config, sim, out))
             .unwrap_or_else(|e| Err(StartError::link("a thread for the bring-up")(e.into())))
     }
 
+    /// The bring-up's steps, in order.
     fn bring_up_here(
         config: &Config,
         sim_link: SimLink,
         out: &mut (dyn Write + Send),
-    ) -> Result<(Self, CspCycle, BusHealth), StartError> {
-        let bus_error = |step: &'static str| move |e: ethercrab::error::Error| step_error(step, e);
-        let stalled = |step: &'static str| move |e: StepStalled| step_error(step, e);
-        let capture = match &config.bus.pcap {
-            Some(path) => Some(
-                std::fs::File::create(path)
-                    .map_err(Cause::from)
-                    .and_then(|f| PcapWriter::new(std::io::BufWriter::new(f)).map_err(Cause::from))
-                    .map_err(StartError::link(format!("pcap {path}")))?,
-            ),
-            None => None,
-        };
+    ) -> Result<Self, StartError> {
+        let capture = open_capture(config)?;
         let (tx, rx, pdu_loop) = PDU_STORAGE
             .try_split()
             .map_err(|_| StartError::NoLink("the EtherCAT bus can start once per process"))?;
-        // The cycle thread exchanges its frames itself, on a raw socket or on the wire to
-        // the in-process simulator's thread.
-        let mut host_time = None;
-        let (link, chain): (Box<dyn Link>, _) =
-            match (&config.bus.interface, &config.bus.simulator) {
-                (Some(interface), _) => (
-                    Box::new(RawLink::open(interface).map_err(|e| {
-                        StartError::link(format!("interface {interface}"))(e.into())
-                    })?),
-                    None,
-                ),
-                (None, Some(sim)) => {
-                    let sim = SimConfig::load(sim)
-                        .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
-                    let chain = sim
-                        .chain()
-                        .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
-                    let chain = Arc::new(Mutex::new(chain));
-                    let period = Duration::from_micros(u64::from(sim.cycle_us));
-                    let link: Box<dyn Link> = match sim_link {
-                        SimLink::Thread => {
-                            Box::new(SimWire::start(chain.clone(), period).map_err(|e| {
-                                StartError::link("the simulator's thread")(e.into())
-                            })?)
-                        }
-                        SimLink::Lockstep => {
-                            let time = chain
-                                .lock()
-                                .map(|c| HostTime::start(&c, period))
-                                .map_err(|_| StartError::NoLink("the simulated chain's lock"))?;
-                            host_time = Some(time.clone());
-                            Box::new(ChainLink::new(chain.clone(), time))
-                        }
-                    };
-                    (link, Some(chain))
-                }
-                (None, None) => return Err(StartError::NoLink("no interface and no simulator")),
-            };
-        let io = FrameIo::new(tx, rx, link, capture);
+        let opened = open_link(config, sim_link)?;
+        let io = FrameIo::new(tx, rx, opened.link, capture);
         let replies = io.replies();
         let md = MainDevice::new(pdu_loop, NO_TIMERS, MainDeviceConfig::default());
         let runner =
             BlockOn::with_io(io).map_err(|e| StartError::link("the cycle's eventfd")(e.into()))?;
-        // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
-        let silence = BRING_UP_SILENCE_NS;
-        let group = runner
-            .run_step(
-                || md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now),
-                &replies,
-                silence,
-                DISCOVERY_LIMIT_NS,
-            )
-            .map_err(stalled("discovery"))?
-            .map_err(bus_error("discovery"))?;
-        let _ = writeln!(out, "found {} EtherCAT slaves", group.len());
-        for (i, sd) in group.iter(&md).enumerate() {
-            let _ = writeln!(
-                out,
-                "  {i}: {:#06x} {} ({})",
-                sd.configured_address(),
-                sd.name(),
-                sd.identity()
-            );
-        }
-        let mut channels = Vec::with_capacity(config.axes.len());
-        for a in &config.axes {
-            if a.drive >= group.len() {
-                return Err(StartError::MissingDrive {
-                    path: config.path.clone(),
-                    axis: a.name.clone(),
-                    drive: a.drive,
-                    slaves: group.len(),
-                });
-            }
-            let axis_error = |(key, reason)| StartError::Axis {
-                axis: a.name.clone(),
-                key,
-                reason,
-            };
-            let layout = a.pdo_layout().map_err(axis_error)?;
-            let sd = group
-                .subdevice(&md, a.drive)
-                .map_err(bus_error("addressing"))?;
-            runner
-                .run_step(|| map_pdos(&sd, &layout), &replies, silence, STEP_LIMIT_NS)
-                .map_err(stalled("PDO mapping"))?
-                .map_err(|e| {
-                    StartError::setup(format!("axis {:?}: PDO mapping", a.name))(e.into())
-                })?;
-            let scaling = a.scaling().map_err(axis_error)?;
-            let mut channel = CspChannel::with_layout(scaling, &layout)
-                .map_err(|e| StartError::setup(format!("axis {:?}", a.name))(e.into()))?;
-            // A modulo period that cannot be counted is refused here, by name (the cycle
-            // would fault the axis).
-            channel
-                .set_modulo(a.modulo.and_then(Modulo::new))
-                .map_err(|e| StartError::setup(format!("axis {:?}", a.name))(e.into()))?;
-            channels.push(channel);
-        }
-        let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
-        let dc_capable = group
-            .iter(&md)
-            .any(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None));
-        let cycle = Duration::from_micros(u64::from(config.bus.cycle_us));
-        let group = if config.bus.dc && dc_capable {
-            // SYNC0 at the cycle time, starting well after OP is reached.
-            let dc = DcConfiguration {
-                start_delay: Duration::from_millis(100),
-                sync0_period: cycle,
-                sync0_shift: Duration::ZERO,
-            };
-            // Every slave with DC generates SYNC0 (its AssignActivate).
-            let mut group = group;
-            for mut sd in group.iter_mut(&md) {
-                if !matches!(sd.dc_support(), ethercrab::DcSupport::None) {
-                    sd.set_dc_sync(ethercrab::DcSync::Sync0);
-                }
-            }
-            let group = dc_to_op(&runner, &md, group, dc, &replies)?;
-            let _ = writeln!(
-                out,
-                "distributed clocks: SYNC0 every {} µs",
-                config.bus.cycle_us
-            );
-            Groups::Dc(group)
-        } else {
-            let group = plain_to_op(&runner, &md, group, &replies)?;
-            if config.bus.dc {
-                let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
-            }
-            Groups::Plain(group)
-        };
-        let _ = writeln!(
-            out,
-            "all slaves in SafeOp: the cycle takes them to OP (at most {} s)",
-            transition::OP_TIMEOUT.as_secs()
-        );
-        let group_ref = &group;
-        let addresses: Vec<u16> =
-            with_group!(group_ref, g => g.iter(&md).map(|sd| sd.configured_address()).collect());
-        let image = with_group!(group_ref, g => ProcessImage::of_group(g, &md, MAX_DATAGRAM))
+        let group = discover(&runner, &md, &replies, out)?;
+        map_axes_pdos(config, &runner, &md, &group, &replies, out)?;
+        let group = to_safe_op(config, &runner, &md, group, &replies, out)?;
+        let image = with_group!(&group, g => ProcessImage::of_group(g, &md, MAX_DATAGRAM))
             .map_err(|e| StartError::setup("the process data image")(e.into()))?;
-        // The reference clock: ethercrab's, the first slave with DC (`dc::configure_dc`).
-        let dc_reference = with_group!(group_ref, g => g
-            .iter(&md)
-            .find(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None))
-            .map(|sd| sd.configured_address()));
-        let dt = f64::from(config.bus.cycle_us) * 1e-6;
-        let kernel = Kernel::new(dt, config.kernel_axes.clone())
-            .map_err(|e| StartError::setup("the motion kernel")(e.into()))?;
-        let f = config.bus.faults;
-        let health = BusHealth::new(
-            HealthConfig {
-                lost_frames_limit: f.lost_frames_limit,
-                working_counter_limit: f.working_counter_limit,
-                stop_all_on_slave_loss: f.stop_all_on_slave_loss,
-            },
-            addresses,
-            image.slave_working_counters(),
-        )
-        .starting(
-            (transition::OP_TIMEOUT.as_micros() as u64 / u64::from(config.bus.cycle_us)) as u32,
-            transition::OP_TIMEOUT.as_millis() as u64,
-        );
-        let slaves = with_group!(group_ref, g => g.len());
+        let health = watch_health(config, &md, &group, &image);
         let dc = DcStatus {
             active: matches!(group, Groups::Dc(_)),
             ..DcStatus::default()
         };
-        let dc_reference = dc_reference.filter(|_| dc.active);
-        Ok((
-            Self {
-                md,
-                group,
-                dc,
-                dc_reference,
-                sync0_ns: u64::from(config.bus.cycle_us) * 1000,
-                dc_measured: false,
-                image,
-                frame_stats: FrameStats::default(),
-                drives: config.axes.iter().map(|a| a.drive).collect(),
-                states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
-                chain,
-                host_time,
-                replies,
-                runner,
-                recovery: None,
-                recovered: None,
-                op_request: OpRequest::Waiting,
-            },
-            CspCycle::new(kernel, channels),
+        // The reference clock: ethercrab's, the first slave with DC (`dc::configure_dc`).
+        let dc_reference = with_group!(&group, g => g
+            .iter(&md)
+            .find(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None))
+            .map(|sd| sd.configured_address()))
+        .filter(|_| dc.active);
+        let slaves = with_group!(&group, g => g.len());
+        Ok(Self {
+            md,
+            group,
+            dc,
+            dc_reference,
+            sync0_ns: u64::from(config.bus.cycle_us) * 1000,
+            dc_measured: false,
+            image,
+            frame_stats: FrameStats::default(),
             health,
-        ))
+            faults: vec![None; slaves],
+            states: Vec::with_capacity(slaves.max(MAX_SLAVES)),
+            chain: opened.chain,
+            host_time: opened.host_time,
+            replies,
+            runner,
+            recovery: None,
+            recovered: None,
+            op_request: OpRequest::Waiting,
+        })
+    }
+
+    /// The bus' health: what its exchanges said so far (lost frames, working counters,
+    /// the slaves' states).
+    pub fn health(&self) -> &BusHealth {
+        &self.health
+    }
+
+    /// Notes, per slave, the reason the cycle cannot reach it, after each change of the
+    /// health's verdicts: made once per new fault, no formatting while a fault stays.
+    fn note_faults(&mut self) {
+        for (i, slot) in self.faults.iter_mut().enumerate() {
+            let fault = self.health.fault(i);
+            if slot.map(|(f, _)| f) != fault {
+                *slot = fault.map(|f| (f, Unreachable::new(&f)));
+            }
+        }
     }
 
     /// Replies the slaves sent back so far (every frame: process data, register
@@ -673,6 +532,232 @@ fn step_error(step: &'static str, cause: impl Into<Cause>) -> StartError {
     }
 }
 
+/// The group as discovery leaves it: every slave in PreOp.
+type GroupPreOp =
+    SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, ethercrab::subdevice_group::PreOp>;
+
+/// Bring-up, step 1: the capture file of `[bus] pcap`, if any.
+fn open_capture(config: &Config) -> Result<Option<Capture>, StartError> {
+    let Some(path) = &config.bus.pcap else {
+        return Ok(None);
+    };
+    std::fs::File::create(path)
+        .map_err(Cause::from)
+        .and_then(|f| PcapWriter::new(std::io::BufWriter::new(f)).map_err(Cause::from))
+        .map(Some)
+        .map_err(StartError::link(format!("pcap {path}")))
+}
+
+/// The link a bring-up opened, and the in-process chain behind it, if it is one.
+struct OpenedLink {
+    link: Box<dyn Link>,
+    chain: Option<Arc<Mutex<gantry_sim::chain::SlaveChain>>>,
+    host_time: Option<HostTime>,
+}
+
+/// Bring-up, step 2: the link the cycle thread exchanges its frames on itself — a raw
+/// socket on `[bus] interface`, or the wire to the in-process simulator of
+/// `[bus] simulator`, reached by `sim_link`.
+fn open_link(config: &Config, sim_link: SimLink) -> Result<OpenedLink, StartError> {
+    match (&config.bus.interface, &config.bus.simulator) {
+        (Some(interface), _) => Ok(OpenedLink {
+            link: Box::new(
+                RawLink::open(interface)
+                    .map_err(|e| StartError::link(format!("interface {interface}"))(e.into()))?,
+            ),
+            chain: None,
+            host_time: None,
+        }),
+        (None, Some(sim)) => start_simulator(sim, sim_link),
+        (None, None) => Err(StartError::NoLink("no interface and no simulator")),
+    }
+}
+
+/// The in-process simulator of the configuration file `sim`, reached by `sim_link`.
+fn start_simulator(sim: &str, sim_link: SimLink) -> Result<OpenedLink, StartError> {
+    let sim = SimConfig::load(sim)
+        .map_err(|e| StartError::link("the simulator's configuration")(e.into()))?;
+    let chain = sim
+        .chain()
+        .map_err(|e| StartError::link("the simulated slaves")(e.into()))?;
+    let chain = Arc::new(Mutex::new(chain));
+    let period = Duration::from_micros(u64::from(sim.cycle_us));
+    let (link, host_time): (Box<dyn Link>, _) = match sim_link {
+        SimLink::Thread => (
+            Box::new(
+                SimWire::start(chain.clone(), period)
+                    .map_err(|e| StartError::link("the simulator's thread")(e.into()))?,
+            ),
+            None,
+        ),
+        SimLink::Lockstep => {
+            let time = chain
+                .lock()
+                .map(|c| HostTime::start(&c, period))
+                .map_err(|_| StartError::NoLink("the simulated chain's lock"))?;
+            (
+                Box::new(ChainLink::new(chain.clone(), time.clone())),
+                Some(time),
+            )
+        }
+    };
+    Ok(OpenedLink {
+        link,
+        chain: Some(chain),
+        host_time,
+    })
+}
+
+/// Bring-up, step 3: discovery (every slave's EEPROM read, the DC delays measured); prints
+/// the slaves found.
+#[inline(never)]
+fn discover(
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    replies: &AtomicU64,
+    out: &mut (dyn Write + Send),
+) -> Result<GroupPreOp, StartError> {
+    // Every step is bounded here (ethercrab has no timeouts, see NO_TIMERS).
+    let group = runner
+        .run_step(
+            || md.init_single_group::<MAX_SLAVES, MAX_PDI>(ethercat_now),
+            replies,
+            BRING_UP_SILENCE_NS,
+            DISCOVERY_LIMIT_NS,
+        )
+        .map_err(|e| step_error("discovery", e))?
+        .map_err(|e| step_error("discovery", e))?;
+    let _ = writeln!(out, "found {} EtherCAT slaves", group.len());
+    for (i, sd) in group.iter(md).enumerate() {
+        let _ = writeln!(
+            out,
+            "  {i}: {:#06x} {} ({})",
+            sd.configured_address(),
+            sd.name(),
+            sd.identity()
+        );
+    }
+    Ok(group)
+}
+
+/// Bring-up, step 4: each axis' drive is there and gets its PDO layout, by SDO in PreOp.
+#[inline(never)]
+fn map_axes_pdos(
+    config: &Config,
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    group: &GroupPreOp,
+    replies: &AtomicU64,
+    out: &mut (dyn Write + Send),
+) -> Result<(), StartError> {
+    for a in &config.axes {
+        if a.drive >= group.len() {
+            return Err(StartError::MissingDrive {
+                path: config.path.clone(),
+                axis: a.name.clone(),
+                drive: a.drive,
+                slaves: group.len(),
+            });
+        }
+        let layout = a.pdo_layout().map_err(|(key, reason)| StartError::Axis {
+            axis: a.name.clone(),
+            key,
+            reason,
+        })?;
+        let sd = group
+            .subdevice(md, a.drive)
+            .map_err(|e| step_error("addressing", e))?;
+        runner
+            .run_step(
+                || map_pdos(&sd, &layout),
+                replies,
+                BRING_UP_SILENCE_NS,
+                STEP_LIMIT_NS,
+            )
+            .map_err(|e| step_error("PDO mapping", e))?
+            .map_err(|e| StartError::setup(format!("axis {:?}: PDO mapping", a.name))(e.into()))?;
+    }
+    let _ = writeln!(out, "PDOs mapped for {} axes", config.axes.len());
+    Ok(())
+}
+
+/// Bring-up, step 5: the process data set up and the slaves to SafeOp, with distributed
+/// clocks (SYNC0 at the cycle time) when the configuration asks for them and a slave has
+/// them. The cycle takes the slaves on to OP.
+#[inline(never)]
+fn to_safe_op(
+    config: &Config,
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    mut group: GroupPreOp,
+    replies: &AtomicU64,
+    out: &mut (dyn Write + Send),
+) -> Result<Groups, StartError> {
+    let dc_capable = group
+        .iter(md)
+        .any(|sd| !matches!(sd.dc_support(), ethercrab::DcSupport::None));
+    let group = if config.bus.dc && dc_capable {
+        // SYNC0 at the cycle time, starting well after OP is reached.
+        let dc = DcConfiguration {
+            start_delay: Duration::from_millis(100),
+            sync0_period: Duration::from_micros(u64::from(config.bus.cycle_us)),
+            sync0_shift: Duration::ZERO,
+        };
+        // Every slave with DC generates SYNC0 (its AssignActivate).
+        for mut sd in group.iter_mut(md) {
+            if !matches!(sd.dc_support(), ethercrab::DcSupport::None) {
+                sd.set_dc_sync(ethercrab::DcSync::Sync0);
+            }
+        }
+        let group = dc_to_op(runner, md, group, dc, replies)?;
+        let _ = writeln!(
+            out,
+            "distributed clocks: SYNC0 every {} µs",
+            config.bus.cycle_us
+        );
+        Groups::Dc(group)
+    } else {
+        let group = plain_to_op(runner, md, group, replies)?;
+        if config.bus.dc {
+            let _ = writeln!(out, "distributed clocks: no slave has DC; free run");
+        }
+        Groups::Plain(group)
+    };
+    let _ = writeln!(
+        out,
+        "all slaves in SafeOp: the cycle takes them to OP (at most {} s)",
+        transition::OP_TIMEOUT.as_secs()
+    );
+    Ok(group)
+}
+
+/// Bring-up, step 6: the health monitor of the bus' slaves and process data, with the
+/// configuration's fault limits, the slaves given [`transition::OP_TIMEOUT`] to reach OP.
+fn watch_health(
+    config: &Config,
+    md: &MainDevice<'static>,
+    group: &Groups,
+    image: &ProcessImage,
+) -> BusHealth {
+    let addresses: Vec<u16> =
+        with_group!(group, g => g.iter(md).map(|sd| sd.configured_address()).collect());
+    let f = config.bus.faults;
+    // LRW: a slave counts 2 per datagram its outputs are in, 1 per datagram its inputs are.
+    BusHealth::new(
+        HealthConfig {
+            lost_frames_limit: f.lost_frames_limit,
+            working_counter_limit: f.working_counter_limit,
+            stop_all_on_slave_loss: f.stop_all_on_slave_loss,
+        },
+        addresses,
+        image.slave_working_counters(),
+    )
+    .starting(
+        (transition::OP_TIMEOUT.as_micros() as u64 / u64::from(config.bus.cycle_us)) as u32,
+        transition::OP_TIMEOUT.as_millis() as u64,
+    )
+}
+
 /// PreOp to OP with distributed clocks: process data (SyncManagers, FMMUs) first, then
 /// the clocks. Its own function (never inlined) so that these large futures do not
 /// share the stack frame of the rest of the bring-up.
@@ -680,12 +765,7 @@ fn step_error(step: &'static str, cause: impl Into<Cause>) -> StartError {
 fn dc_to_op(
     runner: &BlockOn,
     md: &MainDevice<'static>,
-    group: SubDeviceGroup<
-        MAX_SLAVES,
-        MAX_PDI,
-        ethercrab::DefaultLock,
-        ethercrab::subdevice_group::PreOp,
-    >,
+    group: GroupPreOp,
     dc: DcConfiguration,
     replies: &AtomicU64,
 ) -> Result<GroupDc, StartError> {
@@ -723,12 +803,7 @@ fn dc_to_op(
 fn plain_to_op(
     runner: &BlockOn,
     md: &MainDevice<'static>,
-    group: SubDeviceGroup<
-        MAX_SLAVES,
-        MAX_PDI,
-        ethercrab::DefaultLock,
-        ethercrab::subdevice_group::PreOp,
-    >,
+    group: GroupPreOp,
     replies: &AtomicU64,
 ) -> Result<Group, StartError> {
     runner
@@ -743,38 +818,30 @@ fn plain_to_op(
 }
 
 impl CycleBus for EthercatBus {
-    fn read_inputs(&mut self, cycle: &mut CspCycle, health: &BusHealth) -> Result<(), CycleError> {
-        for (axis, &drive) in self.drives.iter().enumerate() {
-            if health.fault(drive).is_some() {
-                cycle.comm_fault(axis)?;
-                continue;
-            }
-            // Inputs that did not come with the last exchange (a lost frame, or a wrong
-            // working counter whose cause the states read next cycle tell): none decoded,
-            // the axis keeps last cycle's feedback, as it does through a lost frame.
-            if !health.inputs_fresh(drive) {
-                continue;
-            }
-            cycle.read_inputs(axis, self.image.inputs(drive))?;
-        }
-        Ok(())
+    fn drives(&self) -> usize {
+        self.image.len()
     }
 
-    fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError> {
-        for (axis, &drive) in self.drives.iter().enumerate() {
-            cycle.write_outputs(axis, self.image.outputs_mut(drive))?;
-        }
-        Ok(())
+    fn inputs(&self, drive: usize) -> &[u8] {
+        self.image.inputs(drive)
     }
 
-    fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64) {
+    fn outputs(&self, drive: usize) -> &[u8] {
+        self.image.outputs(drive)
+    }
+
+    fn outputs_mut(&mut self, drive: usize) -> &mut [u8] {
+        self.image.outputs_mut(drive)
+    }
+
+    fn exchange(&mut self, deadline_ns: u64) -> Reply {
         // A recovery in progress does one register access beside the process data,
         // under the same deadline.
         let (md, runner) = (&self.md, &self.runner);
-        let recovering = self.recovery.as_ref().and_then(|(axis, r)| {
-            let drive = self.drives.get(*axis).copied()?;
-            Some((drive, r.next_access()?))
-        });
+        let recovering = self
+            .recovery
+            .as_ref()
+            .and_then(|(drive, r)| Some((*drive, r.next_access()?)));
         // Otherwise the request for OP at start, slave by slave.
         let asking = match (recovering, self.op_request) {
             (None, OpRequest::Asking(k)) => Some(k),
@@ -786,8 +853,8 @@ impl CycleBus for EthercatBus {
         // while a fault stands, each slave's state is read (ethercrab's `tx_rx`); one
         // steady cycle in `AL_STATUS_EVERY` reads their summary; otherwise the LRW goes
         // alone (see `BusHealth::reads_states`).
-        let read_states = health.reads_states();
-        let summary = !read_states && health.reads_summary();
+        let read_states = self.health.reads_states();
+        let summary = !read_states && self.health.reads_summary();
         let (image, states, stats) = (&mut self.image, &mut self.states, &mut self.frame_stats);
         let (dc_reference, group) = (self.dc_reference, &self.group);
         let (answer, accessed) = with_group!(group, g => {
@@ -823,14 +890,14 @@ impl CycleBus for EthercatBus {
             // No reply by the deadline.
             None => None,
         };
-        match answer {
+        let reply = match answer {
             Some((working_counter, read)) => {
                 let states = match read {
                     Read::Nothing => States::NotRead,
                     Read::Summary(all_in_op) => States::Summary { all_in_op },
                     Read::Each => States::Each(&self.states),
                 };
-                health.record(Exchange::Answered {
+                self.health.record(Exchange::Answered {
                     working_counter,
                     states,
                 });
@@ -838,13 +905,18 @@ impl CycleBus for EthercatBus {
                 // of the slaves that exchanged are taken (the others' are whatever
                 // ethercrab last had).
                 if read == Read::Each {
-                    let (image, md) = (&mut self.image, &self.md);
+                    let (image, md, health) = (&mut self.image, &self.md, &self.health);
                     with_group!(&self.group, g => image.take_inputs(g, md, |i| health.inputs_fresh(i)));
                 }
+                Reply::Answered
             }
             // No reply by the deadline, or the frame could not be sent.
-            None => health.record(Exchange::Lost),
-        }
+            None => {
+                self.health.record(Exchange::Lost);
+                Reply::Lost
+            }
+        };
+        self.note_faults();
         if let Some(k) = asking {
             // Not taken (lost frame, no answer): the same slave again next cycle.
             if accessed == Some(Answer::Written) {
@@ -855,50 +927,81 @@ impl CycleBus for EthercatBus {
                     OpRequest::Asking(k + 1)
                 };
             }
-        } else if let Some((axis, recovery)) = self.recovery.as_mut() {
+        } else if let Some((_, recovery)) = self.recovery.as_mut() {
             recovery.on_answer(accessed.unwrap_or(Answer::None), now_ns());
             if let Some(outcome) = recovery.outcome() {
-                self.recovered = Some((*axis, outcome));
+                self.recovered = Some(outcome);
                 self.recovery = None;
             }
         }
+        reply
     }
 
-    fn start_recovery(&mut self, axis: usize, now_ns: u64, timeout_ns: u64) -> bool {
-        if self.recovery.is_some() {
-            return false;
-        }
-        let address = with_group!(&self.group, g => g
-            .subdevice(&self.md, self.drive_of(axis))
-            .map(|sd| sd.configured_address()));
-        match address {
-            Ok(address) => self.recovery = Some((axis, Recovery::new(address, now_ns, timeout_ns))),
-            // No such slave: it cannot come back.
-            Err(_) => {
-                self.recovered = Some((
-                    axis,
-                    Err(RecoveryError::NoAnswer {
-                        address: 0,
-                        waited_ms: 0,
-                    }),
-                ))
-            }
-        }
-        true
+    fn fault(&self, drive: usize) -> Option<&Unreachable> {
+        self.faults.get(drive)?.as_ref().map(|(_, reason)| reason)
     }
 
-    fn request_op(&mut self) {
+    fn inputs_fresh(&self, drive: usize) -> bool {
+        self.health.inputs_fresh(drive)
+    }
+
+    fn any_fault(&self) -> bool {
+        self.health.any_fault()
+    }
+
+    fn clear_faults(&mut self) {
+        self.health.clear();
+        self.note_faults();
+    }
+
+    fn counters(&self) -> BusCounters {
+        BusCounters {
+            lost: self.health.lost_total,
+            incomplete: self.health.wkc_total,
+        }
+    }
+
+    fn start_operation(&mut self) {
         if self.op_request == OpRequest::Waiting {
             self.op_request = OpRequest::Asking(0);
         }
     }
 
-    fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)> {
-        self.recovered.take()
+    /// Brings the slave at `drive` back to OP (`ethercat::recovery`: its error
+    /// acknowledged, then OP requested, one register access per exchange).
+    fn start_restore(&mut self, drive: usize, now_ns: u64, timeout_ns: u64) -> bool {
+        if self.recovery.is_some() {
+            return false;
+        }
+        let address = with_group!(&self.group, g => g
+            .subdevice(&self.md, drive)
+            .map(|sd| sd.configured_address()));
+        match address {
+            Ok(address) => {
+                self.recovery = Some((drive, Recovery::new(address, now_ns, timeout_ns)))
+            }
+            // No such slave: it cannot come back.
+            Err(_) => {
+                self.recovered = Some(Err(RecoveryError::NoAnswer {
+                    address: 0,
+                    waited_ms: 0,
+                }))
+            }
+        }
+        true
     }
 
-    fn drive_of(&self, axis: usize) -> usize {
-        self.drives.get(axis).copied().unwrap_or(usize::MAX)
+    fn take_restored(&mut self) -> Option<Result<Restored, CommandError>> {
+        let outcome = self.recovered.take()?;
+        Some(match outcome {
+            Ok(Recovered::WasInOp) => Ok(Restored::WasOperational),
+            Ok(Recovered::BackInOp) => Ok(Restored::BackInOperation),
+            Err(e) => Err(e.command_error()),
+        })
+    }
+
+    fn restore_timeout_ns(&self) -> u64 {
+        recovery::RECOVERY_TIMEOUT_NS
     }
 
     fn dc_offset_ns(&self) -> Option<u64> {

@@ -244,6 +244,15 @@ impl ProcessImage {
             .unwrap_or_default()
     }
 
+    /// Slave `i`'s outputs as the next exchange sends them (empty if there is no such
+    /// slave).
+    pub fn outputs(&self, i: usize) -> &[u8] {
+        self.slaves
+            .get(i)
+            .and_then(|s| self.bytes.get(s.outputs.clone()))
+            .unwrap_or_default()
+    }
+
     /// Slave `i`'s outputs (empty if there is no such slave).
     pub fn outputs_mut(&mut self, i: usize) -> &mut [u8] {
         match self.slaves.get(i) {

@@ -33,10 +33,6 @@ use thiserror::Error;
 /// to see a slave that left OP while its working counter stayed right: 100 ms at 1 ms.
 pub const AL_STATUS_EVERY: u32 = 100;
 
-/// Error code fed to the kernel for an axis whose drive cannot be reached (CiA 301
-/// emergency class 0x81xx, "communication"); the reason is in [`BusFault`].
-pub const COMMUNICATION_FAULT: u16 = 0x8100;
-
 /// How much trouble is ridden through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HealthConfig {

@@ -1,11 +1,10 @@
-//! gantry's EtherCAT master on ethercrab: the embedded bus (frames to a simulated chain in
-//! this process) and the cyclic exchange that joins the kernel, the CiA-402 layer and the
-//! process data.
+//! gantry's EtherCAT master on ethercrab: the bus' bring-up (to SafeOp), its cyclic
+//! exchange of the process data, its health and the recovery of slaves — one
+//! implementation of [`crate::runtime::bus::CycleBus`], on a network interface or on the
+//! in-process simulator's chain.
 
 pub mod bus;
 pub mod coalesce;
-pub mod cycle;
-pub mod cyclic;
 pub mod doorbell;
 pub mod embedded;
 pub mod frame;

@@ -1,36 +1,65 @@
-//! What the cycle needs from a bus, so the engine does not care which one it drives.
+//! What the cycle needs from a bus, so the engine does not care which one it drives: it
+//! moves each drive's process data bytes, says which drives it cannot reach and why, and
+//! brings a drive back when a reset asks for it. The EtherCAT bus is one
+//! implementation; every bus-specific notion (AL states, working counters, SII) stays in
+//! it, behind the text of [`Unreachable`] and the kernel's [`CommandError`].
 
-use crate::ethercat::cycle::{CspCycle, CycleError};
-use crate::ethercat::health::BusHealth;
-use crate::ethercat::recovery::{Recovered, RecoveryError};
+use std::fmt;
 
-/// A bus as the cycle uses it. Every method runs in the cycle thread: no allocation, no
-/// lock that the application could hold.
+use gantry_kernel::axis::command::CommandError;
+
+/// A bus as the cycle uses it. Drives are named by their position on the bus (what an
+/// axis' `drive` says in the configuration). Every method runs in the cycle thread: no
+/// allocation, no lock that the application could hold.
 pub trait CycleBus {
-    /// Decodes every axis' drive inputs into `cycle`; an axis whose drive the bus cannot
-    /// reach (per `health`) gets a communication fault instead.
-    fn read_inputs(&mut self, cycle: &mut CspCycle, health: &BusHealth) -> Result<(), CycleError>;
-    /// Encodes every axis' outputs.
-    fn write_outputs(&mut self, cycle: &mut CspCycle) -> Result<(), CycleError>;
+    /// Positions on the bus (`0..drives()`), drives or not.
+    fn drives(&self) -> usize;
+    /// Drive `drive`'s input bytes as the last exchange left them (empty if there is no
+    /// such drive).
+    fn inputs(&self, drive: usize) -> &[u8];
+    /// Drive `drive`'s output bytes as the next exchange sends them (empty if there is no
+    /// such drive).
+    fn outputs(&self, drive: usize) -> &[u8];
+    /// Drive `drive`'s output bytes, to write (empty if there is no such drive).
+    fn outputs_mut(&mut self, drive: usize) -> &mut [u8];
     /// Sends the outputs and receives the inputs, waiting for them until `deadline_ns`
-    /// (CLOCK_MONOTONIC) at most; records the outcome in `health` (no reply by then is a
-    /// lost frame).
-    fn exchange(&mut self, health: &mut BusHealth, deadline_ns: u64);
-    /// Starts bringing the slave of `axis` back to OP if it left: from the next exchange
-    /// on, each exchange also runs one register access of it (`ethercat::recovery`)
-    /// under the same deadline, until it is back, refuses, or `timeout_ns` after `now_ns`
-    /// passes. False (nothing started) while another recovery is running.
-    fn start_recovery(&mut self, axis: usize, now_ns: u64, timeout_ns: u64) -> bool;
-    /// The cycle is ready for the slaves to go to OP (in phase with SYNC0, where it locks
-    /// to it): from the next exchange on, each asks one slave for OP beside the process
-    /// data, until every slave was asked. The bus came up with its slaves in SafeOp.
-    fn request_op(&mut self);
-    /// A finished recovery: the axis that asked and the outcome (taken once).
-    fn take_recovered(&mut self) -> Option<(usize, Result<Recovered, RecoveryError>)>;
-    /// The chain position of `axis`' drive.
-    fn drive_of(&self, axis: usize) -> usize;
-    /// With distributed clocks: where in the SYNC0 period the last frame reached the
-    /// reference clock (ns). `None` without DC.
+    /// (CLOCK_MONOTONIC) at most (no reply by then is a lost exchange); the bus judges
+    /// its health from what came back ([`CycleBus::fault`]).
+    fn exchange(&mut self, deadline_ns: u64) -> Reply;
+    /// Why the cycle cannot reach drive `drive`, if it cannot: its axes get a
+    /// communication fault instead of its inputs.
+    fn fault(&self, drive: usize) -> Option<&Unreachable>;
+    /// Whether drive `drive`'s inputs came with the last exchange. A bus that cannot tell
+    /// yet whose bytes in a reply are stale (EtherCAT: a wrong working counter, judged with
+    /// the slaves' states read next cycle) or got no reply says no: the cycle then decodes
+    /// none, its axes keep what they had.
+    fn inputs_fresh(&self, drive: usize) -> bool {
+        let _ = drive;
+        true
+    }
+    /// Whether any drive cannot be reached.
+    fn any_fault(&self) -> bool;
+    /// Forgets the faults once a drive is back (after a reset); they return with the next
+    /// exchange if their cause is still there.
+    fn clear_faults(&mut self);
+    /// Exchanges lost and answered incomplete since start.
+    fn counters(&self) -> BusCounters;
+    /// The cycle is ready for the drives to go operational (in phase with the bus' clock,
+    /// where it locks to it): from the next exchange on the bus takes them there beside
+    /// the process data. The bus came up with the process data running and the drives
+    /// not yet operational.
+    fn start_operation(&mut self);
+    /// Starts bringing drive `drive` back to operation if it left (a reset): from the
+    /// next exchange on, each exchange does one step of it under the same deadline, until
+    /// it is back, refuses, or `timeout_ns` after `now_ns` passes. False (nothing
+    /// started) while another one is running.
+    fn start_restore(&mut self, drive: usize, now_ns: u64, timeout_ns: u64) -> bool;
+    /// How the last restore ended, once it has (taken once).
+    fn take_restored(&mut self) -> Option<Result<Restored, CommandError>>;
+    /// How long a drive may take to come back before its reset fails (ns).
+    fn restore_timeout_ns(&self) -> u64;
+    /// With a clock shared with the drives (EtherCAT's distributed clocks): where in the
+    /// drives' sync period the last exchange reached it (ns). `None` without one.
     fn dc_offset_ns(&self) -> Option<u64> {
         None
     }
@@ -39,5 +68,131 @@ pub trait CycleBus {
     /// corrected for).
     fn dc_measured(&self) -> bool {
         true
+    }
+}
+
+/// How an exchange went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reply {
+    /// The reply came back in time (complete or not: see [`CycleBus::fault`]).
+    Answered,
+    /// No reply by the deadline, or nothing could be sent.
+    Lost,
+}
+
+/// What a restore did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Restored {
+    /// The drive was operational already.
+    WasOperational,
+    /// Its error was acknowledged and it is operational again.
+    BackInOperation,
+}
+
+/// The bus' counters since start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusCounters {
+    /// Exchanges whose reply did not come back in time.
+    pub lost: u64,
+    /// Exchanges answered incomplete (on EtherCAT: a wrong working counter).
+    pub incomplete: u64,
+}
+
+/// Room for the text of a reason (the longest EtherCAT one is about 100 bytes).
+const REASON_BYTES: usize = 160;
+
+/// Why the cycle cannot reach a drive: the bus' own reason, as it displays it. `Copy` and
+/// fixed-size, so the cycle thread hands it to the application without allocating; the
+/// bus makes it once, when the fault arises.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Unreachable {
+    len: u8,
+    text: [u8; REASON_BYTES],
+}
+
+impl Unreachable {
+    /// The reason `reason` displays (without allocating; a text longer than
+    /// 160 bytes is cut at a character boundary).
+    pub fn new(reason: &impl fmt::Display) -> Self {
+        let mut text = Text {
+            len: 0,
+            bytes: [0; REASON_BYTES],
+        };
+        // `Text` never fails: it drops what does not fit.
+        let _ = fmt::write(&mut text, format_args!("{reason}"));
+        Self {
+            len: text.len as u8,
+            text: text.bytes,
+        }
+    }
+
+    /// The reason.
+    pub fn reason(&self) -> &str {
+        let bytes = self.text.get(..usize::from(self.len)).unwrap_or_default();
+        // Only whole characters were copied in (see `Text`).
+        std::str::from_utf8(bytes).unwrap_or_default()
+    }
+}
+
+impl fmt::Display for Unreachable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.reason())
+    }
+}
+
+impl fmt::Debug for Unreachable {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_tuple("Unreachable").field(&self.reason()).finish()
+    }
+}
+
+impl std::error::Error for Unreachable {}
+
+/// A fixed buffer that takes whole characters while they fit.
+struct Text {
+    len: usize,
+    bytes: [u8; REASON_BYTES],
+}
+
+impl fmt::Write for Text {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        for c in s.chars() {
+            let mut utf8 = [0u8; 4];
+            let c = c.encode_utf8(&mut utf8).as_bytes();
+            let end = self.len + c.len();
+            match self.bytes.get_mut(self.len..end) {
+                Some(dst) => {
+                    dst.copy_from_slice(c);
+                    self.len = end;
+                }
+                None => return Ok(()),
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_reason_displays_as_the_bus_said_it() {
+        let r = Unreachable::new(&"EtherCAT: slave 1 (0x1001) left OP: now Safe-Operational");
+        assert_eq!(
+            r.to_string(),
+            "EtherCAT: slave 1 (0x1001) left OP: now Safe-Operational"
+        );
+        assert_eq!(Unreachable::new(&format_args!("{}", 7)).reason(), "7");
+    }
+
+    #[test]
+    fn a_reason_too_long_is_cut_at_a_character() {
+        let long = "é".repeat(REASON_BYTES);
+        let r = Unreachable::new(&long);
+        assert_eq!(r.reason().len(), REASON_BYTES);
+        assert!(r.reason().chars().all(|c| c == 'é'));
+        let odd = format!("x{long}");
+        assert_eq!(Unreachable::new(&odd).reason().len(), REASON_BYTES - 1);
     }
 }

@@ -1,5 +1,7 @@
-//! The cycle clock: absolute deadlines on CLOCK_MONOTONIC, so a late wake-up does not
-//! shift every later cycle (relative sleeps drift by the sum of all latencies).
+//! The cycle's clocks. [`CycleClock`]: absolute deadlines on CLOCK_MONOTONIC, so a late
+//! wake-up does not shift every later cycle (relative sleeps drift by the sum of all
+//! latencies). [`StepClock`]: no waiting at all, a simulated network's time moved one cycle
+//! per cycle — the same engine loop in lockstep, for the demo and the tests.
 
 use nix::sys::time::TimeSpec;
 use nix::time::{clock_gettime, clock_nanosleep, ClockId, ClockNanosleepFlags};
@@ -14,6 +16,76 @@ pub fn now_ns() -> u64 {
 /// What a cycle keeps after its reply deadline for the rest of its work (publishing the
 /// status, the trace) before the next deadline: at most a tenth of the period.
 const REPLY_MARGIN_NS: u64 = 50_000;
+
+/// Where the engine's cycles get their time from ([`crate::runtime::engine::Engine::cycle`]).
+pub trait Clock {
+    /// Waits for the next cycle's start; what the wait saw.
+    fn wait(&mut self) -> Wake;
+    /// Moves every later cycle start by `ns` (negative: earlier), to hold the cycle in
+    /// phase with another clock (SYNC0). Callers keep `ns` small against the period.
+    fn shift(&mut self, ns: i64);
+}
+
+impl Clock for CycleClock {
+    fn wait(&mut self) -> Wake {
+        CycleClock::wait(self)
+    }
+
+    fn shift(&mut self, ns: i64) {
+        CycleClock::shift(self, ns);
+    }
+}
+
+/// Lockstep: a cycle starts as soon as the last one ended, and each start moves a
+/// simulated network's time on by one period (shifted as the engine asks) through
+/// `advance`, which brings the network to the time it is given (ns on the network's
+/// clock). Whatever the host does, the devices see a master exactly on time.
+pub struct StepClock<F: FnMut(u64)> {
+    period_ns: u64,
+    next_ns: u64,
+    advance: F,
+}
+
+impl<F: FnMut(u64)> StepClock<F> {
+    /// Cycles every `period_ns` of network time from `start_ns` (the network's time now).
+    pub fn new(period_ns: u64, start_ns: u64, advance: F) -> Self {
+        Self {
+            period_ns,
+            next_ns: start_ns,
+            advance,
+        }
+    }
+}
+
+impl<F: FnMut(u64)> std::fmt::Debug for StepClock<F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StepClock")
+            .field("period_ns", &self.period_ns)
+            .field("next_ns", &self.next_ns)
+            .finish()
+    }
+}
+
+impl<F: FnMut(u64)> Clock for StepClock<F> {
+    /// Never late, never an overrun; the reply deadline is a period of host time away
+    /// (a lockstep bus answers before the exchange looks).
+    fn wait(&mut self) -> Wake {
+        self.next_ns = self.next_ns.saturating_add(self.period_ns);
+        (self.advance)(self.next_ns);
+        let now = now_ns();
+        Wake {
+            deadline_ns: now,
+            reply_by_ns: now + self.period_ns,
+            latency_ns: 0,
+            overrun: false,
+            period_ns: self.period_ns,
+        }
+    }
+
+    fn shift(&mut self, ns: i64) {
+        self.next_ns = self.next_ns.saturating_add_signed(ns);
+    }
+}
 
 /// Deadlines every `period_ns` from a start time.
 #[derive(Clone, Copy, Debug)]

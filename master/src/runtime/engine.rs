@@ -8,16 +8,14 @@ use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
-use super::bus::CycleBus;
-use super::clock::{now_ns, CycleClock, Wake};
+use super::bus::{CycleBus, Reply};
+use super::clock::{now_ns, Clock, CycleClock, Wake};
+use super::cycle::{Cycle, COMMUNICATION_FAULT};
 use super::phase::PhaseLock;
 use super::protocol::{
     DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
 };
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
-use crate::ethercat::cycle::CspCycle;
-use crate::ethercat::health::{BusHealth, COMMUNICATION_FAULT};
-use crate::ethercat::recovery::RECOVERY_TIMEOUT_NS;
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
 const REQUESTS_PER_CYCLE: usize = 32;
@@ -122,9 +120,7 @@ pub struct Engine<B: CycleBus> {
     /// The bus.
     pub bus: B,
     /// Kernel and CiA-402 channels.
-    pub cycle: CspCycle,
-    /// Bus health.
-    pub health: BusHealth,
+    pub cycle: Cycle,
     requests: rtrb::Consumer<Request>,
     snapshot: triple_buffer::Input<Snapshot>,
     trace: rtrb::Producer<TraceSample>,
@@ -140,7 +136,7 @@ pub struct Engine<B: CycleBus> {
     answered: bool,
     phase: Phase,
     cycles: u64,
-    /// Per axis: the id of a reset waiting for its slave to come back to OP.
+    /// Per axis: the id of a reset waiting for its drive to come back to operation.
     resets: Vec<Option<u64>>,
     /// Per axis: the id of a reset waiting for the kernel to see its drive as it is (see
     /// [`Engine::reset`]).
@@ -149,11 +145,11 @@ pub struct Engine<B: CycleBus> {
     /// instead of what its drive said: a bus fault on its drive in force when the inputs
     /// were read (the communication fault), or the overrun stop (0x6100).
     forced_faults_at: Vec<Option<u64>>,
-    /// The axis whose slave the bus is bringing back now.
+    /// The axis whose drive the bus is bringing back now.
     recovering: Option<usize>,
     /// Where the search for the next waiting reset starts (round robin).
     next_reset: usize,
-    /// How long a slave may take to come back before its reset fails.
+    /// How long a drive may take to come back before its reset fails.
     recovery_timeout_ns: u64,
     /// Answered cycles in a row whose frame the phase lock held, at start; `None` once
     /// the slaves were asked for OP.
@@ -167,23 +163,16 @@ pub const HELD_BEFORE_OP: u32 = 20;
 
 impl<B: CycleBus> Engine<B> {
     /// An engine and the application's ends of its channels (allocates, once).
-    pub fn new(
-        bus: B,
-        cycle: CspCycle,
-        health: BusHealth,
-        overrun_limit: u32,
-        trace_capacity: usize,
-    ) -> (Self, AppEnds) {
+    pub fn new(bus: B, cycle: Cycle, overrun_limit: u32, trace_capacity: usize) -> (Self, AppEnds) {
         let channels = Channels::new(cycle.len(), trace_capacity);
-        Self::with_channels(bus, cycle, health, overrun_limit, channels)
+        Self::with_channels(bus, cycle, overrun_limit, channels)
     }
 
     /// An engine on channels made beforehand ([`Channels::new`], before the bus goes to
     /// Op); allocates only its small tables.
     pub fn with_channels(
         bus: B,
-        cycle: CspCycle,
-        health: BusHealth,
+        cycle: Cycle,
         overrun_limit: u32,
         channels: Channels,
     ) -> (Self, AppEnds) {
@@ -198,10 +187,10 @@ impl<B: CycleBus> Engine<B> {
         if snap_in.input_buffer_mut().axes.len() != axes {
             (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(axes));
         }
+        let recovery_timeout_ns = bus.restore_timeout_ns();
         let engine = Self {
             bus,
             cycle,
-            health,
             requests: req_rx,
             snapshot: snap_in,
             trace: trace_tx,
@@ -228,7 +217,7 @@ impl<B: CycleBus> Engine<B> {
             forced_faults_at: vec![None; axes],
             recovering: None,
             next_reset: 0,
-            recovery_timeout_ns: RECOVERY_TIMEOUT_NS,
+            recovery_timeout_ns,
             held_before_op: Some(0),
         };
         let app = AppEnds {
@@ -240,8 +229,8 @@ impl<B: CycleBus> Engine<B> {
         (engine, app)
     }
 
-    /// How long a reset waits for its slave to return to OP before it fails (default
-    /// [`RECOVERY_TIMEOUT_NS`]).
+    /// How long a reset waits for its drive to return to operation before it fails
+    /// (default: the bus', [`CycleBus::restore_timeout_ns`]).
     pub fn set_recovery_timeout(&mut self, timeout_ns: u64) {
         self.recovery_timeout_ns = timeout_ns;
     }
@@ -272,21 +261,33 @@ impl<B: CycleBus> Engine<B> {
     /// Runs cycles every `period_ns` until shut down (a [`Request::Shutdown`], or `stop`
     /// set from outside, e.g. by a signal handler), in phase with SYNC0 when the bus has
     /// distributed clocks. Returns the engine for the bus' shutdown.
-    pub fn run(mut self, period_ns: u64, stop: &AtomicBool) -> Self {
-        if self.phase_lock.is_none() && self.bus.dc_offset_ns().is_some() {
-            self.phase_lock = Some(PhaseLock::new(period_ns));
-        }
-        let mut clock = CycleClock::start(period_ns);
+    pub fn run(self, period_ns: u64, stop: &AtomicBool) -> Self {
+        self.run_on(&mut CycleClock::start(period_ns), stop)
+    }
+
+    /// [`Engine::run`] on `clock`.
+    pub fn run_on(mut self, clock: &mut impl Clock, stop: &AtomicBool) -> Self {
         loop {
-            let wake = clock.wait();
             if stop.load(Ordering::Relaxed) && self.phase == Phase::Running {
                 self.begin_shutdown();
             }
-            if !self.step(wake) {
+            if !self.cycle(clock) {
                 return self;
             }
-            clock.shift(self.phase_correction_ns());
         }
+    }
+
+    /// One cycle on `clock`: waits for its start, runs it, holds the clock in phase with
+    /// SYNC0 (with distributed clocks; the lock starts with the first cycle). False once
+    /// the engine has ended.
+    pub fn cycle(&mut self, clock: &mut impl Clock) -> bool {
+        let wake = clock.wait();
+        if self.phase_lock.is_none() && self.bus.dc_offset_ns().is_some() {
+            self.phase_lock = Some(PhaseLock::new(wake.period_ns));
+        }
+        let running = self.step(wake);
+        clock.shift(self.phase_correction_ns());
+        running
     }
 
     /// One cycle; false once the engine has ended.
@@ -295,22 +296,20 @@ impl<B: CycleBus> Engine<B> {
         self.take_requests();
         self.apply_seen_resets();
         self.mark_forced_faults();
-        let _ = self.bus.read_inputs(&mut self.cycle, &self.health);
+        let _ = self.cycle.read_from(&self.bus);
         if self.overrun_stop {
             for axis in 0..self.cycle.len() {
                 let _ = self.cycle.force_fault(axis, OVERRUN_FAULT);
             }
         }
         self.cycle.step();
-        let _ = self.bus.write_outputs(&mut self.cycle);
+        let _ = self.cycle.write_to(&mut self.bus);
         let t1 = now_ns();
         let reply_by = self.late_reply.reply_by(&wake, t1);
         self.start_recovery(t1);
-        let lost_before = self.health.lost_total;
-        self.bus.exchange(&mut self.health, reply_by);
-        self.answered = self.health.lost_total == lost_before;
+        self.answered = self.bus.exchange(reply_by) == Reply::Answered;
         self.finish_recovery();
-        self.request_op_when_ready();
+        self.start_operation_when_ready();
         let t2 = now_ns();
         let in_a_row = self
             .stats
@@ -358,10 +357,11 @@ impl<B: CycleBus> Engine<B> {
         }
     }
 
-    /// A reset. With the bus in fault, the axis' slave first goes back to OP (if it left):
-    /// the reset waits (Busy) while the bus does one register access per cycle beside the
-    /// process data, inside the cycle's reply deadline, so no cycle is stretched; once the
-    /// slave is back, the bus faults are forgotten (they come back next cycle if they are
+    /// A reset. With the bus in fault, the axis' drive first goes back to operation (if it
+    /// left; on EtherCAT, its slave to OP): the reset waits (Busy) while the bus does one
+    /// step of it per cycle beside the process data, inside the cycle's reply deadline, so
+    /// no cycle is stretched ([`CycleBus::start_restore`]); once the drive is back, the
+    /// bus faults are forgotten (they come back next cycle if they are
     /// still there). A reset also ends the overrun stop (for every axis).
     ///
     /// Then the axis' Reset follows as soon as the kernel has seen its drive as it is —
@@ -386,7 +386,7 @@ impl<B: CycleBus> Engine<B> {
     /// [`Engine::reset`] past the overrun stop: waits for the bus, or for the kernel to
     /// see the drive, or resets the axis now.
     fn reset_when_seen(&mut self, id: u64, axis: usize) -> Entry {
-        let waiting = if self.health.any_fault() {
+        let waiting = if self.bus.any_fault() {
             self.resets.get_mut(axis)
         } else if !self.kernel_saw_the_drive(axis) {
             self.unseen_resets.get_mut(axis)
@@ -412,10 +412,10 @@ impl<B: CycleBus> Engine<B> {
     /// be such a fault).
     fn mark_forced_faults(&mut self) {
         for axis in 0..self.forced_faults_at.len() {
-            let drive = self.bus.drive_of(axis);
+            let drive = self.cycle.drive_of(axis);
             let forced = self.overrun_stop
-                || self.health.fault(drive).is_some()
-                || !self.health.inputs_fresh(drive);
+                || self.bus.fault(drive).is_some()
+                || !self.bus.inputs_fresh(drive);
             if let (true, Some(at)) = (forced, self.forced_faults_at.get_mut(axis)) {
                 *at = Some(self.cycles);
             }
@@ -440,7 +440,7 @@ impl<B: CycleBus> Engine<B> {
     /// that keeps failing would bring the slave back and lose it over and over.
     fn apply_seen_resets(&mut self) {
         for axis in 0..self.unseen_resets.len() {
-            let fault_back = self.health.fault(self.bus.drive_of(axis)).is_some();
+            let fault_back = self.bus.fault(self.cycle.drive_of(axis)).is_some();
             if !fault_back && !self.kernel_saw_the_drive(axis) {
                 continue;
             }
@@ -480,10 +480,11 @@ impl<B: CycleBus> Engine<B> {
         }
     }
 
-    /// At start: asks the bus to take the slaves to OP once the cycle is ready for them —
+    /// At start: asks the bus to take the drives to operation (EtherCAT: the slaves to OP)
+    /// once the cycle is ready for them —
     /// at once when it is not locked to SYNC0 (no DC, or no phase lock: free run is the
     /// user's choice), else after [`HELD_BEFORE_OP`] answered frames in a row held in phase.
-    fn request_op_when_ready(&mut self) {
+    fn start_operation_when_ready(&mut self) {
         let Some(held) = self.held_before_op else {
             return;
         };
@@ -494,14 +495,14 @@ impl<B: CycleBus> Engine<B> {
             _ => HELD_BEFORE_OP,
         };
         self.held_before_op = if held >= HELD_BEFORE_OP {
-            self.bus.request_op();
+            self.bus.start_operation();
             None
         } else {
             Some(held)
         };
     }
 
-    /// Hands the next waiting reset's slave to the bus, if the bus is free.
+    /// Hands the next waiting reset's drive to the bus, if the bus is free.
     fn start_recovery(&mut self, now_ns: u64) {
         if self.recovering.is_some() {
             return;
@@ -510,9 +511,11 @@ impl<B: CycleBus> Engine<B> {
         for k in 0..n {
             let axis = (self.next_reset + k) % n;
             if self.resets.get(axis).is_some_and(Option::is_some)
-                && self
-                    .bus
-                    .start_recovery(axis, now_ns, self.recovery_timeout_ns)
+                && self.bus.start_restore(
+                    self.cycle.drive_of(axis),
+                    now_ns,
+                    self.recovery_timeout_ns,
+                )
             {
                 self.recovering = Some(axis);
                 self.next_reset = (axis + 1) % n;
@@ -523,16 +526,18 @@ impl<B: CycleBus> Engine<B> {
 
     /// Takes a finished recovery: the reset goes on to the axis, or fails with the reason.
     fn finish_recovery(&mut self) {
-        let Some((axis, outcome)) = self.bus.take_recovered() else {
+        let Some(outcome) = self.bus.take_restored() else {
             return;
         };
-        self.recovering = None;
+        let Some(axis) = self.recovering.take() else {
+            return;
+        };
         let Some(id) = self.resets.get_mut(axis).and_then(Option::take) else {
             return;
         };
         let entry = match outcome {
             Ok(_) => {
-                self.health.clear();
+                self.bus.clear_faults();
                 // The kernel still holds this cycle's communication fault: the Reset
                 // waits until it has seen the drive (see `reset`).
                 self.reset_when_seen(id, axis)
@@ -540,7 +545,7 @@ impl<B: CycleBus> Engine<B> {
             Err(e) => Entry {
                 id,
                 handle: None,
-                status: CommandStatus::Error(e.command_error()),
+                status: CommandStatus::Error(e),
             },
         };
         if let Some(slot) = self.tracked.iter_mut().find(|e| e.id == id) {
@@ -647,12 +652,13 @@ impl<B: CycleBus> Engine<B> {
                     state: inputs.statusword.state(),
                     statusword: inputs.statusword.0,
                     error_code: inputs.error_code,
-                    bus_fault: self.health.fault(self.bus.drive_of(i)),
+                    bus_fault: self.bus.fault(self.cycle.drive_of(i)).copied(),
                 };
             }
         }
-        snap.lost_frames = self.health.lost_total;
-        snap.working_counter_errors = self.health.wkc_total;
+        let counters = self.bus.counters();
+        snap.lost_frames = counters.lost;
+        snap.working_counter_errors = counters.incomplete;
         // Counters only: the percentiles are the application's work (FigureBook).
         snap.figures = CycleFigures::from_counters(self.stats.counters());
         snap.dc_offset_ns = self.bus.dc_offset_ns();

@@ -5,6 +5,7 @@
 pub mod bus;
 pub mod clock;
 pub mod controller;
+pub mod cycle;
 pub mod engine;
 pub mod histogram;
 pub mod phase;

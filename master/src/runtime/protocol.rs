@@ -8,8 +8,8 @@ use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::status::AxisStatus;
 
+use super::bus::Unreachable;
 use super::stats::CycleFigures;
-use crate::ethercat::health::BusFault;
 
 /// Axes a trace sample holds.
 pub const TRACE_AXES: usize = 16;
@@ -58,7 +58,7 @@ pub struct DriveStatus {
     /// Error code 0x603F (when mapped).
     pub error_code: Option<u16>,
     /// The bus cannot reach it: why.
-    pub bus_fault: Option<BusFault>,
+    pub bus_fault: Option<Unreachable>,
 }
 
 /// Everything the application can see, replaced as a whole every few cycles.

@@ -18,6 +18,7 @@ use crate::config::{Config, ConfigError};
 use crate::drive_records;
 use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::runtime::controller::Controller;
+use crate::runtime::cycle::{Cycle, SetupError};
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
 use crate::runtime::stats::{CycleCounters, CycleFigures};
@@ -45,6 +46,9 @@ pub enum ServiceError {
     /// The bus did not come up.
     #[error(transparent)]
     Bus(#[from] StartError),
+    /// The cycle does not fit the configuration or its bus.
+    #[error(transparent)]
+    Cycle(#[from] SetupError),
     /// A thread or the control socket's runtime could not be started.
     #[error("cannot start {what}")]
     Start {
@@ -77,10 +81,12 @@ pub const CYCLE_THREAD: &str = "gantry-cycle";
 pub const CYCLE_STACK_BYTES: usize = 8 << 20;
 
 /// The cycle thread's start, in the thread that will run the cycle: real time (SCHED_FIFO,
-/// pinned, memory locked) unless `real_time` is false, then the bus up to OP — this thread
-/// exchanges the frames itself; the in-process simulator's thread, if any, is started from
-/// here and inherits its scheduling and CPU — and the engine with the late-reply policy of the mode (lost at the deadline in real time;
-/// waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
+/// pinned, memory locked) unless `real_time` is false, then the bus up to SafeOp — this
+/// thread exchanges the frames itself; the in-process simulator's thread, if any, is
+/// started from here and inherits its scheduling and CPU — the cycle (kernel and drive
+/// channels) built for it from the configuration ([`Cycle::from_config`]; the cycle takes
+/// the slaves on to OP), and the engine with the late-reply policy of the mode (lost at the
+/// deadline in real time; waited for without it). The engine is ready for [`Engine::run`]; nothing else runs at
 /// SCHED_FIFO (ethercrab's timers are off, see `ethercat::bus::NO_TIMERS`).
 pub fn start_cycle(
     config: &Config,
@@ -93,9 +99,16 @@ pub fn start_cycle(
     // The channels first: made after the bus is in Op, their allocation would be a gap in
     // the process data that drives count as missed setpoints (see `Channels`).
     let channels = Channels::new(config.axes.len(), 1 << 16);
-    let (bus, cycle, health) = EthercatBus::bring_up(config, log)?;
-    let (mut engine, ends) =
-        Engine::with_channels(bus, cycle, health, config.rt.overrun_limit, channels);
+    let bus = EthercatBus::bring_up(config, log)?;
+    // The kernel and the drives' channels, for the bus as it came up.
+    let cycle = match Cycle::from_config(config, &bus) {
+        Ok(cycle) => cycle,
+        Err(e) => {
+            bus.shut_down(log);
+            return Err(e.into());
+        }
+    };
+    let (mut engine, ends) = Engine::with_channels(bus, cycle, config.rt.overrun_limit, channels);
     // Without real time a late reply is the host's fault, not the bus'.
     engine.set_late_reply(if real_time {
         LateReply::Lost

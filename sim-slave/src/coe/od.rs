@@ -1,34 +1,18 @@
 //! An object dictionary (CiA 301 §7.4): entries addressed by index and sub-index, with a
 //! writability flag. The simulator's dictionaries are small, built once at start.
 
+use gantry_drives::cia402::image;
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::pdo::PdoLayout;
 
 use super::pdo::{self, PdoRules};
 
-/// What the simulated servo lets the master map (and understands in its process data).
+/// What the simulated servo lets the master map: what it understands in its process
+/// data, the objects of the shared view it codes them through.
 pub fn servo_pdo_rules() -> PdoRules {
     PdoRules {
-        outputs: vec![
-            objects::CONTROLWORD,
-            objects::TARGET_POSITION,
-            objects::TARGET_VELOCITY,
-            objects::TARGET_TORQUE,
-            objects::MODES_OF_OPERATION,
-            objects::TOUCH_PROBE_FUNCTION,
-        ],
-        inputs: vec![
-            objects::STATUSWORD,
-            objects::POSITION_ACTUAL_VALUE,
-            objects::VELOCITY_ACTUAL_VALUE,
-            objects::TORQUE_ACTUAL_VALUE,
-            objects::ERROR_CODE,
-            objects::MODES_OF_OPERATION_DISPLAY,
-            objects::FOLLOWING_ERROR_ACTUAL_VALUE,
-            objects::TOUCH_PROBE_STATUS,
-            objects::TOUCH_PROBE_POS1_POS_VALUE,
-            objects::DIGITAL_INPUTS,
-        ],
+        outputs: image::OUTPUT_OBJECTS.to_vec(),
+        inputs: image::INPUT_OBJECTS.to_vec(),
         max_entries: 10,
     }
 }

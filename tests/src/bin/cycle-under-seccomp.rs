@@ -96,7 +96,7 @@ fn engine() {
             }
             FILTERED.store(true, Ordering::Release);
             let engine = engine.run(1_000_000, &STOP);
-            LOST_FRAMES.store(engine.health.lost_total, Ordering::Relaxed);
+            LOST_FRAMES.store(engine.bus.health().lost_total, Ordering::Relaxed);
             CYCLES.store(engine.counters().cycles, Ordering::Relaxed);
             FINISHED.store(true, Ordering::Release);
             park_forever();

@@ -35,8 +35,9 @@
 //! setpoint continues along the last slope, and after that the demand stays where it got
 //! to (a drive starved of setpoints does not run away).
 //!
-//! Process data follows the PDO layout the master mapped (see `coe::pdo`); until then
-//! the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
+//! Process data follows the PDO layout the master mapped (see `coe::pdo`), read and
+//! written through the view the master codes through too (`gantry_drives::cia402::image`);
+//! until then the power-up mapping: outputs `0x6040 controlword: u16, 0x607A target position: i32`;
 //! inputs `0x6041 statusword: u16, 0x6064 position actual value: i32`.
 //!
 //! Each application period is three calls, so that the ESC side can sample the outputs
@@ -47,11 +48,12 @@ pub mod motor;
 pub mod params;
 
 use gantry_drives::cia402::controlword::Command;
+use gantry_drives::cia402::image::{InputImage, OutputImage, PdoMap};
 use gantry_drives::cia402::objects::{self, ObjectId};
 use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_drives::cia402::state::transition;
 use gantry_drives::cia402::statusword;
-use gantry_drives::cia402::{Controlword, DeviceStateMachine, State};
+use gantry_drives::cia402::{Controlword, DeviceStateMachine, State, Statusword};
 
 use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
@@ -221,6 +223,9 @@ pub struct ServoDrive {
     touch_probe_status: u16,
     touch_probe_pos1: i32,
     layout: PdoLayout,
+    /// Where `layout` puts each object: the process data is read and written through the
+    /// view the master uses too (`gantry_drives::cia402::image`).
+    map: PdoMap,
     record: DriveRecord,
 }
 
@@ -239,6 +244,7 @@ impl ServoDrive {
         params: ServoParams,
     ) -> Self {
         let p = f64::from(start_counts);
+        let layout = PdoLayout::csp_minimal();
         Self {
             outputs_at,
             inputs_at,
@@ -276,7 +282,8 @@ impl ServoDrive {
             touch_probe_function: 0,
             touch_probe_status: 0,
             touch_probe_pos1: 0,
-            layout: PdoLayout::csp_minimal(),
+            map: PdoMap::of(&layout),
+            layout,
             record: DriveRecord::default(),
         }
     }
@@ -332,6 +339,7 @@ impl ServoDrive {
 
     /// Uses the layout the master mapped (at PreOp → SafeOp).
     pub fn configure(&mut self, layout: PdoLayout) {
+        self.map = PdoMap::of(&layout);
         self.layout = layout;
     }
 
@@ -615,24 +623,35 @@ impl ServoDrive {
         }
         let previous = self.target;
         let mut out = [0u8; MAX_PDO_BYTES];
-        let n_out = self.layout.output_bytes().min(MAX_PDO_BYTES);
+        let n_out = self.map.output_bytes.min(MAX_PDO_BYTES);
         if let Some(o) = out.get_mut(..n_out) {
             mem.ecat_read(self.outputs_at, o, false);
         }
-        let mut at = 0;
-        for o in &self.layout.outputs {
-            let v = field(&out, at, o.kind.size());
-            match o.index {
-                0x6040 => self.controlword = Controlword(v as u16),
-                0x607A => self.target = v as i32,
-                0x60FF => self.target_velocity = v as i32,
-                0x6071 => self.target_torque = v as i16,
-                0x60B8 => self.pending_touch_probe = Some(v as u16),
-                // A mode the drive does not have is not taken (the display keeps the old).
-                0x6060 if matches!(v as i8, CSP | CSV | CST) => self.mode = v as i8,
-                _ => {}
+        // The mapping rules allow at most 10 entries of at most 4 bytes, so the mapped
+        // outputs always fit the buffer; an object not mapped keeps its last value.
+        if let Ok(img) = OutputImage::new_checked(&out[..], &self.map) {
+            if let Some(cw) = img.controlword() {
+                self.controlword = cw;
             }
-            at += o.kind.size();
+            if let Some(t) = img.target_position() {
+                self.target = t;
+            }
+            if let Some(v) = img.target_velocity() {
+                self.target_velocity = v;
+            }
+            if let Some(t) = img.target_torque() {
+                self.target_torque = t;
+            }
+            if let Some(f) = img.touch_probe_function() {
+                self.pending_touch_probe = Some(f);
+            }
+            // A mode the drive does not have is not taken (the display keeps the old).
+            if let Some(m) = img
+                .modes_of_operation()
+                .filter(|m| matches!(*m, CSP | CSV | CST))
+            {
+                self.mode = m;
+            }
         }
         // The setpoint period: the time between two setpoints once two intervals in a
         // row agree (within half), so that the gap of a missed setpoint, a doubled one or
@@ -988,15 +1007,26 @@ impl ServoDrive {
     /// (c) Publishes the inputs: writes the mapped input objects into SM3's buffer.
     pub fn publish_inputs(&self, mem: &mut Memory) {
         let mut inp = [0u8; MAX_PDO_BYTES];
-        let mut at = 0;
-        for o in &self.layout.inputs {
-            let v = self.input_value(o);
-            put(&mut inp, at, o.kind.size(), v);
-            at += o.kind.size();
+        let n_in = self.map.input_bytes.min(MAX_PDO_BYTES);
+        let Some(buf) = inp.get_mut(..n_in) else {
+            return;
+        };
+        // Always fits (see `take_outputs`); objects not mapped are not written. Values
+        // wider than their object are sent as their low bytes, as the registers wrap.
+        if let Ok(mut img) = InputImage::new_checked(&mut *buf, &self.map) {
+            img.set_statusword(Statusword(self.statusword()));
+            img.set_position_actual_value(self.actual_counts());
+            img.set_velocity_actual_value(round_i64(self.velocity_mean) as i32);
+            img.set_torque_actual_value(self.torque_per_mille() as i16);
+            img.set_error_code(self.error_code);
+            img.set_modes_of_operation_display(self.mode);
+            img.set_following_error_actual_value(self.following_error() as i32);
+            img.set_touch_probe_status(self.touch_probe_status);
+            img.set_touch_probe_pos1_pos_value(self.touch_probe_pos1);
+            // No digital inputs wired on the model (limit and home switches come later).
+            img.set_digital_inputs(0);
         }
-        if let Some(i) = inp.get(..at.min(MAX_PDO_BYTES)) {
-            mem.pdi_write(self.inputs_at, i);
-        }
+        mem.pdi_write(self.inputs_at, buf);
     }
 
     /// 0x6041: the state, remote, bit 12 (CSP/CSV/CST: the drive follows the command
@@ -1035,22 +1065,6 @@ impl ServoDrive {
     fn torque_per_mille(&self) -> i64 {
         round_i64(self.torque_mean / self.params.rated_torque_nm * 1000.0)
     }
-
-    fn input_value(&self, o: &ObjectId) -> i64 {
-        match *o {
-            objects::STATUSWORD => i64::from(self.statusword()),
-            objects::POSITION_ACTUAL_VALUE => i64::from(self.actual_counts()),
-            objects::VELOCITY_ACTUAL_VALUE => round_i64(self.velocity_mean),
-            objects::TORQUE_ACTUAL_VALUE => self.torque_per_mille(),
-            objects::ERROR_CODE => i64::from(self.error_code),
-            objects::MODES_OF_OPERATION_DISPLAY => i64::from(self.mode),
-            objects::FOLLOWING_ERROR_ACTUAL_VALUE => self.following_error(),
-            objects::TOUCH_PROBE_STATUS => i64::from(self.touch_probe_status),
-            objects::TOUCH_PROBE_POS1_POS_VALUE => i64::from(self.touch_probe_pos1),
-            objects::DIGITAL_INPUTS => 0,
-            _ => 0,
-        }
-    }
 }
 
 /// `x` rounded to a whole count (saturating far beyond any real position).
@@ -1063,7 +1077,7 @@ fn wrap32(x: f64) -> i32 {
     round_i64(x) as i32
 }
 
-/// A little-endian field of `size` bytes at `at`, sign-extended.
+/// A little-endian value of `size` bytes at `at` (an SDO-written object), sign-extended.
 fn field(buf: &[u8], at: usize, size: usize) -> i64 {
     let mut b = [0u8; 8];
     if let (Some(dst), Some(src)) = (b.get_mut(..size), buf.get(at..at + size)) {
@@ -1071,13 +1085,6 @@ fn field(buf: &[u8], at: usize, size: usize) -> i64 {
     }
     let shift = 64 - 8 * size.clamp(1, 8) as u32;
     (i64::from_le_bytes(b) << shift) >> shift
-}
-
-/// Writes the low `size` bytes of `v` at `at`.
-fn put(buf: &mut [u8], at: usize, size: usize, v: i64) {
-    if let (Some(dst), Some(src)) = (buf.get_mut(at..at + size), v.to_le_bytes().get(..size)) {
-        dst.copy_from_slice(src);
-    }
 }
 
 #[cfg(test)]

@@ -1,164 +1,40 @@
-//! One drive's share of a cycle in cyclic synchronous position mode: decode its inputs
-//! into kernel feedback, and turn the kernel's set values into its outputs — the
-//! controlword from the shared CiA-402 table, the target position in counts.
-//!
-//! # Counts
-//!
-//! Inside gantry a drive position is a 64-bit count. A CSP drive counts in 32 bits and
-//! wraps (0x607A/0x6064 are INTEGER32; with the position range limit 0x607B at its
-//! default, CiA 402-2, a position past 2³¹−1 continues at −2³¹), so
-//! the target sent is the low half of the 64-bit count and the 32-bit position actual
-//! value is extended by the difference to the last one ([`CountExtender`]): crossing
-//! ±2³¹ is no event for either side. A modulo axis' set position comes from the kernel as
-//! whole periods and the position within ([`AxisSetpoint::turns`]); [`ModuloCounts`]
-//! turns that into counts exactly however many periods it has turned, and the channel
-//! keeps the number of periods between the kernel's frame and the drive's counter, taken
-//! where the drive stands when it is enabled. A set position whose count does not fit 64
-//! bits is sent nowhere: the drive keeps its last target and the axis faults
-//! ([`COUNT_RANGE_FAULT`]).
-//!
-//! Where each object sits comes from the drive's PDO layout (mapped by SDO in PreOp, see
-//! `mapping`); a drive left with its power-up mapping exchanges the minimal CSP set:
-//! outputs `0x6040 controlword: u16, 0x607A target position: i32`; inputs `0x6041
-//! statusword: u16, 0x6064 position actual value: i32`.
+//! The master side of one CSP drive: power state machine steps, counts, modulo periods.
 
-use gantry_drives::cia402::objects;
-use gantry_drives::cia402::pdo::PdoLayout;
-use gantry_drives::cia402::{next_command, Controlword, State, Statusword, Target};
-use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
-use gantry_kernel::mechanics::{CountExtender, MechanicsError, Modulo, ModuloCounts, Scaling};
 use thiserror::Error;
 
-/// Error code reported for a faulted drive whose 0x603F error code is not in the process
-/// data (CiA 301 generic error 0xFF00 "device specific"); the real code needs an SDO read.
-pub const FAULT_CODE_NOT_MAPPED: u16 = 0xFF00;
+use crate::cia402::pdo::PdoLayout;
+use crate::cia402::{next_command, Controlword, State, Target};
+use crate::scaling::{CountExtender, ModuloCounts, Scaling, ScalingError};
 
-/// Error code an axis faults with when its set position has no 64-bit count (CiA 301
-/// 0x6320 "parameter error": the axis' scaling and travel ask for more than a drive
-/// position can hold). The drive keeps its last target.
-pub const COUNT_RANGE_FAULT: u16 = 0x6320;
+use super::{CspInputs, CspOffsets, LayoutError, COUNT_RANGE_FAULT, FAULT_CODE_NOT_MAPPED};
 
-/// Modes of operation: cyclic synchronous position.
-pub const MODE_CSP: i8 = 8;
-
-/// A layout that CSP cannot run on.
-#[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
-#[error("the PDO layout lacks {object:#06x} {name}, which CSP needs")]
-pub struct LayoutError {
-    /// The missing object.
-    pub object: u16,
-    /// Its name.
-    pub name: &'static str,
+/// Set values of one axis for its drive (user units; the kernel's set values, as plain
+/// data).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CspSetpoint {
+    /// Set position (units; within the period on modulo axes).
+    pub position: f64,
+    /// Whole modulo periods of that position, so the channel can count `turns · period +
+    /// position` exactly (0 on normal axes).
+    pub turns: i64,
+    /// Whether the drive should be enabled.
+    pub enable: bool,
+    /// Send a fault reset (the axis' Reset asks for it).
+    pub reset_fault: bool,
 }
 
-/// Byte offsets of the objects CSP uses in one drive's process data.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct CspOffsets {
-    controlword: usize,
-    target: usize,
-    mode: Option<usize>,
-    /// Bytes of the outputs.
-    pub output_bytes: usize,
-    statusword: usize,
-    position: usize,
-    velocity: Option<usize>,
-    error_code: Option<usize>,
-    /// Bytes of the inputs.
-    pub input_bytes: usize,
-}
-
-impl CspOffsets {
-    /// The offsets in `layout`; the four objects CSP cannot do without must be there.
-    pub fn of(layout: &PdoLayout) -> Result<Self, LayoutError> {
-        let need = |offset: Option<usize>, o: objects::ObjectId| {
-            offset.ok_or(LayoutError {
-                object: o.index,
-                name: o.name,
-            })
-        };
-        Ok(Self {
-            controlword: need(layout.output_offset(0x6040), objects::CONTROLWORD)?,
-            target: need(layout.output_offset(0x607A), objects::TARGET_POSITION)?,
-            mode: layout.output_offset(0x6060),
-            output_bytes: layout.output_bytes(),
-            statusword: need(layout.input_offset(0x6041), objects::STATUSWORD)?,
-            position: need(layout.input_offset(0x6064), objects::POSITION_ACTUAL_VALUE)?,
-            velocity: layout.input_offset(0x606C),
-            error_code: layout.input_offset(0x603F),
-            input_bytes: layout.input_bytes(),
-        })
-    }
-
-    /// The power-up mapping of a CSP drive.
-    pub fn minimal() -> Self {
-        Self {
-            controlword: 0,
-            target: 2,
-            mode: None,
-            output_bytes: 6,
-            statusword: 0,
-            position: 2,
-            velocity: None,
-            error_code: None,
-            input_bytes: 6,
-        }
-    }
-}
-
-fn get<const N: usize>(bytes: &[u8], at: usize) -> Option<[u8; N]> {
-    bytes.get(at..at + N)?.try_into().ok()
-}
-
-fn set(bytes: &mut [u8], at: usize, value: &[u8]) {
-    if let Some(dst) = bytes.get_mut(at..at + value.len()) {
-        dst.copy_from_slice(value);
-    }
-}
-
-/// Decoded inputs of a CSP drive.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CspInputs {
-    /// Statusword.
-    pub statusword: Statusword,
-    /// Position actual value (counts).
-    pub position: i32,
-    /// Velocity actual value (counts/s), when mapped.
-    pub velocity: Option<i32>,
-    /// Error code 0x603F, when mapped.
-    pub error_code: Option<u16>,
-}
-
-impl CspInputs {
-    /// Decodes the input bytes; `None` when there are too few.
-    pub fn decode(at: &CspOffsets, bytes: &[u8]) -> Option<Self> {
-        if bytes.len() < at.input_bytes {
-            return None;
-        }
-        Some(Self {
-            statusword: Statusword(u16::from_le_bytes(get(bytes, at.statusword)?)),
-            position: i32::from_le_bytes(get(bytes, at.position)?),
-            velocity: at
-                .velocity
-                .and_then(|o| get(bytes, o))
-                .map(i32::from_le_bytes),
-            error_code: at
-                .error_code
-                .and_then(|o| get(bytes, o))
-                .map(u16::from_le_bytes),
-        })
-    }
-}
-
-/// Encodes outputs; does nothing when the buffer is too short.
-pub fn encode_outputs(at: &CspOffsets, bytes: &mut [u8], cw: Controlword, target: i32) {
-    if bytes.len() < at.output_bytes {
-        return;
-    }
-    set(bytes, at.controlword, &cw.0.to_le_bytes());
-    set(bytes, at.target, &target.to_le_bytes());
-    if let Some(m) = at.mode {
-        set(bytes, m, &MODE_CSP.to_le_bytes());
-    }
+/// Actual values of one drive in user units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CspFeedback {
+    /// Actual position (units; within the period on modulo axes).
+    pub position: f64,
+    /// Actual velocity (units/s; 0 when 0x606C is not mapped).
+    pub velocity: f64,
+    /// The drive is in Operation enabled.
+    pub operation_enabled: bool,
+    /// The drive reports a fault with this error code, or the channel faults the axis
+    /// ([`COUNT_RANGE_FAULT`]).
+    pub fault: Option<u16>,
 }
 
 /// The master side of one drive.
@@ -182,7 +58,7 @@ pub struct CspChannel {
     actual: i64,
     /// Modulo axes: whole periods of the drive's counter at `actual`.
     actual_turns: i64,
-    /// Modulo axes: the drive's periods minus the kernel's, fixed while the drive is
+    /// Modulo axes: the drive's periods minus the set values', fixed while the drive is
     /// driven (taken at the cycle it is enabled).
     turn_offset: i64,
     /// The drive took set positions last cycle.
@@ -191,9 +67,9 @@ pub struct CspChannel {
     last_target: i64,
     /// The last set position had no 64-bit count: the axis faults.
     count_error: Option<CountError>,
-    /// The axis' modulo period cannot be counted (see [`CspChannel::set_modulo`]): the
+    /// The axis' modulo period cannot be counted (see [`CspChannel::set_modulo_period`]): the
     /// drive is never driven and the axis faults.
-    unusable: Option<MechanicsError>,
+    unusable: Option<ScalingError>,
 }
 
 /// A set position with no 64-bit count.
@@ -233,14 +109,16 @@ impl CspChannel {
         })
     }
 
-    /// Makes the channel count a modulo axis of `modulo` (`None`: a normal axis). Fails
-    /// when a period is less than one count or its count ratio does not fit 126 bits.
+    /// Makes the channel count a modulo axis of `period` units (`None`: a normal axis; the
+    /// period as a plain number, see [`ModuloCounts::new`]). Fails when the period is not
+    /// a finite number > 0, is less than one count, or its count ratio does not fit 126
+    /// bits.
     /// A channel that failed stays unusable (its axis faults with
     /// [`COUNT_RANGE_FAULT`] and its drive is not driven) until a call succeeds: counting
     /// a modulo axis as a normal one would step a period at every wrap.
-    pub fn set_modulo(&mut self, modulo: Option<Modulo>) -> Result<(), MechanicsError> {
-        match modulo
-            .map(|m| ModuloCounts::new(self.scaling, m))
+    pub fn set_modulo_period(&mut self, period: Option<f64>) -> Result<(), ScalingError> {
+        match period
+            .map(|p| ModuloCounts::new(self.scaling, p))
             .transpose()
         {
             Ok(mc) => {
@@ -256,13 +134,13 @@ impl CspChannel {
     }
 
     /// Why the channel cannot drive its axis at all, if it cannot.
-    pub fn unusable(&self) -> Option<MechanicsError> {
+    pub fn unusable(&self) -> Option<ScalingError> {
         self.unusable
     }
 
-    /// The modulo period the channel counts, if any.
-    pub fn modulo(&self) -> Option<Modulo> {
-        self.modulo.map(|m| m.modulo())
+    /// The modulo period the channel counts (units), if any.
+    pub fn modulo_period(&self) -> Option<f64> {
+        self.modulo.map(|m| m.period())
     }
 
     /// The extended position actual value of the last inputs (64-bit counts).
@@ -270,7 +148,7 @@ impl CspChannel {
         self.actual
     }
 
-    /// Where the drive was last sent (units, as [`CspChannel::feedback`] gives
+    /// Where the drive was last sent (units, as [`CspChannel::drive_feedback`] gives
     /// positions: within the period on modulo axes): its actual position while it was
     /// not driven. A drive the master cannot see is still enabled and taking the frames
     /// it sends as far as the master knows, so this is where it stands once it stopped;
@@ -288,13 +166,14 @@ impl CspChannel {
         self.count_error
     }
 
-    /// Decodes this drive's inputs.
+    /// Decodes this drive's inputs; `None` when there are fewer bytes than its layout
+    /// maps ([`CspInputs::decode`] says how many).
     pub fn decode(&self, bytes: &[u8]) -> Option<CspInputs> {
-        CspInputs::decode(&self.offsets, bytes)
+        CspInputs::decode(&self.offsets, bytes).ok()
     }
 
-    /// Kernel feedback from the drive's inputs; extends the position actual value.
-    pub fn feedback(&mut self, inputs: &CspInputs) -> AxisFeedback {
+    /// Feedback from the drive's inputs; extends the position actual value.
+    pub fn drive_feedback(&mut self, inputs: &CspInputs) -> CspFeedback {
         let state = inputs.statusword.state();
         self.actual = self.extender.update(inputs.position);
         let position = match self.modulo {
@@ -312,7 +191,7 @@ impl CspChannel {
                     .filter(|c| *c != 0)
                     .unwrap_or(FAULT_CODE_NOT_MAPPED),
             );
-        AxisFeedback {
+        CspFeedback {
             position,
             velocity: inputs.velocity.map_or(0.0, |v| {
                 self.scaling.counts_to_units(i64::from(v)) - self.scaling.counts_to_units(0)
@@ -324,7 +203,7 @@ impl CspChannel {
     }
 
     /// The drive's count of `sp` (64 bits), in the drive's count space.
-    fn target_counts(&self, sp: &AxisSetpoint) -> Result<i64, CountError> {
+    fn target_counts(&self, sp: &CspSetpoint) -> Result<i64, CountError> {
         let turns = sp.turns.checked_add(self.turn_offset);
         let err = CountError {
             position: sp.position,
@@ -341,13 +220,13 @@ impl CspChannel {
         }
     }
 
-    /// Modulo axes: the periods between the kernel's frame and the drive's counter, so
+    /// Modulo axes: the periods between the set values' frame and the drive's counter, so
     /// that `sp` counts to where the drive stands (the nearest period: `sp` and the
     /// actual differ by far less than half a period when the drive is taken over).
-    fn align(&mut self, sp: &AxisSetpoint) {
+    fn align(&mut self, sp: &CspSetpoint) {
         let Some(mc) = self.modulo else { return };
         let (_, within) = mc.to_position(self.actual);
-        let period = mc.modulo().period();
+        let period = mc.period();
         let fraction = ((within - sp.position) / period).round();
         // `fraction` is −1, 0 or 1 (both positions lie in one period); NaN gives 0.
         self.turn_offset = self
@@ -357,10 +236,10 @@ impl CspChannel {
     }
 
     /// The outputs for this cycle: one step of the power state machine towards what the
-    /// kernel wants, and the target — the set position in the drive's counts while the
+    /// set values want, and the target — the set position in the drive's counts while the
     /// drive is enabled, its actual position otherwise, so that enabling never jumps. The
     /// target is the low 32 bits of the 64-bit count (the drive's counter wraps).
-    pub fn outputs(&mut self, sp: &AxisSetpoint, inputs: &CspInputs) -> (Controlword, i32) {
+    pub fn drive_outputs(&mut self, sp: &CspSetpoint, inputs: &CspInputs) -> (Controlword, i32) {
         let state = inputs
             .statusword
             .state()
@@ -380,7 +259,7 @@ impl CspChannel {
             return (self.last_cw, inputs.position);
         }
         if !self.driving {
-            // Taken over this cycle: the kernel's set position is where the drive stands.
+            // Taken over this cycle: the set position is where the drive stands.
             self.align(sp);
             self.driving = true;
             self.last_target = self.actual;
@@ -400,7 +279,10 @@ impl CspChannel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gantry_kernel::mechanics::ScalingConfig;
+    use crate::cia402::objects;
+    use crate::cia402::Statusword;
+    use crate::csp::encode_outputs;
+    use crate::scaling::ScalingConfig;
 
     fn channel() -> CspChannel {
         CspChannel::new(
@@ -424,8 +306,12 @@ mod tests {
         let i = CspInputs::decode(&min, &[0x37, 0x06, 0x10, 0x27, 0, 0]).unwrap();
         assert_eq!(i.statusword.state(), Some(State::OperationEnabled));
         assert_eq!(i.position, 10_000);
-        assert!(CspInputs::decode(&min, &[1, 2, 3]).is_none());
-        let fb = channel().feedback(&i);
+        assert_eq!(
+            CspInputs::decode(&min, &[1, 2, 3]).unwrap_err().to_string(),
+            "process data inputs (TxPDO): 3 bytes, the PDO layout maps 6"
+        );
+        assert!(channel().decode(&[1, 2, 3]).is_none());
+        let fb = channel().drive_feedback(&i);
         assert_eq!(fb.position, 10.0);
         assert!(fb.operation_enabled);
     }
@@ -433,28 +319,28 @@ mod tests {
     #[test]
     fn holds_actual_until_enabled_then_follows_the_set_value() {
         let mut ch = channel();
-        let sp = AxisSetpoint {
+        let sp = CspSetpoint {
             position: 2.0,
             enable: true,
-            ..AxisSetpoint::default()
+            ..CspSetpoint::default()
         };
         let disabled = CspInputs {
             statusword: Statusword(0x0250),
             position: 777,
             ..CspInputs::default()
         };
-        assert_eq!(ch.outputs(&sp, &disabled), (Controlword(0x06), 777));
+        assert_eq!(ch.drive_outputs(&sp, &disabled), (Controlword(0x06), 777));
         let enabled = CspInputs {
             statusword: Statusword(0x0637),
             position: 777,
             ..CspInputs::default()
         };
-        assert_eq!(ch.outputs(&sp, &enabled), (Controlword(0x0F), 2000));
-        let off = AxisSetpoint {
+        assert_eq!(ch.drive_outputs(&sp, &enabled), (Controlword(0x0F), 2000));
+        let off = CspSetpoint {
             enable: false,
             ..sp
         };
-        assert_eq!(ch.outputs(&off, &enabled).0, Controlword(0x00));
+        assert_eq!(ch.drive_outputs(&off, &enabled).0, Controlword(0x00));
     }
 
     #[test]
@@ -470,7 +356,7 @@ mod tests {
         inp[6..10].copy_from_slice(&1000i32.to_le_bytes());
         inp[12..14].copy_from_slice(&0x8700u16.to_le_bytes());
         let i = ch.decode(&inp).unwrap();
-        let fb = ch.feedback(&i);
+        let fb = ch.drive_feedback(&i);
         assert_eq!(fb.fault, Some(0x8700));
         assert!(
             (fb.velocity - 1.0).abs() < 1e-12,
@@ -510,16 +396,16 @@ mod tests {
             })
             .unwrap(),
         );
-        ch.set_modulo(Modulo::new(360.0)).unwrap();
+        ch.set_modulo_period(Some(360.0)).unwrap();
         ch
     }
 
-    fn sp(turns: i64, position: f64) -> AxisSetpoint {
-        AxisSetpoint {
+    fn sp(turns: i64, position: f64) -> CspSetpoint {
+        CspSetpoint {
             position,
             turns,
             enable: true,
-            ..AxisSetpoint::default()
+            ..CspSetpoint::default()
         }
     }
 
@@ -529,10 +415,10 @@ mod tests {
         // own turn count (here −4) and sees only the position within the period.
         for start in [5_000_000, -3_000_001, i32::MAX - 20_000, i32::MIN + 7] {
             let mut ch = geared_rotary();
-            let fb = ch.feedback(&enabled_at(start));
+            let fb = ch.drive_feedback(&enabled_at(start));
             assert!((0.0..360.0).contains(&fb.position), "{fb:?}");
             let (mut turns, mut within) = (-4i64, fb.position);
-            let (_, target) = ch.outputs(&sp(turns, within), &enabled_at(start));
+            let (_, target) = ch.drive_outputs(&sp(turns, within), &enabled_at(start));
             assert_eq!(target, start, "the first target is the actual position");
             // 30 periods forward at 7.3° per cycle, then 60 back: every step is the
             // cycle's travel in counts (±1 for rounding) also when the kernel wraps and
@@ -551,8 +437,8 @@ mod tests {
                         within += 360.0;
                         turns -= 1;
                     }
-                    ch.feedback(&enabled_at(actual));
-                    let (_, t) = ch.outputs(&sp(turns, within), &enabled_at(actual));
+                    ch.drive_feedback(&enabled_at(actual));
+                    let (_, t) = ch.drive_outputs(&sp(turns, within), &enabled_at(actual));
                     let d = f64::from(t.wrapping_sub(last));
                     assert!(
                         (d - step * counts_per_degree).abs() <= 1.0,
@@ -572,23 +458,23 @@ mod tests {
     fn the_drive_counter_wraps_at_2_pow_31_and_the_feedback_extends_past_it() {
         let mut ch = channel();
         // 1000 counts per unit.
-        let fb = ch.feedback(&enabled_at(i32::MAX - 5));
+        let fb = ch.drive_feedback(&enabled_at(i32::MAX - 5));
         assert_eq!(fb.position, f64::from(i32::MAX - 5) / 1000.0);
-        ch.outputs(&sp(0, fb.position), &enabled_at(i32::MAX - 5));
+        ch.drive_outputs(&sp(0, fb.position), &enabled_at(i32::MAX - 5));
         // The drive went 11 counts on: its counter reads −2³¹ + 5; gantry's count 2³¹ + 5.
-        let fb = ch.feedback(&enabled_at(i32::MIN + 5));
+        let fb = ch.drive_feedback(&enabled_at(i32::MIN + 5));
         assert_eq!(ch.actual_counts(), (1i64 << 31) + 5);
         assert_eq!(fb.position, ((1i64 << 31) + 5) as f64 / 1000.0);
         // A target 3·2³¹ counts out is sent as its low half.
         let far = 3.0 * f64::from(1u32 << 31) / 1000.0 + 0.002;
-        let (_, t) = ch.outputs(&sp(0, far), &enabled_at(i32::MIN + 5));
+        let (_, t) = ch.drive_outputs(&sp(0, far), &enabled_at(i32::MIN + 5));
         assert_eq!(t, ((3i64 << 31) + 2) as i32);
         assert_eq!(t, i32::MIN + 2);
         assert_eq!(ch.count_error(), None);
         // And back below −2³¹.
         let mut ch = channel();
-        ch.feedback(&enabled_at(i32::MIN + 1));
-        ch.feedback(&enabled_at(i32::MAX));
+        ch.drive_feedback(&enabled_at(i32::MIN + 1));
+        ch.drive_feedback(&enabled_at(i32::MAX));
         assert_eq!(ch.actual_counts(), -(1i64 << 31) - 1);
     }
 
@@ -605,32 +491,33 @@ mod tests {
             })
             .unwrap(),
         );
-        let fb = ch.feedback(&enabled_at(100));
+        let fb = ch.drive_feedback(&enabled_at(100));
         assert_eq!(fb.fault, None);
-        assert_eq!(ch.outputs(&sp(0, fb.position), &enabled_at(100)).1, 100);
-        let (_, t) = ch.outputs(&sp(0, 1.0), &enabled_at(100));
+        assert_eq!(
+            ch.drive_outputs(&sp(0, fb.position), &enabled_at(100)).1,
+            100
+        );
+        let (_, t) = ch.drive_outputs(&sp(0, 1.0), &enabled_at(100));
         assert_eq!(t, 100, "the drive keeps its last target");
         assert_eq!(
             ch.count_error().unwrap().to_string(),
             "set position 1 (+ 0 periods) has no 64-bit drive count"
         );
-        let fb = ch.feedback(&enabled_at(100));
+        let fb = ch.drive_feedback(&enabled_at(100));
         assert_eq!(fb.fault, Some(COUNT_RANGE_FAULT));
-        assert!(
-            gantry_drives::cia402::error_code::describe(COUNT_RANGE_FAULT)
-                .contains("no 64-bit drive count")
-        );
+        assert!(crate::cia402::error_code::describe(COUNT_RANGE_FAULT)
+            .contains("no 64-bit drive count"));
         // The drive's own fault comes first.
         let faulted = CspInputs {
             statusword: Statusword(0x0218),
             error_code: Some(0x8611),
             ..enabled_at(100)
         };
-        assert_eq!(ch.feedback(&faulted).fault, Some(0x8611));
+        assert_eq!(ch.drive_feedback(&faulted).fault, Some(0x8611));
         // Back in range, the axis is no longer faulted by the channel.
-        ch.outputs(&sp(0, fb.position), &enabled_at(100));
+        ch.drive_outputs(&sp(0, fb.position), &enabled_at(100));
         assert_eq!(ch.count_error(), None);
-        assert_eq!(ch.feedback(&enabled_at(100)).fault, None);
+        assert_eq!(ch.drive_feedback(&enabled_at(100)).fault, None);
     }
 
     #[test]
@@ -646,15 +533,18 @@ mod tests {
             })
             .unwrap(),
         );
-        assert!(ch.set_modulo(Modulo::new(1.0)).is_err());
+        assert!(ch.set_modulo_period(Some(1.0)).is_err());
         assert!(ch.unusable().is_some());
-        assert_eq!(ch.feedback(&enabled_at(7)).fault, Some(COUNT_RANGE_FAULT));
         assert_eq!(
-            ch.outputs(&sp(0, 0.5), &enabled_at(7)).1,
+            ch.drive_feedback(&enabled_at(7)).fault,
+            Some(COUNT_RANGE_FAULT)
+        );
+        assert_eq!(
+            ch.drive_outputs(&sp(0, 0.5), &enabled_at(7)).1,
             7,
             "held at the actual"
         );
-        ch.set_modulo(Modulo::new(360.0)).unwrap();
-        assert_eq!(ch.feedback(&enabled_at(7)).fault, None);
+        ch.set_modulo_period(Some(360.0)).unwrap();
+        assert_eq!(ch.drive_feedback(&enabled_at(7)).fault, None);
     }
 }
