@@ -365,6 +365,17 @@ impl Slave {
         AlStatusCode::from_raw(self.memory.read_u16(AL_STATUS_CODE))
     }
 
+    /// The device's application leaves Op on its own for SafeOp with the error flag and
+    /// `code` (a local error, ETG.1000.6 §6.4.1: e.g. a drive's own sync monitoring).
+    /// Its SyncManagers stay active — it takes outputs (as the safe state: a drive is
+    /// disabled) and gives inputs — so the master's LRW working counter does not change.
+    /// Nothing happens outside Op.
+    pub fn local_error(&mut self, code: AlStatusCode) {
+        if AlState::from_bits(self.al_status()) == AlState::Op {
+            self.set_al(u16::from(AlState::SafeOp.raw()) | al::ERROR_BIT, code);
+        }
+    }
+
     /// Sets DL status (0x0110) for the ports that are wired: link and communication on a
     /// wired port, loop closed on an open one; bit 0, PDI operational, when the EEPROM's
     /// configuration area was loaded.

@@ -79,7 +79,7 @@ fn ethercrab_wire_bytes(slaves: usize, pdi: usize, capacity: usize, dc: bool) ->
 fn print_frame_table(per_servo: (usize, usize)) {
     let capacity = frame_capacity(MAX_DATAGRAM);
     let cell = |bytes: usize| format!("{bytes:>5} B {:>6.1} µs", wire_us(bytes));
-    let brd = datagram_bytes(frame::AL_STATUS_BYTES);
+    let frmw = datagram_bytes(frame::DC_TIME_BYTES);
     println!(
         "bytes per cycle on the wire at 100 Mbit/s (preamble, gap, FCS, padding counted)\n\
          {:>6} {:>7} | {:^16} | {:^16} | {:^16} | {:^16} | {:^16}",
@@ -87,12 +87,14 @@ fn print_frame_table(per_servo: (usize, usize)) {
     );
     for n in [1usize, 16, 64] {
         let image = ProcessImage::new(&vec![per_servo; n], MAX_DATAGRAM).unwrap();
+        // A steady cycle: the LRW alone, with DC the FRMW beside it (one cycle in
+        // `AL_STATUS_EVERY` sends the 14-byte AL-status BRD, in the FRMW's place).
         println!(
             "{n:>6} {:>5} B | {} | {} | {} | {} | {}",
             image.len(),
             cell(image.minimum_wire_bytes()),
-            cell(image.wire_bytes(brd)),
-            cell(image.wire_bytes(brd + datagram_bytes(frame::DC_TIME_BYTES))),
+            cell(image.wire_bytes(0)),
+            cell(image.wire_bytes(frmw)),
             cell(ethercrab_wire_bytes(n, image.len(), capacity, false)),
             cell(ethercrab_wire_bytes(n, image.len(), capacity, true)),
         );
@@ -186,9 +188,8 @@ fn setup() -> Bench {
     b
 }
 
-/// gantry's cycle: the image's LRW (what `EthercatBus` sends, less its 14-byte AL-status
-/// BRD, which `FrameIo::exchange` joins to the LRW's frame; the bench's lockstep pump
-/// sends frames as queued).
+/// gantry's cycle: the image's LRW (what `EthercatBus` sends in a steady cycle without
+/// DC; the bench's lockstep pump sends frames as queued).
 fn lrw_cycle(b: &mut Bench) {
     for i in 0..DRIVES {
         b.cycle.read_inputs(i, b.image.inputs(i)).unwrap();

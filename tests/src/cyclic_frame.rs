@@ -7,6 +7,7 @@
 //! 0..11, bit 15 "more datagrams follow"), IRQ (2), data, working counter (2).
 
 use gantry::ethercat::frame::{self, datagram_bytes, wire_bytes};
+use gantry::ethercat::health::AL_STATUS_EVERY;
 use gantry_kernel::axis::handle::CommandStatus;
 
 use crate::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
@@ -91,24 +92,33 @@ pub struct Figures {
     pub slaves: usize,
     /// Process data bytes (the image).
     pub mapped: usize,
-    /// Bytes on the wire per cycle in steady state (captured).
+    /// Bytes on the wire per cycle in steady state (captured): LRW and FRMW.
     pub wire: usize,
+    /// Bytes on the wire in the steady cycle that reads the AL-status summary (one in
+    /// [`AL_STATUS_EVERY`]): LRW and BRD.
+    pub summary_wire: usize,
     /// The least: the mapped bytes in LRW frames alone.
     pub minimum: usize,
     /// Steady cycles found in the capture.
     pub steady_cycles: usize,
 }
 
-/// `slaves` simulated servos with DC, two axes moving (the first and the last drive):
-/// every steady cycle's frames are the LRW (the mapped bytes) and the FRMW of the DC time,
-/// nothing per slave; then the cable before the last slave is pulled and the next cycle
-/// names it. Asserts the drive invariant over every drive; returns the figures.
-pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
+/// Cycles the steady window runs (three summaries).
+const STEADY: usize = 3 * AL_STATUS_EVERY as usize;
+
+/// `slaves` simulated servos, with DC or without, two axes moving (the first and the last
+/// drive): every steady cycle's frame is the LRW (the mapped bytes) and, with DC, the FRMW
+/// of the DC time, but one in [`AL_STATUS_EVERY`] which carries the BRD of AL status (in
+/// the FRMW's place); nothing per slave. Then the cable before the last slave is pulled: the working counter of that
+/// very cycle shows it (no inputs of that reply reach the axes), the next cycle reads the
+/// states and names it. Asserts the drive invariant over every drive; returns the figures.
+pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
     let dir = std::env::temp_dir().join(format!("gantry-cyclic-frame-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let pcap = dir.join("bus.pcap");
     let mut config = crate::sim_config_strict(slaves, 1000);
     assert!(config.bus.dc, "DC is on by default");
+    config.bus.dc = dc;
     config.bus.pcap = Some(pcap.display().to_string());
     let mut rig = Rig::new(&config);
     let last = slaves - 1;
@@ -133,15 +143,21 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     }
     let moves: Vec<_> = axes.iter().map(|&a| rig.start_move(a, 5.0)).collect();
     let before = rig.engine.bus.frame_stats();
-    rig.run(50);
+    rig.run(STEADY);
     let after = rig.engine.bus.frame_stats();
-    assert_eq!(after.cycles - before.cycles, 50);
+    assert_eq!(after.cycles - before.cycles, STEADY as u64);
     assert_eq!(
         after.state_reads, before.state_reads,
-        "no AL status read while every slave is in OP"
+        "no slave's AL status read one by one while every slave is in OP"
+    );
+    assert_eq!(
+        after.summaries - before.summaries,
+        3,
+        "the AL-status summary once in {AL_STATUS_EVERY} cycles"
     );
     let image_len = rig.engine.bus.image().len();
     let expected_wire = rig.engine.bus.cyclic_wire_bytes();
+    let expected_summary_wire = rig.engine.bus.summary_wire_bytes();
     let minimum = rig.engine.bus.image().minimum_wire_bytes();
     let rig_chunks: Vec<usize> = rig
         .engine
@@ -165,23 +181,46 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
         );
     }
 
-    // The cable before the last slave is pulled: the very next cycle names it (with one
-    // slave nothing answers at all: the frame is lost, counted in that cycle).
+    // The cable before the last slave is pulled. With one slave nothing answers at all:
+    // the frame is lost, counted in that cycle. Else the working counter of that cycle
+    // is short: no slave's inputs from that reply are taken (whose bytes are stale is not
+    // known yet), and the next cycle reads the states and names it.
     let lost_before = rig.engine.bus.health().lost_total;
+    let last_inputs = rig.engine.bus.image().inputs(last).to_vec();
     rig.chain.lock().unwrap().cut_before(Some(last));
     rig.run(1);
     if last == 0 {
         assert_eq!(rig.engine.bus.health().lost_total, lost_before + 1);
     } else {
+        let health = &rig.engine.bus.health();
+        assert!(
+            (0..slaves).all(|i| !health.inputs_fresh(i)),
+            "seen in the cycle it happened, by the working counter"
+        );
+        assert!(health.reads_states(), "the next cycle reads the states");
+        assert_eq!(rig.bus_fault(last), None, "not named yet");
+        rig.run(1);
         let address = 0x1000 + last;
         let named =
             format!("EtherCAT: slave {last} ({address:#06x}) does not answer (cable, power?)");
         assert_eq!(
             rig.bus_fault(last).as_deref(),
             Some(named.as_str()),
-            "named in the cycle that saw it go"
+            "named the cycle after"
         );
         assert!(rig.bus_fault(0).is_none(), "the others go on");
+        let health = &rig.engine.bus.health();
+        assert!(health.inputs_fresh(0) && !health.inputs_fresh(last));
+        assert_eq!(
+            rig.engine.bus.image().inputs(last),
+            last_inputs,
+            "the lost slave's bytes are its last own inputs, not what ethercrab's image \
+             held from its last read of the states"
+        );
+        assert_eq!(
+            health.wkc_total, 0,
+            "the slave that is gone explains its count"
+        );
     }
     rig.run(5);
     rig.chain.lock().unwrap().cut_before(None);
@@ -204,68 +243,112 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize) -> Figures {
     let bytes = std::fs::read(&pcap).expect("the capture");
     let frames = sent_frames(&bytes).expect("a readable capture");
     // The steady cycles as captured: the longest run of frames that are each one LRW of
-    // the whole image, one FRMW of the DC time and one BRD of the AL status (the exchange
-    // joins them, queued together, into one frame; the image of up to 64 servos fits one
-    // datagram).
+    // the whole image and one fixed datagram — the FRMW of the DC time, or in one cycle in
+    // AL_STATUS_EVERY the BRD of the AL status in its place (the exchange joins the
+    // datagrams queued together into one frame; the image of up to 64 servos fits one).
     assert_eq!(rig_chunks, [image_len], "one LRW datagram");
-    let cyclic = [
-        Datagram {
-            command: LRW,
-            len: image_len,
-        },
-        Datagram {
-            command: FRMW,
-            len: frame::DC_TIME_BYTES,
-        },
-        Datagram {
-            command: BRD,
-            len: frame::AL_STATUS_BYTES,
-        },
-    ];
-    // In either order: the exchange takes them in the order of ethercrab's frame slots.
-    let is_cyclic = |f: &SentFrame| {
-        f.datagrams.len() == cyclic.len() && cyclic.iter().all(|d| f.datagrams.contains(d))
+    let lrw = Datagram {
+        command: LRW,
+        len: image_len,
     };
+    let frmw = Datagram {
+        command: FRMW,
+        len: frame::DC_TIME_BYTES,
+    };
+    let brd = Datagram {
+        command: BRD,
+        len: frame::AL_STATUS_BYTES,
+    };
+    // In either order: the exchange takes them in the order of ethercrab's frame slots.
+    let is = |f: &SentFrame, fixed: Option<Datagram>| {
+        f.datagrams.len() == 1 + usize::from(fixed.is_some())
+            && f.datagrams.contains(&lrw)
+            && fixed.is_none_or(|d| f.datagrams.contains(&d))
+    };
+    let steady_fixed = dc.then_some(frmw);
     let (mut longest, mut run) = (0, 0);
-    let mut wire = None;
+    let (mut wire, mut summary_wire) = (None, None);
+    let mut summaries_at = Vec::new();
+    let mut longest_summaries = Vec::new();
     for f in &frames {
-        if is_cyclic(f) {
+        let (steady, summary) = (is(f, steady_fixed), is(f, Some(brd)));
+        if steady || summary {
             run += 1;
-            longest = longest.max(run);
+            let slot = if summary {
+                summaries_at.push(run);
+                &mut summary_wire
+            } else {
+                &mut wire
+            };
             let bytes = f.wire_bytes();
             assert_eq!(
-                *wire.get_or_insert(bytes),
+                *slot.get_or_insert(bytes),
                 bytes,
                 "every steady cycle alike"
             );
+            if run > longest {
+                longest = run;
+                longest_summaries.clone_from(&summaries_at);
+            }
         } else {
-            run = 0;
+            (run, summaries_at) = (0, Vec::new());
         }
     }
     assert!(
-        longest >= 50,
-        "{longest} steady cycles in a row in the capture, 50 run"
+        longest >= STEADY,
+        "{longest} steady cycles in a row in the capture, {STEADY} run"
     );
-    let wire = wire.expect("steady cycles");
-    // Cycles that read the states carry an FPRD per slave (at start, after the cut).
+    // The summaries AL_STATUS_EVERY cycles apart, no more.
+    let every = AL_STATUS_EVERY as usize;
+    assert!(longest_summaries.len() >= 3, "{longest_summaries:?}");
+    assert!(
+        longest_summaries.windows(2).all(|w| w[1] - w[0] == every),
+        "{longest_summaries:?}"
+    );
+    let (wire, summary_wire) = (
+        wire.expect("steady cycles"),
+        summary_wire.expect("summary cycles"),
+    );
+    // No frame carries more than the LRW and one fixed datagram but those that read the
+    // states one by one: at start, and after the cut.
+    for f in &frames {
+        let fprd = f.datagrams.iter().filter(|d| d.command == FPRD).count();
+        if f.datagrams.contains(&lrw) && fprd == 0 {
+            assert!(f.datagrams.len() <= 2, "{f:?}");
+        }
+    }
     assert!(frames
         .iter()
         .any(|f| f.datagrams.iter().filter(|d| d.command == FPRD).count() >= slaves));
     assert_eq!(wire, expected_wire);
-    // The minimum's frame with two fixed datagrams more: 34 bytes whatever the slave
-    // count (the frame is past its 64-byte minimum from 16 slaves on; a single slave's
-    // LRW frame is padded, so there they cost less).
-    let fixed = datagram_bytes(frame::DC_TIME_BYTES) + datagram_bytes(frame::AL_STATUS_BYTES);
+    assert_eq!(summary_wire, expected_summary_wire);
+    // The minimum's frame with one fixed datagram more with DC (20 bytes; the summary
+    // cycle's BRD, 14), the minimum itself without, whatever the slave count; a single
+    // slave's LRW frame is padded to the 64-byte minimum, so there they cost less.
+    let fixed = if dc {
+        datagram_bytes(frame::DC_TIME_BYTES)
+    } else {
+        0
+    };
     assert_eq!(
         wire,
         wire_bytes(datagram_bytes(image_len) + fixed),
-        "the mapped bytes + two fixed datagrams"
+        "the mapped bytes + at most one fixed datagram"
+    );
+    if !dc {
+        assert_eq!(wire, minimum, "without DC the LRW alone");
+    }
+    assert_eq!(
+        summary_wire,
+        wire_bytes(datagram_bytes(image_len) + datagram_bytes(frame::AL_STATUS_BYTES))
     );
     assert!(wire - minimum <= fixed);
+    assert!(summary_wire - minimum <= datagram_bytes(frame::AL_STATUS_BYTES));
     Figures {
         slaves,
         mapped: image_len,
         wire,
+        summary_wire,
         minimum,
         steady_cycles: longest,
     }

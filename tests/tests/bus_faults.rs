@@ -9,7 +9,7 @@ use std::time::Duration;
 use ethercrab::subdevice_group::Op;
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
 use gantry::axis_fault::describe_fault;
-use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig};
+use gantry::ethercat::health::{BusHealth, Exchange, HealthConfig, States};
 use gantry::ethercat::recovery::{access, Recovered, Recovery, RecoveryError, RECOVERY_TIMEOUT_NS};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::cycle::COMMUNICATION_FAULT;
@@ -57,7 +57,12 @@ impl Machine {
             Kernel::new(1e-3, axes).unwrap(),
             vec![CspChannel::new(ball_screw_5mm()); DRIVES],
         );
-        let health = BusHealth::new(HealthConfig::default(), addresses, 3 * DRIVES as u16);
+        let health = BusHealth::new(
+            HealthConfig::default(),
+            addresses,
+            // Each servo has inputs and outputs: 1 + 2 in the LRW (ETG.1000.4 §5.4.3).
+            vec![3; DRIVES],
+        );
         Self {
             net,
             md,
@@ -86,7 +91,7 @@ impl Machine {
         match self.net.block_on(self.group.tx_rx(&self.md)) {
             Ok(r) => self.health.record(Exchange::Answered {
                 working_counter: r.working_counter,
-                states: &r.subdevice_states,
+                states: States::Each(&r.subdevice_states),
             }),
             Err(_) => self.health.record(Exchange::Lost),
         }

@@ -27,14 +27,20 @@ fn wrong_working_counters_stop_every_axis_with_the_reason_and_reset_recovers() {
     rig.run(20);
     assert_eq!(rig.snapshot().working_counter_errors, 0);
 
-    // Two cycles short: ridden through, the move goes on.
+    // Two cycles short: ridden through, the move goes on. No slave's inputs from those
+    // replies reach the axes (slave 1's bytes in them are stale: the frame passed it
+    // unserved), and the axes standing on the other drives stand on.
     rig.chain.lock().unwrap().stop_process_data(Some(1));
     rig.run(2);
+    assert!((0..3).all(|i| !rig.engine.bus.health().inputs_fresh(i)));
     rig.chain.lock().unwrap().stop_process_data(None);
     rig.run(20);
     assert_eq!(rig.engine.bus.health().wkc_total, 2);
     assert!(rig.bus_fault(0).is_none());
     assert_eq!(moving.status(), Some(CommandStatus::Active));
+    for axis in 1..3 {
+        assert_eq!(rig.state(axis), AxisState::Standstill, "axis {axis}");
+    }
 
     // Three in a row: every axis stops, each with the reason.
     rig.chain.lock().unwrap().stop_process_data(Some(1));

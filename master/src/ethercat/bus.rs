@@ -18,7 +18,7 @@ use thiserror::Error;
 
 use super::doorbell::BlockOn;
 use super::frame::{self, ProcessImage};
-use super::health::{BusFault, BusHealth, Exchange, HealthConfig};
+use super::health::{BusFault, BusHealth, Exchange, HealthConfig, States};
 use super::link::{Capture, FrameIo, InterfaceOnly, Link, LinkFactory};
 use super::mapping::map_pdos;
 use super::raw::RawLink;
@@ -191,6 +191,9 @@ pub struct EthercatBus {
     dc_reference: Option<u16>,
     /// SYNC0 period (ns).
     sync0_ns: u64,
+    /// The last exchange read the reference clock's time (not in a cycle that read the
+    /// AL-status summary in its place, nor in a lost one).
+    dc_measured: bool,
     /// The process data as the wire carries it (the cycle reads and writes it).
     image: ProcessImage,
     /// What the cycle sent.
@@ -308,6 +311,7 @@ impl EthercatBus {
             dc,
             dc_reference,
             sync0_ns: u64::from(config.bus.cycle_us) * 1000,
+            dc_measured: false,
             image,
             frame_stats: FrameStats::default(),
             health,
@@ -354,14 +358,21 @@ impl EthercatBus {
         &self.image
     }
 
-    /// Bytes on the wire per cycle when every slave answers as it should: the LRW
-    /// frames, the AL-status BRD and, with DC, the FRMW (both in the first LRW's frame).
+    /// Bytes on the wire per steady cycle (every slave in OP, the working counter right):
+    /// the LRW frames and, with DC, the FRMW (in the first LRW's frame).
     pub fn cyclic_wire_bytes(&self) -> usize {
         let dc = self
             .dc_reference
             .map_or(0, |_| frame::datagram_bytes(frame::DC_TIME_BYTES));
+        self.image.wire_bytes(dc)
+    }
+
+    /// Bytes on the wire in the steady cycle that reads the AL-status summary (one in
+    /// [`health::AL_STATUS_EVERY`](super::health::AL_STATUS_EVERY)): the LRW frames and the
+    /// BRD, which takes the FRMW's place.
+    pub fn summary_wire_bytes(&self) -> usize {
         self.image
-            .wire_bytes(frame::datagram_bytes(frame::AL_STATUS_BYTES) + dc)
+            .wire_bytes(frame::datagram_bytes(frame::AL_STATUS_BYTES))
     }
 
     /// Distributed clocks as of the last exchange.
@@ -422,18 +433,29 @@ const DC_SYSTEM_TIME: u16 = 0x0910;
 pub struct FrameStats {
     /// Cycles exchanged.
     pub cycles: u64,
-    /// Cycles that also read every slave's AL status (at start, or after a wrong working
-    /// counter).
+    /// Cycles that also read every slave's AL status, one by one (at start, after a wrong
+    /// working counter or a lost frame, while a fault stands).
     pub state_reads: u64,
+    /// Cycles that read the AL-status summary (one BRD, instead of the DC time).
+    pub summaries: u64,
 }
 
-/// One cycle's process data: the image's LRW datagrams and one BRD of the AL status of
-/// all `slaves`; then, if the working counter is not `expected` or a slave is not in OP
-/// (or at once, if `read_states` asks for it), every slave's AL status with ethercrab's
-/// `tx_rx` (its LRW again, with the same outputs, and one FPRD per slave), in the same
-/// exchange, so that the slave that left is named in the cycle that saw it go. Returns
-/// the working counter and whether `states` holds the slaves' states. The LRW's count is
-/// left in `lrw_count` for the caller, should the state read miss the deadline.
+/// What a cycle read beside the process data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Read {
+    /// Nothing: the working counter supervises.
+    Nothing,
+    /// The AL-status summary: every slave answered it, in OP without error.
+    Summary(bool),
+    /// Each slave's state (in the bus' `states`).
+    Each,
+}
+
+/// One cycle's process data: the image's LRW datagrams alone; or with them one BRD of
+/// the AL status of all `slaves` (`summary`); or, when `read_states` asks, ethercrab's
+/// `tx_rx` (its LRW, with the same outputs, and one FPRD per slave), leaving the states
+/// in `states` and the inputs in ethercrab's image (the caller takes those of the slaves
+/// whose inputs are fresh). Returns the working counter and what was read.
 #[allow(clippy::too_many_arguments)]
 async fn cyclic_exchange<DC>(
     group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, ethercrab::DefaultLock, SafeOp, DC>,
@@ -442,37 +464,33 @@ async fn cyclic_exchange<DC>(
     states: &mut Vec<SubDeviceState>,
     stats: &mut FrameStats,
     read_states: bool,
-    expected: u16,
+    summary: bool,
     slaves: u16,
-    lrw_count: &std::cell::Cell<Option<u16>>,
-) -> Result<(u16, bool), ethercrab::error::Error> {
+) -> Result<(u16, Read), ethercrab::error::Error> {
     stats.cycles += 1;
-    if !read_states {
-        // Beside the LRW, every slave's AL status in one BRD (each slave ORs its own in,
-        // ETG.1000.4 §5.4.1.2; the working counter counts those that answered): the
-        // LRW's count does not change when a slave goes from OP to SafeOp, whose output
-        // SyncManager stays active (ETG.1000.6 §6.4.1: SafeOp takes outputs, unused).
+    if read_states {
+        stats.state_reads += 1;
+        image.put_outputs(group, md);
+        let reply = group.tx_rx(md).await?;
+        states.clear();
+        // Within the capacity reserved at bring-up (one per slave): no allocation.
+        states.extend(reply.subdevice_states.iter().copied());
+        return Ok((reply.working_counter, Read::Each));
+    }
+    if summary {
+        stats.summaries += 1;
+        // Every slave ORs its AL status in (ETG.1000.4 §5.4.1.2); the working counter
+        // counts those that answered.
         let al = Command::brd(recovery::AL_STATUS)
             .with_wkc(slaves)
             .receive::<u16>(md);
         let (lrw, al) = futures_lite::future::zip(image.exchange(md), al).await;
-        let lrw = lrw?;
-        lrw_count.set(Some(lrw.working_counter));
         let all_in_op = al.is_ok_and(|s| {
             s & (recovery::AL_STATE_MASK | recovery::AL_ERROR_ACK) == recovery::AL_STATE_OP
         });
-        if all_in_op && lrw.complete && lrw.working_counter == expected {
-            return Ok((lrw.working_counter, false));
-        }
+        return Ok((lrw?.working_counter, Read::Summary(all_in_op)));
     }
-    stats.state_reads += 1;
-    image.put_outputs(group, md);
-    let reply = group.tx_rx(md).await?;
-    image.take_inputs(group, md);
-    states.clear();
-    // Within the capacity reserved at bring-up (one per slave): no allocation.
-    states.extend(reply.subdevice_states.iter().copied());
-    Ok((reply.working_counter, true))
+    Ok((image.exchange(md).await?.working_counter, Read::Nothing))
 }
 
 /// Stack of the threads bring-up and shutdown run in.
@@ -668,7 +686,7 @@ fn watch_health(
     let addresses: Vec<u16> =
         with_group!(group, g => g.iter(md).map(|sd| sd.configured_address()).collect());
     let f = config.bus.faults;
-    // LRW: a slave with outputs counts 2, with inputs 1 (per datagram).
+    // LRW: a slave counts 2 per datagram its outputs are in, 1 per datagram its inputs are.
     BusHealth::new(
         HealthConfig {
             lost_frames_limit: f.lost_frames_limit,
@@ -676,7 +694,7 @@ fn watch_health(
             stop_all_on_slave_loss: f.stop_all_on_slave_loss,
         },
         addresses,
-        image.expected_working_counter(),
+        image.slave_working_counters(),
     )
     .starting(
         (transition::OP_TIMEOUT.as_micros() as u64 / u64::from(config.bus.cycle_us)) as u32,
@@ -775,22 +793,22 @@ impl CycleBus for EthercatBus {
         };
         let pending = recovering
             .or(asking.map(|k| (k, RegisterAccess::WriteAlControl(recovery::AL_STATE_OP))));
-        // While the slaves are on their way to OP, and while anything is wrong, the states
-        // are read every cycle (ethercrab's `tx_rx`: one frame, as before); otherwise the
-        // LRW goes alone (see `BusHealth::reads_states`).
+        // While the slaves are on their way to OP, the cycle after anything went wrong, and
+        // while a fault stands, each slave's state is read (ethercrab's `tx_rx`); one
+        // steady cycle in `AL_STATUS_EVERY` reads their summary; otherwise the LRW goes
+        // alone (see `BusHealth::reads_states`).
         let read_states = self.health.reads_states();
-        let expected = self.health.expected_working_counter();
+        let summary = !read_states && self.health.reads_summary();
         let (image, states, stats) = (&mut self.image, &mut self.states, &mut self.frame_stats);
         let (dc_reference, group) = (self.dc_reference, &self.group);
-        // The LRW's count, kept if the state read after it misses the deadline.
-        let lrw_count = std::cell::Cell::new(None);
         let (answer, accessed) = with_group!(group, g => {
             let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
             let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
-            let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, expected, g.len() as u16, &lrw_count);
-            // With DC the reference clock's time goes round too (one FRMW, its own frame).
+            let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, summary, g.len() as u16);
+            // With DC the reference clock's time goes round too (one FRMW), but in the
+            // cycle whose BRD of AL status takes its place: one fixed datagram at most.
             let time = async {
-                match dc_reference {
+                match dc_reference.filter(|_| !summary) {
                     Some(reference) => Command::frmw(reference, DC_SYSTEM_TIME)
                         .ignore_wkc()
                         .receive::<u64>(md)
@@ -799,28 +817,41 @@ impl CycleBus for EthercatBus {
                     None => None,
                 }
             };
-            // Queued in one poll, the LRW, the BRD and the FRMW go as one frame (the
+            // Queued in one poll, the LRW and the FRMW (or the BRD) go as one frame (the
             // runner's exchange joins them, see `coalesce`).
             runner.run_both_until(futures_lite::future::zip(cyclic, time), access_fut, deadline_ns)
         });
+        self.dc_measured = false;
         let answer = match answer {
             Some((cyclic, time)) => {
                 if let Some(time) = time {
                     self.dc.system_time_ns = time;
                     self.dc.cycle_offset_ns = time % self.sync0_ns.max(1);
+                    self.dc_measured = true;
                 }
                 cyclic.ok()
             }
-            // The deadline: the LRW may still have come back before the state read.
-            None => lrw_count.get().map(|wkc| (wkc, false)),
+            // No reply by the deadline.
+            None => None,
         };
         let reply = match answer {
-            Some((working_counter, states_read)) => {
-                let states: &[SubDeviceState] = if states_read { &self.states } else { &[] };
+            Some((working_counter, read)) => {
+                let states = match read {
+                    Read::Nothing => States::NotRead,
+                    Read::Summary(all_in_op) => States::Summary { all_in_op },
+                    Read::Each => States::Each(&self.states),
+                };
                 self.health.record(Exchange::Answered {
                     working_counter,
                     states,
                 });
+                // ethercrab's `tx_rx` left every slave's inputs in its own image: those
+                // of the slaves that exchanged are taken (the others' are whatever
+                // ethercrab last had).
+                if read == Read::Each {
+                    let (image, md, health) = (&mut self.image, &self.md, &self.health);
+                    with_group!(&self.group, g => image.take_inputs(g, md, |i| health.inputs_fresh(i)));
+                }
                 Reply::Answered
             }
             // No reply by the deadline, or the frame could not be sent.
@@ -852,6 +883,10 @@ impl CycleBus for EthercatBus {
 
     fn fault(&self, drive: usize) -> Option<&Unreachable> {
         self.faults.get(drive)?.as_ref().map(|(_, reason)| reason)
+    }
+
+    fn inputs_fresh(&self, drive: usize) -> bool {
+        self.health.inputs_fresh(drive)
     }
 
     fn any_fault(&self) -> bool {
@@ -915,5 +950,9 @@ impl CycleBus for EthercatBus {
 
     fn dc_offset_ns(&self) -> Option<u64> {
         self.dc.active.then_some(self.dc.cycle_offset_ns)
+    }
+
+    fn dc_measured(&self) -> bool {
+        self.dc_measured
     }
 }

@@ -5,18 +5,17 @@
 //! (12 B header + 2 B data each: 224 B more at 16 drives). Like IgH and SOEM, gantry
 //! supervises with the LRW's working counter instead — a slave that stops answering no
 //! longer counts (ETG.1000.4 §5.4.3: an LRW counts +1 for a read, +2 for a write, per
-//! slave) — and reads each slave's AL status only when something is wrong (the bus does
-//! that in the same exchange, see `bus::EthercatBus::exchange`).
+//! slave) — and reads each slave's AL status only when something is wrong, in the next
+//! cycle (see `health`).
 //!
-//! A slave that goes from OP to SafeOp does not change the LRW's count (its output
-//! SyncManager stays active in SafeOp, ETG.1000.6 §6.4.1), so one BRD of AL status
-//! (0x0130) goes beside it: every slave ORs its state in, the working counter counts those
-//! that answered — anything but "all in OP, no error" sends the cycle to read each
-//! slave's state. ethercrab's public raw API (`Command::lrw`, `Command::brd`,
-//! `Command::frmw`) sends one datagram per frame; the cycle's exchange joins the frames it
-//! queues together (`coalesce`), so the BRD (14 B) and, when DC runs, the FRMW of the
-//! reference clock's time (0x0910, 20 B) are datagrams in the LRW's frame: fixed size
-//! whatever the number of slaves.
+//! ethercrab's public raw API (`Command::lrw`, `Command::brd`, `Command::frmw`) sends one
+//! datagram per frame; the cycle's exchange joins the frames it queues together
+//! (`coalesce`). So a steady cycle's frame is the LRW and, when DC runs, the FRMW of the
+//! reference clock's time (0x0910, 20 B): one fixed-size datagram whatever the number of
+//! slaves. One cycle in `health::AL_STATUS_EVERY` sends a BRD of AL status (0x0130, 14 B)
+//! in its place instead — a slave that goes from OP to SafeOp does not change the LRW's
+//! count (its SyncManagers stay active in SafeOp, ETG.1000.6 §6.4.1), every slave ORs its
+//! state into the BRD.
 
 use std::ops::Range;
 
@@ -48,7 +47,7 @@ pub const WORKING_COUNTER: usize = 2;
 pub const DC_TIME_BYTES: usize = 8;
 /// Datagram bytes one frame holds: an Ethernet payload (1500 B) less the EtherCAT header.
 pub const MAX_DATAGRAMS: usize = 1500 - ECAT_HEADER;
-/// Bytes of AL status the supervising BRD reads (register 0x0130, ETG.1000.4 Table 35).
+/// Bytes of AL status the summary BRD reads (register 0x0130, ETG.1000.4 Table 35).
 pub const AL_STATUS_BYTES: usize = 2;
 /// Bit rate of the wire (100BASE-TX): bits per microsecond.
 pub const BITS_PER_US: f64 = 100.0;
@@ -277,6 +276,29 @@ impl ProcessImage {
         self.bytes.is_empty()
     }
 
+    /// What each slave adds to the working counter of the image's datagrams when it
+    /// exchanges (in chain order; allocates: for the bring-up).
+    pub fn slave_working_counters(&self) -> Vec<u16> {
+        (0..self.slaves.len())
+            .map(|i| self.slave_working_counter(i))
+            .collect()
+    }
+
+    /// What slave `i` adds to the working counter of the image's datagrams: per datagram
+    /// its inputs are in, 1; its outputs, 2 (ETG.1000.4 §5.4.3).
+    pub fn slave_working_counter(&self, i: usize) -> u16 {
+        let Some(s) = self.slaves.get(i) else {
+            return 0;
+        };
+        let touches = |r: &Range<usize>, c: &Chunk| {
+            !r.is_empty() && r.start < c.bytes.end && c.bytes.start < r.end
+        };
+        self.chunks
+            .iter()
+            .map(|c| u16::from(touches(&s.inputs, c)) + 2 * u16::from(touches(&s.outputs, c)))
+            .sum()
+    }
+
     /// Working counter of the whole image when every slave exchanged.
     pub fn expected_working_counter(&self) -> u16 {
         self.chunks.iter().map(|c| c.working_counter).sum()
@@ -315,8 +337,8 @@ impl ProcessImage {
     /// Sends the image's LRW datagrams (one frame each, one after the other) and takes the
     /// inputs of every datagram that came back complete. A datagram with a wrong working
     /// counter leaves its inputs as they were (the bus then reads the slaves' states and
-    /// their inputs with ethercrab's `tx_rx`). No allocation: the frames are ethercrab's
-    /// preallocated ones.
+    /// their inputs with ethercrab's `tx_rx` next cycle). No allocation: the frames are
+    /// ethercrab's preallocated ones.
     pub async fn exchange(&mut self, md: &MainDevice<'_>) -> Result<LrwReply, Error> {
         let mut reply = LrwReply {
             working_counter: 0,
@@ -370,13 +392,19 @@ impl ProcessImage {
         }
     }
 
-    /// Copies the inputs from ethercrab's image of `group` (after its `tx_rx`).
+    /// Copies the inputs of the slaves `fresh` names from ethercrab's image of `group`
+    /// (after its `tx_rx`; a slave that did not exchange comes back with whatever
+    /// ethercrab last had, which may be from its last `tx_rx` long ago).
     pub fn take_inputs<const N: usize, const P: usize, S: HasPdi, DC>(
         &mut self,
         group: &SubDeviceGroup<N, P, ethercrab::DefaultLock, S, DC>,
         md: &MainDevice<'_>,
+        fresh: impl Fn(usize) -> bool,
     ) {
-        for (sd, io) in group.iter(md).zip(&self.slaves) {
+        for (i, (sd, io)) in group.iter(md).zip(&self.slaves).enumerate() {
+            if !fresh(i) {
+                continue;
+            }
             let inputs = sd.inputs_raw();
             if let Some(dst) = self.bytes.get_mut(io.inputs.clone()) {
                 if dst.len() == inputs.len() {
@@ -403,6 +431,13 @@ mod tests {
         let image = ProcessImage::new(&[(4, 2), (0, 3), (5, 0)], 5).unwrap();
         let counts: Vec<u16> = image.chunks().iter().map(|c| c.working_counter).collect();
         assert_eq!(counts, [1 + 1, 1 + 2, 2 + 2]);
+        // Per slave: 0 reads in the first datagram, writes in the second and third; 1
+        // writes in the third; 2 reads in the first two.
+        assert_eq!(image.slave_working_counters(), [1 + 2 + 2, 2, 1 + 1]);
+        assert_eq!(
+            image.slave_working_counters().iter().sum::<u16>(),
+            image.expected_working_counter()
+        );
         assert!(matches!(
             ProcessImage::new(&[(100, 0)], 10),
             Err(ImageError::TooLarge { bytes: 100 })

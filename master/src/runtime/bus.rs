@@ -29,6 +29,14 @@ pub trait CycleBus {
     /// Why the cycle cannot reach drive `drive`, if it cannot: its axes get a
     /// communication fault instead of its inputs.
     fn fault(&self, drive: usize) -> Option<&Unreachable>;
+    /// Whether drive `drive`'s inputs came with the last exchange. A bus that cannot tell
+    /// yet whose bytes in a reply are stale (EtherCAT: a wrong working counter, judged with
+    /// the slaves' states read next cycle) or got no reply says no: the cycle then decodes
+    /// none, its axes keep what they had.
+    fn inputs_fresh(&self, drive: usize) -> bool {
+        let _ = drive;
+        true
+    }
     /// Whether any drive cannot be reached.
     fn any_fault(&self) -> bool;
     /// Forgets the faults once a drive is back (after a reset); they return with the next
@@ -54,6 +62,12 @@ pub trait CycleBus {
     /// drives' sync period the last exchange reached it (ns). `None` without one.
     fn dc_offset_ns(&self) -> Option<u64> {
         None
+    }
+    /// Whether the last exchange measured [`CycleBus::dc_offset_ns`] afresh (a cycle
+    /// may read something else in its place: the offset is then the one before, already
+    /// corrected for).
+    fn dc_measured(&self) -> bool {
+        true
     }
 }
 

@@ -205,12 +205,18 @@ impl Cycle {
     }
 
     /// Decodes every axis' drive inputs from `bus`; an axis whose drive the bus cannot
-    /// reach gets a communication fault instead ([`Cycle::comm_fault`]).
+    /// reach gets a communication fault instead ([`Cycle::comm_fault`]), one whose inputs
+    /// did not come with the last exchange keeps what it had.
     pub fn read_from(&mut self, bus: &impl CycleBus) -> Result<(), CycleError> {
         for axis in 0..self.drives.len() {
             let drive = self.drive_of(axis);
             if bus.fault(drive).is_some() {
                 self.comm_fault(axis)?;
+                continue;
+            }
+            // Inputs that did not come with the last exchange: none decoded, the axis keeps
+            // last cycle's feedback, as it does through a lost frame.
+            if !bus.inputs_fresh(drive) {
                 continue;
             }
             self.read_inputs(axis, bus.inputs(drive))?;

@@ -247,10 +247,13 @@ impl<B: CycleBus> Engine<B> {
     }
 
     /// How far to move the cycle's next deadlines after this cycle (ns; see
-    /// [`PhaseLock`]): 0 without a phase lock, without DC, or when the frame was lost.
+    /// [`PhaseLock`]): 0 without a phase lock, without DC, when the frame was lost or did not
+    /// read the reference clock's time (the cycle that reads the AL-status summary).
     pub fn phase_correction_ns(&self) -> i64 {
         match (self.phase_lock, self.bus.dc_offset_ns()) {
-            (Some(lock), Some(offset)) if self.answered => lock.correction_ns(offset),
+            (Some(lock), Some(offset)) if self.answered && self.bus.dc_measured() => {
+                lock.correction_ns(offset)
+            }
             _ => 0,
         }
     }
@@ -404,10 +407,15 @@ impl<B: CycleBus> Engine<B> {
     }
 
     /// Notes, before this cycle's inputs are read, which axes the kernel gets a fault of
-    /// gantry's own for instead of their drive's inputs.
+    /// gantry's own for instead of their drive's inputs — or no new inputs at all (a lost
+    /// frame, a wrong working counter not yet explained: it keeps what it had, which may
+    /// be such a fault).
     fn mark_forced_faults(&mut self) {
         for axis in 0..self.forced_faults_at.len() {
-            let forced = self.overrun_stop || self.bus.fault(self.cycle.drive_of(axis)).is_some();
+            let drive = self.cycle.drive_of(axis);
+            let forced = self.overrun_stop
+                || self.bus.fault(drive).is_some()
+                || !self.bus.inputs_fresh(drive);
             if let (true, Some(at)) = (forced, self.forced_faults_at.get_mut(axis)) {
                 *at = Some(self.cycles);
             }
@@ -481,6 +489,7 @@ impl<B: CycleBus> Engine<B> {
             return;
         };
         let held = match (self.phase_lock, self.bus.dc_offset_ns()) {
+            (Some(_), Some(_)) if self.answered && !self.bus.dc_measured() => held,
             (Some(lock), Some(offset)) if self.answered && lock.holds(offset) => held + 1,
             (Some(_), Some(_)) => 0,
             _ => HELD_BEFORE_OP,
