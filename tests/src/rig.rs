@@ -15,7 +15,7 @@ use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::{Engine, LateReply};
 use gantry::runtime::protocol::Snapshot;
-use gantry_cli::simulator::{SimLink, Simulator};
+use gantry_cli::simulator::{self, SimLink};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -40,14 +40,15 @@ impl Rig {
 
     /// [`Rig::new`], writing the bring-up's steps to `log`.
     pub fn logged(config: &Config, log: &mut (dyn std::io::Write + Send)) -> Self {
-        let simulator = Simulator::new(SimLink::Lockstep);
-        let bus = simulator
-            .bring_up(config, log)
+        let sim = config.bus.simulator.as_deref().expect("[bus] simulator");
+        let (link, simulated) = simulator::open(sim, SimLink::Lockstep)
+            .unwrap_or_else(|e| panic!("the simulator: {}", gantry::error_chain::Chain(&e)));
+        let bus = EthercatBus::bring_up_on(config, link, log)
             .unwrap_or_else(|e| panic!("bus up: {}", gantry::error_chain::Chain(&e)));
         let cycle = Cycle::from_config(config, &bus)
             .unwrap_or_else(|e| panic!("the cycle: {}", gantry::error_chain::Chain(&e)));
-        assert!(simulator.step_by_hand(), "the chain in lockstep");
-        let chain = simulator.chain().expect("the in-process simulator");
+        assert!(simulated.step_by_hand(), "the chain in lockstep");
+        let chain = simulated.chain();
         let period_ns = u64::from(config.bus.cycle_us) * 1000;
         let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
         // Every reply is in before the exchange looks for it: no wait ever runs out.

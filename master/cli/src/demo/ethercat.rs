@@ -34,7 +34,7 @@ use gantry_sim::plant::record::{write_records, DriveRecord};
 use super::{DemoArgs, DemoError, DemoReport, Step, Wait};
 use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
 use crate::plot::{self, Panel};
-use crate::simulator::{SimLink, Simulator};
+use crate::simulator::{self, SimLink};
 use crate::status_table::{self, Live, Row};
 use gantry::axis_fault::describe_fault;
 use gantry::config::Config;
@@ -96,16 +96,16 @@ impl LockstepEngine {
 /// in phase with SYNC0 as the engine holds it. One function, so that a change of the
 /// bring-up's steps (who builds the kernel) is made here alone.
 pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEngine, DemoError> {
-    let simulator = Simulator::new(SimLink::Lockstep);
-    let bus = simulator.bring_up(config, out)?;
-    if !simulator.step_by_hand() {
-        return Err(DemoError::Network(
-            "the demo's configuration has no in-process simulator",
-        ));
+    let sim = config.bus.simulator.as_deref().ok_or(DemoError::Network(
+        "the demo's configuration has no in-process simulator",
+    ))?;
+    // The bus on the demo's own link: the library opens no simulator.
+    let (link, simulated) = simulator::open(sim, SimLink::Lockstep)?;
+    let bus = EthercatBus::bring_up_on(config, link, out)?;
+    if !simulated.step_by_hand() {
+        return Err(DemoError::Network("the simulated chain is not in lockstep"));
     }
-    let chain = simulator
-        .chain()
-        .ok_or(DemoError::Network("no simulated chain"))?;
+    let chain = simulated.chain();
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
     let cycle = Cycle::from_config(config, &bus)?;
     let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, TRACE_RING);
