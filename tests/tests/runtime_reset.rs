@@ -1,61 +1,42 @@
 //! `gantry reset` of an axis whose slave left OP, through the engine on the in-process
-//! simulator, whose drives take 40 ms from SafeOp to Op: the reset waits while the bus brings the slave back — acknowledge its
+//! simulator in lockstep, whose drives take 40 ms from SafeOp to Op: the reset waits while
+//! the bus brings the slave back — acknowledge its
 //! error, request OP, poll until it is there — doing one register access per cycle
 //! beside the process data, so no cycle carries more than the process-data frame and one
 //! access; then the axis' Reset follows. A slave that does not come back fails the reset
 //! with the reason as text once the timeout passes.
 
-use gantry::ethercat::bus::EthercatBus;
-use gantry::runtime::clock::CycleClock;
-use gantry::runtime::controller::{CommandHandle, Controller};
-use gantry::runtime::cycle::Cycle;
-use gantry::runtime::engine::{Engine, LateReply};
-use gantry_cli::simulator::{SimLink, Simulator};
+use gantry::runtime::controller::CommandHandle;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 
-const PERIOD_NS: u64 = 1_000_000;
 /// The simulated drives' SafeOp→Op time.
 const SAFEOP_TO_OP_MS: u64 = 40;
 
-struct Rig {
-    engine: Engine<EthercatBus>,
-    ctl: Controller,
-    clock: CycleClock,
-    chain: std::sync::Arc<std::sync::Mutex<gantry_sim::chain::SlaveChain>>,
-}
+/// The lockstep rig (`gantry_tests::rig`): one cycle is 1 ms of the network's time.
+struct Rig(gantry_tests::rig::Rig);
 
 impl Rig {
     fn new() -> Self {
-        // Drives whose firmware takes 40 ms from SafeOp to Op (the default is 5 ms).
+        // Drives whose firmware takes 40 ms from SafeOp to Op (the default is 5 ms), with
+        // the standard sync supervision.
         let config = gantry_tests::sim_config_with(
             2,
             1000,
-            &format!("[slave.al]\nsafeop_to_op_ms = {SAFEOP_TO_OP_MS}\n"),
+            &format!(
+                "[slave.al]\nsafeop_to_op_ms = {SAFEOP_TO_OP_MS}\nsync_error_limit = {}\n",
+                gantry_tests::DEFAULT_SYNC_ERROR_LIMIT
+            ),
         );
-        let simulator = Simulator::new(SimLink::Thread);
-        let bus = simulator.bring_up(&config, &mut std::io::sink()).unwrap();
-        let cycle = Cycle::from_config(&config, &bus).unwrap();
-        let chain = simulator.chain().unwrap();
-        let (mut engine, ends) = Engine::new(bus, cycle, 1000, 16);
-        // Not a real-time thread: a late reply is this host's doing, not a lost frame
-        // (so every frame counted below is answered).
-        engine.set_late_reply(LateReply::WAIT);
-        let ctl = Controller::new(ends, vec!["a0".into(), "a1".into()]);
-        Self {
-            engine,
-            ctl,
-            clock: CycleClock::start(PERIOD_NS),
-            chain,
-        }
+        Self(gantry_tests::rig::Rig::new(&config))
     }
 
     /// Runs one cycle; returns the replies (frames) it took.
     fn cycle(&mut self) -> u64 {
-        let before = self.engine.bus().replies();
-        self.engine.step(self.clock.wait());
-        self.engine.bus().replies() - before
+        let before = self.0.engine.bus().replies();
+        self.0.cycle();
+        self.0.engine.bus().replies() - before
     }
 
     fn run(&mut self, n: usize) {
@@ -86,11 +67,11 @@ impl Rig {
     }
 
     fn al_status(&self, i: usize) -> u16 {
-        self.chain.lock().unwrap().slaves()[i].al_status()
+        self.0.chain.lock().unwrap().slaves()[i].al_status()
     }
 
     fn state(&self, i: usize) -> AxisState {
-        self.ctl.snapshot().axes[i].state
+        self.0.ctl.snapshot().axes[i].state
     }
 }
 
@@ -98,7 +79,8 @@ impl Rig {
 /// (100 ms): slave 1 drops to SafeOp with the watchdog error, its axis stops.
 fn lose_slave_1(rig: &mut Rig) {
     for i in 0..2 {
-        rig.ctl
+        rig.0
+            .ctl
             .command(i, Command::Power(PowerCommand::Enable))
             .unwrap();
     }
@@ -111,9 +93,9 @@ fn lose_slave_1(rig: &mut Rig) {
         rig.run(10);
     }
     assert_eq!(rig.state(1), AxisState::Standstill);
-    rig.chain.lock().unwrap().cut_before(Some(1));
+    rig.0.chain.lock().unwrap().cut_before(Some(1));
     rig.run(250);
-    rig.chain.lock().unwrap().cut_before(None);
+    rig.0.chain.lock().unwrap().cut_before(None);
     rig.run(20);
     assert_eq!(rig.al_status(1), 0x14, "SafeOp with the watchdog error");
     assert_eq!(rig.state(1), AxisState::ErrorStop);
@@ -129,19 +111,15 @@ fn resets_of_a_lost_slave() {
 
 fn a_reset_brings_the_slave_back_one_access_per_cycle(rig: &mut Rig) {
     lose_slave_1(rig);
-    let reset = rig.ctl.reset(1).unwrap();
-    let start = std::time::Instant::now();
+    let reset = rig.0.ctl.reset(1).unwrap();
     let (status, cycles, most) = rig.until_final(&reset);
-    let took = start.elapsed();
-    eprintln!(
-        "reset: {status:?} after {cycles} cycles, {took:?}; at most {most} frames in a cycle"
-    );
+    eprintln!("reset: {status:?} after {cycles} cycles (ms); at most {most} frames in a cycle");
     // The bug this guards: the AL status read once right after requesting Op called a
     // slave still on its way "refused".
     assert_eq!(status, CommandStatus::Done, "the axis' Reset followed");
     assert!(
-        took >= std::time::Duration::from_millis(SAFEOP_TO_OP_MS),
-        "waited for the drive's {SAFEOP_TO_OP_MS} ms to Op: {took:?}"
+        u64::from(cycles) >= SAFEOP_TO_OP_MS,
+        "waited for the drive's {SAFEOP_TO_OP_MS} ms to Op: {cycles} cycles of 1 ms"
     );
     assert_eq!(rig.al_status(1), 0x08, "back in OP");
     assert!(
@@ -152,7 +130,8 @@ fn a_reset_brings_the_slave_back_one_access_per_cycle(rig: &mut Rig) {
     assert!(cycles >= 5);
     // The drive faulted with its slave: Disabled after the reset, enabled again it moves.
     assert_eq!(rig.state(1), AxisState::Disabled);
-    rig.ctl
+    rig.0
+        .ctl
         .command(1, Command::Power(PowerCommand::Enable))
         .unwrap();
     rig.run(100);
@@ -161,10 +140,10 @@ fn a_reset_brings_the_slave_back_one_access_per_cycle(rig: &mut Rig) {
 }
 
 fn a_slave_that_stays_away_fails_the_reset_with_the_reason(rig: &mut Rig) {
-    rig.engine.set_recovery_timeout(50_000_000);
+    rig.0.engine.set_recovery_timeout(50_000_000);
     lose_slave_1(rig);
-    rig.chain.lock().unwrap().cut_before(Some(1));
-    let reset = rig.ctl.reset(1).unwrap();
+    rig.0.chain.lock().unwrap().cut_before(Some(1));
+    let reset = rig.0.ctl.reset(1).unwrap();
     let start = std::time::Instant::now();
     let (status, _, most) = rig.until_final(&reset);
     let waited = start.elapsed();
@@ -183,8 +162,8 @@ fn a_slave_that_stays_away_fails_the_reset_with_the_reason(rig: &mut Rig) {
     assert!(most <= 2);
     assert_eq!(rig.state(1), AxisState::ErrorStop);
     // Plugged back, a second reset succeeds.
-    rig.chain.lock().unwrap().cut_before(None);
-    rig.engine.set_recovery_timeout(10_000_000_000);
-    let reset = rig.ctl.reset(1).unwrap();
+    rig.0.chain.lock().unwrap().cut_before(None);
+    rig.0.engine.set_recovery_timeout(10_000_000_000);
+    let reset = rig.0.ctl.reset(1).unwrap();
     assert_eq!(rig.until_final(&reset).0, CommandStatus::Done);
 }
