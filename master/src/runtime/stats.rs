@@ -167,7 +167,7 @@ impl FigureBook {
 
     /// The figures: `counters` from the cycle, the percentiles of everything drained so
     /// far — recomputed when new samples came and the last computation is older than
-    /// [`SUMMARY_EVERY`], or when `fresh`.
+    /// `SUMMARY_EVERY`, or when `fresh`.
     pub fn figures(&mut self, counters: CycleCounters, fresh: bool) -> CycleFigures {
         let new = self.drain();
         let stale = self
