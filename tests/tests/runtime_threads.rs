@@ -28,8 +28,7 @@ fn only_the_cycle_and_the_simulator_run_in_real_time_and_ethercrab_starts_no_rea
     // on this project's non-preemptible, shared VMs a real-time thread now and then waits
     // milliseconds — three frames in a row are lost, the simulator's thread misses SYNC0
     // periods — and the example's limits would stop the axes it exercises.
-    let mut config =
-        gantry_tests::sim_config_with(2, 1000, "[slave.al]\nsync_error_limit = 1000");
+    let mut config = gantry_tests::sim_config_with(2, 1000, "[slave.al]\nsync_error_limit = 1000");
     config.bus.faults.lost_frames_limit = 50;
     gantry::runtime::rt::check(&config.rt, false).expect("this test needs root (SCHED_FIFO)");
     let stop = Arc::new(AtomicBool::new(false));
