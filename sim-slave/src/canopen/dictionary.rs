@@ -8,6 +8,7 @@
 //! | 0x1000 | const | device type 0x00020192: CiA 402 (0x0192), servo drive (0x0002) |
 //! | 0x1001 | ro | error register (CiA 301 §7.5.2.2) |
 //! | 0x1005 | const | COB-ID SYNC 0x080 |
+//! | 0x1008, 0x100A | const | manufacturer device name, software version (VISIBLE_STRING: uploaded segmented or by block) |
 //! | 0x1014 | const | COB-ID EMCY 0x080 + node |
 //! | 0x1016:01 | rw | heartbeat consumer: node id << 16 \| time (ms) (§7.5.2.16) |
 //! | 0x1017 | rw | heartbeat producer time (ms, 0 = off) (§7.5.2.17) |
@@ -39,6 +40,14 @@ pub const DEVICE_TYPE_CIA402_SERVO: u32 = 0x0002_0192;
 pub const ERROR_REGISTER: u16 = 0x1001;
 /// 0x1005 COB-ID SYNC.
 pub const COB_ID_SYNC: u16 = 0x1005;
+/// 0x1008 manufacturer device name.
+pub const DEVICE_NAME: u16 = 0x1008;
+/// 0x100A manufacturer software version.
+pub const SOFTWARE_VERSION: u16 = 0x100A;
+/// Value of 0x1008.
+pub const DEVICE_NAME_VALUE: &str = "gantry-sim CiA 402 servo";
+/// Value of 0x100A: the simulator's version.
+pub const SOFTWARE_VERSION_VALUE: &str = env!("CARGO_PKG_VERSION");
 /// 0x1014 COB-ID EMCY.
 pub const COB_ID_EMCY: u16 = 0x1014;
 /// 0x1016 consumer heartbeat time.
@@ -340,6 +349,8 @@ impl NodeDictionary {
         match (mux.index, mux.sub) {
             (DEVICE_TYPE, 0) | (COB_ID_SYNC, 0) | (COB_ID_EMCY, 0) => Ok(fixed(Const, 4)),
             (ERROR_REGISTER, 0) => Ok(fixed(ReadOnly, 1)),
+            (DEVICE_NAME, 0) => Ok(fixed(Const, DEVICE_NAME_VALUE.len())),
+            (SOFTWARE_VERSION, 0) => Ok(fixed(Const, SOFTWARE_VERSION_VALUE.len())),
             (CONSUMER_HEARTBEAT_TIME, 0) | (IDENTITY, 0) | (ERROR_BEHAVIOUR, 0) => {
                 Ok(fixed(Const, 1))
             }
@@ -409,6 +420,8 @@ impl SdoDictionary for NodeDictionary {
         match (mux.index, mux.sub) {
             (DEVICE_TYPE, 0) => put(out, &DEVICE_TYPE_CIA402_SERVO.to_le_bytes()),
             (ERROR_REGISTER, 0) => put(out, &[self.error_register]),
+            (DEVICE_NAME, 0) => put(out, DEVICE_NAME_VALUE.as_bytes()),
+            (SOFTWARE_VERSION, 0) => put(out, SOFTWARE_VERSION_VALUE.as_bytes()),
             (COB_ID_SYNC, 0) => put(out, &u32::from(SYNC_COB_ID).to_le_bytes()),
             (COB_ID_EMCY, 0) => put(out, &u32::from(CobId::Emcy(self.node).id()).to_le_bytes()),
             (CONSUMER_HEARTBEAT_TIME, 0) | (ERROR_BEHAVIOUR, 0) => put(out, &[1]),
