@@ -317,7 +317,8 @@ impl CanNode {
             self.consumer_lost = false;
         }
         if let (Some((_, ms)), Some(seen)) = (self.dict.comm.consumer(), self.consumer_seen_ns) {
-            if !self.consumer_lost && now > seen + u64::from(ms) * 1_000_000 {
+            // No heartbeat within the consumer time: the event (at the time, not after).
+            if !self.consumer_lost && now >= seen + u64::from(ms) * 1_000_000 {
                 self.consumer_lost = true;
                 self.on_heartbeat_lost();
             }
