@@ -148,3 +148,27 @@ fn a_silent_client_is_aborted_by_the_node_after_its_timeout() {
         AbortCode::TIMED_OUT.0
     );
 }
+
+#[test]
+fn reset_communication_ends_a_transfer_in_progress() {
+    use gantry_drives::canopen::nmt::NmtCommand;
+    use gantry_drives::canopen::sdo::command::ClientCommand;
+    use gantry_drives::canopen::sdo::{Initiate, Multiplexer};
+    let init = ClientCommand::InitiateDownload {
+        mux: Multiplexer::new(0x6065, 0),
+        payload: Initiate::Segmented { size: Some(4) },
+    }
+    .emit();
+    // Without a reset, a new request mid-transfer is refused.
+    let mut m = booted();
+    m.send(&[frame(0x606, &init)]);
+    assert!(m.read(6, 0x1000, 0).is_err());
+    // After reset communication the node serves at once.
+    let mut m = booted();
+    m.send(&[frame(0x606, &init)]);
+    m.nmt(NmtCommand::ResetCommunication, Some(6));
+    assert_eq!(
+        m.read(6, 0x1000, 0).unwrap(),
+        DEVICE_TYPE_CIA402_SERVO.to_le_bytes()
+    );
+}

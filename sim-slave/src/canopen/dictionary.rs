@@ -149,8 +149,6 @@ pub struct Changed {
     pub rpdo: [bool; PDO_COUNT],
     /// Same for TPDOs.
     pub tpdo: [bool; PDO_COUNT],
-    /// A servo object was written.
-    pub servo: bool,
 }
 
 /// The node's dictionary and the servo behind it.
@@ -520,7 +518,6 @@ impl SdoDictionary for NodeDictionary {
                 self.od.write(index, sub, data).map_err(od_abort)?;
                 self.servo.take_objects(&self.od);
                 self.sync_rx_image();
-                self.changed.servo = true;
                 Ok(())
             }
         }

@@ -21,7 +21,8 @@ use gantry_drives::canopen::cob_id::{CobId, NodeId, NMT_COB_ID, SYNC_COB_ID};
 use gantry_drives::canopen::emcy::Emergency;
 use gantry_drives::canopen::heartbeat::Heartbeat;
 use gantry_drives::canopen::nmt::NmtFrame;
-use gantry_drives::canopen::sdo::{Multiplexer, SdoConfig, SdoConfigError, SdoServer};
+use gantry_drives::canopen::sdo::command::ClientCommand;
+use gantry_drives::canopen::sdo::{AbortCode, Multiplexer, SdoConfig, SdoConfigError, SdoServer};
 use gantry_drives::canopen::sync::{Sync, SyncError};
 use gantry_drives::canopen::CanFrame;
 use gantry_drives::cia402::State;
@@ -334,8 +335,27 @@ impl CanNode {
         }
     }
 
+    /// Ends an SDO transfer in progress without an answer (reset communication, Stopped:
+    /// the SDO connection is gone, CiA 301 Table 41): the server is told of a client
+    /// abort, which it takes silently.
+    fn reset_sdo(&mut self, now: u64) {
+        if self.sdo.is_idle() {
+            return;
+        }
+        let abort = ClientCommand::Abort {
+            mux: Multiplexer::new(0, 0),
+            code: AbortCode::GENERAL_ERROR,
+        };
+        if let Ok(f) = CanFrame::new(u32::from(CobId::SdoRx(self.node).id()), &abort.emit()) {
+            self.sdo.receive(&f, now, &mut self.dict);
+        }
+        // Nothing is sent for it.
+        while self.sdo.transmit().is_some() {}
+    }
+
     /// Initialisation ends: boot-up message (CiA 301 §7.2.8.3.3), Pre-operational.
     fn boot(&mut self, now: u64) {
+        self.reset_sdo(now);
         let hb = Heartbeat::new(self.node, NmtSlaveState::Initialisation.heartbeat());
         self.send(hb.emit());
         self.counters.heartbeats += 1;
@@ -419,6 +439,7 @@ impl CanNode {
             NmtAction::Enter(s) => {
                 if s == NmtSlaveState::Stopped && self.nmt != NmtSlaveState::Stopped {
                     self.connection_abort(emcy_code::COMMUNICATION);
+                    self.reset_sdo(now);
                 }
                 if s != self.nmt {
                     // PDO run-time state restarts on every change (CiA 301: PDOs exist
@@ -750,12 +771,7 @@ impl CanNode {
 
     /// The object at `index`:`sub` as the SDO server would read it (for tests and the
     /// EDS writer), or the abort code.
-    pub fn read_object(
-        &mut self,
-        index: u16,
-        sub: u8,
-        out: &mut [u8],
-    ) -> Result<usize, gantry_drives::canopen::sdo::AbortCode> {
+    pub fn read_object(&mut self, index: u16, sub: u8, out: &mut [u8]) -> Result<usize, AbortCode> {
         use gantry_drives::canopen::sdo::ObjectDictionary as _;
         self.dict.read(Multiplexer::new(index, sub), out)
     }
