@@ -9,6 +9,7 @@ mod canopen_common;
 use canopen_common::*;
 use gantry_drives::canopen::emcy::Emergency;
 use gantry_drives::canopen::nmt::NmtCommand;
+use gantry_drives::canopen::sdo::AbortCode;
 use gantry_drives::cia402::objects::{self, ObjectId};
 use gantry_drives::cia402::pdo::mapping_entry;
 use gantry_drives::cia402::State;
@@ -280,6 +281,12 @@ fn emcy_on_a_drive_fault_and_the_reset_emcy_when_it_clears() {
     assert_eq!(r.axes[0].sw & 0x4F, 0x08, "TPDO shows Fault");
     assert_eq!(r.m.read(5, 0x1001, 0).unwrap(), [0x21]);
     assert_eq!(r.m.read(5, 0x603F, 0).unwrap(), 0x8611u16.to_le_bytes());
+    // 0x1003 keeps it: one error, sub 1 its code; sub 2 holds none.
+    assert_eq!(r.m.read(5, 0x1003, 0).unwrap(), [1]);
+    assert_eq!(r.m.read(5, 0x1003, 1).unwrap(), 0x8611u32.to_le_bytes());
+    assert_eq!(r.m.read(5, 0x1003, 2), Err(AbortCode::NO_DATA));
+    assert_eq!(r.m.write(5, 0x1003, 0, &[1]), Err(AbortCode::INVALID_VALUE));
+    assert_eq!(r.m.write(5, 0x1003, 1, &[0; 4]), Err(AbortCode::READ_ONLY));
     // Fault reset (rising edge of bit 7): the error reset EMCY, error register 0.
     let pos = r.axes[0].pos;
     r.cycle(&[Some((0x00, pos))]);
@@ -291,6 +298,11 @@ fn emcy_on_a_drive_fault_and_the_reset_emcy_when_it_clears() {
     assert!(e.is_reset());
     assert_eq!(e.error_register, 0);
     assert_eq!(r.m.read(5, 0x1001, 0).unwrap(), [0]);
+    // The history outlives the fault until the master clears it.
+    assert_eq!(r.m.read(5, 0x1003, 0).unwrap(), [1]);
+    r.m.write(5, 0x1003, 0, &[0]).unwrap();
+    assert_eq!(r.m.read(5, 0x1003, 0).unwrap(), [0]);
+    assert_eq!(r.m.read(5, 0x1003, 1), Err(AbortCode::NO_DATA));
 }
 
 #[test]

@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | 0x1000 | const | device type 0x00020192: CiA 402 (0x0192), servo drive (0x0002) |
 //! | 0x1001 | ro | error register (CiA 301 §7.5.2.2) |
+//! | 0x1003:00 / 01–08 | rw / ro | pre-defined error field: the last 8 EMCY codes, newest at sub 1; writing 0 to sub 0 clears it (§7.5.2.3) |
 //! | 0x1005 | const | COB-ID SYNC 0x080 |
 //! | 0x1008, 0x100A | const | manufacturer device name, software version (VISIBLE_STRING: uploaded segmented or by block) |
 //! | 0x1014 | const | COB-ID EMCY 0x080 + node |
@@ -38,6 +39,10 @@ pub const DEVICE_TYPE: u16 = 0x1000;
 pub const DEVICE_TYPE_CIA402_SERVO: u32 = 0x0002_0192;
 /// 0x1001 error register.
 pub const ERROR_REGISTER: u16 = 0x1001;
+/// 0x1003 pre-defined error field.
+pub const PREDEFINED_ERROR_FIELD: u16 = 0x1003;
+/// Errors 0x1003 keeps.
+pub const ERROR_HISTORY: usize = 8;
 /// 0x1005 COB-ID SYNC.
 pub const COB_ID_SYNC: u16 = 0x1005;
 /// 0x1008 manufacturer device name.
@@ -161,6 +166,9 @@ pub struct NodeDictionary {
     comm_power_on: Communication,
     /// 0x1001, kept by the node.
     pub error_register: u8,
+    /// 0x1003:01..: newest first; `error_count` of them valid.
+    error_history: [u32; ERROR_HISTORY],
+    error_count: u8,
     /// 0x2010.
     pub missed_setpoint_limit: u16,
     /// The servo.
@@ -266,6 +274,8 @@ impl NodeDictionary {
             comm,
             comm_power_on: comm,
             error_register: 0,
+            error_history: [0; ERROR_HISTORY],
+            error_count: 0,
             missed_setpoint_limit: DEFAULT_MISSED_SETPOINT_LIMIT,
             servo,
             od_power_on: Od::default(),
@@ -286,6 +296,16 @@ impl NodeDictionary {
         self.node
     }
 
+    /// Records an EMCY's error code in 0x1003 (CiA 301 §7.5.2.3: newest at sub 1, the
+    /// oldest drops out when full).
+    pub fn push_error(&mut self, code: u16) {
+        self.error_history.copy_within(..ERROR_HISTORY - 1, 1);
+        if let Some(first) = self.error_history.first_mut() {
+            *first = u32::from(code);
+        }
+        self.error_count = (self.error_count + 1).min(ERROR_HISTORY as u8);
+    }
+
     /// 0x6007 abort connection option code.
     pub fn abort_connection_option(&self) -> i16 {
         self.od
@@ -304,6 +324,7 @@ impl NodeDictionary {
     pub fn reset_communication(&mut self) {
         self.comm = self.comm_power_on;
         self.error_register = 0;
+        self.error_count = 0;
     }
 
     /// Reset application: 0x2000–0x9FFF to power-on values, the servo restarts.
@@ -347,6 +368,8 @@ impl NodeDictionary {
         match (mux.index, mux.sub) {
             (DEVICE_TYPE, 0) | (COB_ID_SYNC, 0) | (COB_ID_EMCY, 0) => Ok(fixed(Const, 4)),
             (ERROR_REGISTER, 0) => Ok(fixed(ReadOnly, 1)),
+            (PREDEFINED_ERROR_FIELD, 0) => Ok(fixed(ReadWrite, 1)),
+            (PREDEFINED_ERROR_FIELD, 1..=8) => Ok(fixed(ReadOnly, 4)),
             (DEVICE_NAME, 0) => Ok(fixed(Const, DEVICE_NAME_VALUE.len())),
             (SOFTWARE_VERSION, 0) => Ok(fixed(Const, SOFTWARE_VERSION_VALUE.len())),
             (CONSUMER_HEARTBEAT_TIME, 0) | (IDENTITY, 0) | (ERROR_BEHAVIOUR, 0) => {
@@ -359,6 +382,9 @@ impl NodeDictionary {
             (
                 DEVICE_TYPE
                 | ERROR_REGISTER
+                | PREDEFINED_ERROR_FIELD
+                | DEVICE_NAME
+                | SOFTWARE_VERSION
                 | COB_ID_SYNC
                 | COB_ID_EMCY
                 | CONSUMER_HEARTBEAT_TIME
@@ -418,6 +444,15 @@ impl SdoDictionary for NodeDictionary {
         match (mux.index, mux.sub) {
             (DEVICE_TYPE, 0) => put(out, &DEVICE_TYPE_CIA402_SERVO.to_le_bytes()),
             (ERROR_REGISTER, 0) => put(out, &[self.error_register]),
+            (PREDEFINED_ERROR_FIELD, 0) => put(out, &[self.error_count]),
+            (PREDEFINED_ERROR_FIELD, s) => {
+                // A sub-index beyond the errors recorded holds no data (0x08000024).
+                if s > self.error_count {
+                    return Err(AbortCode::NO_DATA);
+                }
+                let e = self.error_history.get(usize::from(s) - 1).copied();
+                put(out, &e.ok_or(AbortCode::NO_DATA)?.to_le_bytes())
+            }
             (DEVICE_NAME, 0) => put(out, DEVICE_NAME_VALUE.as_bytes()),
             (SOFTWARE_VERSION, 0) => put(out, SOFTWARE_VERSION_VALUE.as_bytes()),
             (COB_ID_SYNC, 0) => put(out, &u32::from(SYNC_COB_ID).to_le_bytes()),
@@ -464,6 +499,14 @@ impl SdoDictionary for NodeDictionary {
             ])
         };
         match (mux.index, mux.sub) {
+            (PREDEFINED_ERROR_FIELD, 0) => {
+                // Only 0 may be written: it clears the history (§7.5.2.3).
+                if data.first().copied() != Some(0) {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+                self.error_count = 0;
+                Ok(())
+            }
             (CONSUMER_HEARTBEAT_TIME, 1) => {
                 let v = u32::from_le_bytes([
                     data.first().copied().unwrap_or(0),
@@ -520,6 +563,84 @@ impl SdoDictionary for NodeDictionary {
                 self.sync_rx_image();
                 Ok(())
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dict() -> NodeDictionary {
+        let node = NodeId::new(3).unwrap();
+        NodeDictionary::new(node, [1, 2, 3, 4], 100, ServoDrive::new(0, 0, 0))
+    }
+
+    #[test]
+    fn error_field_keeps_the_newest_eight() {
+        let mut d = dict();
+        for code in 1..=10u16 {
+            d.push_error(code);
+        }
+        let mut out = [0u8; 4];
+        assert_eq!(
+            d.read(Multiplexer::new(PREDEFINED_ERROR_FIELD, 0), &mut out),
+            Ok(1)
+        );
+        assert_eq!(out[0], 8);
+        let at = |d: &mut NodeDictionary, s| {
+            let mut out = [0u8; 4];
+            d.read(Multiplexer::new(PREDEFINED_ERROR_FIELD, s), &mut out)
+                .map(|_| u32::from_le_bytes(out))
+        };
+        assert_eq!(at(&mut d, 1), Ok(10), "newest at sub 1");
+        assert_eq!(at(&mut d, 8), Ok(3));
+        assert_eq!(
+            d.entry(Multiplexer::new(PREDEFINED_ERROR_FIELD, 9)),
+            Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST)
+        );
+        d.reset_communication();
+        assert_eq!(at(&mut d, 1), Err(AbortCode::NO_DATA));
+    }
+
+    #[test]
+    fn communication_objects_power_on_values() {
+        let mut d = dict();
+        let mut out = [0u8; 32];
+        let mut read = |i, s| {
+            let n = d.read(Multiplexer::new(i, s), &mut out).unwrap();
+            out[..n].to_vec()
+        };
+        assert_eq!(read(DEVICE_TYPE, 0), 0x0002_0192u32.to_le_bytes());
+        assert_eq!(read(COB_ID_EMCY, 0), 0x83u32.to_le_bytes());
+        assert_eq!(read(COB_ID_SYNC, 0), 0x80u32.to_le_bytes());
+        assert_eq!(read(0x1400, 1), 0x203u32.to_le_bytes());
+        assert_eq!(read(0x1401, 1), (0x8000_0000u32 | 0x303).to_le_bytes());
+        assert_eq!(read(0x1803, 1), (0x8000_0000u32 | 0x483).to_le_bytes());
+        assert_eq!(read(0x1A00, 0), [2]);
+        assert_eq!(read(0x1A00, 1), 0x6041_0010u32.to_le_bytes());
+        assert_eq!(read(0x1A00, 2), 0x6064_0020u32.to_le_bytes());
+        assert_eq!(read(0x1600, 2), 0x607A_0020u32.to_le_bytes());
+        assert_eq!(read(ABORT_CONNECTION_OPTION_CODE, 0), 1i16.to_le_bytes());
+        assert_eq!(read(MISSED_SETPOINT_LIMIT, 0), 4u16.to_le_bytes());
+        assert_eq!(read(IDENTITY, 3), 3u32.to_le_bytes());
+        assert_eq!(
+            d.entry(Multiplexer::new(0x1404, 1)),
+            Err(AbortCode::OBJECT_DOES_NOT_EXIST),
+            "four PDOs"
+        );
+        for i in [
+            DEVICE_TYPE,
+            ERROR_REGISTER,
+            DEVICE_NAME,
+            SOFTWARE_VERSION,
+            COB_ID_SYNC,
+        ] {
+            assert_eq!(
+                d.entry(Multiplexer::new(i, 1)),
+                Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
+                "{i:#06x}"
+            );
         }
     }
 }

@@ -736,6 +736,7 @@ impl CanNode {
             error_register: self.dict.error_register | error_register_bits(code),
             manufacturer: [0; 5],
         };
+        self.dict.push_error(code);
         self.send(e.emit());
         self.counters.emcys += 1;
     }
@@ -758,6 +759,9 @@ impl CanNode {
         };
         if code != self.emcy_active {
             self.emcy_active = code;
+            if code != emcy_code::NO_ERROR {
+                self.dict.push_error(code);
+            }
             let e = Emergency {
                 node: self.node,
                 error_code: code,
@@ -792,5 +796,49 @@ pub fn error_register_bits(code: u16) -> u8 {
         0x81 | 0x82 => 1 << 4,
         0xFF => 1 << 7,
         _ => 1 << 5,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_register_bits_of_table_48() {
+        assert_eq!(error_register_bits(0), 0);
+        assert_eq!(error_register_bits(0x2310), 0x03, "current");
+        assert_eq!(error_register_bits(0x3210), 0x05, "voltage");
+        assert_eq!(error_register_bits(0x4310), 0x09, "temperature");
+        assert_eq!(error_register_bits(0x8130), 0x11, "heartbeat");
+        assert_eq!(error_register_bits(0x8250), 0x11, "RPDO timeout");
+        assert_eq!(error_register_bits(0x8611), 0x21, "following error");
+        assert_eq!(error_register_bits(0xFF01), 0x81, "manufacturer");
+    }
+
+    #[test]
+    fn boots_on_the_first_call_and_only_once() {
+        let mut n = CanNode::new(CanNodeConfig::servo(NodeId::new(12).unwrap())).unwrap();
+        assert_eq!(n.nmt_state(), NmtSlaveState::Initialisation);
+        let out = n.tick(5).to_vec();
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].id(), 0x70C);
+        assert_eq!(out[0].data(), [0]);
+        assert_eq!(n.nmt_state(), NmtSlaveState::PreOperational);
+        assert!(n.tick(6).is_empty());
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_with_the_node_named() {
+        let mut c = CanNodeConfig::servo(NodeId::new(12).unwrap());
+        c.sdo.block_size = 0;
+        let e = CanNode::new(c).unwrap_err().to_string();
+        assert!(e.contains("node 12") && e.contains("block size"), "{e}");
+        let mut c = CanNodeConfig::servo(NodeId::new(12).unwrap());
+        c.params.max_speed_rpm = -1.0;
+        let e = CanNode::new(c).unwrap_err().to_string();
+        assert!(
+            e.contains("node 12") && e.contains("servo parameters"),
+            "{e}"
+        );
     }
 }
