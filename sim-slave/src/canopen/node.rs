@@ -31,6 +31,8 @@ use thiserror::Error;
 use super::dictionary::{behaviour, image_put, NodeDictionary, IMAGE_BYTES};
 use super::nmt::{NmtAction, NmtSlaveState};
 use super::pdo::{Pdo, Trigger, PDO_COUNT};
+use crate::catalog;
+use crate::config::ServoConfig;
 use crate::plant::servo::{ParamError, ServoDrive, ServoParams};
 
 /// Most frames one call returns (a block upload's sub-block of 127 segments and more).
@@ -79,16 +81,34 @@ pub struct CanNodeConfig {
 }
 
 impl CanNodeConfig {
-    /// Node `node` with the default servo at 0, heartbeat every 100 ms.
+    /// Node `node` with the default servo at 0, heartbeat every 100 ms; the identity of
+    /// the catalog's servo (the EtherCAT one's vendor and product), serial = node id.
     pub fn servo(node: NodeId) -> Self {
         Self {
             node,
-            identity: [0x0000_0A1E, 0x0000_0402, 1, u32::from(node.get())],
+            identity: [
+                catalog::VENDOR_ID,
+                catalog::SERVO_PRODUCT,
+                1,
+                u32::from(node.get()),
+            ],
             heartbeat_ms: 100,
             params: ServoParams::default(),
             start_counts: 0,
             sdo: SdoConfig::default(),
             sdo_buffer: 1024,
+        }
+    }
+}
+
+impl CanNodeConfig {
+    /// Node `node` with the servo a chain description (`[[slave]] kind = "servo"`)
+    /// gives: its motor, load, tuning and start position, as on EtherCAT.
+    pub fn from_servo(node: NodeId, servo: &ServoConfig) -> Self {
+        Self {
+            params: servo.params(),
+            start_counts: servo.start_position,
+            ..Self::servo(node)
         }
     }
 }
@@ -825,6 +845,23 @@ mod tests {
         assert_eq!(out[0].data(), [0]);
         assert_eq!(n.nmt_state(), NmtSlaveState::PreOperational);
         assert!(n.tick(6).is_empty());
+    }
+
+    #[test]
+    fn built_from_a_chain_description_servo() {
+        let text = "[[slave]]\nkind = \"servo\"\nstart_position = 5000\n";
+        let c = crate::config::SimConfig::parse(text, "test.toml").unwrap();
+        let crate::config::SlaveConfig::Servo(servo) = &c.slaves[0] else {
+            panic!("not a servo");
+        };
+        let mut n =
+            CanNode::new(CanNodeConfig::from_servo(NodeId::new(2).unwrap(), servo)).unwrap();
+        n.tick(0);
+        let mut out = [0u8; 4];
+        assert_eq!(n.read_object(0x6064, 0, &mut out), Ok(4));
+        assert_eq!(i32::from_le_bytes(out), 5000);
+        assert_eq!(n.read_object(0x1018, 1, &mut out), Ok(4));
+        assert_eq!(u32::from_le_bytes(out), crate::catalog::VENDOR_ID);
     }
 
     #[test]
