@@ -132,6 +132,10 @@ impl Rig {
         self.read_inbox();
     }
 
+    fn read_inbox_pub(&mut self) {
+        self.read_inbox();
+    }
+
     fn read_inbox(&mut self) {
         for d in self.m.take_inbox() {
             for a in &mut self.axes {
@@ -333,6 +337,8 @@ fn heartbeat_consumer_timeout_faults_the_drive() {
     }
     let (at, e) = r.emcy[0];
     assert_eq!(e.error_code, 0x8130);
+    r.idle(10 * MS);
+    assert_eq!(r.emcy.len(), 1, "one EMCY for the one event: {:?}", r.emcy);
     // The node saw the master's last heartbeat when its frame ended; it notices the
     // timeout at its first tick 50 ms after (ticks are 1 ms apart here) and the EMCY
     // takes its 135 µs on the bus.
@@ -401,4 +407,57 @@ fn missed_rpdos_count_and_fault_at_the_limit_with_8250() {
     }
     assert_eq!(r.servo(0).state(), State::OperationEnabled);
     assert_eq!(r.servo(0).record().sync_missed, 20);
+}
+
+#[test]
+fn sync_watchdog_0x1006_faults_the_drive_when_sync_stays_away() {
+    let mut r = Rig::new(&[8]);
+    // 1 ms cycle: the watchdog fires 1.5 ms after the last SYNC.
+    r.m.write(8, 0x1006, 0, &1000u32.to_le_bytes()).unwrap();
+    assert_eq!(r.m.read(8, 0x1006, 0).unwrap(), 1000u32.to_le_bytes());
+    r.enable();
+    let p = r.axes[0].pos;
+    for _ in 0..100 {
+        r.cycle(&[Some((0x0F, p))]);
+    }
+    assert!(r.emcy.is_empty(), "{:?}", r.emcy);
+    assert_eq!(r.servo(0).state(), State::OperationEnabled);
+    // SYNC stops (heartbeats go on: no heartbeat consumer here).
+    let last = r.m.now;
+    for _ in 0..20 {
+        r.m.step(100_000);
+        r.read_inbox_pub();
+    }
+    assert_eq!(r.emcy.len(), 1, "{:?}", r.emcy);
+    let (at, e) = r.emcy[0];
+    assert_eq!(e.error_code, 0x8100);
+    // The node saw the last SYNC when its frame ended; 1.5 ms after, at the next 0.1 ms
+    // tick, it sends the EMCY (135 µs on the bus).
+    let sync =
+        r.m.bus
+            .log()
+            .iter()
+            .rev()
+            .find(|d| d.frame.id() == 0x080)
+            .unwrap()
+            .at_ns;
+    assert!(sync >= last);
+    assert!(
+        at > sync + 1_500_000 && at <= sync + 1_600_000 + 135_000,
+        "EMCY {} ns after the last SYNC",
+        at - sync
+    );
+    assert!(matches!(
+        r.servo(0).state(),
+        State::Fault | State::FaultReactionActive
+    ));
+    assert_eq!(r.servo(0).error_code(), 0x8100);
+    // Off (0): no watchdog.
+    let mut r = Rig::new(&[8]);
+    r.enable();
+    for _ in 0..50 {
+        r.idle(MS);
+    }
+    assert!(r.emcy.is_empty());
+    assert_eq!(r.servo(0).state(), State::OperationEnabled);
 }

@@ -9,6 +9,7 @@
 //! | 0x1001 | ro | error register (CiA 301 §7.5.2.2) |
 //! | 0x1003:00 / 01–08 | rw / ro | pre-defined error field: the last 8 EMCY codes, newest at sub 1; writing 0 to sub 0 clears it (§7.5.2.3) |
 //! | 0x1005 | const | COB-ID SYNC 0x080 |
+//! | 0x1006 | rw | communication cycle period (µs, 0 = off): the SYNC consumer's watchdog (§7.5.2.6) |
 //! | 0x1008, 0x100A | const | manufacturer device name, software version (VISIBLE_STRING: uploaded segmented or by block) |
 //! | 0x1014 | const | COB-ID EMCY 0x080 + node |
 //! | 0x1016:01 | rw | heartbeat consumer: node id << 16 \| time (ms) (§7.5.2.16) |
@@ -45,6 +46,8 @@ pub const PREDEFINED_ERROR_FIELD: u16 = 0x1003;
 pub const ERROR_HISTORY: usize = 8;
 /// 0x1005 COB-ID SYNC.
 pub const COB_ID_SYNC: u16 = 0x1005;
+/// 0x1006 communication cycle period.
+pub const COMMUNICATION_CYCLE_PERIOD: u16 = 0x1006;
 /// 0x1008 manufacturer device name.
 pub const DEVICE_NAME: u16 = 0x1008;
 /// 0x100A manufacturer software version.
@@ -94,6 +97,8 @@ pub struct Communication {
     pub heartbeat_consumer: u32,
     /// 0x1017.
     pub heartbeat_producer_ms: u16,
+    /// 0x1006 (µs).
+    pub cycle_period_us: u32,
     /// 0x1029:01.
     pub error_behaviour: u8,
     /// 0x1400–0x1403 with 0x1600–0x1603.
@@ -130,6 +135,7 @@ impl Communication {
         Self {
             heartbeat_consumer: 0,
             heartbeat_producer_ms,
+            cycle_period_us: 0,
             error_behaviour: behaviour::PRE_OPERATIONAL,
             rpdo,
             tpdo,
@@ -154,6 +160,8 @@ pub struct Changed {
     pub rpdo: [bool; PDO_COUNT],
     /// Same for TPDOs.
     pub tpdo: [bool; PDO_COUNT],
+    /// 0x1006 was written: the SYNC watchdog restarts.
+    pub sync_watchdog: bool,
 }
 
 /// The node's dictionary and the servo behind it.
@@ -367,6 +375,7 @@ impl NodeDictionary {
         let sub_missing = Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST);
         match (mux.index, mux.sub) {
             (DEVICE_TYPE, 0) | (COB_ID_SYNC, 0) | (COB_ID_EMCY, 0) => Ok(fixed(Const, 4)),
+            (COMMUNICATION_CYCLE_PERIOD, 0) => Ok(fixed(ReadWrite, 4)),
             (ERROR_REGISTER, 0) => Ok(fixed(ReadOnly, 1)),
             (PREDEFINED_ERROR_FIELD, 0) => Ok(fixed(ReadWrite, 1)),
             (PREDEFINED_ERROR_FIELD, 1..=8) => Ok(fixed(ReadOnly, 4)),
@@ -383,6 +392,7 @@ impl NodeDictionary {
                 DEVICE_TYPE
                 | ERROR_REGISTER
                 | PREDEFINED_ERROR_FIELD
+                | COMMUNICATION_CYCLE_PERIOD
                 | DEVICE_NAME
                 | SOFTWARE_VERSION
                 | COB_ID_SYNC
@@ -454,6 +464,7 @@ impl SdoDictionary for NodeDictionary {
                 put(out, &e.ok_or(AbortCode::NO_DATA)?.to_le_bytes())
             }
             (DEVICE_NAME, 0) => put(out, DEVICE_NAME_VALUE.as_bytes()),
+            (COMMUNICATION_CYCLE_PERIOD, 0) => put(out, &self.comm.cycle_period_us.to_le_bytes()),
             (SOFTWARE_VERSION, 0) => put(out, SOFTWARE_VERSION_VALUE.as_bytes()),
             (COB_ID_SYNC, 0) => put(out, &u32::from(SYNC_COB_ID).to_le_bytes()),
             (COB_ID_EMCY, 0) => put(out, &u32::from(CobId::Emcy(self.node).id()).to_le_bytes()),
@@ -525,6 +536,16 @@ impl SdoDictionary for NodeDictionary {
             }
             (PRODUCER_HEARTBEAT_TIME, 0) => {
                 self.comm.heartbeat_producer_ms = u16_of(data);
+                Ok(())
+            }
+            (COMMUNICATION_CYCLE_PERIOD, 0) => {
+                self.comm.cycle_period_us = u32::from_le_bytes([
+                    data.first().copied().unwrap_or(0),
+                    data.get(1).copied().unwrap_or(0),
+                    data.get(2).copied().unwrap_or(0),
+                    data.get(3).copied().unwrap_or(0),
+                ]);
+                self.changed.sync_watchdog = true;
                 Ok(())
             }
             (ERROR_BEHAVIOUR, 1) => {

@@ -49,7 +49,8 @@ pub mod emcy_code {
     /// Error reset / no error.
     pub const NO_ERROR: u16 = 0x0000;
     /// Communication, generic: the NMT master stopped or reset the node's communication
-    /// while the drive was enabled (CiA 402-2 0x6007 event).
+    /// while the drive was enabled (CiA 402-2 0x6007 event), or the SYNC stayed away
+    /// (0x1006 watchdog).
     pub const COMMUNICATION: u16 = 0x8100;
     /// Life guard or heartbeat error: the heartbeat consumer timed out.
     pub const HEARTBEAT: u16 = 0x8130;
@@ -212,6 +213,10 @@ pub struct CanNode {
     /// Heartbeat consumer: last heartbeat of the monitored node, and whether it timed out.
     consumer_seen_ns: Option<u64>,
     consumer_lost: bool,
+    /// SYNC watchdog (0x1006): when the last SYNC came (None: not since it was armed),
+    /// and whether it has fired.
+    last_sync_ns: Option<u64>,
+    sync_lost: bool,
     /// When the loops last ran (None: not since power-on).
     last_run_ns: Option<u64>,
     /// The error code the last EMCY reported as active (0: none, or reset sent).
@@ -246,6 +251,8 @@ impl CanNode {
             last_heartbeat_ns: 0,
             consumer_seen_ns: None,
             consumer_lost: false,
+            last_sync_ns: None,
+            sync_lost: false,
             last_run_ns: None,
             emcy_active: 0,
             counters: NodeCounters::default(),
@@ -344,6 +351,20 @@ impl CanNode {
                 self.on_heartbeat_lost();
             }
         }
+        // SYNC watchdog (0x1006, CiA 301 §7.5.2.6 lets a SYNC consumer detect the loss
+        // of SYNC): armed by the first SYNC; no SYNC for 1.5 periods (the margin
+        // CANopenNode uses; CiA 301 leaves it open) is a communication error: EMCY
+        // 0x8100 and, the drive's setpoints being paced by SYNC, the 0x6007 reaction.
+        let period = u64::from(self.dict.comm.cycle_period_us) * 1_000;
+        if let (true, Some(last)) = (period > 0, self.last_sync_ns) {
+            if !self.sync_lost
+                && self.nmt.sync_emcy_allowed()
+                && now.saturating_sub(last) * 2 > period * 3
+            {
+                self.sync_lost = true;
+                self.communication_error(emcy_code::COMMUNICATION);
+            }
+        }
         // SDO server timeouts.
         if self.nmt.sdo_allowed() {
             self.sdo.poll(now);
@@ -385,6 +406,8 @@ impl CanNode {
         self.tpdo = [PdoRun::default(); PDO_COUNT];
         self.consumer_seen_ns = None;
         self.consumer_lost = false;
+        self.last_sync_ns = None;
+        self.sync_lost = false;
         self.counters.missed_in_row = 0;
     }
 
@@ -494,9 +517,24 @@ impl CanNode {
         }
     }
 
+    /// A communication error with EMCY `code`: the 0x6007 reaction, and one EMCY — the
+    /// drive's fault EMCY when it faulted for it, else the error's own.
+    fn communication_error(&mut self, code: u16) {
+        self.connection_abort(code);
+        let faulted = matches!(
+            self.dict.servo.state(),
+            State::Fault | State::FaultReactionActive
+        ) && self.dict.servo.error_code() == code;
+        if faulted && self.emcy_active != code {
+            self.check_emcy();
+        } else {
+            self.emcy(code);
+        }
+    }
+
     fn on_heartbeat_lost(&mut self) {
-        self.emcy(emcy_code::HEARTBEAT);
-        self.connection_abort(emcy_code::HEARTBEAT);
+        self.update_error_register();
+        self.communication_error(emcy_code::HEARTBEAT);
         // 0x1029:01 (CiA 301 §7.5.2.32): what a communication error does to the NMT state.
         match self.dict.comm.error_behaviour {
             behaviour::PRE_OPERATIONAL if self.nmt == NmtSlaveState::Operational => {
@@ -524,6 +562,10 @@ impl CanNode {
             self.consumer_seen_ns = None;
             self.consumer_lost = false;
         }
+        if c.sync_watchdog {
+            self.last_sync_ns = None;
+            self.sync_lost = false;
+        }
     }
 
     /// Runs the loops from the last run to `now` on the command taken last.
@@ -542,6 +584,8 @@ impl CanNode {
 
     fn on_sync(&mut self, counter: Option<u8>, now: u64) {
         self.counters.syncs += 1;
+        self.last_sync_ns = Some(now);
+        self.sync_lost = false;
         self.counters.last_sync_counter = counter;
         // (1) The loops up to the SYNC.
         self.run_to(now);
