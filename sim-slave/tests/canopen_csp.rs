@@ -81,6 +81,8 @@ impl Rig {
                 m.write(n, comm, 1, &cob.to_le_bytes()).unwrap();
             }
             assert_eq!(m.read(n, 0x6060, 0).unwrap(), [8], "CSP");
+            // SYNCs carry a counter up to 16 (0x1019, CiA 301 §7.5.2.22).
+            m.write(n, 0x1019, 0, &[16]).unwrap();
         }
         m.nmt(NmtCommand::Start, None);
         m.take_inbox();

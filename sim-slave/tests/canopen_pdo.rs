@@ -277,3 +277,77 @@ fn short_rpdo_is_not_processed_and_raises_emcy_8210() {
     assert_eq!(m.node(0).counters().rpdos, 1);
     assert_eq!(m.read(N, 0x6040, 0).unwrap(), [6, 0]);
 }
+
+#[test]
+fn sync_start_values_spread_tpdos_over_the_sync_counter() {
+    let mut m = booted();
+    // 0x1019: counter 1..=2; rules first.
+    assert_eq!(m.write(N, 0x1019, 0, &[1]), Err(AbortCode::INVALID_VALUE));
+    assert_eq!(m.write(N, 0x1019, 0, &[241]), Err(AbortCode::INVALID_VALUE));
+    m.write(N, 0x1006, 0, &1000u32.to_le_bytes()).unwrap();
+    assert_eq!(
+        m.write(N, 0x1019, 0, &[2]),
+        Err(AbortCode::CANNOT_STORE_DEVICE_STATE),
+        "only while 0x1006 is 0"
+    );
+    m.write(N, 0x1006, 0, &0u32.to_le_bytes()).unwrap();
+    m.write(N, 0x1019, 0, &[2]).unwrap();
+    // TPDO1 every 2nd SYNC from counter 2, TPDO2 (statusword) every 2nd from counter 1.
+    m.write(N, 0x1800, 1, &(INVALID | 0x189).to_le_bytes())
+        .unwrap();
+    assert_eq!(m.write(N, 0x1800, 6, &[241]), Err(AbortCode::INVALID_VALUE));
+    m.write(N, 0x1800, 6, &[2]).unwrap();
+    m.write(N, 0x1800, 2, &[2]).unwrap();
+    m.write(N, 0x1800, 1, &0x189u32.to_le_bytes()).unwrap();
+    assert_eq!(
+        m.write(N, 0x1800, 6, &[1]),
+        Err(AbortCode::INVALID_VALUE),
+        "start value while the TPDO exists"
+    );
+    m.write(N, 0x1801, 6, &[1]).unwrap();
+    map(&mut m, 0x1801, 0x1A01, 0x289, &[objects::STATUSWORD], 2);
+    assert_eq!(m.read(N, 0x1801, 0).unwrap(), [6]);
+    m.nmt(NmtCommand::Start, Some(N));
+    m.sync_overflow = 2;
+    m.take_inbox();
+    let mut seen = Vec::new();
+    for _ in 0..8 {
+        m.step(MS);
+        let sync = m.sync_frame();
+        let counter = sync.data()[0];
+        let got = m.send(&[sync]);
+        let ids: Vec<u16> = got.iter().map(|d| d.frame.id()).collect();
+        seen.push((counter, ids));
+    }
+    for (counter, ids) in &seen {
+        let want = if *counter == 2 {
+            vec![0x189]
+        } else {
+            vec![0x289]
+        };
+        assert_eq!(ids, &want, "counter {counter}: {seen:?}");
+    }
+}
+
+#[test]
+fn sync_of_the_wrong_length_for_0x1019_is_reported_once() {
+    let mut m = booted();
+    let emcys = |got: &[gantry_sim::canopen::bus::Delivered]| -> Vec<u16> {
+        on(got, 0x089)
+            .iter()
+            .map(|f| Emergency::parse(f).unwrap().error_code)
+            .collect()
+    };
+    // 0x1019 = 0: SYNCs without counter expected; three with a counter: one EMCY.
+    let mut got = Vec::new();
+    for c in 1..=3u8 {
+        got.extend(m.send(&[frame(0x080, &[c])]));
+    }
+    assert_eq!(emcys(&got), vec![0x8240]);
+    assert_eq!(m.node(0).counters().syncs, 3, "still taken");
+    // A right one clears it; a wrong one reports again.
+    let got = m.send(&[frame(0x080, &[])]);
+    assert!(emcys(&got).is_empty());
+    let got = m.send(&[frame(0x080, &[1, 2])]);
+    assert_eq!(emcys(&got), vec![0x8240]);
+}

@@ -12,6 +12,7 @@
 //! | 0x1006 | rw | communication cycle period (µs, 0 = off): the SYNC consumer's watchdog (§7.5.2.6) |
 //! | 0x1008, 0x100A | const | manufacturer device name, software version (VISIBLE_STRING: uploaded segmented or by block) |
 //! | 0x1014 | const | COB-ID EMCY 0x080 + node |
+//! | 0x1019 | rw | synchronous counter overflow value: 0 SYNC without counter, 2..=240 with; writable only while 0x1006 is 0 (§7.5.2.22) |
 //! | 0x1016:01 | rw | heartbeat consumer: node id << 16 \| time (ms) (§7.5.2.16) |
 //! | 0x1017 | rw | heartbeat producer time (ms, 0 = off) (§7.5.2.17) |
 //! | 0x1018:01–04 | ro | identity: vendor, product, revision, serial |
@@ -64,6 +65,8 @@ pub const CONSUMER_HEARTBEAT_TIME: u16 = 0x1016;
 pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
 /// 0x1018 identity object.
 pub const IDENTITY: u16 = 0x1018;
+/// 0x1019 synchronous counter overflow value.
+pub const SYNC_COUNTER_OVERFLOW: u16 = 0x1019;
 /// 0x1029 error behaviour.
 pub const ERROR_BEHAVIOUR: u16 = 0x1029;
 /// Manufacturer-specific 0x2010: SYNCs in a row without a synchronous RPDO, while the
@@ -99,6 +102,8 @@ pub struct Communication {
     pub heartbeat_producer_ms: u16,
     /// 0x1006 (µs).
     pub cycle_period_us: u32,
+    /// 0x1019.
+    pub sync_overflow: u8,
     /// 0x1029:01.
     pub error_behaviour: u8,
     /// 0x1400–0x1403 with 0x1600–0x1603.
@@ -136,6 +141,7 @@ impl Communication {
             heartbeat_consumer: 0,
             heartbeat_producer_ms,
             cycle_period_us: 0,
+            sync_overflow: 0,
             error_behaviour: behaviour::PRE_OPERATIONAL,
             rpdo,
             tpdo,
@@ -387,12 +393,13 @@ impl NodeDictionary {
             (CONSUMER_HEARTBEAT_TIME, 1) => Ok(fixed(ReadWrite, 4)),
             (PRODUCER_HEARTBEAT_TIME, 0) | (MISSED_SETPOINT_LIMIT, 0) => Ok(fixed(ReadWrite, 2)),
             (IDENTITY, 1..=4) => Ok(fixed(ReadOnly, 4)),
-            (ERROR_BEHAVIOUR, 1) => Ok(fixed(ReadWrite, 1)),
+            (ERROR_BEHAVIOUR, 1) | (SYNC_COUNTER_OVERFLOW, 0) => Ok(fixed(ReadWrite, 1)),
             (
                 DEVICE_TYPE
                 | ERROR_REGISTER
                 | PREDEFINED_ERROR_FIELD
                 | COMMUNICATION_CYCLE_PERIOD
+                | SYNC_COUNTER_OVERFLOW
                 | DEVICE_NAME
                 | SOFTWARE_VERSION
                 | COB_ID_SYNC
@@ -484,6 +491,7 @@ impl SdoDictionary for NodeDictionary {
                     .to_le_bytes(),
             ),
             (ERROR_BEHAVIOUR, 1) => put(out, &[self.comm.error_behaviour]),
+            (SYNC_COUNTER_OVERFLOW, 0) => put(out, &[self.comm.sync_overflow]),
             (MISSED_SETPOINT_LIMIT, 0) => put(out, &self.missed_setpoint_limit.to_le_bytes()),
             (index, sub) if index < 0x2000 => {
                 let (dir, n, mapping) = pdo_of(index).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
@@ -546,6 +554,19 @@ impl SdoDictionary for NodeDictionary {
                     data.get(3).copied().unwrap_or(0),
                 ]);
                 self.changed.sync_watchdog = true;
+                Ok(())
+            }
+            (SYNC_COUNTER_OVERFLOW, 0) => {
+                // Only while the communication cycle period is 0 (§7.5.2.22); 1 and
+                // above 240 are no overflow values.
+                if self.comm.cycle_period_us != 0 {
+                    return Err(AbortCode::CANNOT_STORE_DEVICE_STATE);
+                }
+                let v = data.first().copied().unwrap_or(0);
+                if v == 1 || v > pdo::TT_SYNC_MAX {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+                self.comm.sync_overflow = v;
                 Ok(())
             }
             (ERROR_BEHAVIOUR, 1) => {

@@ -174,6 +174,8 @@ struct PdoRun {
     pending: Option<([u8; 8], usize)>,
     /// TPDO: SYNCs counted towards the transmission type.
     syncs: u8,
+    /// TPDO with a SYNC start value: the start SYNC has come.
+    started: bool,
     /// TPDO: last data sent, its length, and when.
     last: Option<([u8; 8], usize, u64)>,
 }
@@ -213,6 +215,9 @@ pub struct CanNode {
     /// Heartbeat consumer: last heartbeat of the monitored node, and whether it timed out.
     consumer_seen_ns: Option<u64>,
     consumer_lost: bool,
+    /// A SYNC of the wrong length for 0x1019 was reported (EMCY 0x8240 once, until one
+    /// of the right length comes).
+    sync_length_error: bool,
     /// SYNC watchdog (0x1006): when the last SYNC came (None: not since it was armed),
     /// and whether it has fired.
     last_sync_ns: Option<u64>,
@@ -253,6 +258,7 @@ impl CanNode {
             consumer_lost: false,
             last_sync_ns: None,
             sync_lost: false,
+            sync_length_error: false,
             last_run_ns: None,
             emcy_active: 0,
             counters: NodeCounters::default(),
@@ -434,9 +440,26 @@ impl CanNode {
         if id == SYNC_COB_ID {
             if self.nmt.sync_emcy_allowed() {
                 match Sync::parse(frame) {
-                    Ok(s) => self.on_sync(s.counter(), now),
+                    Ok(s) => {
+                        // 0x1019 says which length the SYNC has: 0 bytes when 0, 1 byte
+                        // (the counter) otherwise; another is reported once (EMCY 0x8240)
+                        // and the SYNC still taken.
+                        let expected = self.dict.comm.sync_overflow != 0;
+                        if s.counter().is_some() != expected {
+                            if !self.sync_length_error {
+                                self.sync_length_error = true;
+                                self.emcy(emcy_code::SYNC_LENGTH);
+                            }
+                        } else {
+                            self.sync_length_error = false;
+                        }
+                        self.on_sync(s.counter(), now);
+                    }
                     Err(SyncError::Length(_)) => {
-                        self.emcy(emcy_code::SYNC_LENGTH);
+                        if !self.sync_length_error {
+                            self.sync_length_error = true;
+                            self.emcy(emcy_code::SYNC_LENGTH);
+                        }
                         self.on_sync(None, now);
                     }
                     // A counter outside 1..=240 or an RTR is no SYNC of CiA 301.
@@ -608,6 +631,18 @@ impl CanNode {
             let Some(run) = self.tpdo.get_mut(n) else {
                 continue;
             };
+            // A start value waits for the SYNC whose counter equals it (§7.5.2.36 sub 6;
+            // ignored when the SYNC has no counter).
+            if p.sync_start != 0 && !run.started {
+                match counter {
+                    Some(c) if c == p.sync_start => {
+                        run.started = true;
+                        run.syncs = every.saturating_sub(1);
+                    }
+                    Some(_) => continue,
+                    None => {}
+                }
+            }
             let due = if every == 0 {
                 // Acyclic: at the SYNC after a change.
                 run.last.is_none_or(|(d, l, _)| (d, l) != (data, len))

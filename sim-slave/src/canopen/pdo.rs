@@ -11,8 +11,11 @@
 //!   next SYNC), 254/255 event-driven (at once); TPDO 0 synchronous acyclic, 1–240 every
 //!   n-th SYNC, 254/255 event-driven; 241–251 are reserved and 252/253 (RTR only) not
 //!   supported: abort 0x06090030.
-//! - **Inhibit time** (TPDO sub 3, 100 µs) may not change while the PDO exists
-//!   (§7.5.2.36), abort 0x06090030; **event timer** (TPDO sub 5, ms) may.
+//! - **Inhibit time** (TPDO sub 3, 100 µs) and **SYNC start value** (TPDO sub 6,
+//!   0..=240) may not change while the PDO exists (§7.5.2.36), abort 0x06090030; **event
+//!   timer** (TPDO sub 5, ms) may. With a start value and SYNCs carrying a counter, a
+//!   cyclic TPDO is first sent at the SYNC whose counter equals it (spreading the TPDOs
+//!   of several nodes over the cycles).
 //! - **Mapping** (§7.5.2.37 procedure: invalidate the PDO, set sub 0 to 0, write the
 //!   entries, set sub 0 to their number, validate): any write while the PDO exists is
 //!   refused with 0x08000022; an entry written while sub 0 is not 0 with 0x08000022; an
@@ -78,11 +81,11 @@ impl Direction {
     }
 
     /// Highest sub-index of the communication record (RPDO: COB-ID, type; TPDO: also
-    /// inhibit time, reserved sub 4, event timer).
+    /// inhibit time, reserved sub 4, event timer, SYNC start value).
     pub const fn comm_subs(self) -> u8 {
         match self {
             Self::Receive => 2,
-            Self::Transmit => 5,
+            Self::Transmit => 6,
         }
     }
 }
@@ -111,6 +114,8 @@ pub struct Pdo {
     pub inhibit_time: u16,
     /// TPDO sub 5: event timer (ms, 0 = off).
     pub event_timer_ms: u16,
+    /// TPDO sub 6: SYNC start value (0 = not used).
+    pub sync_start: u8,
     /// Mapping sub 0: number of entries in use.
     pub count: u8,
     /// Mapping subs 1..=8: index << 16 | sub << 8 | bit length.
@@ -126,6 +131,7 @@ impl Pdo {
             transmission_type: TT_EVENT_PROFILE,
             inhibit_time: 0,
             event_timer_ms: 0,
+            sync_start: 0,
             count: 0,
             entries: [0; MAX_MAPPED],
         }
@@ -189,6 +195,7 @@ impl Pdo {
             (2, _) => put(out, &[self.transmission_type]),
             (3, Direction::Transmit) => put(out, &self.inhibit_time.to_le_bytes()),
             (5, Direction::Transmit) => put(out, &self.event_timer_ms.to_le_bytes()),
+            (6, Direction::Transmit) => put(out, &[self.sync_start]),
             _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
         }
     }
@@ -200,6 +207,7 @@ impl Pdo {
             (1, _) => Ok((4, true)),
             (2, _) => Ok((1, true)),
             (3, Direction::Transmit) | (5, Direction::Transmit) => Ok((2, true)),
+            (6, Direction::Transmit) => Ok((1, true)),
             _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
         }
     }
@@ -250,6 +258,14 @@ impl Pdo {
                     data.first().copied().unwrap_or(0),
                     data.get(1).copied().unwrap_or(0),
                 ]);
+                Ok(())
+            }
+            6 if self.direction == Direction::Transmit => {
+                let v = data.first().copied().unwrap_or(0);
+                if self.is_valid() || v > TT_SYNC_MAX {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+                self.sync_start = v;
                 Ok(())
             }
             0 => Err(AbortCode::READ_ONLY),
