@@ -351,3 +351,28 @@ fn sync_of_the_wrong_length_for_0x1019_is_reported_once() {
     let got = m.send(&[frame(0x080, &[1, 2])]);
     assert_eq!(emcys(&got), vec![0x8240]);
 }
+
+#[test]
+fn event_driven_rpdo_takes_effect_at_once() {
+    let mut m = booted();
+    // RPDO3: modes of operation + target torque, type 255.
+    map(
+        &mut m,
+        0x1402,
+        0x1602,
+        0x409,
+        &[objects::MODES_OF_OPERATION, objects::TARGET_TORQUE],
+        255,
+    );
+    m.nmt(NmtCommand::Start, Some(N));
+    let mut d = [10u8, 0, 0];
+    d[1..].copy_from_slice(&(-300i16).to_le_bytes());
+    m.send(&[frame(0x409, &d)]);
+    // No SYNC: the drive took it on reception.
+    assert_eq!(m.read(N, 0x6061, 0).unwrap(), [10], "CST");
+    assert_eq!(m.read(N, 0x6071, 0).unwrap(), (-300i16).to_le_bytes());
+    assert_eq!(m.node(0).counters().rpdos, 1);
+    // A mode the drive does not have is not taken (0x6061 keeps CST).
+    m.send(&[frame(0x409, &[1, 0, 0])]);
+    assert_eq!(m.read(N, 0x6061, 0).unwrap(), [10]);
+}
