@@ -305,6 +305,11 @@ impl NodeDictionary {
         d
     }
 
+    /// The servo's objects (0x6000…): index, sub-index, in the order installed.
+    pub fn servo_objects(&self) -> impl Iterator<Item = (u16, u8)> + '_ {
+        self.od.entries().iter().map(|e| (e.index, e.sub))
+    }
+
     /// The node id.
     pub fn node(&self) -> NodeId {
         self.node

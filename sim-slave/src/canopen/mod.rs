@@ -6,6 +6,7 @@
 
 pub mod bus;
 pub mod dictionary;
+pub mod eds;
 pub mod nmt;
 pub mod node;
 pub mod pdo;

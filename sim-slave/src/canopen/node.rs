@@ -22,7 +22,9 @@ use gantry_drives::canopen::emcy::Emergency;
 use gantry_drives::canopen::heartbeat::Heartbeat;
 use gantry_drives::canopen::nmt::NmtFrame;
 use gantry_drives::canopen::sdo::command::ClientCommand;
-use gantry_drives::canopen::sdo::{AbortCode, Multiplexer, SdoConfig, SdoConfigError, SdoServer};
+use gantry_drives::canopen::sdo::{
+    AbortCode, EntryInfo, Multiplexer, SdoConfig, SdoConfigError, SdoServer,
+};
 use gantry_drives::canopen::sync::{Sync, SyncError};
 use gantry_drives::canopen::CanFrame;
 use gantry_drives::cia402::State;
@@ -870,6 +872,12 @@ impl CanNode {
             self.send(e.emit());
             self.counters.emcys += 1;
         }
+    }
+
+    /// Access and size of the object at `index`:`sub`, as the SDO server sees it.
+    pub fn object_info(&self, index: u16, sub: u8) -> Result<EntryInfo, AbortCode> {
+        use gantry_drives::canopen::sdo::ObjectDictionary as _;
+        self.dict.entry(Multiplexer::new(index, sub))
     }
 
     /// The object at `index`:`sub` as the SDO server would read it (for tests and the

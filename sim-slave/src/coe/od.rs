@@ -129,6 +129,11 @@ impl ObjectDictionary {
         }
     }
 
+    /// Every entry, in the order inserted.
+    pub fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
     /// Copies the values of `other`'s entries into the same entries here (same index,
     /// sub-index and length; others are left): a dictionary restored to a saved copy of
     /// itself without allocating (NMT reset application).
