@@ -463,3 +463,51 @@ fn sync_watchdog_0x1006_faults_the_drive_when_sync_stays_away() {
     assert!(r.emcy.is_empty());
     assert_eq!(r.servo(0).state(), State::OperationEnabled);
 }
+
+#[test]
+fn rpdo_event_timer_is_a_deadline() {
+    let mut r = Rig::new(&[9]);
+    // Only the deadline: 0x2010 off, RPDO1 within 5 ms of the last.
+    r.m.write(9, 0x2010, 0, &0u16.to_le_bytes()).unwrap();
+    r.m.write(9, 0x1400, 5, &5u16.to_le_bytes()).unwrap();
+    assert_eq!(r.m.read(9, 0x1400, 0).unwrap(), [5]);
+    assert_eq!(
+        r.m.read(9, 0x1400, 3),
+        Err(gantry_drives::canopen::sdo::AbortCode::SUB_INDEX_DOES_NOT_EXIST),
+        "no inhibit time on an RPDO"
+    );
+    r.enable();
+    let p = r.axes[0].pos;
+    // RPDOs every 4 ms are within the deadline.
+    for k in 0..40 {
+        let c = (k % 4 == 0).then_some((0x0F, p));
+        r.cycle(&[c]);
+    }
+    assert!(r.emcy.is_empty(), "{:?}", r.emcy);
+    assert_eq!(r.servo(0).state(), State::OperationEnabled);
+    // Then none: the timeout 5 ms after the last one.
+    r.cycle(&[Some((0x0F, p))]);
+    let last =
+        r.m.bus
+            .log()
+            .iter()
+            .rev()
+            .find(|d| d.frame.id() == 0x209)
+            .unwrap()
+            .at_ns;
+    for _ in 0..10 {
+        r.cycle(&[None]);
+    }
+    assert_eq!(r.emcy.len(), 1, "{:?}", r.emcy);
+    let (at, e) = r.emcy[0];
+    assert_eq!(e.error_code, 0x8250);
+    assert!(
+        at >= last + 5 * MS && at <= last + 6 * MS + 135_000,
+        "{} ns after the last RPDO",
+        at - last
+    );
+    assert!(matches!(
+        r.servo(0).state(),
+        State::Fault | State::FaultReactionActive
+    ));
+}

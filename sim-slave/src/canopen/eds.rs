@@ -202,6 +202,7 @@ fn objects(node: &CanNode) -> Vec<Object> {
                 (0, "Highest sub-index supported", U8),
                 (1, "COB-ID used by RPDO", U32),
                 (2, "Transmission type", U8),
+                (5, "Event timer", U16),
             ],
         ));
         v.push(compound(

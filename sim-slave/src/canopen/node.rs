@@ -60,7 +60,9 @@ pub mod emcy_code {
     pub const PDO_LENGTH: u16 = 0x8210;
     /// Unexpected SYNC data length.
     pub const SYNC_LENGTH: u16 = 0x8240;
-    /// RPDO timeout: synchronous RPDOs missed at [`super::super::dictionary::MISSED_SETPOINT_LIMIT`] SYNCs in a row.
+    /// RPDO timeout: synchronous RPDOs missed at
+    /// [`super::super::dictionary::MISSED_SETPOINT_LIMIT`] SYNCs in a row, or an RPDO not
+    /// received within its event timer (0x1400:05).
     pub const RPDO_TIMEOUT: u16 = 0x8250;
 }
 
@@ -180,6 +182,9 @@ struct PdoRun {
     started: bool,
     /// TPDO: last data sent, its length, and when.
     last: Option<([u8; 8], usize, u64)>,
+    /// RPDO: when it last came, and whether its deadline (event timer) has passed since.
+    received_at: Option<u64>,
+    timed_out: bool,
 }
 
 /// Counters a test reads.
@@ -381,6 +386,29 @@ impl CanNode {
         self.take_changes();
         if self.nmt.pdo_allowed() {
             self.event_tpdos(now);
+            self.rpdo_deadlines(now);
+        }
+    }
+
+    /// RPDO deadline monitoring (CiA 301 §7.5.2.35 sub 5): armed by a reception, an RPDO
+    /// that does not come again within its event timer is an RPDO timeout (EMCY 0x8250,
+    /// and, its data being the drive's command, the 0x6007 reaction), once until it comes.
+    fn rpdo_deadlines(&mut self, now: u64) {
+        for n in 0..PDO_COUNT {
+            let Some(p) = self.dict.comm.rpdo.get(n).copied() else {
+                continue;
+            };
+            let timer = u64::from(p.event_timer_ms) * 1_000_000;
+            let Some(run) = self.rpdo.get_mut(n) else {
+                continue;
+            };
+            let expired = run
+                .received_at
+                .is_some_and(|t| now >= t.saturating_add(timer));
+            if p.is_valid() && timer > 0 && expired && !run.timed_out {
+                run.timed_out = true;
+                self.communication_error(emcy_code::RPDO_TIMEOUT);
+            }
         }
     }
 
@@ -494,7 +522,7 @@ impl CanNode {
                 .iter()
                 .position(|p| p.is_valid() && p.can_id() == id);
             if let Some(n) = hit {
-                self.on_rpdo(n, frame);
+                self.on_rpdo(n, frame, now);
             }
         }
     }
@@ -693,10 +721,14 @@ impl CanNode {
         }
     }
 
-    fn on_rpdo(&mut self, n: usize, frame: &CanFrame) {
+    fn on_rpdo(&mut self, n: usize, frame: &CanFrame, now: u64) {
         let Some(p) = self.dict.comm.rpdo.get(n).copied() else {
             return;
         };
+        if let Some(run) = self.rpdo.get_mut(n) {
+            run.received_at = Some(now);
+            run.timed_out = false;
+        }
         let data = frame.data();
         if data.len() < p.len() {
             // CiA 301 §7.2.2.2: fewer bytes than mapped: not processed, EMCY 0x8210.

@@ -13,7 +13,8 @@
 //!   supported: abort 0x06090030.
 //! - **Inhibit time** (TPDO sub 3, 100 µs) and **SYNC start value** (TPDO sub 6,
 //!   0..=240) may not change while the PDO exists (§7.5.2.36), abort 0x06090030; **event
-//!   timer** (TPDO sub 5, ms) may. With a start value and SYNCs carrying a counter, a
+//!   timer** (sub 5, ms) may: a TPDO's period without change, an RPDO's deadline
+//!   (§7.5.2.35: no RPDO within it after the last is an RPDO timeout). With a start value and SYNCs carrying a counter, a
 //!   cyclic TPDO is first sent at the SYNC whose counter equals it (spreading the TPDOs
 //!   of several nodes over the cycles).
 //! - **Mapping** (§7.5.2.37 procedure: invalidate the PDO, set sub 0 to 0, write the
@@ -80,11 +81,11 @@ impl Direction {
         }
     }
 
-    /// Highest sub-index of the communication record (RPDO: COB-ID, type; TPDO: also
-    /// inhibit time, reserved sub 4, event timer, SYNC start value).
+    /// Highest sub-index of the communication record (RPDO: COB-ID, type, event timer;
+    /// TPDO: also inhibit time, SYNC start value; sub 4 is reserved, RPDO sub 3 unused).
     pub const fn comm_subs(self) -> u8 {
         match self {
-            Self::Receive => 2,
+            Self::Receive => 5,
             Self::Transmit => 6,
         }
     }
@@ -112,7 +113,7 @@ pub struct Pdo {
     pub transmission_type: u8,
     /// TPDO sub 3: inhibit time (100 µs).
     pub inhibit_time: u16,
-    /// TPDO sub 5: event timer (ms, 0 = off).
+    /// Sub 5: event timer (ms, 0 = off): TPDO period, RPDO deadline.
     pub event_timer_ms: u16,
     /// TPDO sub 6: SYNC start value (0 = not used).
     pub sync_start: u8,
@@ -194,7 +195,7 @@ impl Pdo {
             (1, _) => put(out, &self.cob_id.to_le_bytes()),
             (2, _) => put(out, &[self.transmission_type]),
             (3, Direction::Transmit) => put(out, &self.inhibit_time.to_le_bytes()),
-            (5, Direction::Transmit) => put(out, &self.event_timer_ms.to_le_bytes()),
+            (5, _) => put(out, &self.event_timer_ms.to_le_bytes()),
             (6, Direction::Transmit) => put(out, &[self.sync_start]),
             _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
         }
@@ -206,7 +207,7 @@ impl Pdo {
             (0, _) => Ok((1, false)),
             (1, _) => Ok((4, true)),
             (2, _) => Ok((1, true)),
-            (3, Direction::Transmit) | (5, Direction::Transmit) => Ok((2, true)),
+            (3, Direction::Transmit) | (5, _) => Ok((2, true)),
             (6, Direction::Transmit) => Ok((1, true)),
             _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
         }
@@ -243,7 +244,7 @@ impl Pdo {
                 self.transmission_type = t;
                 Ok(())
             }
-            3 => {
+            3 if self.direction == Direction::Transmit => {
                 if self.is_valid() {
                     return Err(AbortCode::INVALID_VALUE);
                 }
