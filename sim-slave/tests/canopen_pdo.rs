@@ -376,3 +376,48 @@ fn event_driven_rpdo_takes_effect_at_once() {
     m.send(&[frame(0x409, &[1, 0, 0])]);
     assert_eq!(m.read(N, 0x6061, 0).unwrap(), [10]);
 }
+
+#[test]
+fn dummy_entries_skip_bytes_of_an_rpdo() {
+    let mut m = booted();
+    // RPDO2: a 16-bit dummy, then the target velocity: bytes 0–1 are someone else's.
+    map(
+        &mut m,
+        0x1401,
+        0x1601,
+        0x309,
+        &[
+            gantry_sim::canopen::pdo::DUMMIES[1],
+            objects::TARGET_VELOCITY,
+        ],
+        255,
+    );
+    // Not into a TPDO.
+    m.write(N, 0x1801, 1, &(INVALID | 0x289).to_le_bytes())
+        .unwrap();
+    m.write(N, 0x1A01, 0, &[0]).unwrap();
+    assert_eq!(
+        m.write(N, 0x1A01, 1, &0x0006_0010u32.to_le_bytes()),
+        Err(AbortCode::NOT_MAPPABLE)
+    );
+    // A dummy of the wrong length.
+    m.write(N, 0x1401, 1, &(INVALID | 0x309).to_le_bytes())
+        .unwrap();
+    m.write(N, 0x1601, 0, &[0]).unwrap();
+    assert_eq!(
+        m.write(N, 0x1601, 1, &0x0003_0020u32.to_le_bytes()),
+        Err(AbortCode::NOT_MAPPABLE)
+    );
+    m.write(N, 0x1601, 0, &[2]).unwrap();
+    m.write(N, 0x1401, 1, &0x309u32.to_le_bytes()).unwrap();
+    m.nmt(NmtCommand::Start, Some(N));
+    let mut d = [0xAAu8, 0xBB, 0, 0, 0, 0];
+    d[2..].copy_from_slice(&777i32.to_le_bytes());
+    m.send(&[frame(0x309, &d)]);
+    assert_eq!(m.read(N, 0x60FF, 0).unwrap(), 777i32.to_le_bytes());
+    assert_eq!(
+        m.read(N, 0x6040, 0).unwrap(),
+        [0, 0],
+        "the dummy bytes went nowhere"
+    );
+}

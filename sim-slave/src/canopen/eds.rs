@@ -340,8 +340,9 @@ pub fn write(node: &mut CanNode, file_name: &str) -> String {
     );
     let _ = writeln!(s);
     let _ = writeln!(s, "[DummyUsage]");
+    // CiA 306 §4.5: which data types may be mapped as dummies (RPDOs; not BOOLEAN).
     for d in 1..=7 {
-        let _ = writeln!(s, "Dummy000{d}=0");
+        let _ = writeln!(s, "Dummy000{d}={}", u8::from(d >= 2));
     }
     let _ = writeln!(s);
     let mandatory = [DEVICE_TYPE, ERROR_REGISTER, IDENTITY];

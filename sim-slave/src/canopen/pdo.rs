@@ -27,11 +27,12 @@
 //!
 //! Mappable objects are those the servo codes its process data through
 //! ([`image::OUTPUT_OBJECTS`] into RPDOs, [`image::INPUT_OBJECTS`] into TPDOs), whole
-//! objects only (bit lengths are multiples of 8).
+//! objects only (bit lengths are multiples of 8), and in RPDOs the dummy entries
+//! ([`DUMMIES`]).
 
 use gantry_drives::canopen::sdo::AbortCode;
 use gantry_drives::cia402::image;
-use gantry_drives::cia402::objects::ObjectId;
+use gantry_drives::cia402::objects::{DataType, ObjectId};
 use gantry_drives::cia402::pdo::parse_mapping_entry;
 
 /// First RPDO communication parameter (CiA 301 §7.5.2.35).
@@ -334,12 +335,40 @@ impl Pdo {
 /// length; else 0x06040041.
 pub fn mappable(direction: Direction, entry: u32) -> Result<ObjectId, AbortCode> {
     let (index, sub, bits) = parse_mapping_entry(entry);
+    let same =
+        |o: &ObjectId| o.index == index && o.sub == sub && o.kind.size() * 8 == usize::from(bits);
+    let dummies: &[ObjectId] = match direction {
+        Direction::Receive => &DUMMIES,
+        Direction::Transmit => &[],
+    };
     direction
         .mappable()
         .iter()
+        .chain(dummies)
         .copied()
-        .find(|o| o.index == index && o.sub == sub && o.kind.size() * 8 == usize::from(bits))
+        .find(same)
         .ok_or(AbortCode::NOT_MAPPABLE)
+}
+
+/// Dummy entries (CiA 301 §7.4.7.1, §7.5.2.37): the data type indices 0x0002–0x0007
+/// mapped into an RPDO skip that many bytes of it (another node's data in the same
+/// frame). Not in TPDOs, which have nothing to fill them with.
+pub const DUMMIES: [ObjectId; 6] = [
+    dummy(0x0002, DataType::I8),
+    dummy(0x0003, DataType::I16),
+    dummy(0x0004, DataType::I32),
+    dummy(0x0005, DataType::U8),
+    dummy(0x0006, DataType::U16),
+    dummy(0x0007, DataType::U32),
+];
+
+const fn dummy(index: u16, kind: DataType) -> ObjectId {
+    ObjectId {
+        index,
+        sub: 0,
+        kind,
+        name: "Dummy",
+    }
 }
 
 fn four(data: &[u8]) -> [u8; 4] {
