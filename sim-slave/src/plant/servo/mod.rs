@@ -398,9 +398,10 @@ impl ServoDrive {
     }
 
     /// A communication failure the drive must react to (CiA 402-2 0x6007 abort connection
-    /// option code 1, "fault signal"): a drive with power on faults with `code` (the
-    /// CANopen node passes 0x8130 heartbeat lost, 0x8250 RPDO timeout) and stops as 0x605E
-    /// says; a drive without power only records nothing, as there is nothing to stop.
+    /// option code 1, "fault signal"): a drive with its power stage on faults with `code`
+    /// (the CANopen node passes 0x8130 heartbeat lost, 0x8250 RPDO timeout, 0x8100 NMT
+    /// stop or SYNC loss) and stops as 0x605E says; a drive whose power stage is off, or
+    /// that is already in Fault, is left as it is: there is nothing to stop.
     pub fn communication_fault(&mut self, code: u16) {
         if matches!(
             self.state.state(),
