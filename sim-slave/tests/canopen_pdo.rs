@@ -421,3 +421,55 @@ fn dummy_entries_skip_bytes_of_an_rpdo() {
         "the dummy bytes went nowhere"
     );
 }
+
+#[test]
+fn emcy_cob_id_and_inhibit_time() {
+    let mut m = booted();
+    m.write(N, 0x1015, 0, &100u16.to_le_bytes()).unwrap();
+    m.nmt(NmtCommand::Start, Some(N));
+    m.take_inbox();
+    // Three EMCYs (short RPDOs) 1 ms apart: the 10 ms inhibit time spaces them.
+    let t0 = m.now;
+    for _ in 0..3 {
+        m.send(&[frame(0x209, &[1])]);
+        m.step(MS);
+    }
+    for _ in 0..30 {
+        m.step(MS);
+    }
+    let at: Vec<u64> = m
+        .take_inbox()
+        .iter()
+        .filter(|d| d.frame.id() == 0x089)
+        .map(|d| (d.at_ns - t0) / 100_000)
+        .collect();
+    // In 0.1 ms (no bit timing on this bus): at once, then at 10 and 20 ms, not before.
+    assert_eq!(at, vec![0, 100, 200]);
+    assert_eq!(m.read(N, 0x1003, 0).unwrap(), [3]);
+    // The identifier changes only while bit 31 is set; 29-bit ones are refused.
+    assert_eq!(
+        m.write(N, 0x1014, 0, &0xFFu32.to_le_bytes()),
+        Err(AbortCode::INVALID_VALUE)
+    );
+    assert_eq!(
+        m.write(N, 0x1014, 0, &(INVALID | 1 << 29 | 0xFF).to_le_bytes()),
+        Err(AbortCode::INVALID_VALUE)
+    );
+    m.write(N, 0x1014, 0, &(INVALID | 0x89).to_le_bytes())
+        .unwrap();
+    // No EMCY exists: none is sent, 0x1003 still records.
+    m.step(20 * MS);
+    let got = m.send(&[frame(0x209, &[1])]);
+    assert!(on(&got, 0x089).is_empty());
+    assert_eq!(m.read(N, 0x1003, 0).unwrap(), [4]);
+    m.write(N, 0x1014, 0, &(INVALID | 0xFF).to_le_bytes())
+        .unwrap();
+    m.write(N, 0x1014, 0, &0xFFu32.to_le_bytes()).unwrap();
+    m.step(20 * MS);
+    let got = m.send(&[frame(0x209, &[1])]);
+    assert_eq!(on(&got, 0x0FF).len(), 1);
+    assert_eq!(
+        Emergency::parse(&on(&got, 0x0FF)[0]).unwrap().error_code,
+        0x8210
+    );
+}

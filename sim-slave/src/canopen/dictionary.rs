@@ -11,7 +11,8 @@
 //! | 0x1005 | const | COB-ID SYNC 0x080 |
 //! | 0x1006 | rw | communication cycle period (µs, 0 = off): the SYNC consumer's watchdog (§7.5.2.6) |
 //! | 0x1008, 0x100A | const | manufacturer device name, software version (VISIBLE_STRING: uploaded segmented or by block) |
-//! | 0x1014 | const | COB-ID EMCY 0x080 + node |
+//! | 0x1014 | rw | COB-ID EMCY (power-on 0x080 + node; bit 31 = no EMCY; the identifier changes only while bit 31 is set, §7.5.2.13) |
+//! | 0x1015 | rw | inhibit time EMCY (100 µs, §7.5.2.14) |
 //! | 0x1019 | rw | synchronous counter overflow value: 0 SYNC without counter, 2..=240 with; writable only while 0x1006 is 0 (§7.5.2.22) |
 //! | 0x1016:01 | rw | heartbeat consumer: node id << 16 \| time (ms) (§7.5.2.16) |
 //! | 0x1017 | rw | heartbeat producer time (ms, 0 = off) (§7.5.2.17) |
@@ -65,6 +66,8 @@ pub const CONSUMER_HEARTBEAT_TIME: u16 = 0x1016;
 pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
 /// 0x1018 identity object.
 pub const IDENTITY: u16 = 0x1018;
+/// 0x1015 inhibit time EMCY.
+pub const INHIBIT_TIME_EMCY: u16 = 0x1015;
 /// 0x1019 synchronous counter overflow value.
 pub const SYNC_COUNTER_OVERFLOW: u16 = 0x1019;
 /// 0x1029 error behaviour.
@@ -104,6 +107,10 @@ pub struct Communication {
     pub cycle_period_us: u32,
     /// 0x1019.
     pub sync_overflow: u8,
+    /// 0x1014.
+    pub emcy_cob_id: u32,
+    /// 0x1015 (100 µs).
+    pub emcy_inhibit_100us: u16,
     /// 0x1029:01.
     pub error_behaviour: u8,
     /// 0x1400–0x1403 with 0x1600–0x1603.
@@ -142,10 +149,22 @@ impl Communication {
             heartbeat_producer_ms,
             cycle_period_us: 0,
             sync_overflow: 0,
+            emcy_cob_id: u32::from(CobId::Emcy(node).id()),
+            emcy_inhibit_100us: 0,
             error_behaviour: behaviour::PRE_OPERATIONAL,
             rpdo,
             tpdo,
         }
+    }
+
+    /// Whether the EMCY exists (0x1014 bit 31 clear).
+    pub const fn emcy_valid(&self) -> bool {
+        self.emcy_cob_id & pdo::COB_ID_INVALID == 0
+    }
+
+    /// The EMCY's 11-bit identifier.
+    pub const fn emcy_can_id(&self) -> u16 {
+        (self.emcy_cob_id & 0x7FF) as u16
     }
 
     /// The heartbeat consumer entry: (node, time in ms), if it monitors one.
@@ -385,7 +404,9 @@ impl NodeDictionary {
         use Access::{Const, ReadOnly, ReadWrite};
         let sub_missing = Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST);
         match (mux.index, mux.sub) {
-            (DEVICE_TYPE, 0) | (COB_ID_SYNC, 0) | (COB_ID_EMCY, 0) => Ok(fixed(Const, 4)),
+            (DEVICE_TYPE, 0) | (COB_ID_SYNC, 0) => Ok(fixed(Const, 4)),
+            (COB_ID_EMCY, 0) => Ok(fixed(ReadWrite, 4)),
+            (INHIBIT_TIME_EMCY, 0) => Ok(fixed(ReadWrite, 2)),
             (COMMUNICATION_CYCLE_PERIOD, 0) => Ok(fixed(ReadWrite, 4)),
             (ERROR_REGISTER, 0) => Ok(fixed(ReadOnly, 1)),
             (PREDEFINED_ERROR_FIELD, 0) => Ok(fixed(ReadWrite, 1)),
@@ -409,6 +430,7 @@ impl NodeDictionary {
                 | SOFTWARE_VERSION
                 | COB_ID_SYNC
                 | COB_ID_EMCY
+                | INHIBIT_TIME_EMCY
                 | CONSUMER_HEARTBEAT_TIME
                 | PRODUCER_HEARTBEAT_TIME
                 | IDENTITY
@@ -479,7 +501,8 @@ impl SdoDictionary for NodeDictionary {
             (COMMUNICATION_CYCLE_PERIOD, 0) => put(out, &self.comm.cycle_period_us.to_le_bytes()),
             (SOFTWARE_VERSION, 0) => put(out, SOFTWARE_VERSION_VALUE.as_bytes()),
             (COB_ID_SYNC, 0) => put(out, &u32::from(SYNC_COB_ID).to_le_bytes()),
-            (COB_ID_EMCY, 0) => put(out, &u32::from(CobId::Emcy(self.node).id()).to_le_bytes()),
+            (COB_ID_EMCY, 0) => put(out, &self.comm.emcy_cob_id.to_le_bytes()),
+            (INHIBIT_TIME_EMCY, 0) => put(out, &self.comm.emcy_inhibit_100us.to_le_bytes()),
             (CONSUMER_HEARTBEAT_TIME, 0) | (ERROR_BEHAVIOUR, 0) => put(out, &[1]),
             (CONSUMER_HEARTBEAT_TIME, 1) => put(out, &self.comm.heartbeat_consumer.to_le_bytes()),
             (PRODUCER_HEARTBEAT_TIME, 0) => {
@@ -549,6 +572,30 @@ impl SdoDictionary for NodeDictionary {
             }
             (PRODUCER_HEARTBEAT_TIME, 0) => {
                 self.comm.heartbeat_producer_ms = u16_of(data);
+                Ok(())
+            }
+            (COB_ID_EMCY, 0) => {
+                let v = u32::from_le_bytes([
+                    data.first().copied().unwrap_or(0),
+                    data.get(1).copied().unwrap_or(0),
+                    data.get(2).copied().unwrap_or(0),
+                    data.get(3).copied().unwrap_or(0),
+                ]);
+                // 11-bit identifiers only; the identifier changes only while the EMCY
+                // does not exist (§7.5.2.13).
+                let new_valid = v & pdo::COB_ID_INVALID == 0;
+                let id_changes = (v & 0x7FF) != (self.comm.emcy_cob_id & 0x7FF);
+                if v & 0x7FFF_F800 != 0
+                    || (new_valid && self.comm.emcy_valid() && id_changes)
+                    || (new_valid && v & 0x7FF == 0)
+                {
+                    return Err(AbortCode::INVALID_VALUE);
+                }
+                self.comm.emcy_cob_id = v;
+                Ok(())
+            }
+            (INHIBIT_TIME_EMCY, 0) => {
+                self.comm.emcy_inhibit_100us = u16_of(data);
                 Ok(())
             }
             (COMMUNICATION_CYCLE_PERIOD, 0) => {

@@ -41,6 +41,8 @@ use crate::plant::servo::{ParamError, ServoDrive, ServoParams};
 pub const OUTBOX_FRAMES: usize = 192;
 /// Without a SYNC for this long the drive's loops run from `tick` (10 ms).
 pub const IDLE_RUN_NS: u64 = 10_000_000;
+/// EMCYs the inhibit time may hold back.
+pub const EMCY_QUEUE: usize = 8;
 /// Longest single run of the loops (the plant allows 100 ms).
 const MAX_RUN_NS: u64 = 100_000_000;
 /// Most runs one call makes to catch up (10 s of simulated time; bounded work).
@@ -200,6 +202,8 @@ pub struct NodeCounters {
     pub tpdos: u64,
     /// EMCYs sent.
     pub emcys: u64,
+    /// EMCYs lost: the inhibit time held back more than the queue holds.
+    pub emcys_lost: u64,
     /// Heartbeats (and boot-ups) sent.
     pub heartbeats: u64,
     /// SYNCs in a row without a synchronous RPDO while following setpoints.
@@ -233,6 +237,12 @@ pub struct CanNode {
     last_run_ns: Option<u64>,
     /// The error code the last EMCY reported as active (0: none, or reset sent).
     emcy_active: u16,
+    /// EMCYs held back by the inhibit time, oldest first, and when the last went out.
+    emcy_queue: [Emergency; EMCY_QUEUE],
+    emcy_queue_len: usize,
+    last_emcy_ns: Option<u64>,
+    /// The time of the call in progress.
+    now: u64,
     counters: NodeCounters,
 }
 
@@ -268,6 +278,15 @@ impl CanNode {
             sync_length_error: false,
             last_run_ns: None,
             emcy_active: 0,
+            emcy_queue: [Emergency {
+                node,
+                error_code: 0,
+                error_register: 0,
+                manufacturer: [0; 5],
+            }; EMCY_QUEUE],
+            emcy_queue_len: 0,
+            last_emcy_ns: None,
+            now: 0,
             counters: NodeCounters::default(),
         })
     }
@@ -331,6 +350,7 @@ impl CanNode {
     }
 
     fn advance(&mut self, now: u64) {
+        self.now = now;
         if self.nmt == NmtSlaveState::Initialisation {
             self.boot(now);
         }
@@ -384,6 +404,7 @@ impl CanNode {
             self.drain_sdo();
         }
         self.take_changes();
+        self.flush_emcy();
         if self.nmt.pdo_allowed() {
             self.event_tpdos(now);
             self.rpdo_deadlines(now);
@@ -444,6 +465,8 @@ impl CanNode {
         self.consumer_lost = false;
         self.last_sync_ns = None;
         self.sync_lost = false;
+        self.emcy_queue_len = 0;
+        self.last_emcy_ns = None;
         self.counters.missed_in_row = 0;
     }
 
@@ -863,15 +886,65 @@ impl CanNode {
         if !self.nmt.sync_emcy_allowed() {
             return;
         }
+        let register = self.dict.error_register | error_register_bits(code);
+        self.produce_emcy(code, register);
+    }
+
+    /// Records `code` in 0x1003 and sends the EMCY on the COB-ID of 0x1014 if it exists,
+    /// no sooner than the inhibit time 0x1015 after the previous one (CiA 301 §7.2.7.1,
+    /// §7.5.2.14): one that comes sooner waits in a queue of [`EMCY_QUEUE`]; beyond that
+    /// it is lost (counted).
+    fn produce_emcy(&mut self, code: u16, register: u8) {
+        if code != emcy_code::NO_ERROR {
+            self.dict.push_error(code);
+        }
+        if !self.dict.comm.emcy_valid() {
+            return;
+        }
         let e = Emergency {
             node: self.node,
             error_code: code,
-            error_register: self.dict.error_register | error_register_bits(code),
+            error_register: register,
             manufacturer: [0; 5],
         };
-        self.dict.push_error(code);
-        self.send(e.emit());
-        self.counters.emcys += 1;
+        if self.emcy_queue_len == 0 && self.emcy_inhibit_passed(self.now) {
+            self.send_emcy(&e);
+        } else if let Some(slot) = self.emcy_queue.get_mut(self.emcy_queue_len) {
+            *slot = e;
+            self.emcy_queue_len += 1;
+        } else {
+            self.counters.emcys_lost += 1;
+        }
+    }
+
+    fn emcy_inhibit_passed(&self, now: u64) -> bool {
+        let inhibit = u64::from(self.dict.comm.emcy_inhibit_100us) * 100_000;
+        self.last_emcy_ns
+            .is_none_or(|t| now >= t.saturating_add(inhibit))
+    }
+
+    fn send_emcy(&mut self, e: &Emergency) {
+        let cob = self.dict.comm.emcy_can_id();
+        if let Ok(f) = CanFrame::new(u32::from(cob), e.emit().data()) {
+            self.send(f);
+            self.counters.emcys += 1;
+            self.last_emcy_ns = Some(self.now);
+        }
+    }
+
+    /// Sends the queued EMCYs the inhibit time lets go.
+    fn flush_emcy(&mut self) {
+        while self.emcy_queue_len > 0
+            && self.nmt.sync_emcy_allowed()
+            && self.emcy_inhibit_passed(self.now)
+        {
+            let Some(&e) = self.emcy_queue.first() else {
+                break;
+            };
+            self.emcy_queue.copy_within(1.., 0);
+            self.emcy_queue_len -= 1;
+            self.send_emcy(&e);
+        }
     }
 
     /// A drive fault is reported once with its 0x603F code; its end with an error reset
@@ -892,17 +965,8 @@ impl CanNode {
         };
         if code != self.emcy_active {
             self.emcy_active = code;
-            if code != emcy_code::NO_ERROR {
-                self.dict.push_error(code);
-            }
-            let e = Emergency {
-                node: self.node,
-                error_code: code,
-                error_register: self.dict.error_register,
-                manufacturer: [0; 5],
-            };
-            self.send(e.emit());
-            self.counters.emcys += 1;
+            let register = self.dict.error_register;
+            self.produce_emcy(code, register);
         }
     }
 
