@@ -15,6 +15,7 @@
     )
 )]
 
+pub mod canopen;
 pub mod catalog;
 pub mod chain;
 pub mod coe;

@@ -115,6 +115,36 @@ impl ObjectDictionary {
         Ok(())
     }
 
+    /// The entry at `index`:`sub` (its size and access), for a server that checks before
+    /// it transfers (the CANopen node's SDO server).
+    pub fn entry(&self, index: u16, sub: u8) -> Result<&Entry, OdError> {
+        match self
+            .entries
+            .iter()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            Some(e) => Ok(e),
+            None if self.entries.iter().any(|e| e.index == index) => Err(OdError::NoSubIndex),
+            None => Err(OdError::NoObject),
+        }
+    }
+
+    /// Every entry, in the order inserted.
+    pub fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
+    /// Copies the values of `other`'s entries into the same entries here (same index,
+    /// sub-index and length; others are left): a dictionary restored to a saved copy of
+    /// itself without allocating (NMT reset application).
+    pub fn copy_values_from(&mut self, other: &Self) {
+        for (e, o) in self.entries.iter_mut().zip(&other.entries) {
+            if e.index == o.index && e.sub == o.sub && e.value.len() == o.value.len() {
+                e.value.copy_from_slice(&o.value);
+            }
+        }
+    }
+
     /// Reads an entry.
     pub fn read(&self, index: u16, sub: u8) -> Result<&[u8], OdError> {
         match self

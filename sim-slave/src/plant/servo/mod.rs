@@ -397,6 +397,54 @@ impl ServoDrive {
         }
     }
 
+    /// A communication failure the drive must react to (CiA 402-2 0x6007 abort connection
+    /// option code 1, "fault signal"): a drive with its power stage on faults with `code`
+    /// (the CANopen node passes 0x8130 heartbeat lost, 0x8250 RPDO timeout, 0x8100 NMT
+    /// stop or SYNC loss) and stops as 0x605E says; a drive whose power stage is off, or
+    /// that is already in Fault, is left as it is: there is nothing to stop.
+    pub fn communication_fault(&mut self, code: u16) {
+        if matches!(
+            self.state.state(),
+            State::OperationEnabled | State::SwitchedOn | State::QuickStopActive
+        ) {
+            self.fault(code);
+        }
+    }
+
+    /// The application restarts (NMT reset node, CiA 301 §7.3.2.2.1: the application
+    /// is set to its power-on state): power stage off, no fault, Switch on disabled, the
+    /// command cleared, no setpoint period. The load stays where it is (it is physical) and
+    /// the settings are the caller's to restore (the node writes the power-on values of
+    /// its objects back and calls [`ServoDrive::take_objects`]). No allocation.
+    pub fn power_on_reset(&mut self) {
+        let p = self.motor.position;
+        self.state = DeviceStateMachine::ready();
+        self.error_code = 0;
+        self.controlword = Controlword(0);
+        self.last_controlword = Controlword(0);
+        self.target = wrap32(p);
+        self.fresh = false;
+        self.since_take = 0.0;
+        self.since_change = 0.0;
+        self.change_interval = 0.0;
+        self.missed_periods = 0;
+        self.setpoint_period = None;
+        self.last_interval = None;
+        self.target_abs = None;
+        self.seg_start = p;
+        self.slope = 0.0;
+        self.seg_t = 0.0;
+        self.seg_len = 0.0;
+        self.demand = p;
+        self.following_time = 0.0;
+        self.braking = None;
+        self.hold = p;
+        self.pending_touch_probe = None;
+        self.touch_probe_function = 0;
+        self.touch_probe_status = 0;
+        self.record.disabled();
+    }
+
     /// What the drive recorded of the setpoints it took.
     pub fn record(&self) -> &DriveRecord {
         &self.record
@@ -613,6 +661,18 @@ impl ServoDrive {
     /// by. Call it once per new setpoint: a run without one is a missed setpoint, and the
     /// time between two calls is the setpoint period the target is interpolated over.
     pub fn take_outputs(&mut self, mem: &Memory) {
+        let mut out = [0u8; MAX_PDO_BYTES];
+        let n_out = self.map.output_bytes.min(MAX_PDO_BYTES);
+        if let Some(o) = out.get_mut(..n_out) {
+            mem.ecat_read(self.outputs_at, o, false);
+        }
+        self.take_output_image(&out);
+    }
+
+    /// (a) without an ESC: takes the outputs from `out`, a process image laid out as the
+    /// configured [`PdoLayout`] (the CANopen node assembles it from its RPDOs at SYNC).
+    /// Same rules as [`ServoDrive::take_outputs`]: once per new setpoint.
+    pub fn take_output_image(&mut self, out: &[u8]) {
         // A setpoint taken before the drive ran since the previous one (the simulator
         // caught up after a stall of its own, passing SYNC0 edges without running the
         // periods between them): the previous one is judged and interpolated first, as
@@ -622,14 +682,9 @@ impl ServoDrive {
             self.new_setpoint(self.setpoint_period.unwrap_or(0.0));
         }
         let previous = self.target;
-        let mut out = [0u8; MAX_PDO_BYTES];
-        let n_out = self.map.output_bytes.min(MAX_PDO_BYTES);
-        if let Some(o) = out.get_mut(..n_out) {
-            mem.ecat_read(self.outputs_at, o, false);
-        }
         // The mapping rules allow at most 10 entries of at most 4 bytes, so the mapped
         // outputs always fit the buffer; an object not mapped keeps its last value.
-        if let Ok(img) = OutputImage::new_checked(&out[..], &self.map) {
+        if let Ok(img) = OutputImage::new_checked(out, &self.map) {
             if let Some(cw) = img.controlword() {
                 self.controlword = cw;
             }
@@ -1011,6 +1066,13 @@ impl ServoDrive {
         let Some(buf) = inp.get_mut(..n_in) else {
             return;
         };
+        self.publish_input_image(buf);
+        mem.pdi_write(self.inputs_at, buf);
+    }
+
+    /// (c) without an ESC: writes the mapped input objects into `buf`, a process image
+    /// laid out as the configured [`PdoLayout`] (the CANopen node cuts its TPDOs from it).
+    pub fn publish_input_image(&self, buf: &mut [u8]) {
         // Always fits (see `take_outputs`); objects not mapped are not written. Values
         // wider than their object are sent as their low bytes, as the registers wrap.
         if let Ok(mut img) = InputImage::new_checked(&mut *buf, &self.map) {
@@ -1026,7 +1088,6 @@ impl ServoDrive {
             // No digital inputs wired on the model (limit and home switches come later).
             img.set_digital_inputs(0);
         }
-        mem.pdi_write(self.inputs_at, buf);
     }
 
     /// 0x6041: the state, remote, bit 12 (CSP/CSV/CST: the drive follows the command

@@ -1,0 +1,17 @@
+//! CANopen nodes (CiA 301 slave side) for the simulator: the servo drive of
+//! [`crate::plant::servo`] behind an NMT slave ([`nmt`]), SDO server on its object
+//! dictionary ([`dictionary`]), PDOs with the CiA 301 configuration rules ([`pdo`]),
+//! SYNC, EMCY and heartbeat, sans-I/O ([`node::CanNode`]); its EDS ([`eds`]); and an
+//! in-memory CAN bus that delivers frames to several nodes in lockstep ([`bus::CanBus`]).
+//! The wire formats and the SDO machines are `gantry_drives::canopen`, shared with the
+//! master.
+
+pub mod bus;
+pub mod dictionary;
+pub mod eds;
+pub mod nmt;
+pub mod node;
+pub mod pdo;
+
+pub use bus::CanBus;
+pub use node::{CanNode, CanNodeConfig, CanNodeError};
