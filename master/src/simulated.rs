@@ -1,10 +1,11 @@
 //! The bus of simulated axes (SPEC §1: "configured like a real axis but not connected;
 //! actual = set"): a bus with no hardware behind it, one CiA-402 drive per axis whose
 //! position is the target it was sent. It implements [`CycleBus`], so the one engine
-//! ([`crate::runtime::engine::Engine`]) and the one cycle ([`Cycle::from_config`]) run on it
-//! unchanged: the master codes each drive's CSP process data as it would for a drive on a
-//! wire, and each drive decodes it and answers through the same typed view
-//! ([`gantry_drives::cia402::image`]) at the bytes its PDO layout gives.
+//! ([`crate::runtime::engine::Engine`]) and the one cycle
+//! ([`crate::runtime::cycle::Cycle::from_config`]) run on it unchanged: the master codes
+//! each drive's CSP process data as it would for a drive on a wire, and each drive
+//! decodes it and answers through the same typed view ([`gantry_drives::cia402::image`])
+//! at the bytes its PDO layout gives.
 //!
 //! A drive here answers at once: the power state machine (the shared CiA-402 table,
 //! [`DeviceStateMachine`]) takes each exchange's controlword, and in Operation enabled the
