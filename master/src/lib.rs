@@ -1,6 +1,7 @@
 //! gantry, the motion master as a library: the configuration, the real-time engine and
 //! its [`runtime::controller::Controller`], the buses (EtherCAT on a network interface, or
-//! on any [`ethercat::link::Link`] a caller plugs in), the service and the trace.
+//! on any [`ethercat::link::Link`] a caller plugs in; the [`simulated`] axes' bus, with no
+//! hardware), the service and the trace.
 //!
 //! The `gantry` binary (package `gantry-cli`) adds the command line, the demo, the plot,
 //! the status table and the in-process simulator's links; this library knows nothing of
@@ -15,4 +16,5 @@ pub mod ethercat;
 pub mod pcap;
 pub mod runtime;
 pub mod service;
+pub mod simulated;
 pub mod trace;

@@ -141,7 +141,8 @@ enum Cmd {
         #[arg(long, default_value_t = 4.0)]
         speed: f64,
         /// `ethercat`: simulated CiA-402 drives on an in-process EtherCAT network, brought
-        /// up and driven by the master; `none`: the motion kernel alone on simulated axes.
+        /// up and driven by the master; `none`: the same engine on simulated axes (actual =
+        /// set), no bus hardware.
         #[arg(long, default_value = "ethercat", value_parser = ["ethercat", "none"])]
         bus: String,
         /// Write every EtherCAT frame sent and received to this pcap file.

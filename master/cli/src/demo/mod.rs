@@ -1,31 +1,46 @@
-//! `gantry demo --bus none`: the motion kernel alone. Three simulated axes (actual = set, as
-//! SPEC §1 defines) go through a scripted sequence of PTP moves in several modes, buffered
-//! and blended moves, a velocity move with reverse, jogs with merge and a halt at the
-//! actual position; a status table shows it live; the trace (CSV) and a plot (SVG) are
-//! written to a folder it prints. No root, no network, no configuration file.
+//! `gantry demo --bus none`: the motion kernel without bus hardware. Three simulated axes
+//! (actual = set, as SPEC §1 defines) go through a scripted sequence of PTP moves in
+//! several modes, buffered and blended moves, a velocity move with reverse, jogs with
+//! merge and a halt at the actual position; a status table shows it live; the trace (CSV)
+//! and a plot (SVG) are written to a folder it prints. No root, no network, no
+//! configuration file.
+//!
+//! It runs what `gantry run` runs — a [`Config`], [`Cycle::from_config`], the [`Engine`],
+//! the script's commands through a [`Controller`] — on the simulated axes' bus
+//! ([`SimulatedBus`]: CiA-402 drives with no hardware whose position is the target sent),
+//! in lockstep on a [`StepClock`] with nothing to step: the drives answer within the
+//! exchange.
 //!
 //! `gantry demo` itself, the newcomer's first look, runs the product over simulated drives
 //! on the in-process EtherCAT network ([`ethercat`]).
 
-use std::collections::HashMap;
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, Jog, JogProfile, MergeSpeed, MoveDirection, MovePtp,
     MoveVelocity, PositioningMode, PowerCommand,
 };
-use gantry_kernel::axis::handle::{CommandStatus, HandleId};
-use gantry_kernel::mechanics::{Modulo, MotionKind};
-use gantry_kernel::profile::{Limits, RampType};
-use gantry_kernel::{AxisConfig, AxisKind, Kernel};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
 use thiserror::Error;
 
 pub mod ethercat;
 
 use crate::plot::{self, Panel};
 use crate::status_table::{self, Live, Row};
+use gantry::axis_fault::describe_fault;
+use gantry::config::{
+    AxisSection, BusSection, Config, DefaultsSection, FaultsSection, MaxSection, RtSection,
+    ScalingSection,
+};
+use gantry::runtime::clock::StepClock;
+use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
+use gantry::runtime::engine::Engine;
+use gantry::runtime::protocol::Snapshot;
+use gantry::simulated::SimulatedBus;
 use gantry::trace::{Trace, TraceError};
 
 /// Options of `gantry demo`.
@@ -71,9 +86,22 @@ pub struct DemoReport {
 /// Why the demo failed.
 #[derive(Debug, Error)]
 pub enum DemoError {
-    /// The kernel refused the demo's axes (a bug in the demo).
-    #[error("demo configuration rejected")]
-    Config(#[from] gantry_kernel::axis::ConfigError),
+    /// An axis of the bus-less demo's configuration was refused (a bug in the demo).
+    #[error("demo axis {axis:?}: {key}: {reason}")]
+    Axis {
+        /// The axis.
+        axis: String,
+        /// The configuration key.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The bus-less demo's cycle time is not one the engine runs.
+    #[error("cycle time {0} s: the demo runs whole µs from 250 to 4000")]
+    CycleTime(f64),
+    /// The simulated axes' bus could not be made for the demo's configuration.
+    #[error(transparent)]
+    Simulated(#[from] gantry::simulated::SimulatedError),
     /// A step of the script was refused or failed.
     #[error("demo step {label} ({axis}: {command}) failed")]
     Step {
@@ -153,45 +181,126 @@ pub struct Step {
     pub says: &'static str,
 }
 
-/// The demo's axes: `x` linear S-curve, `y` linear trapezoid, `c` rotary modulo 360° with
-/// Sine ramps.
-pub fn axes() -> Vec<AxisConfig> {
-    let mut x = AxisConfig::new("x", AxisKind::Simulated);
-    x.max = Limits {
-        vmax: 200.0,
-        amax: 2000.0,
-        dmax: 2000.0,
-        jmax: 20_000.0,
-    };
-    x.defaults.speed = 100.0;
-    x.defaults.acceleration = 500.0;
-    x.defaults.deceleration = 500.0;
-    x.defaults.jerk = 5_000.0;
-    x.defaults.ramp = RampType::SCurve;
-    x.mechanics.software_limits = Some((-10.0, 400.0));
+/// Cycle time of the bus-less demo (µs) for `cycle_s` seconds, if it is a cycle the
+/// engine runs (a whole number of µs, 250 to 4000, as `bus.cycle_us`).
+fn cycle_us(cycle_s: f64) -> Result<u32, DemoError> {
+    let us = (cycle_s * 1e6).round();
+    if (cycle_s * 1e6 - us).abs() > 1e-6 || !(250.0..=4000.0).contains(&us) {
+        return Err(DemoError::CycleTime(cycle_s));
+    }
+    Ok(us as u32)
+}
 
-    let mut y = x.clone();
-    y.name = "y".into();
-    y.defaults.ramp = RampType::Trapezoid;
-    y.defaults.speed = 80.0;
-    y.defaults.acceleration = 300.0;
-    y.defaults.deceleration = 300.0;
+/// One of the demo's axes on the simulated drive at position `drive`: the full CSP
+/// mapping, a 17-bit encoder, `units_per_load_rev` after `gear`:1, the given maxima and
+/// default dynamics (speed, acceleration = deceleration, jerk, ramp).
+fn axis(
+    name: &str,
+    drive: usize,
+    gear: u32,
+    units_per_load_rev: f64,
+    max: [f64; 3],
+    defaults: [f64; 3],
+    ramp: &str,
+) -> AxisSection {
+    let [speed, acceleration, jerk] = defaults;
+    AxisSection {
+        name: name.into(),
+        drive,
+        kind: "linear".into(),
+        units: "mm".into(),
+        modulo: None,
+        direction: "both".into(),
+        software_limits: Some([-10.0, 400.0]),
+        scaling: ScalingSection {
+            counts_per_motor_rev: 1 << 17,
+            motor_revs: gear,
+            load_revs: 1,
+            units_per_load_rev,
+            invert: false,
+        },
+        max: MaxSection {
+            speed: max[0],
+            acceleration: max[1],
+            deceleration: None,
+            jerk: max[2],
+        },
+        defaults: DefaultsSection {
+            speed: Some(speed),
+            acceleration: Some(acceleration),
+            deceleration: Some(acceleration),
+            jerk: Some(jerk),
+            ramp: Some(ramp.into()),
+            target_window: None,
+        },
+        quick_stop_deceleration: None,
+        homing_required: true,
+        target_monitoring: Default::default(),
+        pdo: "csp".into(),
+    }
+}
 
-    let mut c = AxisConfig::new("c", AxisKind::Simulated);
-    c.mechanics.kind = MotionKind::Rotary;
-    c.mechanics.modulo = Modulo::new(360.0);
-    c.max = Limits {
-        vmax: 720.0,
-        amax: 3600.0,
-        dmax: 3600.0,
-        jmax: 36_000.0,
-    };
-    c.defaults.speed = 360.0;
-    c.defaults.acceleration = 1440.0;
-    c.defaults.deceleration = 1440.0;
-    c.defaults.jerk = 14_400.0;
-    c.defaults.ramp = RampType::Sine;
-    vec![x, y, c]
+/// The demo's configuration: three simulated axes (SPEC §1: actual = set), each on a
+/// drive of the simulated axes' bus — `x` linear S-curve and `y` linear trapezoid on 5 mm
+/// ball screws, `c` a rotary table modulo 360° through a 10:1 gear with Sine ramps —
+/// cycling every `cycle_us` µs.
+pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
+    let x = axis(
+        "x",
+        0,
+        1,
+        5.0,
+        [200.0, 2000.0, 20_000.0],
+        [100.0, 500.0, 5_000.0],
+        "scurve",
+    );
+    let y = axis(
+        "y",
+        1,
+        1,
+        5.0,
+        [200.0, 2000.0, 20_000.0],
+        [80.0, 300.0, 5_000.0],
+        "trapezoid",
+    );
+    let mut c = axis(
+        "c",
+        2,
+        10,
+        360.0,
+        [720.0, 3600.0, 36_000.0],
+        [360.0, 1440.0, 14_400.0],
+        "sine",
+    );
+    (c.kind, c.units, c.modulo, c.software_limits) =
+        ("rotary".into(), "deg".into(), Some(360.0), None);
+    let axes = vec![x, y, c];
+    let kernel_axes = axes
+        .iter()
+        .map(|a| {
+            a.kernel_config().map_err(|(key, reason)| DemoError::Axis {
+                axis: a.name.clone(),
+                key,
+                reason,
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(Config {
+        path: "gantry demo --bus none".into(),
+        bus: BusSection {
+            kind: "none".into(),
+            interface: None,
+            simulator: None,
+            cycle_us,
+            simulator_record: None,
+            pcap: None,
+            dc: false,
+            faults: FaultsSection::default(),
+        },
+        rt: RtSection::default(),
+        axes,
+        kernel_axes,
+    })
 }
 
 const fn ptp(mode: PositioningMode, target: f64) -> Command {
@@ -238,7 +347,7 @@ pub fn script() -> Vec<Step> {
             "",
         ),
         step(
-            Wait::Now,
+            Wait::Done("x-on"),
             "x",
             Command::SetPosition {
                 position: 0.0,
@@ -248,7 +357,7 @@ pub fn script() -> Vec<Step> {
             "set reference (homed)",
         ),
         step(
-            Wait::Now,
+            Wait::Done("y-on"),
             "y",
             Command::SetPosition {
                 position: 0.0,
@@ -258,7 +367,7 @@ pub fn script() -> Vec<Step> {
             "",
         ),
         step(
-            Wait::Now,
+            Wait::Done("c-on"),
             "c",
             Command::SetPosition {
                 position: 0.0,
@@ -424,172 +533,388 @@ const TIME_LIMIT_S: f64 = 60.0;
 /// Simulated seconds between two status frames.
 const FRAME_S: f64 = 0.25;
 
+/// Simulated seconds run after the last move, so the trace shows the axes at rest.
+const TAIL_S: f64 = 0.3;
+
+/// Cycles between two snapshots of the engine (it publishes every 10).
+const SNAPSHOT_CYCLES: u64 = 10;
+
+/// The engine's own shutdown (quick stop, disable) takes at most 5000 cycles.
+const SHUTDOWN_LIMIT_CYCLES: u64 = 6_000;
+
+/// gantry's engine over the simulated axes' bus, stepped by the demo's thread: lockstep
+/// ([`StepClock`]) with nothing to step — the drives answer within the exchange.
+struct Lockstep {
+    engine: Engine<SimulatedBus>,
+    ctl: Controller,
+    clock: StepClock<fn(u64)>,
+}
+
+impl Lockstep {
+    /// The engine of `config` on its simulated drives.
+    fn start(config: &Config) -> Result<Self, DemoError> {
+        let bus = SimulatedBus::of_config(config)?;
+        let cycle = Cycle::from_config(config, &bus)?;
+        // The demo traces from the kernel itself (set acceleration, whole periods): the
+        // engine's trace ring is not read.
+        let (engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1);
+        let names = config.axes.iter().map(|a| a.name.clone()).collect();
+        let nothing: fn(u64) = |_| {};
+        Ok(Self {
+            engine,
+            ctl: Controller::new(ends, names),
+            clock: StepClock::new(u64::from(config.bus.cycle_us) * 1000, 0, nothing),
+        })
+    }
+
+    /// One cycle; false once the engine has ended (after a shutdown).
+    fn cycle(&mut self) -> bool {
+        self.engine.cycle(&mut self.clock)
+    }
+
+    /// Cycles run.
+    fn cycles(&self) -> u64 {
+        self.engine.counters().cycles
+    }
+
+    /// Kernel time (s).
+    fn time(&self) -> f64 {
+        self.engine.cycle.kernel.time()
+    }
+}
+
 /// Runs the demo.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoError> {
-    let configs = axes();
-    let names: Vec<&'static str> = vec!["x", "y", "c"];
-    let mut kernel = Kernel::new(args.cycle_s, configs)?;
-    let channels = names
-        .iter()
-        .flat_map(|n| ["p", "v", "a"].map(|q| format!("{n}.{q}")))
-        .collect();
-    let mut trace = Trace::new(channels, (TIME_LIMIT_S / args.cycle_s) as usize / 4);
-    let mut handles: HashMap<&'static str, HandleId> = HashMap::new();
-    let mut last_cmd: Vec<Option<HandleId>> = vec![None; names.len()];
-    let mut live = Live::new(std::io::stdout().is_terminal());
-    let started = Instant::now();
-    let mut next_frame = 0.0;
-    let index = |axis: &'static str| {
-        names
-            .iter()
-            .position(|n| *n == axis)
-            .ok_or(DemoError::Script(axis))
-    };
-    let mut sample = vec![0.0; names.len() * 3];
-    let mut step_once = |kernel: &mut Kernel,
-                         trace: &mut Trace,
-                         last_cmd: &[Option<HandleId>],
-                         next_frame: &mut f64,
-                         out: &mut dyn Write|
-     -> Result<(), DemoError> {
-        kernel.step(&[]);
-        for (i, _) in names.iter().enumerate() {
-            let s = kernel.axis_status(i).map(|s| s.set).unwrap_or_default();
-            let turns = kernel.axis_status(i).map(|s| s.turns).unwrap_or(0);
-            let period = kernel.axes()[i]
-                .config()
-                .mechanics
-                .modulo
-                .map(|m| m.period());
-            // Modulo axes are traced unwrapped so the plot shows the travel.
-            sample[i * 3] = s.p + period.map(|p| turns as f64 * p).unwrap_or(0.0);
-            sample[i * 3 + 1] = s.v;
-            sample[i * 3 + 2] = s.a;
-        }
-        trace.push(kernel.time(), &sample)?;
-        if kernel.time() + 1e-9 >= *next_frame {
-            *next_frame += FRAME_S;
-            let rows: Vec<Row> = names
-                .iter()
-                .enumerate()
-                .map(|(i, n)| {
-                    let status = kernel.axis_status(i).copied().unwrap_or_default();
-                    let cmd = last_cmd[i].map(|h| kernel.command_status(h));
-                    Row {
-                        axis: (*n).into(),
-                        status,
-                        command: cmd.map(|c| c.name().to_string()).unwrap_or_default(),
-                        error: status.error.map(|e| e.to_string()).unwrap_or_default(),
-                    }
-                })
-                .collect();
-            let frame = status_table::render(kernel.time(), &rows);
-            let _ = out.write_all(live.frame(&frame).as_bytes());
-            let _ = out.flush();
-            if args.speed > 0.0 {
-                let due = Duration::from_secs_f64(kernel.time() / args.speed);
-                if let Some(wait) = due.checked_sub(started.elapsed()) {
-                    std::thread::sleep(wait);
-                }
-            }
-        }
-        Ok(())
-    };
-    let limit = (TIME_LIMIT_S / args.cycle_s) as u64;
-    for step in script() {
-        // Wait for the step's condition.
-        let waited_from = kernel.time();
-        loop {
-            let ready = match step.wait {
-                Wait::Now => true,
-                Wait::Seconds(s) => kernel.time() - waited_from >= s - 1e-9,
-                Wait::Done(label) => {
-                    let h = handles.get(label).ok_or(DemoError::Script(label))?;
-                    kernel.command_status(*h).is_final()
-                }
-            };
-            if ready {
-                break;
-            }
-            if kernel.tick() > limit {
-                return Err(DemoError::Timeout(step.label));
-            }
-            step_once(&mut kernel, &mut trace, &last_cmd, &mut next_frame, out)?;
-        }
-        let axis = index(step.axis)?;
-        let h = kernel
-            .command(axis, step.command)
-            .map_err(|error| DemoError::Step {
-                label: step.label,
-                axis: step.axis,
-                command: step.command.name(),
-                error,
-            })?;
-        if !step.says.is_empty() {
-            let _ = writeln!(out, ">> {}", step.says);
-        }
-        handles.insert(step.label, h);
-        last_cmd[axis] = Some(h);
-    }
-    // Let the last moves finish, then a short tail.
-    while last_cmd
-        .iter()
-        .flatten()
-        .any(|h| !kernel.command_status(*h).is_final())
-    {
-        if kernel.tick() > limit {
-            return Err(DemoError::Timeout("final moves"));
-        }
-        step_once(&mut kernel, &mut trace, &last_cmd, &mut next_frame, out)?;
-    }
-    for (i, h) in last_cmd.iter().enumerate() {
-        if let Some(CommandStatus::Error(error)) = h.map(|h| kernel.command_status(h)) {
-            return Err(DemoError::Step {
-                label: "final",
-                axis: names[i],
-                command: "last command",
-                error,
-            });
-        }
-    }
-    for _ in 0..((0.3 / args.cycle_s) as usize) {
-        step_once(&mut kernel, &mut trace, &last_cmd, &mut next_frame, out)?;
-    }
-    std::fs::create_dir_all(&args.out).map_err(|source| DemoError::Io {
-        path: args.out.display().to_string(),
-        source,
-    })?;
-    let csv = args.out.join("trace.csv");
-    let svg = args.out.join("plot.svg");
-    trace.write_csv(&csv)?;
-    let panel = |title: &str, q: usize| Panel {
-        title: title.into(),
-        channels: (0..names.len()).map(|i| i * 3 + q).collect(),
-    };
-    let doc = plot::svg(
-        &trace,
-        &[
-            panel("set position (units; c in °, unwrapped)", 0),
-            panel("set velocity (units/s)", 1),
-            panel("set acceleration (units/s²)", 2),
-        ],
+    let cycle_us = cycle_us(args.cycle_s)?;
+    let config = config(cycle_us)?;
+    let mut net = Lockstep::start(&config)?;
+    let _ = writeln!(
+        out,
+        ">> gantry demo --bus none: {} simulated axes (actual = set: drives with no \
+         hardware, CiA-402 answering at once), driven by gantry's engine in lockstep",
+        config.axes.len()
     );
-    std::fs::write(&svg, doc).map_err(|source| DemoError::Io {
-        path: svg.display().to_string(),
-        source,
-    })?;
+    let mut run = Run::new(&config, args);
+    let result = run.script(&mut net, out);
+    let ended = run.shut_down(&mut net, out);
+    result?;
+    ended?;
+    let (csv, svg) = run.write_files(&args.out)?;
     Ok(DemoReport {
         csv,
         svg,
-        simulated_s: kernel.time(),
-        cycles: kernel.tick(),
-        cycle_s: args.cycle_s,
+        simulated_s: net.time(),
+        cycles: net.cycles(),
+        cycle_s: f64::from(cycle_us) * 1e-6,
     })
+}
+
+/// A step issued, and its handle.
+struct Issued {
+    step: Step,
+    handle: CommandHandle,
+}
+
+/// What the script keeps while it runs.
+struct Run {
+    names: Vec<String>,
+    /// Per axis, its modulo period.
+    periods: Vec<Option<f64>>,
+    speed: f64,
+    started: Instant,
+    live: Live,
+    trace: Trace,
+    sample: Vec<f64>,
+    /// Every step issued, in order.
+    issued: Vec<Issued>,
+    /// Per axis, the index in `issued` of its last step.
+    last: Vec<Option<usize>>,
+    frame_cycles: u64,
+}
+
+impl Run {
+    fn new(config: &Config, args: &DemoArgs) -> Self {
+        let names: Vec<String> = config.axes.iter().map(|a| a.name.clone()).collect();
+        let channels = names
+            .iter()
+            .flat_map(|n| ["p", "v", "a"].map(|q| format!("{n}.{q}")))
+            .collect();
+        // A frame on a snapshot: a multiple of the snapshot's cycles.
+        let frame_cycles = ((FRAME_S / args.cycle_s).round() as u64)
+            .div_ceil(SNAPSHOT_CYCLES)
+            .max(1)
+            * SNAPSHOT_CYCLES;
+        Self {
+            periods: config.axes.iter().map(|a| a.modulo).collect(),
+            speed: args.speed,
+            started: Instant::now(),
+            live: Live::new(std::io::stdout().is_terminal()),
+            trace: Trace::new(channels, (TIME_LIMIT_S / args.cycle_s) as usize / 4),
+            sample: vec![0.0; names.len() * 3],
+            issued: Vec::new(),
+            last: vec![None; names.len()],
+            names,
+            frame_cycles,
+        }
+    }
+
+    /// One cycle and what the demo watches: the trace, the status table, and every fault
+    /// or failed step (which fails the demo at once).
+    fn cycle(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
+        if !net.cycle() {
+            return Err(DemoError::Fault("the engine ended".into()));
+        }
+        self.record(net)?;
+        let n = net.cycles();
+        if n % SNAPSHOT_CYCLES == 0 {
+            let snap = net.ctl.snapshot();
+            self.check(&snap)?;
+            if n % self.frame_cycles == 0 {
+                self.frame(&snap, out);
+            }
+        }
+        Ok(())
+    }
+
+    /// This cycle's set values into the trace: modulo axes unwrapped (their whole
+    /// periods added), so that the plot shows the travel.
+    fn record(&mut self, net: &Lockstep) -> Result<(), DemoError> {
+        let kernel = &net.engine.cycle.kernel;
+        for (i, period) in self.periods.iter().enumerate() {
+            let status = kernel.axis_status(i).copied().unwrap_or_default();
+            let turns = period.map_or(0.0, |p| status.turns as f64 * p);
+            if let Some(dst) = self.sample.get_mut(i * 3..i * 3 + 3) {
+                dst.copy_from_slice(&[status.set.p + turns, status.set.v, status.set.a]);
+            }
+        }
+        self.trace.push(kernel.time(), &self.sample)?;
+        Ok(())
+    }
+
+    /// Fails on an axis in ErrorStop and on a step whose command failed.
+    fn check(&self, snap: &Snapshot) -> Result<(), DemoError> {
+        for (i, name) in self.names.iter().enumerate() {
+            if let Some(a) = snap.axes.get(i).filter(|a| a.state == AxisState::ErrorStop) {
+                let drive = snap.drives.get(i).copied().unwrap_or_default();
+                let why = a
+                    .error
+                    .map_or_else(|| "no reason given".into(), |e| describe_fault(&e));
+                return Err(DemoError::Fault(format!(
+                    "axis {name} in ErrorStop: {why} (drive {}, statusword 0x{:04X})",
+                    drive_state(drive.state),
+                    drive.statusword
+                )));
+            }
+        }
+        for i in &self.issued {
+            if let Some(CommandStatus::Error(error)) = snap.status_of(i.handle.id()) {
+                return Err(DemoError::Step {
+                    label: i.step.label,
+                    axis: i.step.axis,
+                    command: i.step.command.name(),
+                    error,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The status table, and the pace (`--speed`).
+    fn frame(&mut self, snap: &Snapshot, out: &mut impl Write) {
+        let rows: Vec<Row> = self
+            .names
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                let status = snap.axes.get(i).copied().unwrap_or_default();
+                let command = self
+                    .last
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .and_then(|k| self.issued.get(k))
+                    .and_then(|k| snap.status_of(k.handle.id()));
+                Row {
+                    axis: name.clone(),
+                    status,
+                    command: command.map(|c| c.name().to_string()).unwrap_or_default(),
+                    error: status.error.map(|e| describe_fault(&e)).unwrap_or_default(),
+                }
+            })
+            .collect();
+        let frame = status_table::render(snap.time_s, &rows);
+        let _ = out.write_all(self.live.frame(&frame).as_bytes());
+        let _ = out.flush();
+        if self.speed > 0.0 {
+            let due = Duration::from_secs_f64(snap.time_s / self.speed);
+            if let Some(wait) = due.checked_sub(self.started.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
+    }
+
+    /// Whether the command of step `label` is final.
+    fn done(&self, label: &'static str) -> Result<bool, DemoError> {
+        let issued = self
+            .issued
+            .iter()
+            .rev()
+            .find(|i| i.step.label == label)
+            .ok_or(DemoError::Script(label))?;
+        Ok(issued.handle.status().is_some_and(|s| s.is_final()))
+    }
+
+    /// The script through the Controller, to its end, then the axes at rest a while.
+    fn script(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
+        let limit = (TIME_LIMIT_S / net.engine.cycle.kernel.cycle_time()) as u64;
+        for step in script() {
+            let waited_from = net.time();
+            loop {
+                let ready = match step.wait {
+                    Wait::Now => true,
+                    Wait::Seconds(s) => net.time() - waited_from >= s - 1e-9,
+                    Wait::Done(label) => self.done(label)?,
+                };
+                if ready {
+                    break;
+                }
+                if net.cycles() > limit {
+                    return Err(DemoError::Timeout(step.label));
+                }
+                self.cycle(net, out)?;
+            }
+            let axis = self
+                .names
+                .iter()
+                .position(|n| n == step.axis)
+                .ok_or(DemoError::Script(step.axis))?;
+            let handle = net
+                .ctl
+                .command(axis, step.command)
+                .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
+            if !step.says.is_empty() {
+                let _ = writeln!(out, ">> {}", step.says);
+            }
+            if let Some(last) = self.last.get_mut(axis) {
+                *last = Some(self.issued.len());
+            }
+            self.issued.push(Issued { step, handle });
+        }
+        // The last moves to their end (in position), then the axes at rest a while.
+        while self
+            .last
+            .iter()
+            .flatten()
+            .filter_map(|&k| self.issued.get(k))
+            .any(|i| !i.handle.status().is_some_and(|s| s.is_final()))
+        {
+            if net.cycles() > limit {
+                return Err(DemoError::Timeout("final moves"));
+            }
+            self.cycle(net, out)?;
+        }
+        for _ in 0..(TAIL_S / net.engine.cycle.kernel.cycle_time()).round() as u64 {
+            self.cycle(net, out)?;
+        }
+        let snap = net.ctl.snapshot();
+        self.check(&snap)?;
+        self.frame(&snap, out);
+        let _ = writeln!(out, ">> the axes at the end:");
+        for (i, name) in self.names.iter().enumerate() {
+            let (Some(a), Some(d)) = (snap.axes.get(i), snap.drives.get(i)) else {
+                continue;
+            };
+            let _ = writeln!(
+                out,
+                "   {name}: {}, set {:.4}, actual {:.4}, drive {}",
+                a.state.name(),
+                a.set.p,
+                a.actual_position,
+                drive_state(d.state)
+            );
+        }
+        Ok(())
+    }
+
+    /// Quick stop and disable through the engine's own shutdown, as `gantry run` on
+    /// SIGTERM.
+    fn shut_down(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
+        net.ctl
+            .shutdown()
+            .map_err(|e| DemoError::Fault(format!("shutdown: {e}")))?;
+        for _ in 0..SHUTDOWN_LIMIT_CYCLES {
+            if !net.cycle() {
+                self.record(net)?;
+                let _ = writeln!(out, ">> drives disabled");
+                return Ok(());
+            }
+            self.record(net)?;
+        }
+        Err(DemoError::Timeout("shutdown"))
+    }
+
+    /// The trace (CSV) and the plot (SVG) in `dir`.
+    fn write_files(&self, dir: &Path) -> Result<(PathBuf, PathBuf), DemoError> {
+        std::fs::create_dir_all(dir).map_err(|source| DemoError::Io {
+            path: dir.display().to_string(),
+            source,
+        })?;
+        let csv = dir.join("trace.csv");
+        let svg = dir.join("plot.svg");
+        self.trace.write_csv(&csv)?;
+        let panel = |title: &str, q: usize| Panel {
+            title: title.into(),
+            channels: (0..self.names.len()).map(|i| i * 3 + q).collect(),
+        };
+        let doc = plot::svg(
+            &self.trace,
+            &[
+                panel("set position (units; c in °, unwrapped)", 0),
+                panel("set velocity (units/s)", 1),
+                panel("set acceleration (units/s²)", 2),
+            ],
+        );
+        std::fs::write(&svg, doc).map_err(|source| DemoError::Io {
+            path: svg.display().to_string(),
+            source,
+        })?;
+        Ok((csv, svg))
+    }
+}
+
+/// A drive's CiA-402 state as the demo names it.
+fn drive_state(state: Option<gantry_drives::cia402::State>) -> &'static str {
+    state.map_or("not reporting", gantry_drives::cia402::State::name)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_demos_configuration_is_its_three_axes_and_a_bad_cycle_is_refused() {
+        let config = config(1000).unwrap();
+        let names: Vec<&str> = config.axes.iter().map(|a| a.name.as_str()).collect();
+        assert_eq!(names, ["x", "y", "c"]);
+        let ramps: Vec<_> = config.kernel_axes.iter().map(|k| k.defaults.ramp).collect();
+        use gantry_kernel::profile::RampType;
+        assert_eq!(
+            ramps,
+            [RampType::SCurve, RampType::Trapezoid, RampType::Sine]
+        );
+        let c = &config.kernel_axes[2];
+        assert_eq!(c.mechanics.modulo.map(|m| m.period()), Some(360.0));
+        let bus = SimulatedBus::of_config(&config).unwrap();
+        Cycle::from_config(&config, &bus).unwrap();
+        assert_eq!(cycle_us(0.001).unwrap(), 1000);
+        for bad in [0.0001, 0.005, 0.0010004, f64::NAN] {
+            let e = cycle_us(bad).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                format!("cycle time {bad} s: the demo runs whole µs from 250 to 4000")
+            );
+        }
+    }
 
     #[test]
     fn demo_runs_to_the_end_and_writes_its_files() {
@@ -605,6 +930,14 @@ mod tests {
         let text = String::from_utf8(log).unwrap();
         assert!(text.contains("Halt AtActualPosition"));
         assert!(report.simulated_s > 5.0 && report.simulated_s < TIME_LIMIT_S);
+        // Every axis home, its drive where it was sent, then switched off by the engine.
+        for axis in ["x", "y", "c"] {
+            let line = format!(
+                "   {axis}: Standstill, set 0.0000, actual 0.0000, drive Operation enabled"
+            );
+            assert!(text.contains(&line), "{line:?} in\n{text}");
+        }
+        assert!(text.ends_with(">> drives disabled\n"), "{text}");
         let csv = std::fs::read_to_string(&report.csv).unwrap();
         assert_eq!(csv.lines().count() as u64, report.cycles + 1);
         let svg = std::fs::read_to_string(&report.svg).unwrap();
