@@ -1,0 +1,424 @@
+//! Jetter MoveHome (seed 000 §6.3.2) in lockstep with an axis model: every mode × switch
+//! configuration × direction × start position, the reference exactly where the edge or
+//! index pulse is (from the latch), ReferenceOffset and NormalPosition honoured, the status
+//! bits in order, every sample inside the run's speed, acceleration and jerk; the search
+//! distances end in errors naming them; SetReference; optional parameters.
+
+mod homing_model;
+
+use gantry_kernel::axis::command::{Command, CommandError, MoveDirection};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
+use gantry_kernel::axis::status::AxisFault;
+use gantry_kernel::homing::{
+    HomingMode, HomingStatus, LimitSide, MoveHome, MoveHomeCall, SwitchConfig,
+};
+use homing_model::*;
+
+const STARTS: [(&str, f64); 3] = [("1", -50.0), ("2", 20.0), ("3", 60.0)];
+const MODES: [HomingMode; 4] = [
+    HomingMode::ZeroPulse1Phase,
+    HomingMode::ZeroPulse2Phase,
+    HomingMode::SwitchingEdge1Phase,
+    HomingMode::SwitchingEdge2Phase,
+];
+const CONFIGS: [SwitchConfig; 4] = [
+    SwitchConfig::NoSwitch,
+    SwitchConfig::RefAndLimitSwitch,
+    SwitchConfig::RefSwitch,
+    SwitchConfig::LimitSwitch,
+];
+
+fn params(direction: MoveDirection, switch_config: SwitchConfig, mode: HomingMode) -> MoveHome {
+    let d = direction.sign();
+    MoveHome {
+        direction,
+        switch_config,
+        mode,
+        acceleration: 250.0,
+        jerk: 8_000.0,
+        speed_switch_search: 25.0,
+        max_distance_switch_search: 1_000.0,
+        speed_reference_search: 2.5,
+        max_distance_reference_search: 1_000.0,
+        reference_offset: -4.0 * d,
+        normal_position: 12.5,
+    }
+}
+
+/// What the run must end with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Expect {
+    /// The reference (drive frame) is here.
+    Reference(f64),
+    /// Refused at the call.
+    Refused,
+    /// Stopped by this limit switch (RefSwitch with the cam behind the start).
+    Limit(LimitSide),
+}
+
+/// The reference from the layout and the seed's definitions (see `homing::move_home`).
+fn expected(l: &Layout, p: &MoveHome, x0: f64) -> Expect {
+    let d = p.direction.sign();
+    let edge = match p.switch_config {
+        SwitchConfig::LimitSwitch => {
+            if d > 0.0 {
+                l.positive_limit
+            } else {
+                l.negative_limit
+            }
+        }
+        _ => {
+            if d > 0.0 {
+                l.cam.0
+            } else {
+                l.cam.1
+            }
+        }
+    };
+    let zero_pulse = matches!(
+        p.mode,
+        HomingMode::ZeroPulse1Phase | HomingMode::ZeroPulse2Phase
+    );
+    match p.switch_config {
+        SwitchConfig::NoSwitch if !zero_pulse => Expect::Refused,
+        SwitchConfig::NoSwitch => Expect::Reference(if d > 0.0 {
+            l.index_above(x0)
+        } else {
+            l.index_below(x0)
+        }),
+        SwitchConfig::RefSwitch if (d > 0.0 && x0 > l.cam.1) || (d < 0.0 && x0 < l.cam.0) => {
+            Expect::Limit(LimitSide::towards(d))
+        }
+        _ if zero_pulse => Expect::Reference(if d > 0.0 {
+            l.index_below(edge)
+        } else {
+            l.index_above(edge)
+        }),
+        _ => Expect::Reference(edge),
+    }
+}
+
+fn rig_for(p: &MoveHome, x0: f64) -> Rig {
+    let mut rig = Rig::new(axis_config(), Layout::STANDARD, x0);
+    if p.switch_config == SwitchConfig::LimitSwitch {
+        // The drive's touch probe is set to the limit switch used as the reference.
+        rig.m.probe_source = ProbeSource::Limit(LimitSide::towards(p.direction.sign()));
+    }
+    rig
+}
+
+fn run_case(p: MoveHome, x0: f64, expect: Expect) -> Result<(), String> {
+    let mut rig = rig_for(&p, x0);
+    let h = match rig.k.command(0, Command::MoveHome(MoveHomeCall::all(p))) {
+        Ok(h) => h,
+        Err(e) if expect == Expect::Refused => {
+            return match e {
+                CommandError::HomingParameter {
+                    parameter: "Mode", ..
+                } => Ok(()),
+                e => Err(format!("refused with {e}")),
+            };
+        }
+        Err(e) => return Err(format!("refused: {e}")),
+    };
+    if expect == Expect::Refused {
+        return Err("accepted SwitchingEdge without a switch".into());
+    }
+    let mut out = Vec::new();
+    let st = rig.run_until_final(h, 400_000, &mut out);
+    let vmax = p.speed_switch_search.max(p.speed_reference_search);
+    check_limits(&out, vmax, p.acceleration, p.jerk)?;
+    let seq = check_status_sequence(&out)?;
+    let last = *out.last().ok_or("no samples")?;
+    let s = last.status;
+    match expect {
+        Expect::Refused => unreachable!(),
+        Expect::Limit(side) => {
+            let CommandStatus::Error(e) = st else {
+                return Err(format!("ended {st:?}, want the {side}"));
+            };
+            if e.to_string() != format!("MoveHome: {side} reached") {
+                return Err(format!("error {e}"));
+            }
+            rig.run(2000, &mut out);
+            let s = rig.k.axis_status(0).unwrap();
+            if s.state != AxisState::ErrorStop
+                || s.error != Some(AxisFault::LimitSwitch { side })
+                || s.set.v != 0.0
+                || s.bits.homed
+            {
+                return Err(format!("after the limit: {s:?}"));
+            }
+            Ok(())
+        }
+        Expect::Reference(r) => {
+            if st != CommandStatus::Done {
+                return Err(format!("ended {st:?}"));
+            }
+            if s.state != AxisState::Standstill || !s.bits.homed {
+                return Err(format!("state {:?} homed {}", s.state, s.bits.homed));
+            }
+            // The drive stands at reference + ReferenceOffset, and that is NormalPosition.
+            let at = last.setpoint.position;
+            if (at - (r + p.reference_offset)).abs() > 1e-9 {
+                return Err(format!(
+                    "stands at drive {at}, want {} (reference {r})",
+                    r + p.reference_offset
+                ));
+            }
+            if (s.set.p - p.normal_position).abs() > 1e-9 {
+                return Err(format!("position {} != NormalPosition", s.set.p));
+            }
+            let all = HomingStatus {
+                started: true,
+                switch_found: true,
+                reference_found: true,
+                reference_set: true,
+            };
+            if s.homing != all {
+                return Err(format!("status {:?}", s.homing));
+            }
+            // Two phases (and a zero pulse behind a switch): "switch found" comes first.
+            let separate = matches!(
+                p.mode,
+                HomingMode::ZeroPulse2Phase | HomingMode::SwitchingEdge2Phase
+            ) || (p.mode == HomingMode::ZeroPulse1Phase
+                && p.switch_config != SwitchConfig::NoSwitch);
+            let has_switch_only = seq.iter().any(|h| h.switch_found && !h.reference_found);
+            if separate != has_switch_only {
+                return Err(format!("status sequence {seq:?}"));
+            }
+            Ok(())
+        }
+    }
+}
+
+#[test]
+fn every_mode_switch_configuration_direction_and_start_position() {
+    let mut failures = Vec::new();
+    let mut n = 0;
+    let mut kinds = [0usize; 3];
+    for mode in MODES {
+        for config in CONFIGS {
+            for dir in [MoveDirection::Positive, MoveDirection::Negative] {
+                for (name, x0) in STARTS {
+                    n += 1;
+                    let p = params(dir, config, mode);
+                    let e = expected(&Layout::STANDARD, &p, x0);
+                    kinds[match e {
+                        Expect::Reference(_) => 0,
+                        Expect::Refused => 1,
+                        Expect::Limit(_) => 2,
+                    }] += 1;
+                    if let Err(why) = run_case(p, x0, e) {
+                        failures.push(format!("{mode:?} {config:?} {dir:?} start {name}: {why}"));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {n} failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    assert_eq!(n, 96);
+    // 12 SwitchingEdge×NoSwitch refused, 8 RefSwitch runs with the cam behind them.
+    assert_eq!(kinds, [76, 12, 8]);
+}
+
+#[test]
+fn the_switch_search_distance_ends_in_an_error_naming_it() {
+    let mut p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge2Phase,
+    );
+    p.max_distance_switch_search = 30.0;
+    let mut rig = rig_for(&p, -50.0);
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    let mut out = Vec::new();
+    let CommandStatus::Error(e) = rig.run_until_final(h, 100_000, &mut out) else {
+        panic!()
+    };
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with("MoveHome: MaxDistanceSwitchSearch = 30 exceeded (")
+            && msg.ends_with(" travelled) without finding the reference switch"),
+        "{msg}"
+    );
+    rig.run(2000, &mut out);
+    let s = rig.k.axis_status(0).unwrap();
+    assert_eq!(s.state, AxisState::ErrorStop);
+    assert_eq!(s.set.v, 0.0);
+    assert!(!s.bits.homed);
+    // It stopped where the distance ran out: 30 on from −50 plus the braking.
+    assert!(s.set.p > -20.0 && s.set.p < -17.0, "{}", s.set.p);
+}
+
+#[test]
+fn the_reference_search_distance_ends_in_an_error_naming_it() {
+    // From ③ positive: reverse at the positive limit, find the cam at 30, then the fine
+    // search must cross the 20-unit cam to its negative edge: more than 5.
+    let mut p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge2Phase,
+    );
+    p.max_distance_reference_search = 5.0;
+    let mut rig = rig_for(&p, 60.0);
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    let mut out = Vec::new();
+    let CommandStatus::Error(e) = rig.run_until_final(h, 200_000, &mut out) else {
+        panic!()
+    };
+    assert!(
+        e.to_string()
+            .starts_with("MoveHome: MaxDistanceReferenceSearch = 5 exceeded"),
+        "{e}"
+    );
+    let s = out.last().unwrap().status;
+    assert!(
+        s.homing.switch_found && !s.homing.reference_found,
+        "{:?}",
+        s.homing
+    );
+}
+
+#[test]
+fn a_call_without_parameters_uses_the_last_ones_and_a_partial_call_changes_only_what_it_gives() {
+    let p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge2Phase,
+    );
+    let mut rig = rig_for(&p, -50.0);
+    let mut out = Vec::new();
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    assert_eq!(
+        rig.run_until_final(h, 100_000, &mut out),
+        CommandStatus::Done
+    );
+    assert!((rig.sp.position - 6.0).abs() < 1e-9, "{}", rig.sp.position);
+    // Seed 000: only ReferenceOffset and NormalPosition given; the rest as before.
+    let call = MoveHomeCall {
+        reference_offset: Some(-8.0),
+        normal_position: Some(100.0),
+        ..MoveHomeCall::default()
+    };
+    let h = rig.k.command(0, Command::MoveHome(call)).unwrap();
+    assert_eq!(
+        rig.run_until_final(h, 100_000, &mut out),
+        CommandStatus::Done
+    );
+    assert!((rig.sp.position - 2.0).abs() < 1e-9, "{}", rig.sp.position);
+    assert!((rig.k.axis_status(0).unwrap().set.p - 100.0).abs() < 1e-9);
+    // And with no parameters at all, the same run again.
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::default()))
+        .unwrap();
+    assert_eq!(
+        rig.run_until_final(h, 100_000, &mut out),
+        CommandStatus::Done
+    );
+    assert!((rig.sp.position - 2.0).abs() < 1e-9);
+}
+
+#[test]
+fn a_bad_parameter_is_refused_naming_it_and_the_axis_goes_on() {
+    let mut rig = Rig::new(axis_config(), Layout::STANDARD, 0.0);
+    for (call, msg) in [
+        (
+            MoveHomeCall {
+                speed_switch_search: Some(0.0),
+                ..MoveHomeCall::default()
+            },
+            "MoveHome: parameter SpeedSwitchSearch = 0 must be > 0",
+        ),
+        (
+            MoveHomeCall {
+                speed_reference_search: Some(500.0),
+                ..MoveHomeCall::default()
+            },
+            "MoveHome: parameter SpeedReferenceSearch = 500 exceeds the axis maximum",
+        ),
+        (
+            MoveHomeCall {
+                max_distance_reference_search: Some(-1.0),
+                ..MoveHomeCall::default()
+            },
+            "MoveHome: parameter MaxDistanceReferenceSearch = -1 must be > 0",
+        ),
+        (
+            MoveHomeCall {
+                reference_offset: Some(f64::NAN),
+                ..MoveHomeCall::default()
+            },
+            "MoveHome: parameter ReferenceOffset = NaN must be finite",
+        ),
+    ] {
+        let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
+        assert_eq!(e.to_string(), msg);
+        assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Standstill);
+    }
+}
+
+#[test]
+fn set_reference_sets_the_position_without_moving_and_marks_reference_set() {
+    let mut rig = Rig::new(axis_config(), Layout::STANDARD, 3.0);
+    assert!(!rig.k.axis_status(0).unwrap().bits.homed);
+    let h = rig.k.command(0, Command::SetReference(0.0)).unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Done);
+    let mut out = Vec::new();
+    rig.run(10, &mut out);
+    let s = rig.k.axis_status(0).unwrap();
+    assert!(s.bits.homed);
+    assert!(s.homing.reference_set && !s.homing.started);
+    assert_eq!(s.set.p, 0.0);
+    assert_eq!(rig.sp.position, 3.0, "the drive did not move");
+}
+
+#[test]
+fn a_stop_during_homing_aborts_it_and_leaves_the_axis_not_homed() {
+    let p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge2Phase,
+    );
+    let mut rig = rig_for(&p, -50.0);
+    rig.k.command(0, Command::SetReference(-50.0)).unwrap();
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    let mut out = Vec::new();
+    rig.run(300, &mut out);
+    assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Homing);
+    assert!(
+        !rig.k.axis_status(0).unwrap().bits.homed,
+        "not homed while homing"
+    );
+    let stop = rig
+        .k
+        .command(0, Command::Stop { deceleration: None })
+        .unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Aborted);
+    assert_eq!(
+        rig.run_until_final(stop, 10_000, &mut out),
+        CommandStatus::Done
+    );
+    let s = rig.k.axis_status(0).unwrap();
+    assert!(!s.bits.homed && !s.homing.reference_set);
+}
