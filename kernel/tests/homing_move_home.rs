@@ -6,13 +6,12 @@
 
 mod homing_model;
 
-use gantry_kernel::axis::command::{Command, CommandError, MoveDirection};
+use gantry_kernel::axis::command::{Command, MoveDirection};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::axis::status::AxisFault;
-use gantry_kernel::homing::{
-    HomingMode, HomingStatus, LimitSide, MoveHome, MoveHomeCall, SwitchConfig,
-};
+use gantry_kernel::homing::{HomingMode, MoveHome, MoveHomeCall, SwitchConfig};
+use homing_model::cases::{rig_for, run_move_home};
+use homing_model::expect::{expected_move_home as expected, MoveHomeExpect as Expect};
 use homing_model::*;
 
 const STARTS: [(&str, f64); 3] = [("1", -50.0), ("2", 20.0), ("3", 60.0)];
@@ -46,154 +45,6 @@ fn params(direction: MoveDirection, switch_config: SwitchConfig, mode: HomingMod
     }
 }
 
-/// What the run must end with.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Expect {
-    /// The reference (drive frame) is here.
-    Reference(f64),
-    /// Refused at the call.
-    Refused,
-    /// Stopped by this limit switch (RefSwitch with the cam behind the start).
-    Limit(LimitSide),
-}
-
-/// The reference from the layout and the seed's definitions (see `homing::move_home`).
-fn expected(l: &Layout, p: &MoveHome, x0: f64) -> Expect {
-    let d = p.direction.sign();
-    let edge = match p.switch_config {
-        SwitchConfig::LimitSwitch => {
-            if d > 0.0 {
-                l.positive_limit
-            } else {
-                l.negative_limit
-            }
-        }
-        _ => {
-            if d > 0.0 {
-                l.cam.0
-            } else {
-                l.cam.1
-            }
-        }
-    };
-    let zero_pulse = matches!(
-        p.mode,
-        HomingMode::ZeroPulse1Phase | HomingMode::ZeroPulse2Phase
-    );
-    match p.switch_config {
-        SwitchConfig::NoSwitch if !zero_pulse => Expect::Refused,
-        SwitchConfig::NoSwitch => Expect::Reference(if d > 0.0 {
-            l.index_above(x0)
-        } else {
-            l.index_below(x0)
-        }),
-        SwitchConfig::RefSwitch if (d > 0.0 && x0 > l.cam.1) || (d < 0.0 && x0 < l.cam.0) => {
-            Expect::Limit(LimitSide::towards(d))
-        }
-        _ if zero_pulse => Expect::Reference(if d > 0.0 {
-            l.index_below(edge)
-        } else {
-            l.index_above(edge)
-        }),
-        _ => Expect::Reference(edge),
-    }
-}
-
-fn rig_for(p: &MoveHome, x0: f64) -> Rig {
-    let mut rig = Rig::new(axis_config(), Layout::STANDARD, x0);
-    if p.switch_config == SwitchConfig::LimitSwitch {
-        // The drive's touch probe is set to the limit switch used as the reference.
-        rig.m.probe_source = ProbeSource::Limit(LimitSide::towards(p.direction.sign()));
-    }
-    rig
-}
-
-fn run_case(p: MoveHome, x0: f64, expect: Expect) -> Result<(), String> {
-    let mut rig = rig_for(&p, x0);
-    let h = match rig.k.command(0, Command::MoveHome(MoveHomeCall::all(p))) {
-        Ok(h) => h,
-        Err(e) if expect == Expect::Refused => {
-            return match e {
-                CommandError::HomingParameter {
-                    parameter: "Mode", ..
-                } => Ok(()),
-                e => Err(format!("refused with {e}")),
-            };
-        }
-        Err(e) => return Err(format!("refused: {e}")),
-    };
-    if expect == Expect::Refused {
-        return Err("accepted SwitchingEdge without a switch".into());
-    }
-    let mut out = Vec::new();
-    let st = rig.run_until_final(h, 400_000, &mut out);
-    let vmax = p.speed_switch_search.max(p.speed_reference_search);
-    check_limits(&out, vmax, p.acceleration, p.jerk)?;
-    let seq = check_status_sequence(&out)?;
-    let last = *out.last().ok_or("no samples")?;
-    let s = last.status;
-    match expect {
-        Expect::Refused => unreachable!(),
-        Expect::Limit(side) => {
-            let CommandStatus::Error(e) = st else {
-                return Err(format!("ended {st:?}, want the {side}"));
-            };
-            if e.to_string() != format!("MoveHome: {side} reached") {
-                return Err(format!("error {e}"));
-            }
-            rig.run(2000, &mut out);
-            let s = rig.k.axis_status(0).unwrap();
-            if s.state != AxisState::ErrorStop
-                || s.error != Some(AxisFault::LimitSwitch { side })
-                || s.set.v != 0.0
-                || s.bits.homed
-            {
-                return Err(format!("after the limit: {s:?}"));
-            }
-            Ok(())
-        }
-        Expect::Reference(r) => {
-            if st != CommandStatus::Done {
-                return Err(format!("ended {st:?}"));
-            }
-            if s.state != AxisState::Standstill || !s.bits.homed {
-                return Err(format!("state {:?} homed {}", s.state, s.bits.homed));
-            }
-            // The drive stands at reference + ReferenceOffset, and that is NormalPosition.
-            let at = last.setpoint.position;
-            if (at - (r + p.reference_offset)).abs() > 1e-9 {
-                return Err(format!(
-                    "stands at drive {at}, want {} (reference {r})",
-                    r + p.reference_offset
-                ));
-            }
-            if (s.set.p - p.normal_position).abs() > 1e-9 {
-                return Err(format!("position {} != NormalPosition", s.set.p));
-            }
-            let all = HomingStatus {
-                started: true,
-                switch_found: true,
-                reference_found: true,
-                reference_set: true,
-            };
-            if s.homing != all {
-                return Err(format!("status {:?}", s.homing));
-            }
-            // Two phases (and a zero pulse behind a switch): "switch found" comes first.
-            let separate = matches!(
-                p.mode,
-                HomingMode::ZeroPulse2Phase | HomingMode::SwitchingEdge2Phase
-            ) || (p.mode == HomingMode::ZeroPulse1Phase
-                && p.switch_config != SwitchConfig::NoSwitch);
-            let has_switch_only = seq.iter().any(|h| h.switch_found && !h.reference_found);
-            if separate != has_switch_only {
-                return Err(format!("status sequence {seq:?}"));
-            }
-            Ok(())
-        }
-    }
-}
-
 #[test]
 fn every_mode_switch_configuration_direction_and_start_position() {
     let mut failures = Vec::new();
@@ -211,7 +62,7 @@ fn every_mode_switch_configuration_direction_and_start_position() {
                         Expect::Refused => 1,
                         Expect::Limit(_) => 2,
                     }] += 1;
-                    if let Err(why) = run_case(p, x0, e) {
+                    if let Err(why) = run_move_home(Layout::STANDARD, p, x0, e) {
                         failures.push(format!("{mode:?} {config:?} {dir:?} start {name}: {why}"));
                     }
                 }
@@ -237,7 +88,7 @@ fn the_switch_search_distance_ends_in_an_error_naming_it() {
         HomingMode::SwitchingEdge2Phase,
     );
     p.max_distance_switch_search = 30.0;
-    let mut rig = rig_for(&p, -50.0);
+    let mut rig = rig_for(Layout::STANDARD, &p, -50.0);
     let h = rig
         .k
         .command(0, Command::MoveHome(MoveHomeCall::all(p)))
@@ -271,7 +122,7 @@ fn the_reference_search_distance_ends_in_an_error_naming_it() {
         HomingMode::SwitchingEdge2Phase,
     );
     p.max_distance_reference_search = 5.0;
-    let mut rig = rig_for(&p, 60.0);
+    let mut rig = rig_for(Layout::STANDARD, &p, 60.0);
     let h = rig
         .k
         .command(0, Command::MoveHome(MoveHomeCall::all(p)))
@@ -300,7 +151,7 @@ fn a_call_without_parameters_uses_the_last_ones_and_a_partial_call_changes_only_
         SwitchConfig::RefAndLimitSwitch,
         HomingMode::SwitchingEdge2Phase,
     );
-    let mut rig = rig_for(&p, -50.0);
+    let mut rig = rig_for(Layout::STANDARD, &p, -50.0);
     let mut out = Vec::new();
     let h = rig
         .k
@@ -397,7 +248,7 @@ fn a_stop_during_homing_aborts_it_and_leaves_the_axis_not_homed() {
         SwitchConfig::RefAndLimitSwitch,
         HomingMode::SwitchingEdge2Phase,
     );
-    let mut rig = rig_for(&p, -50.0);
+    let mut rig = rig_for(Layout::STANDARD, &p, -50.0);
     rig.k.command(0, Command::SetReference(-50.0)).unwrap();
     let h = rig
         .k

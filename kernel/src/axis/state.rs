@@ -272,6 +272,26 @@ mod tests {
     }
 
     #[test]
+    fn homing_starts_only_from_standstill_and_ends_there() {
+        for s in ALL {
+            let expected = (s == AxisState::Standstill).then_some(AxisState::Homing);
+            assert_eq!(s.on(Event::HomingStarted), expected, "{s:?}");
+            let cmd = Command::MoveHome(crate::homing::MoveHomeCall::default());
+            assert_eq!(accepts(s, &cmd), s == AxisState::Standstill, "{s:?}");
+        }
+        assert_eq!(
+            AxisState::Homing.on(Event::MotionDone),
+            Some(AxisState::Standstill)
+        );
+        assert_eq!(
+            AxisState::Homing.on(Event::Error),
+            Some(AxisState::ErrorStop)
+        );
+        // A new move aborts the run (PLCopen: Homing -> DiscreteMotion on an aborting move).
+        assert!(accepts(AxisState::Homing, &ptp()));
+    }
+
+    #[test]
     fn set_position_only_at_rest() {
         let cmd = Command::SetPosition {
             position: 0.0,

@@ -6,6 +6,9 @@
 //! (CiA 402 0x60BA/0x60BC/0x60BD: latched in hardware, independent of the cycle).
 #![allow(dead_code)]
 
+pub mod cases;
+pub mod expect;
+
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::status::AxisStatus;
