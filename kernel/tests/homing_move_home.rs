@@ -273,3 +273,77 @@ fn a_stop_during_homing_aborts_it_and_leaves_the_axis_not_homed() {
     let s = rig.k.axis_status(0).unwrap();
     assert!(!s.bits.homed && !s.homing.reference_set);
 }
+
+#[test]
+fn a_simulated_axis_has_nothing_to_home_on_and_says_so() {
+    let mut cfg = axis_config();
+    cfg.kind = gantry_kernel::AxisKind::Simulated;
+    let mut k = gantry_kernel::Kernel::new(DT, vec![cfg]).unwrap();
+    k.command(
+        0,
+        Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+    )
+    .unwrap();
+    k.step(&[]);
+    let e = k
+        .command(0, Command::MoveHome(MoveHomeCall::default()))
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "MoveHome: a simulated axis has no switches or encoder to home on; use MoveHome.SetReference"
+    );
+    assert_eq!(k.axis_status(0).unwrap().state, AxisState::Standstill);
+    // SetReference works on it.
+    k.command(0, Command::SetReference(1.0)).unwrap();
+    assert!(k.axis_status(0).unwrap().bits.homed);
+}
+
+/// Seed 000: RefSwitch is "usually for rotary axes". On a modulo axis (360°, cam at
+/// [100°, 120°], an index pulse every 36° from 5°) the search runs over the wrap, and the
+/// reference is the cam edge (or the pulse after it) of the turn it found.
+#[test]
+fn a_rotary_axis_homes_over_the_wrap_on_its_reference_switch() {
+    let layout = Layout {
+        negative_limit: f64::NEG_INFINITY,
+        positive_limit: f64::INFINITY,
+        cam: (100.0, 120.0),
+        index_pitch: 36.0,
+        index_phase: 5.0,
+        period: Some(360.0),
+    };
+    for (mode, reference) in [
+        (HomingMode::SwitchingEdge2Phase, 100.0),
+        (HomingMode::SwitchingEdge1Phase, 100.0),
+        (HomingMode::ZeroPulse1Phase, 77.0),
+        (HomingMode::ZeroPulse2Phase, 77.0),
+    ] {
+        let mut cfg = axis_config();
+        cfg.mechanics.kind = gantry_kernel::mechanics::MotionKind::Rotary;
+        cfg.mechanics.modulo = gantry_kernel::mechanics::Modulo::new(360.0);
+        let mut rig = Rig::new(cfg, layout, 300.0);
+        let mut p = params(MoveDirection::Positive, SwitchConfig::RefSwitch, mode);
+        p.normal_position = 10.0;
+        let h = rig
+            .k
+            .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+            .unwrap();
+        let mut out = Vec::new();
+        assert_eq!(
+            rig.run_until_final(h, 100_000, &mut out),
+            CommandStatus::Done,
+            "{mode:?}"
+        );
+        check_limits(&out, 25.0, 250.0, 8_000.0).unwrap();
+        let s = rig.k.axis_status(0).unwrap();
+        assert!(s.bits.homed);
+        assert!((s.set.p - 10.0).abs() < 1e-9, "{mode:?}: {}", s.set.p);
+        // The drive stands at reference − 4 within its period, one turn on from 300°.
+        let want = reference - 4.0;
+        assert!(
+            (rig.sp.position - want).abs() < 1e-9,
+            "{mode:?}: drive at {} want {want}",
+            rig.sp.position
+        );
+        assert!(rig.m.x > 360.0, "it went over the wrap: {}", rig.m.x);
+    }
+}

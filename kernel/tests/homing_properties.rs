@@ -45,6 +45,7 @@ fn layout(r: &mut Rng) -> Layout {
         cam: (lo, lo + width),
         index_pitch: pitch,
         index_phase: r.range(0.0, pitch),
+        period: None,
     }
 }
 

@@ -665,6 +665,17 @@ pub enum CommandError {
         /// What is wrong.
         problem: &'static str,
     },
+    /// A homing run on an axis whose switches and encoder the kernel does not see
+    /// (simulated and virtual axes have no feedback): it could never find a reference.
+    #[error(
+        "{command}: a {kind} axis has no switches or encoder to home on; use MoveHome.SetReference"
+    )]
+    NothingToHomeOn {
+        /// Command name.
+        command: &'static str,
+        /// The axis kind.
+        kind: &'static str,
+    },
     /// A hardware limit switch stopped the axis while the command ran.
     #[error("{command}: stopped by the {side}")]
     LimitSwitch {
@@ -748,6 +759,7 @@ impl CommandError {
             | CommandError::Plan { command, .. }
             | CommandError::HomingParameter { command, .. }
             | CommandError::LimitSwitch { command, .. }
+            | CommandError::NothingToHomeOn { command, .. }
             | CommandError::TowardsLimitSwitch { command, .. }
             | CommandError::AxisFault { command } => command,
             CommandError::Homing(e) => e.command(),

@@ -42,6 +42,9 @@ pub struct Layout {
     pub index_pitch: f64,
     /// Phase of the index pulses.
     pub index_phase: f64,
+    /// Modulo period of a rotary axis: cams and pulses repeat every period, positions
+    /// and latches are reported within it (the limits are then ±∞).
+    pub period: Option<f64>,
 }
 
 impl Layout {
@@ -52,10 +55,20 @@ impl Layout {
         cam: (10.0, 30.0),
         index_pitch: 7.0,
         index_phase: 0.3,
+        period: None,
     };
+
+    /// `x` within the period (unchanged without one).
+    pub fn wrap(&self, x: f64) -> f64 {
+        match self.period {
+            Some(p) => x - (x / p).floor() * p,
+            None => x,
+        }
+    }
 
     /// The switch levels at `x`.
     pub fn levels(&self, x: f64) -> SwitchInputs {
+        let x = self.wrap(x);
         SwitchInputs {
             negative_limit: x <= self.negative_limit,
             positive_limit: x >= self.positive_limit,
@@ -119,6 +132,7 @@ impl AxisModel {
     }
 
     fn probe_level(&self, x: f64) -> bool {
+        let x = self.layout.wrap(x);
         let l = self.layout.levels(x);
         match self.probe_source {
             ProbeSource::Reference => l.reference,
@@ -140,7 +154,7 @@ impl AxisModel {
     /// The feedback of this cycle (the drive is enabled and without fault).
     pub fn feedback(&self) -> AxisFeedback {
         AxisFeedback {
-            position: self.x,
+            position: self.layout.wrap(self.x),
             velocity: self.v,
             operation_enabled: true,
             fault: None,
@@ -153,17 +167,26 @@ impl AxisModel {
     pub fn advance(&mut self, sp: &AxisSetpoint) {
         let x0 = self.x;
         let alpha = DT / (self.lag_s + DT);
-        let x1 = x0 + (sp.position - x0) * alpha;
+        let set = match self.layout.period {
+            Some(p) => sp.turns as f64 * p + sp.position,
+            None => sp.position,
+        };
+        let x1 = x0 + (set - x0) * alpha;
         self.v = (x1 - x0) / DT;
         self.x = x1;
         let mut latches = ProbeLatches::default();
         let (lo, hi) = if x1 >= x0 { (x0, x1) } else { (x1, x0) };
         // Probe input edges crossed: the level before and after tells rising or falling.
         for e in self.probe_edges() {
+            // On a rotary axis the edge repeats every period: its copy nearest below `hi`.
+            let e = match self.layout.period {
+                Some(p) => e + ((hi - e) / p).floor() * p,
+                None => e,
+            };
             let crossed = (lo < e && e <= hi) || (lo <= e && e < hi);
             if crossed && self.probe_level(x0) != self.probe_level(x1) {
                 let rising = self.probe_level(x1);
-                let l = Latch::at(e);
+                let l = Latch::at(self.layout.wrap(e));
                 if rising {
                     latches.rising = l;
                 } else {
@@ -177,12 +200,12 @@ impl AxisModel {
         if x1 > x0 {
             let p = ph + ((x1 - ph) / pitch).floor() * pitch;
             if p > x0 {
-                latches.index = Latch::at(p);
+                latches.index = Latch::at(self.layout.wrap(p));
             }
         } else if x1 < x0 {
             let p = ph + ((x1 - ph) / pitch).ceil() * pitch;
             if p < x0 {
-                latches.index = Latch::at(p);
+                latches.index = Latch::at(self.layout.wrap(p));
             }
         }
         self.latches = latches;

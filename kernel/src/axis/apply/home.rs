@@ -192,6 +192,13 @@ impl Axis {
         h: HandleId,
         handles: &mut HandleTable,
     ) -> Result<CommandStatus, CommandError> {
+        if !self.cfg.kind.has_feedback() {
+            // Without feedback there are no switches or latches: the run would search forever.
+            return Err(CommandError::NothingToHomeOn {
+                command,
+                kind: self.cfg.kind.name(),
+            });
+        }
         if let Some(m) = self.motion.take() {
             // Accepted only in Standstill, so nothing runs; keep the books straight anyway.
             handles.set(m.handle, CommandStatus::Aborted);
