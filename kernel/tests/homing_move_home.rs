@@ -347,3 +347,35 @@ fn a_rotary_axis_homes_over_the_wrap_on_its_reference_switch() {
         assert!(rig.m.x > 360.0, "it went over the wrap: {}", rig.m.x);
     }
 }
+
+/// Seed 000 §5.2.6.2: saved parameters are loaded at start and a call without parameters
+/// uses them; the axis reports the set in use so it can be saved again.
+#[test]
+fn saved_parameters_are_used_by_a_call_without_parameters() {
+    let saved = params(
+        MoveDirection::Negative,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge1Phase,
+    );
+    let mut cfg = axis_config();
+    cfg.move_home = Some(saved);
+    let mut rig = Rig::new(cfg, Layout::STANDARD, 60.0);
+    assert_eq!(rig.k.axes()[0].move_home_parameters(), &saved);
+    let h = rig
+        .k
+        .command(0, Command::MoveHome(MoveHomeCall::default()))
+        .unwrap();
+    let mut out = Vec::new();
+    assert_eq!(
+        rig.run_until_final(h, 100_000, &mut out),
+        CommandStatus::Done
+    );
+    // Negative, so the cam's positive edge (30), plus the offset +4.
+    assert!((rig.sp.position - 34.0).abs() < 1e-9, "{}", rig.sp.position);
+    let changed = MoveHomeCall {
+        normal_position: Some(1.0),
+        ..MoveHomeCall::default()
+    };
+    rig.k.command(0, Command::MoveHome(changed)).unwrap();
+    assert_eq!(rig.k.axes()[0].move_home_parameters().normal_position, 1.0);
+}

@@ -147,6 +147,12 @@ pub struct AxisConfig {
     /// When a positioning move is Done: in position (on for real axes) or when its set
     /// value reaches the target.
     pub target_monitoring: TargetMonitoring,
+    /// Saved MoveHome parameters (seed 000 §5.2.6.2: the axis' parameter file, loaded at
+    /// start); a MoveHome call leaves out what it keeps. `None`: [`MoveHome::defaults`]
+    /// from the axis maxima.
+    ///
+    /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
+    pub move_home: Option<crate::homing::MoveHome>,
 }
 
 impl AxisConfig {
@@ -177,6 +183,7 @@ impl AxisConfig {
             homing_required: !matches!(kind, AxisKind::Virtual),
             initial_position: 0.0,
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
+            move_home: None,
         }
     }
 
@@ -496,7 +503,9 @@ impl Axis {
                 speed: cfg.max.vmax,
             },
             home_status: crate::homing::HomingStatus::default(),
-            move_home: crate::homing::MoveHome::defaults(cfg.max.vmax, cfg.max.amax, cfg.max.jmax),
+            move_home: cfg.move_home.unwrap_or_else(|| {
+                crate::homing::MoveHome::defaults(cfg.max.vmax, cfg.max.amax, cfg.max.jmax)
+            }),
             cfg,
         };
         axis.normalise_frame();
@@ -513,6 +522,12 @@ impl Axis {
     /// The name.
     pub fn name(&self) -> &str {
         &self.cfg.name
+    }
+
+    /// The MoveHome parameters a call without parameters uses (the last used, or the
+    /// saved ones): what the master persists per axis (seed 000 §5.2.6.2).
+    pub fn move_home_parameters(&self) -> &crate::homing::MoveHome {
+        &self.move_home
     }
 
     /// The status after the last cycle.

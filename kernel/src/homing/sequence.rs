@@ -546,7 +546,10 @@ impl Sequencer {
             });
         }
         if let Some(e) = self.limit_hazard(self.dir, o, s.goal.signal()) {
-            if !self.plan.reverse_at_limits {
+            // Only a switch search turns round at a limit switch (seed 000 RefAndLimitSwitch:
+            // "reverses and searches the reference switch"); an index pulse that is not there
+            // before the limit switch is not there.
+            if !self.plan.reverse_at_limits || matches!(s.goal, Goal::Index { .. }) {
                 return Demand::Fail(e);
             }
             let k = usize::from(self.dir > 0.0);
