@@ -29,14 +29,27 @@ pub fn run_step_switch_lag(
     p: StepAbsoluteSwitch,
     expect: Expect,
 ) -> Result<Vec<Sample>, String> {
-    let mut rig = Rig::new(axis_config(), layout, x0);
+    run_step_switch_at(layout, lag_s, DT, x0, p, expect)
+}
+
+/// [`run_step_switch_lag`] at cycle time `dt`.
+pub fn run_step_switch_at(
+    layout: Layout,
+    lag_s: f64,
+    dt: f64,
+    x0: f64,
+    p: StepAbsoluteSwitch,
+    expect: Expect,
+) -> Result<Vec<Sample>, String> {
+    let mut rig = Rig::with_cycle(axis_config(), layout, x0, dt);
     rig.m.lag_s = lag_s;
     let h = rig
         .k
         .command(0, Command::StepAbsoluteSwitch(p))
         .map_err(|e| format!("refused: {e}"))?;
     let mut out = Vec::new();
-    let st = rig.run_until_final(h, 200_000, &mut out);
+    let max_cycles = (1000.0 / rig.m.dt) as usize; // 1000 s of axis time
+    let st = rig.run_until_final(h, max_cycles, &mut out);
     check_limits(&out, p.velocity, p.acceleration.max(p.deceleration), p.jerk)?;
     if let CommandStatus::Error(e) = st {
         return Err(named_error(&mut rig, e));
@@ -94,7 +107,12 @@ pub fn run_step_switch_lag(
 }
 
 pub fn rig_for(layout: Layout, p: &MoveHome, x0: f64) -> Rig {
-    let mut rig = Rig::new(axis_config(), layout, x0);
+    rig_for_at(layout, p, x0, DT)
+}
+
+/// [`rig_for`] at cycle time `dt`.
+pub fn rig_for_at(layout: Layout, p: &MoveHome, x0: f64, dt: f64) -> Rig {
+    let mut rig = Rig::with_cycle(axis_config(), layout, x0, dt);
     rig.m.lag_s = DEFAULT_LAG_S;
     if p.switch_config == SwitchConfig::LimitSwitch {
         // The drive's touch probe is set to the limit switch used as the reference.
@@ -120,7 +138,19 @@ pub fn run_move_home_lag(
     x0: f64,
     expect: MoveHomeExpect,
 ) -> Result<(), String> {
-    let mut rig = rig_for(layout, &p, x0);
+    run_move_home_at(layout, lag_s, DT, p, x0, expect)
+}
+
+/// [`run_move_home_lag`] at cycle time `dt`.
+pub fn run_move_home_at(
+    layout: Layout,
+    lag_s: f64,
+    dt: f64,
+    p: MoveHome,
+    x0: f64,
+    expect: MoveHomeExpect,
+) -> Result<(), String> {
+    let mut rig = rig_for_at(layout, &p, x0, dt);
     rig.m.lag_s = lag_s;
     let h = match rig.k.command(0, Command::MoveHome(MoveHomeCall::all(p))) {
         Ok(h) => h,
@@ -138,7 +168,8 @@ pub fn run_move_home_lag(
         return Err("accepted SwitchingEdge without a switch".into());
     }
     let mut out = Vec::new();
-    let st = rig.run_until_final(h, 400_000, &mut out);
+    let max_cycles = (1000.0 / rig.m.dt) as usize; // 1000 s of axis time
+    let st = rig.run_until_final(h, max_cycles, &mut out);
     let vmax = p.speed_switch_search.max(p.speed_reference_search);
     check_limits(&out, vmax, p.acceleration, p.jerk)?;
     let seq = check_status_sequence(&out)?;

@@ -115,6 +115,8 @@ pub struct AxisModel {
     latches: ProbeLatches,
     /// Every edge the probe latched: (position, rising).
     pub edges_latched: usize,
+    /// Cycle time (s).
+    pub dt: f64,
 }
 
 impl AxisModel {
@@ -128,6 +130,7 @@ impl AxisModel {
             v: 0.0,
             latches: ProbeLatches::default(),
             edges_latched: 0,
+            dt: DT,
         }
     }
 
@@ -166,13 +169,14 @@ impl AxisModel {
     /// One cycle: the load follows the set position; edges crossed are latched exactly.
     pub fn advance(&mut self, sp: &AxisSetpoint) {
         let x0 = self.x;
-        let alpha = DT / (self.lag_s + DT);
+        let dt = self.dt;
+        let alpha = dt / (self.lag_s + dt);
         let set = match self.layout.period {
             Some(p) => sp.turns as f64 * p + sp.position,
             None => sp.position,
         };
         let x1 = x0 + (set - x0) * alpha;
-        self.v = (x1 - x0) / DT;
+        self.v = (x1 - x0) / dt;
         self.x = x1;
         let mut latches = ProbeLatches::default();
         let (lo, hi) = if x1 >= x0 { (x0, x1) } else { (x1, x0) };
@@ -253,14 +257,21 @@ pub struct Rig {
 }
 
 impl Rig {
-    /// Kernel and model at `x0`, enabled.
+    /// Kernel and model at `x0`, enabled, cycle time [`DT`].
     pub fn new(cfg: AxisConfig, layout: Layout, x0: f64) -> Self {
+        Self::with_cycle(cfg, layout, x0, DT)
+    }
+
+    /// Kernel and model at `x0`, enabled, cycle time `dt`.
+    pub fn with_cycle(cfg: AxisConfig, layout: Layout, x0: f64, dt: f64) -> Self {
         let mut cfg = cfg;
         cfg.initial_position = x0;
-        let k = Kernel::new(DT, vec![cfg]).expect("config");
+        let k = Kernel::new(dt, vec![cfg]).expect("config");
+        let mut m = AxisModel::new(layout, x0);
+        m.dt = dt;
         let mut rig = Self {
             k,
-            m: AxisModel::new(layout, x0),
+            m,
             sp: AxisSetpoint::default(),
         };
         rig.k
