@@ -130,8 +130,8 @@ pub enum Start {
     /// Beckhoff mcSwitchPositive / mcSwitchNegative and a one-phase switch search: on the
     /// cam, first leave it against the direction, then move in it (seed 003).
     LeaveThen(f64),
-    /// The second phase after a coarse one: on the cam, towards the goal's edge; off it,
-    /// back the way the coarse phase came (it went past what it found).
+    /// The second phase after a coarse one, from a stop: on the cam, towards the goal's
+    /// edge; off it, back the way the coarse phase came (it went past what it found).
     Back,
     /// Go on in the direction of the last motion (an index after an edge).
     Keep,
@@ -234,6 +234,8 @@ pub enum Demand {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Stage {
+    /// Braking to a stop before search `i` starts (a fine phase after a coarse one).
+    Pause(usize),
     Search(usize),
     Stopping,
     Approaching,
@@ -308,6 +310,15 @@ impl Sequencer {
         self.travelled += (o.set_p - self.last_set_p).abs();
         self.last_set_p = o.set_p;
         let d = match self.stage {
+            Stage::Pause(i) => {
+                let hazard = self.limit_hazard(sign(o.set_v), o, self.reference_limit());
+                match hazard {
+                    // Braking into a limit switch the run may reverse at is part of it.
+                    Some(e) if !self.plan.reverse_at_limits => Demand::Fail(e),
+                    _ if o.settled => self.begin(i, o),
+                    _ => Demand::Keep,
+                }
+            }
             Stage::Search(i) => self.search_step(i, o, motion),
             Stage::Stopping => {
                 if let Some(e) = self.limit_hazard(sign(o.set_v), o, self.reference_limit()) {
@@ -448,6 +459,13 @@ impl Sequencer {
         if s.marks.reference_found {
             self.status.reference_found = true;
             self.reference = at;
+        }
+        let next = self.plan.searches.get(i + 1).copied().flatten();
+        if next.is_some_and(|n| n.start == Start::Back) {
+            // Jetter: the coarse phase found it; the fine phase starts from a stop, so the
+            // edge or pulse is crossed at the fine speed (seed 000 §6.3.2.2).
+            self.stage = Stage::Pause(i + 1);
+            return self.velocity(0.0);
         }
         self.begin(i + 1, o)
     }

@@ -225,6 +225,18 @@ pub fn run_move_home_at(
             if s.homing != all {
                 return Err(format!("status {:?}", s.homing));
             }
+            // The reference is crossed at the fine speed (seed 000: SpeedReferenceSearch).
+            let found = out
+                .iter()
+                .find(|x| x.status.homing.reference_found)
+                .ok_or("reference never found")?;
+            let v = found.status.set.v.abs();
+            if v > p.speed_reference_search * (1.0 + 1e-6) {
+                return Err(format!(
+                    "reference crossed at {v}, above SpeedReferenceSearch {}",
+                    p.speed_reference_search
+                ));
+            }
             // Two phases (and a zero pulse behind a switch): "switch found" comes first.
             let separate = matches!(
                 p.mode,
