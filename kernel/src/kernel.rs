@@ -160,6 +160,8 @@ impl Kernel {
                     velocity: s.actual_velocity,
                     operation_enabled: false,
                     fault: None,
+                    // A shadow has no switches of its own.
+                    ..AxisFeedback::default()
                 }
             }
             None => AxisFeedback::default(),

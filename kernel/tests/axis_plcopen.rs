@@ -501,6 +501,7 @@ fn drive_at(
         velocity: 0.0,
         operation_enabled,
         fault,
+        ..Default::default()
     }]
 }
 

@@ -1,8 +1,10 @@
 //! `Kernel::step` and command submission allocate nothing: a counting global allocator
 //! watches this thread while 8 axes run S-curve moves, buffered moves, jogs and halts
-//! for 20 000 cycles.
+//! for 20 000 cycles, and while a real axis runs homing (MoveHome and StepAbsoluteSwitch
+//! against the axis model with its switches and latches) and hits a limit switch.
 
 mod common;
+mod homing_model;
 
 use common::*;
 use gantry_kernel::axis::command::{
@@ -74,4 +76,68 @@ fn step_and_commands_do_not_allocate() {
     let n = counting::take_count();
     assert_eq!(n, 0, "{n} allocations in {cycles} cycles");
     assert_eq!(cycles, 20_000);
+}
+
+#[test]
+fn homing_runs_and_limit_switch_stops_do_not_allocate() {
+    use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity};
+    use gantry_kernel::homing::{
+        HomeDirection, HomingMode, MoveHome, MoveHomeCall, StepAbsoluteSwitch, SwitchConfig,
+        SwitchMode,
+    };
+    use homing_model::{axis_config, Layout, Rig};
+
+    let mut rig = Rig::new(axis_config(), Layout::STANDARD, 60.0);
+    let home = MoveHome {
+        direction: MoveDirection::Positive,
+        switch_config: SwitchConfig::RefAndLimitSwitch,
+        mode: HomingMode::ZeroPulse2Phase,
+        acceleration: 250.0,
+        jerk: 8_000.0,
+        speed_switch_search: 25.0,
+        max_distance_switch_search: 1_000.0,
+        speed_reference_search: 2.5,
+        max_distance_reference_search: 1_000.0,
+        reference_offset: -4.0,
+        normal_position: 0.0,
+    };
+    let step = StepAbsoluteSwitch {
+        direction: HomeDirection::SwitchNegative,
+        switch_mode: SwitchMode::EdgeSwitchPositive,
+        position: 0.0,
+        velocity: 20.0,
+        acceleration: 200.0,
+        deceleration: 200.0,
+        jerk: 5_000.0,
+        distance_limit: f64::INFINITY,
+    };
+    counting::watch(true);
+    let mut cycles = 0u64;
+    let h1 = rig.k.submit(0, Command::MoveHome(MoveHomeCall::all(home)));
+    while !rig.k.command_status(h1).is_final() && cycles < 200_000 {
+        rig.cycle();
+        cycles += 1;
+    }
+    let h2 = rig.k.submit(0, Command::StepAbsoluteSwitch(step));
+    while !rig.k.command_status(h2).is_final() && cycles < 400_000 {
+        rig.cycle();
+        cycles += 1;
+    }
+    // Into the positive limit switch: quick stop into ErrorStop.
+    let h3 = rig.k.submit(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 50.0)),
+    );
+    for _ in 0..10_000 {
+        rig.cycle();
+        cycles += 1;
+    }
+    counting::watch(false);
+    let n = counting::take_count();
+    assert_eq!(n, 0, "{n} allocations in {cycles} cycles");
+    use gantry_kernel::axis::handle::CommandStatus;
+    assert_eq!(rig.k.command_status(h1), CommandStatus::Done);
+    assert_eq!(rig.k.command_status(h2), CommandStatus::Done);
+    assert!(matches!(rig.k.command_status(h3), CommandStatus::Error(_)));
+    assert!(cycles > 10_000);
 }

@@ -52,6 +52,7 @@ impl Drive {
             velocity: 0.0,
             operation_enabled: true,
             fault: None,
+            ..Default::default()
         }]
     }
 }
@@ -414,6 +415,7 @@ fn power_on_in_error_stop_is_refused_at_once_and_a_pending_one_ends_with_the_fau
             velocity: 0.0,
             operation_enabled: on,
             fault,
+            ..Default::default()
         }]
     };
     // An enable waiting for the drive when the drive faults: it ends in that cycle.

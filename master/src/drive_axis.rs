@@ -40,6 +40,7 @@ pub fn axis_feedback(fb: CspFeedback) -> AxisFeedback {
         velocity: fb.velocity,
         operation_enabled: fb.operation_enabled,
         fault: fb.fault,
+        ..Default::default()
     }
 }
 
@@ -98,7 +99,8 @@ mod tests {
                 position: 180.0,
                 velocity: 36.0,
                 operation_enabled: true,
-                fault: None
+                fault: None,
+                ..Default::default()
             }
         );
         // The axis' frame counts its own periods (here 7): taken over where the drive

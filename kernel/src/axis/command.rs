@@ -385,6 +385,14 @@ pub enum Command {
     },
     /// Explicitly mark the axis homed (or not homed).
     SetHomed(bool),
+    /// Jetter MoveHome (seed 000 §6.3.2): a homing run; left-out parameters keep the
+    /// axis' last-used ones.
+    MoveHome(crate::homing::MoveHomeCall),
+    /// Beckhoff MC_StepAbsoluteSwitch (seed 003): a homing run on the reference cam.
+    StepAbsoluteSwitch(crate::homing::StepAbsoluteSwitch),
+    /// Jetter MoveHome.SetReference (seed 000 §6.3.1): the position becomes this without
+    /// moving; the axis is homed and "reference set".
+    SetReference(f64),
 }
 
 impl Command {
@@ -409,6 +417,9 @@ impl Command {
             Command::QuickStop => "QuickStop",
             Command::SetPosition { .. } => "SetPosition",
             Command::SetHomed(_) => "SetHomed",
+            Command::MoveHome(_) => "MoveHome",
+            Command::StepAbsoluteSwitch(_) => "StepAbsoluteSwitch",
+            Command::SetReference(_) => "MoveHome.SetReference",
         }
     }
 }
@@ -639,6 +650,49 @@ pub enum CommandError {
         /// The planner's error.
         error: PlanError,
     },
+    /// A homing run failed (distance exceeded, switch not found, limit switch).
+    #[error(transparent)]
+    Homing(#[from] crate::homing::HomingError),
+    /// A homing parameter is out of range or the combination is not possible.
+    #[error("{command}: parameter {parameter} = {value} {problem}")]
+    HomingParameter {
+        /// Command name.
+        command: &'static str,
+        /// Which parameter.
+        parameter: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong.
+        problem: &'static str,
+    },
+    /// A homing run on an axis whose switches and encoder the kernel does not see
+    /// (simulated and virtual axes have no feedback): it could never find a reference.
+    #[error(
+        "{command}: a {kind} axis has no switches or encoder to home on; use MoveHome.SetReference"
+    )]
+    NothingToHomeOn {
+        /// Command name.
+        command: &'static str,
+        /// The axis kind.
+        kind: &'static str,
+    },
+    /// A hardware limit switch stopped the axis while the command ran.
+    #[error("{command}: stopped by the {side}")]
+    LimitSwitch {
+        /// Command name.
+        command: &'static str,
+        /// Which switch.
+        side: crate::homing::LimitSide,
+    },
+    /// The move would go towards an active hardware limit switch: only moves away from it
+    /// are allowed until the axis has left it.
+    #[error("{command}: the {side} is active; only moves away from it are allowed")]
+    TowardsLimitSwitch {
+        /// Command name.
+        command: &'static str,
+        /// Which switch.
+        side: crate::homing::LimitSide,
+    },
     /// The command was accepted but the axis went to ErrorStop while it ran.
     #[error("the axis went to ErrorStop while {command} ran")]
     AxisFault {
@@ -703,7 +757,12 @@ impl CommandError {
             | CommandError::NothingToChange { command }
             | CommandError::QueueFull { command, .. }
             | CommandError::Plan { command, .. }
+            | CommandError::HomingParameter { command, .. }
+            | CommandError::LimitSwitch { command, .. }
+            | CommandError::NothingToHomeOn { command, .. }
+            | CommandError::TowardsLimitSwitch { command, .. }
             | CommandError::AxisFault { command } => command,
+            CommandError::Homing(e) => e.command(),
             CommandError::DriveResetFailed { .. } | CommandError::SlaveNotOperational { .. } => {
                 "Reset"
             }

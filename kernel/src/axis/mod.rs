@@ -147,6 +147,12 @@ pub struct AxisConfig {
     /// When a positioning move is Done: in position (on for real axes) or when its set
     /// value reaches the target.
     pub target_monitoring: TargetMonitoring,
+    /// Saved MoveHome parameters (seed 000 §5.2.6.2: the axis' parameter file, loaded at
+    /// start); a MoveHome call leaves out what it keeps. `None`: [`MoveHome::defaults`]
+    /// from the axis maxima.
+    ///
+    /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
+    pub move_home: Option<crate::homing::MoveHome>,
 }
 
 impl AxisConfig {
@@ -177,6 +183,7 @@ impl AxisConfig {
             homing_required: !matches!(kind, AxisKind::Virtual),
             initial_position: 0.0,
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
+            move_home: None,
         }
     }
 
@@ -341,6 +348,10 @@ pub struct AxisFeedback {
     pub operation_enabled: bool,
     /// The drive reports a fault with this error code.
     pub fault: Option<u16>,
+    /// Limit and reference switches, resolved to "active" below (0x60FD or an I/O module).
+    pub switches: crate::homing::SwitchInputs,
+    /// Touch-probe latches (drive frame, like `position`).
+    pub probe: crate::homing::ProbeLatches,
 }
 
 /// What one cycle of target position monitoring found.
@@ -425,6 +436,31 @@ pub struct Axis {
     status: AxisStatus,
     /// State changes the table refused (a bug if ever non-zero; see [`Axis::enter`]).
     refused_transitions: u64,
+    /// Switches seen this cycle (none on axes without feedback).
+    switches: crate::homing::SwitchInputs,
+    /// Touch-probe latches this cycle, in the axis frame.
+    latches: crate::homing::ProbeLatches,
+    /// The running homing run and its handle.
+    homing: Option<(crate::homing::sequence::Sequencer, handle::HandleId)>,
+    /// Homing parameters for homing moves (acceleration, deceleration, jerk, approach speed).
+    homing_dynamics: HomingDynamics,
+    /// Status bits of the last homing run.
+    home_status: crate::homing::HomingStatus,
+    /// MoveHome parameters last used (a call leaves out what it keeps).
+    move_home: crate::homing::MoveHome,
+}
+
+/// Dynamics of the moves of a homing run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct HomingDynamics {
+    /// Acceleration (units/s²).
+    pub acceleration: f64,
+    /// Deceleration (units/s²).
+    pub deceleration: f64,
+    /// Jerk (units/s³).
+    pub jerk: f64,
+    /// Speed of the final positioning (units/s).
+    pub speed: f64,
 }
 
 impl Axis {
@@ -457,6 +493,19 @@ impl Axis {
             last_tick: 0,
             status: AxisStatus::default(),
             refused_transitions: 0,
+            switches: crate::homing::SwitchInputs::default(),
+            latches: crate::homing::ProbeLatches::default(),
+            homing: None,
+            homing_dynamics: HomingDynamics {
+                acceleration: cfg.max.amax,
+                deceleration: cfg.max.dmax,
+                jerk: cfg.max.jmax,
+                speed: cfg.max.vmax,
+            },
+            home_status: crate::homing::HomingStatus::default(),
+            move_home: cfg.move_home.unwrap_or_else(|| {
+                crate::homing::MoveHome::defaults(cfg.max.vmax, cfg.max.amax, cfg.max.jmax)
+            }),
             cfg,
         };
         axis.normalise_frame();
@@ -473,6 +522,12 @@ impl Axis {
     /// The name.
     pub fn name(&self) -> &str {
         &self.cfg.name
+    }
+
+    /// The MoveHome parameters a call without parameters uses (the last used, or the
+    /// saved ones): what the master persists per axis (seed 000 §5.2.6.2).
+    pub fn move_home_parameters(&self) -> &crate::homing::MoveHome {
+        &self.move_home
     }
 
     /// The status after the last cycle.
@@ -556,6 +611,7 @@ impl Axis {
     ) -> AxisSetpoint {
         self.last_tick = now;
         if self.cfg.kind.has_feedback() {
+            self.take_switches(fb);
             self.take_feedback(fb, handles);
         }
         self.advance(now, dt, handles);
@@ -563,6 +619,8 @@ impl Axis {
             self.overlay_set = o.sample(now, dt);
         }
         self.check_software_limits(handles);
+        self.check_limit_switches(handles);
+        self.run_homing(now, dt, handles);
         if !self.cfg.kind.has_feedback() {
             self.actual_p = self.main.p + self.overlay_set.p;
             self.actual_v = self.main.v + self.overlay_set.v;
@@ -688,7 +746,7 @@ impl Axis {
             let next_waits = !self.queue.is_empty();
             if !ended || (!m.kind.is_finite() && !next_waits) {
                 self.main = m.sample(now, dt);
-                if ended && !m.kind.is_finite() {
+                if ended && m.kind.is_continuous() {
                     self.reanchor_continuous(now, dt);
                 }
                 return;
@@ -857,6 +915,11 @@ impl Axis {
                 handles.set(m.handle, CommandStatus::Done);
                 self.power_off(handles);
             }
+            MotionKind::Home => {
+                // Only a buffered move would retire it, and none is taken while homing.
+                handles.set(m.handle, CommandStatus::Aborted);
+                self.homing = None;
+            }
         }
         if self.state == AxisState::ErrorStop {
             self.queue
@@ -911,10 +974,15 @@ impl Axis {
                 window,
                 timeout_s,
             },
+            AxisFault::LimitSwitch { side } => CommandError::LimitSwitch {
+                command: self.motion.map(|m| m.command).unwrap_or("no command"),
+                side,
+            },
             _ => CommandError::AxisFault {
                 command: self.motion.map(|m| m.command).unwrap_or("no command"),
             },
         };
+        self.homing = None;
         if let Some(m) = self.motion.take() {
             handles.set(m.handle, CommandStatus::Error(err));
         }
@@ -1070,6 +1138,8 @@ impl Axis {
             } else {
                 None
             },
+            homing: self.home_status,
+            switches: self.switches,
         };
     }
 

@@ -91,18 +91,25 @@ pub enum MotionKind {
     QuickStop,
     /// Power.Disable while moving: decelerate, then disable.
     Disable,
+    /// A homing run (MoveHome, StepAbsoluteSwitch): the homing sequencer replans the
+    /// profile as it goes and ends the motion itself.
+    Home,
 }
 
 impl MotionKind {
     /// Whether the motion ends by itself (its profile has an end and the command is then
     /// done). Velocity moves and jogs go on at their speed.
+    /// Homing runs are not: the sequencer ends them.
     pub const fn is_finite(&self) -> bool {
-        !matches!(self, MotionKind::Velocity { .. } | MotionKind::Jog)
+        !matches!(
+            self,
+            MotionKind::Velocity { .. } | MotionKind::Jog | MotionKind::Home
+        )
     }
 
     /// Whether the axis is in ContinuousMotion while this runs.
     pub const fn is_continuous(&self) -> bool {
-        !self.is_finite()
+        matches!(self, MotionKind::Velocity { .. } | MotionKind::Jog)
     }
 }
 

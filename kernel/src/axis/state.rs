@@ -77,7 +77,9 @@ impl AxisState {
             (S::Stopping, _) => None,
             (_, Event::DiscreteMotionStarted) => Some(S::DiscreteMotion),
             (_, Event::ContinuousMotionStarted) => Some(S::ContinuousMotion),
-            (S::DiscreteMotion, Event::MotionDone) => Some(S::Standstill),
+            (S::DiscreteMotion | S::Homing, Event::MotionDone) => Some(S::Standstill),
+            (S::Standstill, Event::HomingStarted) => Some(S::Homing),
+            (_, Event::HomingStarted) => None,
             (_, Event::MotionDone) => None,
         }
     }
@@ -90,6 +92,8 @@ pub enum Event {
     PoweredOn,
     /// Power is off (MC_Power off, forced, or at the end of a quick stop).
     PoweredOff,
+    /// A homing run starts (MoveHome, StepAbsoluteSwitch); only from Standstill.
+    HomingStarted,
     /// A move with an end starts (MovePtp, Halt).
     DiscreteMotionStarted,
     /// A move without an end starts (MoveVelocity, Jog, or a superimposed jog that still
@@ -121,7 +125,10 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
         // Power off when off: nothing to do, as MC_Power with Enable = FALSE.
         (S::Disabled, Command::Power(PowerCommand::Enable | PowerCommand::Disable)) => true,
         (S::Disabled, Command::Reset) => true,
-        (S::Disabled, Command::SetPosition { .. } | Command::SetHomed(_)) => true,
+        (
+            S::Disabled,
+            Command::SetPosition { .. } | Command::SetHomed(_) | Command::SetReference(_),
+        ) => true,
         (S::Disabled, _) => false,
         (S::ErrorStop, Command::Reset | Command::Power(PowerCommand::Disable)) => true,
         (S::ErrorStop, _) => false,
@@ -135,8 +142,17 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
         (S::Stopping, _) => false,
         (_, Command::Power(PowerCommand::Enable)) => true,
         (_, Command::Reset) => true,
-        (S::Standstill, Command::SetPosition { .. } | Command::SetHomed(_)) => true,
-        (_, Command::SetPosition { .. }) => false,
+        (
+            S::Standstill,
+            Command::SetPosition { .. }
+            | Command::SetHomed(_)
+            | Command::SetReference(_)
+            | Command::MoveHome(_)
+            | Command::StepAbsoluteSwitch(_),
+        ) => true,
+        (_, Command::SetPosition { .. } | Command::SetReference(_)) => false,
+        // PLCopen MC_Home: from Standstill only.
+        (_, Command::MoveHome(_) | Command::StepAbsoluteSwitch(_)) => false,
         (_, Command::SetHomed(_)) => true,
         (S::Standstill, Command::Release) => true,
         (_, Command::Release) => false,
@@ -253,6 +269,26 @@ mod tests {
                 assert_eq!(s.on(Event::Reset { powered: true }), None, "{s:?}");
             }
         }
+    }
+
+    #[test]
+    fn homing_starts_only_from_standstill_and_ends_there() {
+        for s in ALL {
+            let expected = (s == AxisState::Standstill).then_some(AxisState::Homing);
+            assert_eq!(s.on(Event::HomingStarted), expected, "{s:?}");
+            let cmd = Command::MoveHome(crate::homing::MoveHomeCall::default());
+            assert_eq!(accepts(s, &cmd), s == AxisState::Standstill, "{s:?}");
+        }
+        assert_eq!(
+            AxisState::Homing.on(Event::MotionDone),
+            Some(AxisState::Standstill)
+        );
+        assert_eq!(
+            AxisState::Homing.on(Event::Error),
+            Some(AxisState::ErrorStop)
+        );
+        // A new move aborts the run (PLCopen: Homing -> DiscreteMotion on an aborting move).
+        assert!(accepts(AxisState::Homing, &ptp()));
     }
 
     #[test]

@@ -96,6 +96,10 @@ pub struct AxisStatus {
     pub target: Option<f64>,
     /// Why the axis is in ErrorStop.
     pub error: Option<AxisFault>,
+    /// Progress of the last homing run (Jetter MoveHome status bits).
+    pub homing: crate::homing::HomingStatus,
+    /// The switches as the axis saw them this cycle.
+    pub switches: crate::homing::SwitchInputs,
 }
 
 /// Why an axis went to ErrorStop.
@@ -132,6 +136,12 @@ pub enum AxisFault {
         /// The limit that was reached (units).
         limit: f64,
     },
+    /// The axis moved into an active hardware limit switch (stopped with its quick-stop
+    /// deceleration; after Reset it may only move away from the switch).
+    LimitSwitch {
+        /// Which one.
+        side: crate::homing::LimitSide,
+    },
 }
 
 impl core::fmt::Display for AxisFault {
@@ -146,6 +156,7 @@ impl core::fmt::Display for AxisFault {
                 write!(f, "software limit {limit} reached")
             }
             AxisFault::TargetNotReached { .. } => write!(f, "{}", self.summary()),
+            AxisFault::LimitSwitch { side } => write!(f, "{side}"),
         }
     }
 }
@@ -163,6 +174,7 @@ impl AxisFault {
                 FaultSummary::FollowingError { error, window }
             }
             AxisFault::SoftwareLimit { limit } => FaultSummary::SoftwareLimit { limit },
+            AxisFault::LimitSwitch { side } => FaultSummary::LimitSwitch { side },
             AxisFault::TargetNotReached {
                 target,
                 actual,
@@ -215,6 +227,11 @@ pub enum FaultSummary {
         /// The timeout (s).
         timeout_s: f64,
     },
+    /// A hardware limit switch stopped the axis.
+    LimitSwitch {
+        /// Which one.
+        side: crate::homing::LimitSide,
+    },
     /// No error is recorded.
     Unknown,
 }
@@ -238,6 +255,7 @@ impl core::fmt::Display for FaultSummary {
                 "target {target} not reached: actual {actual} not settled within ±{window} \
                  {timeout_s} s after the set value reached it"
             ),
+            FaultSummary::LimitSwitch { side } => write!(f, "{side}"),
             FaultSummary::Unknown => write!(f, "no error recorded"),
         }
     }

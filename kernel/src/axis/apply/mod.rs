@@ -8,6 +8,7 @@
 
 mod buffer;
 mod change;
+mod home;
 mod jog;
 mod operands;
 mod plan;
@@ -33,7 +34,10 @@ impl Axis {
         handles: &mut HandleTable,
     ) -> Result<CommandStatus, CommandError> {
         let name = cmd.name();
-        let bookkeeping = matches!(cmd, Command::SetPosition { .. } | Command::SetHomed(_));
+        let bookkeeping = matches!(
+            cmd,
+            Command::SetPosition { .. } | Command::SetHomed(_) | Command::SetReference(_)
+        );
         if !self.cfg.kind.is_commandable() && !bookkeeping {
             return Err(CommandError::NotCommandable {
                 command: name,
@@ -53,7 +57,18 @@ impl Axis {
                 state: self.state,
             });
         }
+        if self.state == AxisState::Homing && queued(cmd) {
+            // A homing run has no end to buffer behind: abort it (Aborting) instead.
+            return Err(CommandError::NotAllowedInState {
+                command: name,
+                state: self.state,
+            });
+        }
+        self.check_towards_limit(cmd)?;
         match *cmd {
+            Command::MoveHome(ref c) => self.move_home(c, h, handles),
+            Command::StepAbsoluteSwitch(ref p) => self.step_absolute_switch(p, h, handles),
+            Command::SetReference(p) => self.set_reference(p),
             Command::Power(p) => self.power(p, h, handles),
             Command::Reset => self.reset(h),
             Command::MovePtp(m) => self.move_ptp(m, h, handles),
@@ -68,5 +83,14 @@ impl Axis {
             Command::SetPosition { position, relative } => self.set_position(position, relative),
             Command::SetHomed(b) => self.set_homed(b),
         }
+    }
+}
+
+/// Whether `cmd` waits behind the running move (a buffer mode other than Aborting).
+fn queued(cmd: &Command) -> bool {
+    match cmd {
+        Command::MovePtp(m) => m.buffer.is_queued(),
+        Command::MoveVelocity(v) => v.buffer.is_queued(),
+        _ => false,
     }
 }
