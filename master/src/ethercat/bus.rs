@@ -27,6 +27,7 @@ use crate::config::Config;
 use crate::pcap::PcapWriter;
 use crate::runtime::bus::{BusCounters, CycleBus, Reply, Restored, Unreachable};
 use crate::runtime::clock::now_ns;
+use crate::runtime::cycle::SetupError;
 
 /// Most slaves on one bus.
 pub const MAX_SLAVES: usize = 64;
@@ -133,28 +134,10 @@ pub enum StartError {
         #[source]
         source: Cause,
     },
-    /// The configuration names a drive that is not there.
-    #[error("{path}: axis {axis:?} is on drive {drive}, but the bus has {slaves} slaves")]
-    MissingDrive {
-        /// The configuration file.
-        path: String,
-        /// The axis.
-        axis: String,
-        /// Its drive position.
-        drive: usize,
-        /// Slaves found.
-        slaves: usize,
-    },
-    /// An axis' configuration does not fit its drive (PDO layout, scaling).
-    #[error("axis {axis:?}: {key}: {reason}")]
-    Axis {
-        /// The axis.
-        axis: String,
-        /// The configuration key.
-        key: String,
-        /// What is wrong with it.
-        reason: String,
-    },
+    /// The configuration does not fit the bus found (a drive missing, a layout that the
+    /// axis' drive cannot carry): the same checks the cycle makes when it is built.
+    #[error(transparent)]
+    Axes(#[from] SetupError),
     /// The layout does not suit CSP, or the kernel refused the axes.
     #[error("{what}")]
     Setup {
@@ -596,14 +579,15 @@ fn map_axes_pdos(
 ) -> Result<(), StartError> {
     for a in &config.axes {
         if a.drive >= group.len() {
-            return Err(StartError::MissingDrive {
+            return Err(SetupError::MissingDrive {
                 path: config.path.clone(),
                 axis: a.name.clone(),
                 drive: a.drive,
                 slaves: group.len(),
-            });
+            }
+            .into());
         }
-        let layout = a.pdo_layout().map_err(|(key, reason)| StartError::Axis {
+        let layout = a.pdo_layout().map_err(|(key, reason)| SetupError::Axis {
             axis: a.name.clone(),
             key,
             reason,
