@@ -4,6 +4,7 @@
 
 pub mod cyclic_frame;
 pub mod dc_phase;
+pub mod drive_counts;
 pub mod invariant;
 pub mod lockstep;
 pub mod netns;
@@ -83,9 +84,6 @@ pub fn sim_config_strict(axes: usize, cycle_us: u32) -> gantry::config::Config {
 /// As [`sim_config`], with `servo` (TOML keys, e.g. `dc_drift_ppm = 300`) added to every
 /// simulated servo.
 pub fn sim_config_with(axes: usize, cycle_us: u32, servo: &str) -> gantry::config::Config {
-    let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let sim = dir.join("sim.toml");
     // The real-time tests run the simulator on the host's clock, on shared machines
     // without PREEMPT_RT whose threads stall for milliseconds now and then (the lockstep
     // rig's tests take `sim_config_strict`: their master is never late). A DC drive counts each
@@ -106,19 +104,37 @@ pub fn sim_config_with(axes: usize, cycle_us: u32, servo: &str) -> gantry::confi
     let chain: String = (0..axes)
         .map(|_| format!("[[slave]]\nkind = \"servo\"\n{servo}\n{al}\n"))
         .collect();
-    std::fs::write(&sim, format!("cycle_us = {cycle_us}\n{chain}")).expect("sim.toml");
-    let mut text = format!(
-        "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n",
+    let axes: String = (0..axes)
+        .map(|i| {
+            format!(
+                "[[axis]]\nname = \"a{i}\"\ndrive = {i}\n\
+                 scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+                 max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n"
+            )
+        })
+        .collect();
+    sim_config_text(cycle_us, &chain, &axes)
+}
+
+/// A configuration at `cycle_us` whose bus is the simulator's chain `slaves` (its
+/// `[[slave]]` tables, as `gantry_sim::config` reads them) and whose axes are `axes` (gantry's
+/// `[[axis]]` tables), for a test that needs drives or axes of its own (start counts, servo
+/// tuning, I/O modules; scaling, modulo, limits, target monitoring). The simulator's file
+/// is written to a temporary folder, one file per call: tests of one binary run in
+/// parallel and each must read its own chain.
+pub fn sim_config_text(cycle_us: u32, slaves: &str, axes: &str) -> gantry::config::Config {
+    static FILES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let n = FILES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let sim = dir.join(format!("sim-{n}.toml"));
+    std::fs::write(&sim, format!("cycle_us = {cycle_us}\n{slaves}")).expect("sim.toml");
+    let text = format!(
+        "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n{axes}",
         sim.display().to_string()
     );
-    for i in 0..axes {
-        text += &format!(
-            "[[axis]]\nname = \"a{i}\"\ndrive = {i}\n\
-             scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
-             max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n"
-        );
-    }
-    gantry::config::Config::parse(&text, "test.toml").expect("valid test configuration")
+    gantry::config::Config::parse(&text, "test.toml")
+        .unwrap_or_else(|e| panic!("a valid test configuration: {e}\n{text}"))
 }
 
 /// A device without a mailbox whose process data the EEPROM describes (one RxPDO 0x1600

@@ -20,6 +20,8 @@ use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerComma
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_sim::chain::SlaveChain;
+use gantry_sim::plant::servo::ServoDrive;
+use gantry_sim::plant::DeviceModel;
 
 /// Engine, controller and the simulated chain.
 pub struct Rig {
@@ -148,6 +150,23 @@ impl Rig {
             .axis_status(axis)
             .expect("axis")
             .state
+    }
+
+    /// The status of `handle` as of the last cycle (the snapshot, which
+    /// [`CommandHandle::status`] reads, has it only every few cycles): for a test that
+    /// asserts the cycle a command ended in.
+    pub fn status_now(&self, handle: &CommandHandle) -> Option<CommandStatus> {
+        self.engine.command_status(handle.id())
+    }
+
+    /// `f` of the simulated servo at chain position `slave` (the simulator's truth: what
+    /// reached the drive, where its load is).
+    pub fn servo<R>(&self, slave: usize, f: impl FnOnce(&ServoDrive) -> R) -> R {
+        let chain = self.chain.lock().expect("the chain");
+        match chain.slaves()[slave].device() {
+            DeviceModel::Servo(s) => f(s),
+            other => panic!("slave {slave} is {other:?}"),
+        }
     }
 
     /// Why the bus stopped `axis`' drive, as `gantry status` shows it.

@@ -675,6 +675,18 @@ impl<B: CycleBus> Engine<B> {
         self.snapshot.publish();
     }
 
+    /// The status of request `id` as of the end of the last cycle (the snapshot, which
+    /// [`CommandHandle`](crate::runtime::controller::CommandHandle) reads, publishes it only
+    /// every few cycles): for a caller that steps the engine itself and needs the cycle a
+    /// command ended in. None once its slot was reused or before it was taken.
+    pub fn command_status(&self, id: u64) -> Option<CommandStatus> {
+        // Free slots hold id 0, which no request has (the controller counts from 1).
+        self.tracked
+            .iter()
+            .find(|e| e.id == id && id != 0)
+            .map(|e| e.status)
+    }
+
     /// The bus.
     pub fn bus(&self) -> &B {
         &self.bus
