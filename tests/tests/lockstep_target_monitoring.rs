@@ -1,34 +1,21 @@
 //! Target position monitoring through the simulator (issue 11 §5), lockstep: gantry's
-//! `Cycle` drives two catalog servos tuned slow (a soft velocity loop and a low position
-//! gain, as an untuned or heavily loaded axis is), and a move is Done only once the drive's
-//! own position has settled in the target window for the dwell; on the drive whose timeout
-//! is shorter than it needs to settle, the move fails with the position, window and time
-//! and the axis is in ErrorStop. The drives judge what reached them (the drive invariant).
+//! engine (`gantry_tests::rig`: bring-up from a configuration, Controller commands, the
+//! chain's time stepped one cycle per cycle) drives two catalog servos tuned slow (a soft
+//! velocity loop and a low position gain, as an untuned or heavily loaded axis is), and a
+//! move is Done only once the drive's own position has settled in the target window for
+//! the dwell; on the drive whose timeout is shorter than it needs to settle, the move fails
+//! with the position, window and time and the axis is in ErrorStop. The drives judge what
+//! reached them (the drive invariant).
 
-use std::time::Duration;
-
-use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
-use gantry::runtime::cycle::Cycle;
-use gantry_drives::csp::CspChannel;
-use gantry_drives::scaling::Scaling;
+use gantry::config::Config;
+use gantry::runtime::controller::CommandHandle;
 use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode, PowerCommand};
-use gantry_kernel::axis::handle::{CommandStatus, HandleId};
+use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::TargetMonitoring;
-use gantry_kernel::profile::Limits;
-use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_sim::catalog::{self, ServoOptions};
-use gantry_sim::chain::SlaveChain;
-use gantry_sim::plant::servo::ServoParams;
-use gantry_sim::plant::DeviceModel;
 use gantry_tests::ball_screw_5mm;
 use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
-use gantry_tests::lockstep::Lockstep;
-
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
-static STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
-type Group = SubDeviceGroup<16, 256, ethercrab::DefaultLock, Op>;
+use gantry_tests::rig::Rig;
 
 const DT: f64 = 1e-3;
 /// In-position window (mm): 26 counts of the 17-bit encoder on a 5 mm screw.
@@ -38,107 +25,42 @@ const DWELL_S: f64 = 0.02;
 const TIMEOUT_S: [f64; 2] = [TargetMonitoring::DEFAULT_TIMEOUT_S, 0.05];
 const TARGET_MM: f64 = 2.0;
 
-fn axis(name: &str, timeout_s: f64) -> AxisConfig {
-    let mut c = AxisConfig::new(name, AxisKind::Real);
-    assert!(c.target_monitoring.enabled, "on by default on real axes");
-    c.homing_required = false;
-    c.max = Limits {
-        vmax: 20.0,
-        amax: 200.0,
-        dmax: 200.0,
-        jmax: 4000.0,
-    };
-    c.defaults.speed = 10.0;
-    c.defaults.acceleration = 100.0;
-    c.defaults.deceleration = 100.0;
-    c.defaults.jerk = 2000.0;
-    c.defaults.target_window = WINDOW;
-    c.target_monitoring.dwell_s = DWELL_S;
-    c.target_monitoring.timeout_s = timeout_s;
-    c
+/// Two servos tuned slow (a 20 Hz velocity loop and a position gain of 4/s, τ = 250 ms)
+/// under axes `a` and `b` on the 5 mm ball screw, target monitoring on by default (not
+/// named here) with the window, the dwell and each axis' timeout.
+fn config() -> Config {
+    let servo = "[[slave]]\nkind = \"servo\"\nbandwidth_hz = 20.0\nposition_gain = 4.0\n";
+    let axes: String = ["a", "b"]
+        .iter()
+        .zip(TIMEOUT_S)
+        .enumerate()
+        .map(|(i, (name, timeout_s))| {
+            format!(
+                "[[axis]]\nname = {name:?}\ndrive = {i}\nhoming_required = false\n\
+                 scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+                 max = {{ speed = 20.0, acceleration = 200.0, deceleration = 200.0, jerk = 4000.0 }}\n\
+                 defaults = {{ speed = 10.0, acceleration = 100.0, deceleration = 100.0, \
+                 jerk = 2000.0, target_window = {WINDOW:?} }}\n\
+                 target_monitoring = {{ dwell_s = {DWELL_S:?}, timeout_s = {timeout_s:?} }}\n"
+            )
+        })
+        .collect();
+    let config = gantry_tests::sim_config_text((DT * 1e6) as u32, &servo.repeat(2), &axes);
+    for (i, c) in config.kernel_axes.iter().enumerate() {
+        assert!(c.target_monitoring.enabled, "on by default on real axes");
+        assert_eq!(config.axes[i].scaling().unwrap(), ball_screw_5mm());
+    }
+    config
 }
 
-/// A servo tuned slow: a 20 Hz velocity loop and a position gain of 4/s (τ = 250 ms).
-fn slow_servo(serial: u32) -> gantry_sim::slave::Slave {
-    catalog::servo(ServoOptions {
-        serial,
-        params: ServoParams {
-            velocity_loop_hz: 20.0,
-            position_gain: 4.0,
-            ..ServoParams::default()
-        },
-        ..ServoOptions::default()
-    })
+/// Where drive `i`'s load is (mm), as the plant holds it: the simulator's truth, not
+/// what the kernel was told.
+fn drive_mm(rig: &Rig, i: usize) -> f64 {
+    rig.servo(i, |s| ball_screw_5mm().counts_to_units(s.position_counts()))
 }
 
-struct Rig {
-    net: Lockstep,
-    md: MainDevice<'static>,
-    group: Group,
-    cycle: Cycle,
-    drives: Vec<DriveUnderTest>,
-}
-
-impl Rig {
-    fn new() -> Self {
-        let chain = SlaveChain::new(vec![slow_servo(1), slow_servo(2)]);
-        let (tx, rx, pdu_loop) = STORAGE.try_split().unwrap();
-        let mut net = Lockstep::new(tx, rx, chain);
-        let timeouts = Timeouts {
-            eeprom: Duration::from_secs(2),
-            pdu: Duration::from_secs(2),
-            state_transition: Duration::from_secs(10),
-            ..Timeouts::default()
-        };
-        let md = MainDevice::new(pdu_loop, timeouts, MainDeviceConfig::default());
-        let group: Group = net.group_in_op(&md).unwrap();
-        let configs = vec![axis("a", TIMEOUT_S[0]), axis("b", TIMEOUT_S[1])];
-        let drives = configs
-            .iter()
-            .enumerate()
-            .map(|(i, c)| DriveUnderTest::new(i, c, ball_screw_5mm()))
-            .collect();
-        let kernel = Kernel::new(DT, configs).unwrap();
-        let cycle = Cycle::new(kernel, vec![CspChannel::new(ball_screw_5mm()); 2]);
-        net.chain.tick(DT);
-        Self {
-            net,
-            md,
-            group,
-            cycle,
-            drives,
-        }
-    }
-
-    fn cycle(&mut self) {
-        self.net.block_on(self.group.tx_rx(&self.md)).unwrap();
-        for i in 0..2 {
-            let sd = self.group.subdevice(&self.md, i).unwrap();
-            self.cycle.read_inputs(i, &sd.inputs_raw()).unwrap();
-        }
-        self.cycle.step();
-        for i in 0..2 {
-            let sd = self.group.subdevice(&self.md, i).unwrap();
-            self.cycle
-                .write_outputs(i, sd.io_raw_mut().outputs())
-                .unwrap();
-        }
-        self.net.chain.tick(DT);
-    }
-
-    /// Where drive `i`'s load is (mm), as the plant holds it: the simulator's truth, not
-    /// what the kernel was told.
-    fn drive_mm(&self, i: usize) -> f64 {
-        let scaling: Scaling = ball_screw_5mm();
-        match self.net.chain.slaves()[i].device() {
-            DeviceModel::Servo(s) => scaling.counts_to_units(s.position_counts()),
-            other => panic!("slave {i} is {other:?}"),
-        }
-    }
-
-    fn status(&self, i: usize) -> gantry_kernel::axis::status::AxisStatus {
-        *self.cycle.kernel.axis_status(i).unwrap()
-    }
+fn axis_status(rig: &Rig, i: usize) -> gantry_kernel::axis::status::AxisStatus {
+    *rig.engine.cycle.kernel.axis_status(i).unwrap()
 }
 
 /// Per axis: the cycle its set value reached the target, the cycle its move ended, and
@@ -152,41 +74,42 @@ struct Seen {
 
 #[test]
 fn a_slow_drive_is_done_in_position_and_one_that_cannot_settle_in_time_fails() {
-    let mut rig = Rig::new();
+    let config = config();
+    let mut rig = Rig::new(&config);
     for i in 0..2 {
-        rig.cycle
-            .kernel
+        rig.ctl
             .command(i, Command::Power(PowerCommand::Enable))
-            .unwrap();
+            .expect("queued");
     }
     for _ in 0..2000 {
         rig.cycle();
-        if (0..2).all(|i| rig.status(i).state == AxisState::Standstill) {
+        if (0..2).all(|i| axis_status(&rig, i).state == AxisState::Standstill) {
             break;
         }
     }
-    assert!((0..2).all(|i| rig.status(i).state == AxisState::Standstill));
-    let start = [rig.drive_mm(0), rig.drive_mm(1)];
-    let handles: Vec<HandleId> = (0..2)
+    assert!((0..2).all(|i| axis_status(&rig, i).state == AxisState::Standstill));
+    let start = [drive_mm(&rig, 0), drive_mm(&rig, 1)];
+    let handles: Vec<CommandHandle> = (0..2)
         .map(|i| {
             let to = start[i] + TARGET_MM;
             let m = MovePtp::new(PositioningMode::AbsNormal, to);
-            rig.cycle.kernel.command(i, Command::MovePtp(m)).unwrap()
+            rig.ctl.command(i, Command::MovePtp(m)).expect("queued")
         })
         .collect();
     let targets = [start[0] + TARGET_MM, start[1] + TARGET_MM];
     let mut seen = [Seen::default(), Seen::default()];
     for _ in 0..10_000 {
         rig.cycle();
-        let tick = rig.cycle.kernel.tick();
+        let tick = rig.engine.cycle.kernel.tick();
         for i in 0..2 {
-            let s = rig.status(i);
-            let h = rig.cycle.kernel.command_status(handles[i]);
+            let s = axis_status(&rig, i);
+            // The status as of this cycle (the Controller's snapshot has it every few).
+            let h = rig.status_now(&handles[i]).expect("the move was taken");
             let seen = &mut seen[i];
             if seen.ended.is_some() {
                 continue;
             }
-            seen.plant_mm.push((tick, rig.drive_mm(i)));
+            seen.plant_mm.push((tick, drive_mm(&rig, i)));
             if seen.set_reached.is_none() && s.set.p == targets[i] && s.set.v == 0.0 {
                 seen.set_reached = Some(tick);
             }
@@ -247,7 +170,7 @@ fn a_slow_drive_is_done_in_position_and_one_that_cannot_settle_in_time_fails() {
         !inside(before.1),
         "Done at the first cycle the dwell allows, not later: {before:?}"
     );
-    assert_eq!(rig.status(0).state, AxisState::Standstill);
+    assert_eq!(axis_status(&rig, 0).state, AxisState::Standstill);
 
     // Axis 1: not in the window 50 ms after the set value arrived: Error and ErrorStop,
     // naming the position, the window and the time.
@@ -276,21 +199,30 @@ fn a_slow_drive_is_done_in_position_and_one_that_cannot_settle_in_time_fails() {
     );
     assert!((actual - targets[1]).abs() > WINDOW, "{e}");
     assert!(e.to_string().contains("0.05 s"), "{e}");
-    assert_eq!(rig.status(1).state, AxisState::ErrorStop);
+    assert_eq!(axis_status(&rig, 1).state, AxisState::ErrorStop);
 
-    // Power on is refused at once in ErrorStop; Reset leaves it and the axis stands.
-    let refused = rig
-        .cycle
-        .kernel
+    // Power on is refused at once in ErrorStop (in the cycle that takes it); Reset leaves
+    // it and the axis stands.
+    let enable = rig
+        .ctl
         .command(1, Command::Power(PowerCommand::Enable))
-        .unwrap_err();
+        .expect("queued");
+    rig.cycle();
+    let Some(CommandStatus::Error(refused)) = rig.status_now(&enable) else {
+        panic!("power on in ErrorStop: {:?}", rig.status_now(&enable));
+    };
     assert!(refused.to_string().contains("ErrorStop"), "{refused}");
     for _ in 0..50 {
         rig.cycle();
     }
-    rig.cycle.kernel.command(1, Command::Reset).unwrap();
+    let reset = rig.ctl.reset(1).expect("queued");
     rig.cycle();
-    assert_eq!(rig.status(1).state, AxisState::Standstill);
+    assert!(
+        !matches!(rig.status_now(&reset), None | Some(CommandStatus::Error(_))),
+        "reset: {:?}",
+        rig.status_now(&reset)
+    );
+    assert_eq!(axis_status(&rig, 1).state, AxisState::Standstill);
     for _ in 0..500 {
         rig.cycle();
     }
@@ -298,5 +230,7 @@ fn a_slow_drive_is_done_in_position_and_one_that_cannot_settle_in_time_fails() {
         phase_locked: true,
         ..TestConditions::default()
     };
-    assert_drive_invariants(&rig.net.chain, &rig.drives, DT, locked);
+    let drives = DriveUnderTest::of_config(&config);
+    let chain = rig.chain.lock().expect("the chain");
+    assert_drive_invariants(&chain, &drives, DT, locked);
 }
