@@ -134,7 +134,7 @@ impl Machine {
             .enumerate()
             .map(|(i, a)| axis_toml(i, a))
             .collect();
-        let config = crate::sim_config_text((DT * 1e6) as u32, &slaves, &axes);
+        let config = crate::sim_config_text((DT * 1e6) as u32, &slaves, "", &axes);
         let scalings: Vec<Scaling> = config
             .axes
             .iter()

@@ -113,16 +113,21 @@ pub fn sim_config_with(axes: usize, cycle_us: u32, servo: &str) -> gantry::confi
             )
         })
         .collect();
-    sim_config_text(cycle_us, &chain, &axes)
+    sim_config_text(cycle_us, &chain, "", &axes)
 }
 
 /// A configuration at `cycle_us` whose bus is the simulator's chain `slaves` (its
-/// `[[slave]]` tables, as `gantry_sim::config` reads them) and whose axes are `axes` (gantry's
-/// `[[axis]]` tables), for a test that needs drives or axes of its own (start counts, servo
+/// `[[slave]]` tables, as `gantry_sim::config` reads them), with `bus` (more `[bus]` keys,
+/// e.g. `dc = false`), and whose axes are `axes` (gantry's `[[axis]]` tables), for a test that needs drives or axes of its own (start counts, servo
 /// tuning, I/O modules; scaling, modulo, limits, target monitoring). The simulator's file
 /// is written to a temporary folder, one file per call: tests of one binary run in
 /// parallel and each must read its own chain.
-pub fn sim_config_text(cycle_us: u32, slaves: &str, axes: &str) -> gantry::config::Config {
+pub fn sim_config_text(
+    cycle_us: u32,
+    slaves: &str,
+    bus: &str,
+    axes: &str,
+) -> gantry::config::Config {
     static FILES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let dir = std::env::temp_dir().join(format!("gantry-sim-config-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
@@ -130,7 +135,7 @@ pub fn sim_config_text(cycle_us: u32, slaves: &str, axes: &str) -> gantry::confi
     let sim = dir.join(format!("sim-{n}.toml"));
     std::fs::write(&sim, format!("cycle_us = {cycle_us}\n{slaves}")).expect("sim.toml");
     let text = format!(
-        "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n{axes}",
+        "[bus]\nkind = \"ethercat\"\nsimulator = {:?}\ncycle_us = {cycle_us}\n{bus}\n{axes}",
         sim.display().to_string()
     );
     gantry::config::Config::parse(&text, "test.toml")

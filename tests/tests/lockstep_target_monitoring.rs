@@ -45,7 +45,7 @@ fn config() -> Config {
             )
         })
         .collect();
-    let config = gantry_tests::sim_config_text((DT * 1e6) as u32, &servo.repeat(2), &axes);
+    let config = gantry_tests::sim_config_text((DT * 1e6) as u32, &servo.repeat(2), "", &axes);
     for (i, c) in config.kernel_axes.iter().enumerate() {
         assert!(c.target_monitoring.enabled, "on by default on real axes");
         assert_eq!(config.axes[i].scaling().unwrap(), ball_screw_5mm());

@@ -8,7 +8,7 @@ use gantry_kernel::axis::command::{Command, CommandError, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
-use super::bus::{CycleBus, Reply};
+use super::bus::{CycleBus, Reply, Restored};
 use super::clock::{now_ns, Clock, CycleClock, Wake};
 use super::cycle::{Cycle, COMMUNICATION_FAULT};
 use super::phase::PhaseLock;
@@ -147,6 +147,10 @@ pub struct Engine<B: CycleBus> {
     forced_faults_at: Vec<Option<u64>>,
     /// The axis whose drive the bus is bringing back now.
     recovering: Option<usize>,
+    /// The cycle that restore started in.
+    recovering_since: u64,
+    /// The last restore the bus finished.
+    last_restore: Option<RestoreRecord>,
     /// Where the search for the next waiting reset starts (round robin).
     next_reset: usize,
     /// How long a drive may take to come back before its reset fails.
@@ -154,6 +158,17 @@ pub struct Engine<B: CycleBus> {
     /// Answered cycles in a row whose frame the phase lock held, at start; `None` once
     /// the slaves were asked for OP.
     held_before_op: Option<u32>,
+}
+
+/// A restore the bus finished for a reset ([`Engine::last_restore`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RestoreRecord {
+    /// The axis whose reset asked for it.
+    pub axis: usize,
+    /// What the bus did, or why it failed.
+    pub outcome: Result<Restored, CommandError>,
+    /// Cycles it took, one register access each: 1 when it ended in the cycle it started.
+    pub cycles: u64,
 }
 
 /// Cycles in a row the phase lock must hold before the slaves are asked for OP: a DC
@@ -216,6 +231,8 @@ impl<B: CycleBus> Engine<B> {
             unseen_resets: vec![None; axes],
             forced_faults_at: vec![None; axes],
             recovering: None,
+            recovering_since: 0,
+            last_restore: None,
             next_reset: 0,
             recovery_timeout_ns,
             held_before_op: Some(0),
@@ -518,6 +535,7 @@ impl<B: CycleBus> Engine<B> {
                 )
             {
                 self.recovering = Some(axis);
+                self.recovering_since = self.cycles;
                 self.next_reset = (axis + 1) % n;
                 return;
             }
@@ -532,6 +550,11 @@ impl<B: CycleBus> Engine<B> {
         let Some(axis) = self.recovering.take() else {
             return;
         };
+        self.last_restore = Some(RestoreRecord {
+            axis,
+            outcome,
+            cycles: self.cycles - self.recovering_since + 1,
+        });
         let Some(id) = self.resets.get_mut(axis).and_then(Option::take) else {
             return;
         };
@@ -673,6 +696,12 @@ impl<B: CycleBus> Engine<B> {
         snap.overrun_stop = self.overrun_stop;
         snap.ended = self.phase == Phase::Ended;
         self.snapshot.publish();
+    }
+
+    /// The last restore the bus finished for a reset (what `gantry status` does not show:
+    /// whether the drive had stayed operational or was brought back, and how long it took).
+    pub fn last_restore(&self) -> Option<RestoreRecord> {
+        self.last_restore
     }
 
     /// The status of request `id` as of the end of the last cycle (the snapshot, which
