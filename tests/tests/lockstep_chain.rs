@@ -1,35 +1,28 @@
 //! A whole machine on the simulated bus, lockstep in one thread: 8 catalog servos, an
-//! encoder module and a digital-input module whose switch cams sit on servo 0's travel.
-//! ethercrab brings all 10 slaves to OP; gantry's `Cycle` enables the 8 drives and runs
-//! a PTP move on each; every cycle the test also reads the encoder (whose shaft it turns,
-//! and whose counter the master sets once) and the switch inputs.
+//! encoder module and a digital-input module whose switch cams sit on servo 0's travel,
+//! all in the simulator's configuration. gantry's engine (`gantry_tests::rig`) brings all
+//! 10 slaves to OP, enables the 8 drives and runs a PTP move on each (Controller commands);
+//! every cycle the test also reads the encoder (whose shaft it turns, and whose counter the
+//! master sets once: the test writes the module's outputs in the bus' process image) and
+//! the switch inputs.
 //!
-//! Each cycle reads what the last exchange brought back: the slaves' inputs as the last
-//! `tick` left them. The switch module gets servo 0's position actual value after that
-//! same tick, so servo 0's position and the switch bits in one frame must agree exactly.
+//! Each cycle's frame brings back the slaves' inputs as that cycle's tick left them. The
+//! switch module gets servo 0's position actual value after that same tick, so servo 0's
+//! position and the switch bits in one frame must agree exactly.
 
-use ethercrab::std::ethercat_now;
-use ethercrab::subdevice_group::Op;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup};
-use gantry::ethercat::transition;
-use gantry::runtime::cycle::Cycle;
+use gantry::config::Config;
+use gantry::runtime::bus::CycleBus;
 use gantry_drives::cia402::State;
-use gantry_drives::csp::CspChannel;
+use gantry_drives::csp::CspInputs;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::{AxisConfig, AxisKind, Kernel};
-use gantry_sim::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
-use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::encoder::{control, status};
 use gantry_sim::plant::switches::SwitchCam;
 use gantry_sim::plant::DeviceModel;
 use gantry_tests::ball_screw_5mm;
 use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
-use gantry_tests::lockstep::Lockstep;
-
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
-static PDU_STORAGE: PduStorage<16, MAX_PDU_DATA> = PduStorage::new();
+use gantry_tests::rig::Rig;
 
 const DT: f64 = 1e-3;
 const DRIVES: usize = 8;
@@ -82,8 +75,6 @@ fn cams(t: i64) -> Vec<SwitchCam> {
 const SET_VALUE: u32 = u32::MAX - 20_000;
 const SET_AT_CYCLE: u32 = 3000;
 
-type Group = SubDeviceGroup<16, 256, ethercrab::DefaultLock, Op>;
-
 /// Where the test puts the encoder's shaft before tick `k` (counts): backwards below 0
 /// (the counter underflows), then forwards past 0 (it overflows) and on.
 fn shaft_at(k: u32) -> i64 {
@@ -108,41 +99,67 @@ fn servo0_target_counts() -> i64 {
     ball_screw_5mm().units_to_counts(SERVO0_TARGET_MM)
 }
 
-fn chain() -> SlaveChain {
-    let mut slaves: Vec<_> = (0..DRIVES)
+/// The machine: servos at their power-up counts, the encoder and the switch module (the
+/// simulator's TOML), without distributed clocks as the chain always ran here (the drives
+/// SM-synchronous); axes `a0`…`a7` with the kernel's default limits (100 mm/s,
+/// 1000 mm/s², 10 000 mm/s³), no homing, on the drives' minimal CSP mapping (6 bytes each
+/// way, as the drives' EEPROM defaults give it).
+fn config() -> Config {
+    let mut slaves: String = (0..DRIVES)
         .map(|i| {
-            catalog::servo(ServoOptions {
-                serial: i as u32 + 1,
-                start_counts: if i == 0 {
-                    SERVO0_START
-                } else {
-                    1000 * i as i32
-                },
-                ..ServoOptions::default()
-            })
+            let start = if i == 0 {
+                SERVO0_START
+            } else {
+                1000 * i as i32
+            };
+            format!("[[slave]]\nkind = \"servo\"\nstart_position = {start}\n")
         })
         .collect();
-    slaves.push(catalog::encoder(EncoderOptions {
-        serial: 9,
-        counts_per_rev: COUNTS_PER_REV,
-        shaft_speed_rev_s: 0.0,
-    }));
-    slaves.push(
-        catalog::switches(SwitchesOptions {
-            serial: 10,
-            axis: 0,
-            cams: cams(servo0_target_counts()),
-        })
-        .unwrap(),
+    slaves += &format!(
+        "[[slave]]\nkind = \"encoder\"\ncounts_per_rev = {COUNTS_PER_REV}\nshaft_speed = 0.0\n\
+         [[slave]]\nkind = \"switches\"\naxis = 0\n"
     );
-    SlaveChain::new(slaves)
+    for cam in cams(servo0_target_counts()) {
+        slaves += &format!(
+            "[[slave.cam]]\ninput = {}\nfrom = {}\nto = {}\nnormally_closed = {}\n",
+            cam.input, cam.from, cam.to, cam.normally_closed
+        );
+    }
+    let axes: String = (0..DRIVES)
+        .map(|i| {
+            format!(
+                "[[axis]]\nname = \"a{i}\"\ndrive = {i}\nhoming_required = false\n\
+                 pdo = \"csp-minimal\"\n\
+                 scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+                 max = {{ speed = 100.0, acceleration = 1000.0, jerk = 10000.0 }}\n"
+            )
+        })
+        .collect();
+    gantry_tests::sim_config_text((DT * 1e6) as u32, &slaves, "dc = false", &axes)
 }
 
-fn turn_shaft(net: &mut Lockstep, counts: i64) {
-    match net.chain.slave_mut(ENCODER).unwrap().device_mut() {
+fn turn_shaft(rig: &Rig, counts: i64) {
+    match rig
+        .chain
+        .lock()
+        .unwrap()
+        .slave_mut(ENCODER)
+        .unwrap()
+        .device_mut()
+    {
         DeviceModel::Encoder(e) => e.set_shaft_position(counts as f64 / f64::from(COUNTS_PER_REV)),
         other => panic!("slave {ENCODER} is {other:?}"),
     }
+}
+
+/// Servo 0's inputs in the frame the last cycle exchanged, as gantry's drive layer decodes
+/// them (the kernel takes them at the start of the next cycle).
+fn servo0_in_frame(rig: &Rig) -> CspInputs {
+    rig.engine
+        .cycle
+        .channel(0)
+        .and_then(|c| c.decode(rig.engine.bus.inputs(0)))
+        .expect("servo 0's inputs")
 }
 
 /// The input level a cam gives at `position`, written out here rather than taken from the
@@ -161,63 +178,38 @@ struct SwitchLog {
 
 #[test]
 fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
-    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().unwrap();
-    let mut net = Lockstep::new(tx, rx, chain());
-    let md = MainDevice::new(
-        pdu_loop,
-        gantry_tests::lockstep_timeouts(),
-        MainDeviceConfig::default(),
-    );
-    let group = net
-        .block_on(md.init_single_group::<16, 256>(ethercat_now))
-        .unwrap();
-    let group: Group = net
-        .block_on(async {
-            transition::into_op(group.into_safe_op(&md).await?, &md, transition::OP_TIMEOUT).await
-        })
-        .unwrap();
-    assert_eq!(group.len(), 10);
+    let config = config();
+    let mut rig = Rig::new(&config);
+    assert_eq!(rig.engine.bus.drives(), 10);
     for i in 0..10 {
-        let sd = group.subdevice(&md, i).unwrap();
-        let sizes = (sd.inputs_raw().len(), sd.outputs_raw().len());
+        let sizes = (
+            rig.engine.bus.inputs(i).len(),
+            rig.engine.bus.outputs(i).len(),
+        );
         let expected = match i {
             ENCODER => (10, 6),
             SWITCHES => (1, 0),
             _ => (6, 6),
         };
-        assert_eq!(sizes, expected, "subdevice {i} ({})", sd.name());
-    }
-    for i in 0..10 {
-        assert_eq!(net.chain.slaves()[i].al_status(), 0x08, "slave {i} in OP");
+        assert_eq!(sizes, expected, "subdevice {i}");
     }
 
-    let configs = (0..DRIVES)
-        .map(|i| {
-            let mut cfg = AxisConfig::new(&format!("a{i}"), AxisKind::Real);
-            cfg.homing_required = false;
-            cfg
-        })
-        .collect();
-    let kernel = Kernel::new(DT, configs).unwrap();
-    let channels = (0..DRIVES)
-        .map(|_| CspChannel::new(ball_screw_5mm()))
-        .collect();
-    let mut c = Cycle::new(kernel, channels);
     for i in 0..DRIVES {
-        c.kernel
+        rig.ctl
             .command(i, Command::Power(PowerCommand::Enable))
-            .unwrap();
+            .expect("queued");
     }
     let scaling = ball_screw_5mm();
     let cams = cams(servo0_target_counts());
 
-    // The world's first step, so every input the master reads comes from a tick.
+    // The shaft where the world's first step leaves it, so every input the master reads
+    // comes from a tick.
     let mut shaft = shaft_at(0);
-    turn_shaft(&mut net, shaft);
-    net.chain.tick(DT);
+    turn_shaft(&rig, shaft);
 
     let mut moves: Vec<_> = Vec::new();
     let mut done_at = None;
+    let mut in_op_at = None;
     let mut enc_control = 0u16;
     let mut shaft_at_set: Option<i64> = None;
     let mut underflow_seen = false;
@@ -227,18 +219,20 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
     let mut last: Option<(i64, u8)> = None;
     let (mut servo0_first, mut servo0_last) = (None, 0i64);
     for k in 1..12_000u32 {
-        // Exchange: last cycle's outputs out, the inputs the last tick left in.
-        net.block_on(group.tx_rx(&md)).unwrap();
-        for i in 0..DRIVES {
-            let sd = group.subdevice(&md, i).unwrap();
-            c.read_inputs(i, &sd.inputs_raw()).unwrap();
+        // The world moves one cycle; the kernel steps on the last frame's drive inputs,
+        // its outputs go out in this cycle's frame, which brings back the inputs this
+        // cycle's tick left.
+        rig.cycle();
+        if in_op_at.is_none()
+            && (0..10).all(|i| rig.chain.lock().unwrap().slaves()[i].al_status() == 0x08)
+        {
+            in_op_at = Some(k);
         }
 
         // Encoder: the counter is the shaft's count until the master sets it, then the set
         // value plus the shaft's motion since.
-        let enc = group.subdevice(&md, ENCODER).unwrap();
         let (st, counter) = {
-            let i = enc.inputs_raw();
+            let i = rig.engine.bus.inputs(ENCODER);
             (
                 u16::from_le_bytes([i[0], i[1]]),
                 u32::from_le_bytes([i[2], i[3], i[4], i[5]]),
@@ -258,23 +252,24 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
             overflow_rises += 1;
         }
         last_status = st;
-        // The set-counter handshake: raise, wait for the acknowledgement, lower.
+        // The set-counter handshake: raise, wait for the acknowledgement, lower (in the
+        // process image: the next cycle's frame takes it).
         if k == SET_AT_CYCLE {
             enc_control = control::SET_COUNTER;
         } else if st & status::SET_COUNTER_DONE != 0 {
             enc_control = 0;
         }
         {
-            let mut io = enc.io_raw_mut();
-            let o = io.outputs();
+            let o = rig.engine.bus.outputs_mut(ENCODER);
             o[0..2].copy_from_slice(&enc_control.to_le_bytes());
             o[2..6].copy_from_slice(&SET_VALUE.to_le_bytes());
         }
 
         // Switches: every bit is its cam's level at servo 0's position in the same frame.
-        let servo0 = i64::from(c.inputs(0).unwrap().position);
-        let byte = group.subdevice(&md, SWITCHES).unwrap().inputs_raw()[0];
-        if c.inputs(0).unwrap().statusword.state().is_some() {
+        let servo0_inputs = servo0_in_frame(&rig);
+        let servo0 = i64::from(servo0_inputs.position);
+        let byte = rig.engine.bus.inputs(SWITCHES)[0];
+        if servo0_inputs.statusword.state().is_some() {
             for cam in &cams {
                 let bit = byte >> cam.input & 1 != 0;
                 assert_eq!(
@@ -297,26 +292,21 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
             servo0_last = servo0;
         }
 
-        c.step();
-        for i in 0..DRIVES {
-            let sd = group.subdevice(&md, i).unwrap();
-            c.write_outputs(i, sd.io_raw_mut().outputs()).unwrap();
-        }
-
         // The script: once every axis stands enabled, one PTP move each.
-        let standstill =
-            (0..DRIVES).all(|i| c.kernel.axis_status(i).unwrap().state == AxisState::Standstill);
+        let standstill = (0..DRIVES).all(|i| rig.state(i) == AxisState::Standstill);
         if moves.is_empty() && standstill {
             for i in 0..DRIVES {
                 let mut m = MovePtp::new(PositioningMode::AbsNormal, target_mm(i));
                 if i == 0 {
                     m = m.speed(SERVO0_SPEED_MM_S);
                 }
-                moves.push(c.kernel.command(i, Command::MovePtp(m)).unwrap());
+                moves.push(rig.ctl.command(i, Command::MovePtp(m)).expect("queued"));
             }
         }
-        let all_done =
-            !moves.is_empty() && moves.iter().all(|h| c.kernel.command_status(*h).is_final());
+        let all_done = !moves.is_empty()
+            && moves
+                .iter()
+                .all(|h| rig.status_now(h).is_some_and(|s| s.is_final()));
         if all_done && done_at.is_none() {
             done_at = Some(k);
         }
@@ -325,21 +315,20 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
             break;
         }
 
-        // The world moves one cycle.
+        // Where the shaft stands for the next cycle's tick.
         shaft = shaft_at(k);
-        turn_shaft(&mut net, shaft);
-        net.chain.tick(DT);
+        turn_shaft(&rig, shaft);
     }
+    // The engine took all 10 slaves to OP together (ethercrab's bring-up used to, before
+    // the cycle started).
+    let in_op_at = in_op_at.expect("all 10 slaves in OP");
+    eprintln!("all 10 slaves in OP in cycle {in_op_at}");
 
     // Every drive on its target: set value exact, actual within a count.
     let done_at = done_at.expect("all moves ended");
     for (i, h) in moves.iter().enumerate() {
-        assert_eq!(
-            c.kernel.command_status(*h),
-            CommandStatus::Done,
-            "drive {i}"
-        );
-        let s = c.kernel.axis_status(i).unwrap();
+        assert_eq!(rig.status_now(h), Some(CommandStatus::Done), "drive {i}");
+        let s = rig.engine.cycle.kernel.axis_status(i).unwrap();
         let target = target_mm(i);
         assert!(
             (s.set.p - target).abs() < 1e-9,
@@ -351,15 +340,12 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
             "drive {i}: actual {} mm, target {target} mm",
             s.actual_position
         );
-        let DeviceModel::Servo(drive) = net.chain.slaves()[i].device() else {
-            panic!("slave {i} is not a servo");
-        };
-        assert_eq!(drive.state(), State::OperationEnabled);
+        let (state, actual_counts) = rig.servo(i, |d| (d.state(), d.actual_counts()));
+        assert_eq!(state, State::OperationEnabled);
         let target_counts = scaling.units_to_counts(target);
         assert!(
-            (i64::from(drive.actual_counts()) - target_counts).abs() <= 1,
-            "drive {i}: {} counts, target {target_counts}",
-            drive.actual_counts()
+            (i64::from(actual_counts) - target_counts).abs() <= 1,
+            "drive {i}: {actual_counts} counts, target {target_counts}"
         );
     }
     assert!(
@@ -419,11 +405,11 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
         "moves done after {done_at} cycles; switch flips (before, at, level): {:?}",
         log.flips
     );
-    let drives = DriveUnderTest::of_kernel(&c.kernel, |_| ball_screw_5mm());
+    let drives = DriveUnderTest::of_config(&config);
     // Lockstep: one exchange per drive cycle, so no setpoint may be missed or doubled.
     let locked = TestConditions {
         phase_locked: true,
         ..TestConditions::default()
     };
-    assert_drive_invariants(&net.chain, &drives, DT, locked);
+    assert_drive_invariants(&rig.chain.lock().unwrap(), &drives, DT, locked);
 }

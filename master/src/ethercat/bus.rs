@@ -747,7 +747,8 @@ fn plain_to_op(
 
 impl CycleBus for EthercatBus {
     fn drives(&self) -> usize {
-        self.image.len()
+        // Positions, not bytes.
+        self.image.slaves()
     }
 
     fn inputs(&self, drive: usize) -> &[u8] {

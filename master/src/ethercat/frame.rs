@@ -266,6 +266,11 @@ impl ProcessImage {
         &self.chunks
     }
 
+    /// Slaves in the image, in chain order (those without process data too).
+    pub fn slaves(&self) -> usize {
+        self.slaves.len()
+    }
+
     /// Bytes of the image (inputs and outputs).
     pub fn len(&self) -> usize {
         self.bytes.len()
