@@ -31,7 +31,7 @@ use gantry_sim::plant::record::{write_records, DriveRecord};
 
 use super::lockstep::{Advance, Lockstep};
 use super::runner::{Limits, Runner, Watch};
-use super::{DemoArgs, DemoError, DemoReport, Step, Wait};
+use super::{step, DemoArgs, DemoError, DemoReport, Step, Wait};
 use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
 use crate::plot::{self, Panel};
 use crate::simulator::{self, SimLink};
@@ -105,13 +105,6 @@ fn lock(chain: &Mutex<SlaveChain>) -> std::sync::MutexGuard<'_, SlaveChain> {
 /// The script, sent through the [`Controller`] as an application would.
 pub fn script() -> Vec<Step> {
     use PositioningMode::*;
-    let step = |wait, axis, command, label, says| Step {
-        wait,
-        axis,
-        command,
-        label,
-        says,
-    };
     let enable = Command::Power(PowerCommand::Enable);
     let set = |position| Command::SetPosition {
         position,

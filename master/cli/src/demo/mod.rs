@@ -177,6 +177,24 @@ pub struct Step {
     pub says: &'static str,
 }
 
+/// A step of a script: `command` on `axis` once `wait` is over, named `label`, saying
+/// `says` (nothing if empty) when issued.
+pub const fn step(
+    wait: Wait,
+    axis: &'static str,
+    command: Command,
+    label: &'static str,
+    says: &'static str,
+) -> Step {
+    Step {
+        wait,
+        axis,
+        command,
+        label,
+        says,
+    }
+}
+
 /// Cycle time of the bus-less demo (µs) for `cycle_s` seconds, if it is a cycle the
 /// engine runs (a whole number of µs, 250 to 4000, as `bus.cycle_us`).
 fn cycle_us(cycle_s: f64) -> Result<u32, DemoError> {
@@ -306,13 +324,6 @@ const fn ptp(mode: PositioningMode, target: f64) -> Command {
 /// The scripted sequence.
 pub fn script() -> Vec<Step> {
     use PositioningMode::*;
-    let step = |wait, axis, command, label, says| Step {
-        wait,
-        axis,
-        command,
-        label,
-        says,
-    };
     let mut jog = Jog::new(MoveDirection::Negative, 60.0, 400.0, 400.0);
     jog.profile = JogProfile::SCurve;
     jog.merge = true;
