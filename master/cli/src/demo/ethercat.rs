@@ -1,12 +1,14 @@
 //! `gantry demo` (the default; `--bus ethercat`): the product as a newcomer first sees it.
 //! Three CiA-402 servos simulated on the in-process EtherCAT network are brought up and
 //! driven by what `gantry run` runs — the configuration file, the bus bring-up, the
-//! [`Engine`], requests through a [`Controller`], the kernel — with the script's moves sent
+//! [`Engine`](gantry::runtime::engine::Engine), requests through a [`Controller`], the
+//! kernel — with the script's moves sent
 //! as Controller commands: enable, set position, PTP moves buffered and blended, a modulo
 //! axis across its wrap both ways and turning several periods, a halt, a stop.
 //!
-//! LockstepEngine: each frame passes the simulated chain in the demo's thread and the network's
-//! time moves one cycle per cycle ([`StepClock`]), so the run is deterministic, needs no
+//! In [`lockstep`](super::lockstep): each frame passes the simulated chain in the demo's
+//! thread and the network's time moves one cycle per cycle
+//! ([`StepClock`](gantry::runtime::clock::StepClock)), so the run is deterministic, needs no
 //! root and no real-time thread, and the drives — as strict as shipped (two SYNC0 periods
 //! without a setpoint take one out of Op) — see a master exactly on time.
 //!
@@ -16,36 +18,30 @@
 //! them ([`crate::drive_records`]): any drive fault, axis error, bus fault or broken
 //! invariant fails the demo with what went wrong.
 
-use std::collections::HashMap;
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
 
 use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode,
     PowerCommand,
 };
-use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::state::AxisState;
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::record::{write_records, DriveRecord};
 
-use super::{DemoArgs, DemoError, DemoReport, Step, Wait};
+use super::lockstep::{Advance, Lockstep};
+use super::runner::{Limits, Runner, Watch};
+use super::{step, DemoArgs, DemoError, DemoReport, Step, Wait};
 use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
 use crate::plot::{self, Panel};
 use crate::simulator::{self, SimLink};
-use crate::status_table::{self, Live, Row};
-use gantry::axis_fault::describe_fault;
 use gantry::config::Config;
 use gantry::ethercat::bus::EthercatBus;
 use gantry::ethercat::frame;
 use gantry::runtime::bus::CycleBus;
-use gantry::runtime::clock::StepClock;
-use gantry::runtime::controller::{CommandHandle, Controller};
-use gantry::runtime::cycle::Cycle;
-use gantry::runtime::engine::{Engine, LateReply};
-use gantry::runtime::protocol::{Snapshot, TraceSample};
+use gantry::runtime::controller::Controller;
+use gantry::runtime::engine::LateReply;
+use gantry::runtime::protocol::TraceSample;
 use gantry::trace::Trace;
 
 /// The demo's configuration, written to its output folder as [`CONFIG_FILE`].
@@ -67,35 +63,19 @@ const FRAME_CYCLES: u64 = 250;
 const OP_LIMIT_CYCLES: u64 = 10_000;
 /// Longest the script may run.
 const SCRIPT_LIMIT_CYCLES: u64 = 60_000;
-/// The engine's own shutdown (quick stop, disable) takes at most 5000 cycles.
-const SHUTDOWN_LIMIT_CYCLES: u64 = 6_000;
 /// Cycles run after the last move, so the trace shows the axes at rest.
 const TAIL_CYCLES: u64 = 300;
-
-/// gantry's engine over the demo's bus, stepped by the demo's thread.
-pub struct LockstepEngine {
-    /// The engine of `gantry run`.
-    pub engine: Engine<EthercatBus>,
-    /// The application's side of it.
-    pub ctl: Controller,
-    /// The simulated chain (its drives' records).
-    pub chain: Arc<Mutex<SlaveChain>>,
-    clock: StepClock<Box<dyn FnMut(u64) + Send>>,
-}
-
-impl LockstepEngine {
-    /// One cycle; false once the engine has ended (after a shutdown).
-    fn cycle(&mut self) -> bool {
-        self.engine.cycle(&mut self.clock)
-    }
-}
 
 /// Brings the bus of `config` up — its `[bus] simulator` in this process, each frame
 /// passing the chain in this thread — and builds the engine on it as `gantry run` does,
 /// minus the real-time thread: the network's time then moves one cycle time per cycle,
 /// in phase with SYNC0 as the engine holds it. One function, so that a change of the
-/// bring-up's steps (who builds the kernel) is made here alone.
-pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEngine, DemoError> {
+/// bring-up's steps (who builds the kernel) is made here alone. With the simulated chain
+/// (its drives' records).
+fn start(
+    config: &Config,
+    out: &mut (dyn Write + Send),
+) -> Result<(Lockstep<EthercatBus>, Arc<Mutex<SlaveChain>>), DemoError> {
     let sim = config.bus.simulator.as_deref().ok_or(DemoError::Network(
         "the demo's configuration has no in-process simulator",
     ))?;
@@ -107,20 +87,13 @@ pub fn start(config: &Config, out: &mut (dyn Write + Send)) -> Result<LockstepEn
     }
     let chain = simulated.chain();
     let period_ns = u64::from(config.bus.cycle_us) * 1000;
-    let cycle = Cycle::from_config(config, &bus)?;
-    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, TRACE_RING);
-    // Every reply is in before the exchange looks for it: no wait ever runs out.
-    engine.set_late_reply(LateReply::WAIT);
     let start_ns = lock(&chain).now_ns();
     let stepped = chain.clone();
-    let advance: Box<dyn FnMut(u64) + Send> =
-        Box::new(move |to_ns| lock(&stepped).run_until(to_ns, period_ns));
-    Ok(LockstepEngine {
-        engine,
-        ctl: Controller::new(ends, config.axes.iter().map(|a| a.name.clone()).collect()),
-        chain,
-        clock: StepClock::new(period_ns, start_ns, advance),
-    })
+    let advance: Advance = Box::new(move |to_ns| lock(&stepped).run_until(to_ns, period_ns));
+    let mut net = Lockstep::start(bus, config, TRACE_RING, start_ns, advance)?;
+    // Every reply is in before the exchange looks for it: no wait ever runs out.
+    net.engine.set_late_reply(LateReply::WAIT);
+    Ok((net, chain))
 }
 
 /// The chain, even if a thread panicked holding it (the demo's thread is the only one
@@ -132,13 +105,6 @@ fn lock(chain: &Mutex<SlaveChain>) -> std::sync::MutexGuard<'_, SlaveChain> {
 /// The script, sent through the [`Controller`] as an application would.
 pub fn script() -> Vec<Step> {
     use PositioningMode::*;
-    let step = |wait, axis, command, label, says| Step {
-        wait,
-        axis,
-        command,
-        label,
-        says,
-    };
     let enable = Command::Power(PowerCommand::Enable);
     let set = |position| Command::SetPosition {
         position,
@@ -315,19 +281,32 @@ pub fn run_on(
         args.out.join(CONFIG_FILE).display()
     );
     let _ = writeln!(out, ">> EtherCAT bring-up");
-    let mut net = start(&config, out)?;
-    let mut run = Run::new(&config, args);
-    let result = run.script(&mut net, out);
+    let (mut net, chain) = start(&config, out)?;
+    let mut runner = Runner::new(&config, args.speed, FRAME_CYCLES, true);
+    let mut run = Run::new(&config);
+    let result = run
+        .wait_for_op(&mut runner, &mut net, &chain, out)
+        .and_then(|()| {
+            let limits = Limits {
+                cycles: net.cycles() + SCRIPT_LIMIT_CYCLES,
+                tail: TAIL_CYCLES,
+            };
+            runner.script(&mut net, &mut run, script(), limits, out)
+        });
     // Whatever happened, the drives are disabled, the bus goes down to PreOp (the capture
     // is flushed) and the drives' records are kept for whoever looks into it.
-    let ended = run.shut_down(&mut net, out);
+    let ended = runner.shut_down(
+        &mut net,
+        &mut run,
+        "drives disabled; the bus goes to PreOp",
+        out,
+    );
     let counters = net.engine.counters();
     let figures = net.ctl.figures();
     let lost = net.engine.bus.health().lost_total;
     let wkc = net.engine.bus.health().wkc_total;
     let stats = net.engine.bus.frame_stats();
     let wire = net.engine.bus.cyclic_wire_bytes();
-    let chain = net.chain.clone();
     net.engine.into_bus().shut_down(out);
     let records = lock(&chain).records();
     write_records(&args.out.join("drive-records.json"), &records)?;
@@ -414,14 +393,12 @@ fn check_verdict(
     }
 }
 
-/// What the script keeps while it runs.
+/// What the EtherCAT demo records while it runs: the engine's trace, the modulo axes'
+/// wraps, where the frames land in the SYNC0 period.
 struct Run {
     names: Vec<String>,
     /// Per axis, its modulo period.
     periods: Vec<Option<f64>>,
-    speed: f64,
-    started: Instant,
-    live: Live,
     samples: Vec<TraceSample>,
     /// Per modulo axis: wraps of the set position forward and backward.
     wraps: Vec<(u32, u32)>,
@@ -431,34 +408,10 @@ struct Run {
     cycle_us: u32,
 }
 
-impl Run {
-    fn new(config: &Config, args: &DemoArgs) -> Self {
-        Self {
-            names: config.axes.iter().map(|a| a.name.clone()).collect(),
-            periods: config.axes.iter().map(|a| a.modulo).collect(),
-            speed: args.speed,
-            started: Instant::now(),
-            live: Live::new(std::io::stdout().is_terminal()),
-            samples: Vec::new(),
-            wraps: vec![(0, 0); config.axes.len()],
-            dc_offsets: None,
-            in_op: false,
-            cycle_us: config.bus.cycle_us,
-        }
-    }
-
-    /// One cycle and what the demo watches: the trace, where the frames land in the SYNC0
-    /// period, the status table, and every fault (which fails the demo at once).
-    fn cycle(
-        &mut self,
-        net: &mut LockstepEngine,
-        last: &[Option<(&'static str, CommandHandle)>],
-        out: &mut (dyn Write + Send),
-    ) -> Result<(), DemoError> {
-        if !net.cycle() {
-            return Err(DemoError::Fault("the engine ended".into()));
-        }
-        let n = net.engine.counters().cycles;
+impl Watch<EthercatBus> for Run {
+    /// The trace, and where the frames land in the SYNC0 period.
+    fn cycled(&mut self, net: &Lockstep<EthercatBus>) -> Result<(), DemoError> {
+        let n = net.cycles();
         if let (true, Some(offset)) = (self.in_op, net.engine.bus.dc_offset_ns()) {
             let (lo, hi) = self.dc_offsets.get_or_insert((offset, offset));
             (*lo, *hi) = ((*lo).min(offset), (*hi).max(offset));
@@ -466,15 +419,36 @@ impl Run {
         if n % DRAIN_EVERY == 0 {
             self.drain(&net.ctl);
         }
-        // The snapshot is published every 10 cycles.
-        if n % 10 == 0 {
-            let snap = net.ctl.snapshot();
-            check_faults(&snap, &self.names, last)?;
-            if n % FRAME_CYCLES == 0 {
-                self.frame(&snap, last, out);
-            }
+        Ok(())
+    }
+
+    fn settled(&mut self, net: &Lockstep<EthercatBus>) {
+        self.drain(&net.ctl);
+    }
+
+    fn shutdown_cycled(
+        &mut self,
+        net: &Lockstep<EthercatBus>,
+        ended: bool,
+    ) -> Result<(), DemoError> {
+        if ended {
+            self.drain(&net.ctl);
         }
         Ok(())
+    }
+}
+
+impl Run {
+    fn new(config: &Config) -> Self {
+        Self {
+            names: config.axes.iter().map(|a| a.name.clone()).collect(),
+            periods: config.axes.iter().map(|a| a.modulo).collect(),
+            samples: Vec::new(),
+            wraps: vec![(0, 0); config.axes.len()],
+            dc_offsets: None,
+            in_op: false,
+            cycle_us: config.bus.cycle_us,
+        }
     }
 
     /// Trace samples since the last drain; counts the modulo axes' wraps.
@@ -498,148 +472,45 @@ impl Run {
         }
     }
 
-    fn frame(
+    /// Waits for every slave to report OP, then shows the bus.
+    fn wait_for_op(
         &mut self,
-        snap: &Snapshot,
-        last: &[Option<(&'static str, CommandHandle)>],
-        out: &mut (dyn Write + Send),
-    ) {
-        let rows: Vec<Row> = self
-            .names
-            .iter()
-            .enumerate()
-            .map(|(i, name)| {
-                let status = snap.axes.get(i).copied().unwrap_or_default();
-                Row {
-                    axis: name.clone(),
-                    status,
-                    command: last
-                        .get(i)
-                        .and_then(Option::as_ref)
-                        .and_then(|(_, h)| h.status())
-                        .map(|s| s.name().to_string())
-                        .unwrap_or_default(),
-                    error: status.error.map(|e| describe_fault(&e)).unwrap_or_default(),
-                }
-            })
-            .collect();
-        let _ = out.write_all(
-            self.live
-                .frame(&status_table::render(snap.time_s, &rows))
-                .as_bytes(),
-        );
-        let _ = out.flush();
-        if self.speed > 0.0 {
-            let due = Duration::from_secs_f64(snap.time_s / self.speed);
-            if let Some(wait) = due.checked_sub(self.started.elapsed()) {
-                std::thread::sleep(wait);
-            }
-        }
-    }
-
-    /// Waits for every slave to report OP, shows the bus, then runs the script to its end.
-    fn script(
-        &mut self,
-        net: &mut LockstepEngine,
+        runner: &mut Runner,
+        net: &mut Lockstep<EthercatBus>,
+        chain: &Mutex<SlaveChain>,
         out: &mut (dyn Write + Send),
     ) -> Result<(), DemoError> {
-        let mut last: Vec<Option<(&'static str, CommandHandle)>> = vec![None; self.names.len()];
         // The engine asks the slaves for OP once its frames are held in phase with SYNC0;
         // the health monitor says when every slave has reported OP.
         let mut waited = 0;
         while net.engine.bus.health().is_starting() || net.engine.bus.health().any_fault() {
             if waited >= OP_LIMIT_CYCLES || !net.engine.bus.health().is_starting() {
-                let snap = net.ctl.snapshot();
-                check_faults(&snap, &self.names, &last)?;
+                runner.check(&net.ctl.snapshot())?;
                 return Err(DemoError::Fault(format!(
                     "the slaves did not report OP in {waited} cycles"
                 )));
             }
-            self.cycle(net, &last, out)?;
+            runner.cycle(net, self, out)?;
             waited += 1;
         }
         self.in_op = true;
-        self.say_bus(net, waited, out);
-        let mut handles: HashMap<&'static str, CommandHandle> = HashMap::new();
-        let limit = net.engine.counters().cycles + SCRIPT_LIMIT_CYCLES;
-        for step in script() {
-            let waited_from = net.engine.cycle.kernel.time();
-            loop {
-                let ready = match step.wait {
-                    Wait::Now => true,
-                    Wait::Seconds(s) => net.engine.cycle.kernel.time() - waited_from >= s - 1e-9,
-                    Wait::Done(label) => {
-                        let h = handles.get(label).ok_or(DemoError::Script(label))?;
-                        h.status().is_some_and(|s| s.is_final())
-                    }
-                };
-                if ready {
-                    break;
-                }
-                if net.engine.counters().cycles > limit {
-                    return Err(DemoError::Timeout(step.label));
-                }
-                self.cycle(net, &last, out)?;
-            }
-            let axis = self
-                .names
-                .iter()
-                .position(|n| n == step.axis)
-                .ok_or(DemoError::Script(step.axis))?;
-            let h = net
-                .ctl
-                .command(axis, step.command)
-                .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
-            if !step.says.is_empty() {
-                let _ = writeln!(out, ">> {}", step.says);
-            }
-            handles.insert(step.label, h.clone());
-            if let Some(slot) = last.get_mut(axis) {
-                *slot = Some((step.label, h));
-            }
-        }
-        // The last moves to their end (in position), then the axes at rest a while.
-        while last
-            .iter()
-            .flatten()
-            .any(|(_, h)| !h.status().is_some_and(|s| s.is_final()))
-        {
-            if net.engine.counters().cycles > limit {
-                return Err(DemoError::Timeout("final moves"));
-            }
-            self.cycle(net, &last, out)?;
-        }
-        for _ in 0..TAIL_CYCLES {
-            self.cycle(net, &last, out)?;
-        }
-        self.drain(&net.ctl);
-        let snap = net.ctl.snapshot();
-        check_faults(&snap, &self.names, &last)?;
-        self.frame(&snap, &last, out);
-        let _ = writeln!(out, ">> the axes at the end:");
-        for (i, name) in self.names.iter().enumerate() {
-            let (Some(a), Some(d)) = (snap.axes.get(i), snap.drives.get(i)) else {
-                continue;
-            };
-            let _ = writeln!(
-                out,
-                "   {name}: {}, set {:.4}, actual {:.4}, drive {}",
-                a.state.name(),
-                a.set.p,
-                a.actual_position,
-                drive_state(d.state)
-            );
-        }
+        self.say_bus(net, chain, waited, out);
         Ok(())
     }
 
     /// The bus as the master sees it once every slave is in OP.
-    fn say_bus(&self, net: &LockstepEngine, cycles: u64, out: &mut (dyn Write + Send)) {
+    fn say_bus(
+        &self,
+        net: &Lockstep<EthercatBus>,
+        chain: &Mutex<SlaveChain>,
+        cycles: u64,
+        out: &mut (dyn Write + Send),
+    ) {
         let bus = &net.engine.bus;
         let image = bus.image();
         let expected_wkc = net.engine.bus.health().expected_working_counter();
         // The demo's chain: the bring-up found as many slaves (it said so above).
-        let slaves = lock(&net.chain).slaves().len();
+        let slaves = lock(chain).slaves().len();
         let _ = writeln!(
             out,
             ">> every slave reported OP {cycles} cycles after the bring-up (the cycle asks \
@@ -739,26 +610,6 @@ impl Run {
              setpoint; {}",
             verdict.summary.join("; ")
         );
-    }
-
-    /// Quick stop and disable through the engine's own shutdown, as `gantry run` on
-    /// SIGTERM.
-    fn shut_down(
-        &mut self,
-        net: &mut LockstepEngine,
-        out: &mut (dyn Write + Send),
-    ) -> Result<(), DemoError> {
-        net.ctl
-            .shutdown()
-            .map_err(|e| DemoError::Fault(format!("shutdown: {e}")))?;
-        for _ in 0..SHUTDOWN_LIMIT_CYCLES {
-            if !net.cycle() {
-                self.drain(&net.ctl);
-                let _ = writeln!(out, ">> drives disabled; the bus goes to PreOp");
-                return Ok(());
-            }
-        }
-        Err(DemoError::Timeout("shutdown"))
     }
 
     /// The trace (CSV) and the plot (SVG).
@@ -866,49 +717,6 @@ fn short_way(x: f64, reference: f64, period: f64) -> f64 {
     (x - reference + period / 2.0).rem_euclid(period) - period / 2.0
 }
 
-/// A drive's CiA-402 state as the status table names it.
-fn drive_state(state: Option<gantry_drives::cia402::State>) -> String {
-    state
-        .map_or("not reporting", gantry_drives::cia402::State::name)
-        .into()
-}
-
-/// Fails on what an application must not run past: an axis in ErrorStop, a drive whose
-/// bus stopped it, a command of the script that failed.
-fn check_faults(
-    snap: &Snapshot,
-    names: &[String],
-    last: &[Option<(&'static str, CommandHandle)>],
-) -> Result<(), DemoError> {
-    for (i, name) in names.iter().enumerate() {
-        let drive = snap.drives.get(i).copied().unwrap_or_default();
-        if let Some(fault) = drive.bus_fault {
-            return Err(DemoError::Fault(format!("axis {name}: bus fault: {fault}")));
-        }
-        if let Some(a) = snap.axes.get(i) {
-            if a.state == AxisState::ErrorStop {
-                let why = a
-                    .error
-                    .map_or_else(|| "no reason given".into(), |e| describe_fault(&e));
-                return Err(DemoError::Fault(format!(
-                    "axis {name} in ErrorStop: {why} (drive {}, statusword 0x{:04X}, error code {})",
-                    drive_state(drive.state),
-                    drive.statusword,
-                    drive.error_code.map_or_else(|| "-".into(), |c| format!("0x{c:04X}"))
-                )));
-            }
-        }
-        if let Some((label, h)) = last.get(i).and_then(Option::as_ref) {
-            if let Some(CommandStatus::Error(e)) = h.status() {
-                return Err(DemoError::Fault(format!(
-                    "step {label} on axis {name}: {e}"
-                )));
-            }
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1002,38 +810,6 @@ mod tests {
         assert_eq!(sim.chain().unwrap().slaves().len(), config.axes.len());
         assert_eq!(sim.cycle_us, config.bus.cycle_us);
         std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn an_axis_in_error_stop_or_a_bus_fault_stops_the_demo_with_what_and_why() {
-        use gantry::ethercat::health::BusFault;
-        use gantry::runtime::bus::Unreachable;
-        use gantry_kernel::axis::status::AxisFault;
-        let names: Vec<String> = ["x", "y", "c"].map(String::from).into();
-        let mut snap = Snapshot::sized(3);
-        check_faults(&snap, &names, &[None, None, None]).unwrap();
-        snap.axes[2].state = AxisState::ErrorStop;
-        snap.axes[2].error = Some(AxisFault::Drive { code: 0x8611 });
-        snap.drives[2].state = Some(gantry_drives::cia402::State::Fault);
-        snap.drives[2].statusword = 0x0218;
-        snap.drives[2].error_code = Some(0x8611);
-        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
-        assert!(
-            e.to_string()
-                .starts_with("the demo stopped: axis c in ErrorStop: drive fault 0x8611: ")
-                && e.to_string()
-                    .ends_with("(drive Fault, statusword 0x0218, error code 0x8611)"),
-            "{e}"
-        );
-        snap.drives[0].bus_fault = Some(Unreachable::new(&BusFault::FramesLost {
-            count: 3,
-            limit: 3,
-        }));
-        let e = check_faults(&snap, &names, &[None, None, None]).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "the demo stopped: axis x: bus fault: EtherCAT: 3 frames lost in a row (limit 3)"
-        );
     }
 
     #[test]

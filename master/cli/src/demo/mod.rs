@@ -5,43 +5,39 @@
 //! and a plot (SVG) are written to a folder it prints. No root, no network, no
 //! configuration file.
 //!
-//! It runs what `gantry run` runs — a [`Config`], [`Cycle::from_config`], the [`Engine`],
-//! the script's commands through a [`Controller`] — on the simulated axes' bus
-//! ([`SimulatedBus`]: CiA-402 drives with no hardware whose position is the target sent),
-//! in lockstep on a [`StepClock`] with nothing to step: the drives answer within the
+//! It runs what `gantry run` runs — a [`Config`],
+//! [`Cycle::from_config`](gantry::runtime::cycle::Cycle::from_config), the
+//! [`Engine`](gantry::runtime::engine::Engine), the script's commands through a
+//! [`Controller`](gantry::runtime::controller::Controller) ([`runner`]) — on the simulated
+//! axes' bus ([`SimulatedBus`]: CiA-402 drives with no hardware whose position is the
+//! target sent), in [`lockstep`] with nothing to step: the drives answer within the
 //! exchange.
 //!
 //! `gantry demo` itself, the newcomer's first look, runs the product over simulated drives
 //! on the in-process EtherCAT network ([`ethercat`]).
 
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, Jog, JogProfile, MergeSpeed, MoveDirection, MovePtp,
     MoveVelocity, PositioningMode, PowerCommand,
 };
-use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::state::AxisState;
 use thiserror::Error;
 
 pub mod ethercat;
+pub mod lockstep;
+pub mod runner;
 
 use crate::plot::{self, Panel};
-use crate::status_table::{self, Live, Row};
-use gantry::axis_fault::describe_fault;
 use gantry::config::{
     AxisSection, BusSection, Config, DefaultsSection, FaultsSection, MaxSection, RtSection,
     ScalingSection,
 };
-use gantry::runtime::clock::StepClock;
-use gantry::runtime::controller::{CommandHandle, Controller};
-use gantry::runtime::cycle::Cycle;
-use gantry::runtime::engine::Engine;
-use gantry::runtime::protocol::Snapshot;
 use gantry::simulated::SimulatedBus;
 use gantry::trace::{Trace, TraceError};
+use lockstep::Lockstep;
+use runner::{Limits, Runner, Watch, SNAPSHOT_CYCLES};
 
 /// Options of `gantry demo`.
 #[derive(Clone, Debug)]
@@ -181,6 +177,24 @@ pub struct Step {
     pub says: &'static str,
 }
 
+/// A step of a script: `command` on `axis` once `wait` is over, named `label`, saying
+/// `says` (nothing if empty) when issued.
+pub const fn step(
+    wait: Wait,
+    axis: &'static str,
+    command: Command,
+    label: &'static str,
+    says: &'static str,
+) -> Step {
+    Step {
+        wait,
+        axis,
+        command,
+        label,
+        says,
+    }
+}
+
 /// Cycle time of the bus-less demo (µs) for `cycle_s` seconds, if it is a cycle the
 /// engine runs (a whole number of µs, 250 to 4000, as `bus.cycle_us`).
 fn cycle_us(cycle_s: f64) -> Result<u32, DemoError> {
@@ -310,13 +324,6 @@ const fn ptp(mode: PositioningMode, target: f64) -> Command {
 /// The scripted sequence.
 pub fn script() -> Vec<Step> {
     use PositioningMode::*;
-    let step = |wait, axis, command, label, says| Step {
-        wait,
-        axis,
-        command,
-        label,
-        says,
-    };
     let mut jog = Jog::new(MoveDirection::Negative, 60.0, 400.0, 400.0);
     jog.profile = JogProfile::SCurve;
     jog.merge = true;
@@ -536,67 +543,34 @@ const FRAME_S: f64 = 0.25;
 /// Simulated seconds run after the last move, so the trace shows the axes at rest.
 const TAIL_S: f64 = 0.3;
 
-/// Cycles between two snapshots of the engine (it publishes every 10).
-const SNAPSHOT_CYCLES: u64 = 10;
-
-/// The engine's own shutdown (quick stop, disable) takes at most 5000 cycles.
-const SHUTDOWN_LIMIT_CYCLES: u64 = 6_000;
-
-/// gantry's engine over the simulated axes' bus, stepped by the demo's thread: lockstep
-/// ([`StepClock`]) with nothing to step — the drives answer within the exchange.
-struct Lockstep {
-    engine: Engine<SimulatedBus>,
-    ctl: Controller,
-    clock: StepClock<fn(u64)>,
-}
-
-impl Lockstep {
-    /// The engine of `config` on its simulated drives.
-    fn start(config: &Config) -> Result<Self, DemoError> {
-        let bus = SimulatedBus::of_config(config)?;
-        let cycle = Cycle::from_config(config, &bus)?;
-        // The demo traces from the kernel itself (set acceleration, whole periods): the
-        // engine's trace ring is not read.
-        let (engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1);
-        let names = config.axes.iter().map(|a| a.name.clone()).collect();
-        let nothing: fn(u64) = |_| {};
-        Ok(Self {
-            engine,
-            ctl: Controller::new(ends, names),
-            clock: StepClock::new(u64::from(config.bus.cycle_us) * 1000, 0, nothing),
-        })
-    }
-
-    /// One cycle; false once the engine has ended (after a shutdown).
-    fn cycle(&mut self) -> bool {
-        self.engine.cycle(&mut self.clock)
-    }
-
-    /// Cycles run.
-    fn cycles(&self) -> u64 {
-        self.engine.counters().cycles
-    }
-
-    /// Kernel time (s).
-    fn time(&self) -> f64 {
-        self.engine.cycle.kernel.time()
-    }
-}
-
 /// Runs the demo.
 pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoError> {
     let cycle_us = cycle_us(args.cycle_s)?;
     let config = config(cycle_us)?;
-    let mut net = Lockstep::start(&config)?;
+    // Lockstep with nothing to step: the drives answer within the exchange. The demo
+    // traces from the kernel itself (set acceleration, whole periods): the engine's trace
+    // ring is not read.
+    let bus = SimulatedBus::of_config(&config)?;
+    let mut net = Lockstep::start(bus, &config, 1, 0, Box::new(|_| {}))?;
     let _ = writeln!(
         out,
         ">> gantry demo --bus none: {} simulated axes (actual = set: drives with no \
          hardware, CiA-402 answering at once), driven by gantry's engine in lockstep",
         config.axes.len()
     );
+    // A frame on a snapshot: a multiple of the snapshot's cycles.
+    let frame_cycles = ((FRAME_S / args.cycle_s).round() as u64)
+        .div_ceil(SNAPSHOT_CYCLES)
+        .max(1)
+        * SNAPSHOT_CYCLES;
+    let mut runner = Runner::new(&config, args.speed, frame_cycles, false);
     let mut run = Run::new(&config, args);
-    let result = run.script(&mut net, out);
-    let ended = run.shut_down(&mut net, out);
+    let limits = Limits {
+        cycles: (TIME_LIMIT_S / net.cycle_time()) as u64,
+        tail: (TAIL_S / net.cycle_time()).round() as u64,
+    };
+    let result = runner.script(&mut net, &mut run, script(), limits, out);
+    let ended = runner.shut_down(&mut net, &mut run, "drives disabled", out);
     result?;
     ended?;
     let (csv, svg) = run.write_files(&args.out)?;
@@ -609,27 +583,29 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     })
 }
 
-/// A step issued, and its handle.
-struct Issued {
-    step: Step,
-    handle: CommandHandle,
-}
-
-/// What the script keeps while it runs.
+/// What the bus-less demo records: the kernel's set values every cycle.
 struct Run {
     names: Vec<String>,
     /// Per axis, its modulo period.
     periods: Vec<Option<f64>>,
-    speed: f64,
-    started: Instant,
-    live: Live,
     trace: Trace,
     sample: Vec<f64>,
-    /// Every step issued, in order.
-    issued: Vec<Issued>,
-    /// Per axis, the index in `issued` of its last step.
-    last: Vec<Option<usize>>,
-    frame_cycles: u64,
+}
+
+impl Watch<SimulatedBus> for Run {
+    fn cycled(&mut self, net: &Lockstep<SimulatedBus>) -> Result<(), DemoError> {
+        self.record(net)
+    }
+
+    fn settled(&mut self, _net: &Lockstep<SimulatedBus>) {}
+
+    fn shutdown_cycled(
+        &mut self,
+        net: &Lockstep<SimulatedBus>,
+        _ended: bool,
+    ) -> Result<(), DemoError> {
+        self.record(net)
+    }
 }
 
 impl Run {
@@ -639,46 +615,17 @@ impl Run {
             .iter()
             .flat_map(|n| ["p", "v", "a"].map(|q| format!("{n}.{q}")))
             .collect();
-        // A frame on a snapshot: a multiple of the snapshot's cycles.
-        let frame_cycles = ((FRAME_S / args.cycle_s).round() as u64)
-            .div_ceil(SNAPSHOT_CYCLES)
-            .max(1)
-            * SNAPSHOT_CYCLES;
         Self {
             periods: config.axes.iter().map(|a| a.modulo).collect(),
-            speed: args.speed,
-            started: Instant::now(),
-            live: Live::new(std::io::stdout().is_terminal()),
             trace: Trace::new(channels, (TIME_LIMIT_S / args.cycle_s) as usize / 4),
             sample: vec![0.0; names.len() * 3],
-            issued: Vec::new(),
-            last: vec![None; names.len()],
             names,
-            frame_cycles,
         }
-    }
-
-    /// One cycle and what the demo watches: the trace, the status table, and every fault
-    /// or failed step (which fails the demo at once).
-    fn cycle(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
-        if !net.cycle() {
-            return Err(DemoError::Fault("the engine ended".into()));
-        }
-        self.record(net)?;
-        let n = net.cycles();
-        if n % SNAPSHOT_CYCLES == 0 {
-            let snap = net.ctl.snapshot();
-            self.check(&snap)?;
-            if n % self.frame_cycles == 0 {
-                self.frame(&snap, out);
-            }
-        }
-        Ok(())
     }
 
     /// This cycle's set values into the trace: modulo axes unwrapped (their whole
     /// periods added), so that the plot shows the travel.
-    fn record(&mut self, net: &Lockstep) -> Result<(), DemoError> {
+    fn record(&mut self, net: &Lockstep<SimulatedBus>) -> Result<(), DemoError> {
         let kernel = &net.engine.cycle.kernel;
         for (i, period) in self.periods.iter().enumerate() {
             let status = kernel.axis_status(i).copied().unwrap_or_default();
@@ -689,168 +636,6 @@ impl Run {
         }
         self.trace.push(kernel.time(), &self.sample)?;
         Ok(())
-    }
-
-    /// Fails on an axis in ErrorStop and on a step whose command failed.
-    fn check(&self, snap: &Snapshot) -> Result<(), DemoError> {
-        for (i, name) in self.names.iter().enumerate() {
-            if let Some(a) = snap.axes.get(i).filter(|a| a.state == AxisState::ErrorStop) {
-                let drive = snap.drives.get(i).copied().unwrap_or_default();
-                let why = a
-                    .error
-                    .map_or_else(|| "no reason given".into(), |e| describe_fault(&e));
-                return Err(DemoError::Fault(format!(
-                    "axis {name} in ErrorStop: {why} (drive {}, statusword 0x{:04X})",
-                    drive_state(drive.state),
-                    drive.statusword
-                )));
-            }
-        }
-        for i in &self.issued {
-            if let Some(CommandStatus::Error(error)) = snap.status_of(i.handle.id()) {
-                return Err(DemoError::Step {
-                    label: i.step.label,
-                    axis: i.step.axis,
-                    command: i.step.command.name(),
-                    error,
-                });
-            }
-        }
-        Ok(())
-    }
-
-    /// The status table, and the pace (`--speed`).
-    fn frame(&mut self, snap: &Snapshot, out: &mut impl Write) {
-        let rows: Vec<Row> = self
-            .names
-            .iter()
-            .enumerate()
-            .map(|(i, name)| {
-                let status = snap.axes.get(i).copied().unwrap_or_default();
-                let command = self
-                    .last
-                    .get(i)
-                    .copied()
-                    .flatten()
-                    .and_then(|k| self.issued.get(k))
-                    .and_then(|k| snap.status_of(k.handle.id()));
-                Row {
-                    axis: name.clone(),
-                    status,
-                    command: command.map(|c| c.name().to_string()).unwrap_or_default(),
-                    error: status.error.map(|e| describe_fault(&e)).unwrap_or_default(),
-                }
-            })
-            .collect();
-        let frame = status_table::render(snap.time_s, &rows);
-        let _ = out.write_all(self.live.frame(&frame).as_bytes());
-        let _ = out.flush();
-        if self.speed > 0.0 {
-            let due = Duration::from_secs_f64(snap.time_s / self.speed);
-            if let Some(wait) = due.checked_sub(self.started.elapsed()) {
-                std::thread::sleep(wait);
-            }
-        }
-    }
-
-    /// Whether the command of step `label` is final.
-    fn done(&self, label: &'static str) -> Result<bool, DemoError> {
-        let issued = self
-            .issued
-            .iter()
-            .rev()
-            .find(|i| i.step.label == label)
-            .ok_or(DemoError::Script(label))?;
-        Ok(issued.handle.status().is_some_and(|s| s.is_final()))
-    }
-
-    /// The script through the Controller, to its end, then the axes at rest a while.
-    fn script(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
-        let limit = (TIME_LIMIT_S / net.engine.cycle.kernel.cycle_time()) as u64;
-        for step in script() {
-            let waited_from = net.time();
-            loop {
-                let ready = match step.wait {
-                    Wait::Now => true,
-                    Wait::Seconds(s) => net.time() - waited_from >= s - 1e-9,
-                    Wait::Done(label) => self.done(label)?,
-                };
-                if ready {
-                    break;
-                }
-                if net.cycles() > limit {
-                    return Err(DemoError::Timeout(step.label));
-                }
-                self.cycle(net, out)?;
-            }
-            let axis = self
-                .names
-                .iter()
-                .position(|n| n == step.axis)
-                .ok_or(DemoError::Script(step.axis))?;
-            let handle = net
-                .ctl
-                .command(axis, step.command)
-                .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
-            if !step.says.is_empty() {
-                let _ = writeln!(out, ">> {}", step.says);
-            }
-            if let Some(last) = self.last.get_mut(axis) {
-                *last = Some(self.issued.len());
-            }
-            self.issued.push(Issued { step, handle });
-        }
-        // The last moves to their end (in position), then the axes at rest a while.
-        while self
-            .last
-            .iter()
-            .flatten()
-            .filter_map(|&k| self.issued.get(k))
-            .any(|i| !i.handle.status().is_some_and(|s| s.is_final()))
-        {
-            if net.cycles() > limit {
-                return Err(DemoError::Timeout("final moves"));
-            }
-            self.cycle(net, out)?;
-        }
-        for _ in 0..(TAIL_S / net.engine.cycle.kernel.cycle_time()).round() as u64 {
-            self.cycle(net, out)?;
-        }
-        let snap = net.ctl.snapshot();
-        self.check(&snap)?;
-        self.frame(&snap, out);
-        let _ = writeln!(out, ">> the axes at the end:");
-        for (i, name) in self.names.iter().enumerate() {
-            let (Some(a), Some(d)) = (snap.axes.get(i), snap.drives.get(i)) else {
-                continue;
-            };
-            let _ = writeln!(
-                out,
-                "   {name}: {}, set {:.4}, actual {:.4}, drive {}",
-                a.state.name(),
-                a.set.p,
-                a.actual_position,
-                drive_state(d.state)
-            );
-        }
-        Ok(())
-    }
-
-    /// Quick stop and disable through the engine's own shutdown, as `gantry run` on
-    /// SIGTERM.
-    fn shut_down(&mut self, net: &mut Lockstep, out: &mut impl Write) -> Result<(), DemoError> {
-        net.ctl
-            .shutdown()
-            .map_err(|e| DemoError::Fault(format!("shutdown: {e}")))?;
-        for _ in 0..SHUTDOWN_LIMIT_CYCLES {
-            if !net.cycle() {
-                self.record(net)?;
-                let _ = writeln!(out, ">> drives disabled");
-                return Ok(());
-            }
-            self.record(net)?;
-        }
-        Err(DemoError::Timeout("shutdown"))
     }
 
     /// The trace (CSV) and the plot (SVG) in `dir`.
@@ -882,11 +667,6 @@ impl Run {
     }
 }
 
-/// A drive's CiA-402 state as the demo names it.
-fn drive_state(state: Option<gantry_drives::cia402::State>) -> &'static str {
-    state.map_or("not reporting", gantry_drives::cia402::State::name)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -905,7 +685,7 @@ mod tests {
         let c = &config.kernel_axes[2];
         assert_eq!(c.mechanics.modulo.map(|m| m.period()), Some(360.0));
         let bus = SimulatedBus::of_config(&config).unwrap();
-        Cycle::from_config(&config, &bus).unwrap();
+        gantry::runtime::cycle::Cycle::from_config(&config, &bus).unwrap();
         assert_eq!(cycle_us(0.001).unwrap(), 1000);
         for bad in [0.0001, 0.005, 0.0010004, f64::NAN] {
             let e = cycle_us(bad).unwrap_err();
