@@ -38,6 +38,8 @@ pub struct SentFrame {
     pub bytes: usize,
     /// Its datagrams.
     pub datagrams: Vec<Datagram>,
+    /// A reply followed it in the capture (a lost frame has none).
+    pub answered: bool,
 }
 
 impl SentFrame {
@@ -52,14 +54,20 @@ impl SentFrame {
 /// locally-administered bit the first slave sets, are left out).
 pub fn sent_frames(pcap: &[u8]) -> Result<Vec<SentFrame>, String> {
     let mut at = 24;
-    let mut frames = Vec::new();
+    let mut frames: Vec<SentFrame> = Vec::new();
     while at + 16 <= pcap.len() {
         let caplen = u32::from_le_bytes(pcap[at + 8..at + 12].try_into().unwrap()) as usize;
         let data = pcap
             .get(at + 16..at + 16 + caplen)
             .ok_or_else(|| format!("pcap record at byte {at} cut short"))?;
         at += 16 + caplen;
-        if data.len() < 16 || data[6] & 0x02 != 0 || data[12..14] != [0x88, 0xA4] {
+        if data.len() < 16 || data[12..14] != [0x88, 0xA4] {
+            continue;
+        }
+        if data[6] & 0x02 != 0 {
+            if let Some(last) = frames.last_mut() {
+                last.answered = true;
+            }
             continue;
         }
         let ecat_len = usize::from(u16::from_le_bytes([data[14], data[15]]) & 0x07FF);
@@ -80,6 +88,7 @@ pub fn sent_frames(pcap: &[u8]) -> Result<Vec<SentFrame>, String> {
         frames.push(SentFrame {
             bytes: data.len(),
             datagrams,
+            answered: false,
         });
     }
     Ok(frames)
@@ -271,7 +280,11 @@ pub fn steady_frame_and_a_pulled_slave(slaves: usize, dc: bool) -> Figures {
     let mut summaries_at = Vec::new();
     let mut longest_summaries = Vec::new();
     for f in &frames {
-        let (steady, summary) = (is(f, steady_fixed), is(f, Some(brd)));
+        // A frame nobody answered (the cable pulled with one slave) is no steady cycle.
+        let (steady, summary) = (
+            f.answered && is(f, steady_fixed),
+            f.answered && is(f, Some(brd)),
+        );
         if steady || summary {
             run += 1;
             let slot = if summary {

@@ -3,9 +3,10 @@
 //! LRW's count does not change — is named by the AL-status summary (one BRD, read one
 //! cycle in `AL_STATUS_EVERY` instead of the DC time), its states read the cycle after.
 //! Drives that missed their setpoints behind lost frames (a sync error, 0x10F1:02) are
-//! named in the first answered cycle after them: a lost frame makes the next cycle read
-//! every slave's state. End to end over the engine and the in-process simulator, in
-//! lockstep.
+//! named in the second answered cycle after them: a lost frame makes the next cycle read
+//! the summary (light, as the cycle after a host stall must be), which sends the cycle
+//! after it to read every slave's state. End to end over the engine and the in-process
+//! simulator, in lockstep.
 
 use gantry::ethercat::health::AL_STATUS_EVERY;
 use gantry_kernel::axis::handle::CommandStatus;
@@ -37,8 +38,9 @@ fn slaves_that_left_op_are_named_after_lost_frames_and_by_the_summary() {
     }
 
     // Two frames lost: every drive misses two setpoints and leaves OP with a sync error
-    // (0x10F1:02 = 4). The first answered cycle after them reads the states and names
-    // each — the working counter is right again, the slaves exchange in SafeOp.
+    // (0x10F1:02 = 4). The first answered cycle after them reads the AL-status summary,
+    // which sees slaves out of OP; the next reads each state and names them — the working
+    // counter is right again, the slaves exchange in SafeOp.
     rig.chain.lock().unwrap().drop_frames(2);
     let named = |i: usize| {
         format!(
@@ -46,7 +48,7 @@ fn slaves_that_left_op_are_named_after_lost_frames_and_by_the_summary() {
             0x1000 + i
         )
     };
-    assert_eq!(cycles_until_named(&mut rig, 0, &named(0), 10), 3);
+    assert_eq!(cycles_until_named(&mut rig, 0, &named(0), 10), 4);
     for i in 1..3 {
         assert_eq!(rig.bus_fault(i).as_deref(), Some(named(i).as_str()));
     }

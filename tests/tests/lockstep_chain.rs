@@ -412,4 +412,10 @@ fn eight_drives_encoder_and_switches_to_op_and_ptp_on_every_drive() {
         ..TestConditions::default()
     };
     assert_drive_invariants(&rig.chain.lock().unwrap(), &drives, DT, locked);
+    // Every slave is still in OP at the end — the input-only encoder and switch modules
+    // too: with no outputs there is nothing for their process-data watchdog to watch.
+    let states: Vec<u16> = (0..10)
+        .map(|i| rig.chain.lock().unwrap().slaves()[i].al_status())
+        .collect();
+    assert_eq!(states, [0x08; 10], "AL status of each slave at the end");
 }

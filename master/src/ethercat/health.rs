@@ -225,24 +225,27 @@ impl BusHealth {
     }
 
     /// Whether the next cycle reads every slave's AL state beside the process data: while
-    /// the slaves are on their way to OP, after a cycle whose working counter was wrong or
-    /// whose frame was lost, when the AL-status summary saw a slave out of OP, and while
-    /// anything is wrong (a slave out of OP, a bus fault) until a reset clears it.
+    /// the slaves are on their way to OP, after a cycle whose working counter was wrong,
+    /// when the AL-status summary saw a slave out of OP, and while anything is wrong (a
+    /// slave out of OP, a bus fault) until a reset clears it. After a lost frame the
+    /// summary comes first ([`BusHealth::reads_summary`]): reading each state makes the
+    /// cycle after a host stall heavier, and on a loaded host that made one lost frame
+    /// three in a row (measured over veth: 22 of 50 runs stopped, 2 of 20 without).
     /// Otherwise the cycle sends the process data alone, the working counter supervising
     /// (as IgH and SOEM do), but for the summary now and then ([`BusHealth::reads_summary`]).
     pub fn reads_states(&self) -> bool {
         self.starting.is_some()
             || self.wkc_run > 0
             || self.unjudged_wkc
-            || self.lost_run > 0
             || self.check_states
             || self.any_fault()
     }
 
     /// Whether the next cycle reads every slave's AL status in one BRD (every
-    /// [`AL_STATUS_EVERY`] answered cycles, when it does not read each slave's state).
+    /// [`AL_STATUS_EVERY`] answered cycles, and after a lost frame — drives that missed
+    /// setpoints may have left OP with a sync error —, when it does not read each state).
     pub fn reads_summary(&self) -> bool {
-        !self.reads_states() && self.since_al_read + 1 >= AL_STATUS_EVERY
+        !self.reads_states() && (self.lost_run > 0 || self.since_al_read + 1 >= AL_STATUS_EVERY)
     }
 
     /// Whether slave `i`'s inputs came with the last exchange: it was answered, and its
@@ -644,14 +647,23 @@ mod tests {
             "EtherCAT: slave 1 (0x1001) left OP: now Safe-Operational"
         );
         assert_eq!(h.wkc_total, 0);
-        // A lost frame: nobody's inputs came; the next cycle reads the states.
+        // A lost frame: nobody's inputs came; the next cycle reads the summary (not each
+        // state: a cycle right after a host stall stays as light as the others), and each
+        // state only if the summary saw a slave out of OP.
         let mut h = health();
         h.record(Exchange::Lost);
-        assert!(h.reads_states() && !h.inputs_fresh(0));
+        assert!(!h.reads_states() && h.reads_summary() && !h.inputs_fresh(0));
         h.record(Exchange::Answered {
             working_counter: 6,
-            states: States::Each(&[Op, Op]),
+            states: States::Summary { all_in_op: true },
         });
-        assert!(!h.reads_states() && h.inputs_fresh(0) && h.inputs_fresh(1));
+        assert!(!h.reads_states() && !h.reads_summary());
+        assert!(h.inputs_fresh(0) && h.inputs_fresh(1));
+        h.record(Exchange::Lost);
+        h.record(Exchange::Answered {
+            working_counter: 6,
+            states: States::Summary { all_in_op: false },
+        });
+        assert!(h.reads_states(), "the summary saw a slave out of OP");
     }
 }

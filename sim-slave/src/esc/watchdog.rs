@@ -37,7 +37,24 @@ impl ProcessDataWatchdog {
 
     /// Whether any enabled SyncManager covering `[address, address + len)` triggers it.
     pub fn triggered_by(mem: &Memory, address: u16, len: usize) -> bool {
-        (0..8u16).any(|n| {
+        Self::triggering_sync_managers(mem).any(|(start, length)| {
+            (address as usize) < start + length && address as usize + len > start
+        })
+    }
+
+    /// Whether it watches anything: an enabled SyncManager with its trigger on. Only a
+    /// master's writes restart it (SyncManager control bit 6 is for ECAT-written
+    /// SyncManagers), so a slave with no outputs — an input terminal — has nothing to
+    /// watch and stays in Op while the master only reads it, as its stack supervises the
+    /// watchdog only with process data outputs (ETG.1000.6 §6.4.1, ESC datasheet "Process
+    /// Data Watchdog").
+    pub fn watches(mem: &Memory) -> bool {
+        Self::triggering_sync_managers(mem).next().is_some()
+    }
+
+    /// `(start, length)` of every enabled SyncManager whose watchdog trigger is on.
+    fn triggering_sync_managers(mem: &Memory) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (0..8u16).filter_map(|n| {
             let mut sm = [0u8; 8];
             if let Some(regs) = mem.raw(SM0 + 8 * n, 8) {
                 sm.copy_from_slice(regs);
@@ -47,11 +64,7 @@ impl ProcessDataWatchdog {
                 u16::from_le_bytes([sm[2], sm[3]]) as usize,
             );
             let (control, enabled) = (sm[4], sm[6] & 0x01 != 0);
-            enabled
-                && control & SM_WATCHDOG_TRIGGER != 0
-                && length > 0
-                && (address as usize) < start + length
-                && address as usize + len > start
+            (enabled && control & SM_WATCHDOG_TRIGGER != 0 && length > 0).then_some((start, length))
         })
     }
 
@@ -73,6 +86,9 @@ impl ProcessDataWatchdog {
         let Some(timeout) = Self::timeout_ns(mem) else {
             return false;
         };
+        if !Self::watches(mem) {
+            return false;
+        }
         if self.expired || now.saturating_sub(self.last_trigger_ns) < timeout {
             return false;
         }
@@ -102,6 +118,8 @@ mod tests {
     #[test]
     fn expires_once_without_triggers_and_counts() {
         let mut mem = Memory::new();
+        // SM2 at 0x1100, 6 bytes, control 0x64 (watchdog trigger), enabled: outputs to watch.
+        mem.ecat_write(SM0 + 16, &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
         let mut wd = ProcessDataWatchdog::default();
         wd.trigger(&mut mem, 0);
         let fired: Vec<bool> = (1..=150u64)
@@ -126,5 +144,20 @@ mod tests {
         assert!(ProcessDataWatchdog::triggered_by(&mem, 0x1105, 1));
         assert!(!ProcessDataWatchdog::triggered_by(&mem, 0x1106, 4));
         assert!(!ProcessDataWatchdog::triggered_by(&mem, 0x1400, 6));
+    }
+
+    #[test]
+    fn a_slave_without_outputs_has_nothing_to_watch() {
+        let mut mem = Memory::new();
+        // An input terminal: SM3 at 0x1400, 6 bytes, control 0x20 (no trigger), enabled.
+        mem.ecat_write(SM0 + 24, &[0x00, 0x14, 6, 0, 0x20, 0, 1, 0]);
+        let mut wd = ProcessDataWatchdog::default();
+        wd.trigger(&mut mem, 0);
+        assert!(!ProcessDataWatchdog::watches(&mem));
+        assert!((1..=1000u64).all(|ms| !wd.check(&mut mem, ms * 1_000_000)));
+        // With an output SyncManager that triggers it, the same silence expires it.
+        mem.ecat_write(SM0 + 16, &[0x00, 0x11, 6, 0, 0x64, 0, 1, 0]);
+        assert!(ProcessDataWatchdog::watches(&mem));
+        assert!((1001..=1200u64).any(|ms| wd.check(&mut mem, ms * 1_000_000)));
     }
 }
