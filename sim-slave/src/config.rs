@@ -118,6 +118,9 @@ pub enum SlaveConfig {
     Servo(ServoConfig),
     /// An incremental encoder module.
     Encoder {
+        /// CANopen node id (1..=127) on a CAN bus (see [`ServoConfig::node`]).
+        #[serde(default)]
+        node: Option<u8>,
         /// Counts per shaft revolution.
         #[serde(default = "default_counts_per_rev")]
         counts_per_rev: u32,
@@ -130,12 +133,25 @@ pub enum SlaveConfig {
     },
     /// A digital-input module whose inputs are switch cams on a servo's travel.
     Switches {
+        /// CANopen node id (1..=127) on a CAN bus (see [`ServoConfig::node`]).
+        #[serde(default)]
+        node: Option<u8>,
         /// Chain index of the servo.
         axis: usize,
         /// The cams (`[[slave.cam]]`).
         #[serde(rename = "cam", default)]
         cams: Vec<CamConfig>,
     },
+}
+
+impl SlaveConfig {
+    /// Its CANopen node id, if it has one.
+    pub fn node(&self) -> Option<u8> {
+        match self {
+            SlaveConfig::Servo(s) => s.node,
+            SlaveConfig::Encoder { node, .. } | SlaveConfig::Switches { node, .. } => *node,
+        }
+    }
 }
 
 /// One switch cam of a `switches` slave: the switch on `input` is actuated while the
@@ -170,6 +186,9 @@ impl From<CamConfig> for SwitchCam {
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct ServoConfig {
+    /// CANopen node id (1..=127) when the chain is simulated on a CAN bus; unused on
+    /// EtherCAT, where a slave's place in the chain is its address.
+    pub node: Option<u8>,
     /// Absolute encoder value at power-up (counts).
     pub start_position: i32,
     /// How fast its distributed clock's oscillator runs against true time (ppm;
@@ -231,6 +250,7 @@ impl Default for ServoConfig {
     fn default() -> Self {
         let p = ServoParams::default();
         Self {
+            node: None,
             start_position: 0,
             dc_drift_ppm: 0.0,
             commutation_offset: p.commutation_offset,
@@ -415,6 +435,23 @@ impl SimConfig {
             key,
             reason: reason.into(),
         };
+        // CiA 301 §7.3.2: node ids 1..=127, each at most once on a bus.
+        let mut seen = [false; 128];
+        for (i, s) in self.slaves.iter().enumerate() {
+            let Some(node) = s.node() else { continue };
+            if !(1..=127).contains(&node) {
+                return Err(invalid(
+                    format!("slave[{i}].node"),
+                    "a CANopen node id must be 1 to 127",
+                ));
+            }
+            if std::mem::replace(&mut seen[usize::from(node)], true) {
+                return Err(invalid(
+                    format!("slave[{i}].node"),
+                    &format!("node id {node} is already used by another slave"),
+                ));
+            }
+        }
         if !(100..=100_000).contains(&self.cycle_us) {
             return Err(invalid("cycle_us".into(), "must be 100 to 100000 µs"));
         }
@@ -457,6 +494,7 @@ impl SimConfig {
                     counts_per_rev,
                     shaft_speed,
                     al,
+                    ..
                 } => {
                     if let Some(key) = al.invalid_key() {
                         return Err(invalid(
@@ -483,7 +521,7 @@ impl SimConfig {
                         ));
                     }
                 }
-                SlaveConfig::Switches { axis, cams } => {
+                SlaveConfig::Switches { axis, cams, .. } => {
                     match self.slaves.get(*axis) {
                         None => {
                             let n = self.slaves.len();
@@ -544,17 +582,20 @@ impl SimConfig {
                         counts_per_rev,
                         shaft_speed,
                         al,
+                        ..
                     } => catalog::encoder(EncoderOptions {
                         serial,
                         counts_per_rev: *counts_per_rev,
                         shaft_speed_rev_s: *shaft_speed,
                     })
                     .with_firmware(al.firmware(Firmware::SIMPLE)),
-                    SlaveConfig::Switches { axis, cams } => catalog::switches(SwitchesOptions {
-                        serial,
-                        axis: *axis,
-                        cams: cams.iter().map(|&c| c.into()).collect(),
-                    })?,
+                    SlaveConfig::Switches { axis, cams, .. } => {
+                        catalog::switches(SwitchesOptions {
+                            serial,
+                            axis: *axis,
+                            cams: cams.iter().map(|&c| c.into()).collect(),
+                        })?
+                    }
                 })
             })
             .collect::<Result<Vec<_>, CamError>>()?;
@@ -689,6 +730,32 @@ mod tests {
     }
 
     #[test]
+    fn node_ids_are_checked() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\nnode = 5\n[[slave]]\nkind = \"encoder\"\nnode = 6\n",
+            "sim.toml",
+        )
+        .unwrap();
+        assert_eq!(c.slaves[0].node(), Some(5));
+        assert_eq!(c.slaves[1].node(), Some(6));
+        let e =
+            SimConfig::parse("[[slave]]\nkind = \"servo\"\nnode = 0\n", "sim.toml").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "sim.toml: slave[0].node: a CANopen node id must be 1 to 127"
+        );
+        let e = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\nnode = 9\n[[slave]]\nkind = \"servo\"\nnode = 9\n",
+            "sim.toml",
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "sim.toml: slave[1].node: node id 9 is already used by another slave"
+        );
+    }
+
+    #[test]
     fn parses_encoder_and_switches_with_cams() {
         let c = SimConfig::parse(
             "[[slave]]\nkind = \"servo\"\n\
@@ -703,6 +770,7 @@ mod tests {
         assert_eq!(
             c.slaves[1],
             SlaveConfig::Encoder {
+                node: None,
                 counts_per_rev: 1024,
                 shaft_speed: -2.5,
                 al: AlConfig::default(),
@@ -711,12 +779,13 @@ mod tests {
         assert_eq!(
             c.slaves[3],
             SlaveConfig::Encoder {
+                node: None,
                 counts_per_rev: 4096,
                 shaft_speed: 0.0,
                 al: AlConfig::default(),
             }
         );
-        let SlaveConfig::Switches { axis, cams } = &c.slaves[2] else {
+        let SlaveConfig::Switches { axis, cams, .. } = &c.slaves[2] else {
             panic!("{:?}", c.slaves[2]);
         };
         assert_eq!(*axis, 0);

@@ -8,6 +8,15 @@ pub const MAX_STANDARD_ID: u16 = 0x7FF;
 /// Largest data length of a classical CAN frame.
 pub const MAX_DATA_LEN: usize = 8;
 
+/// Worst-case bits a classical base-format data frame with `len` data bytes occupies on
+/// the bus (ISO 11898-1): 47 fixed bits (the 3-bit inter-frame space included) and 8 per
+/// byte, plus one stuff bit per 4 of the 34 + 8·len stuffable bits. 135 bits for 8 data
+/// bytes: 1 Mbit/s carries about 7 such frames per millisecond.
+pub const fn frame_bits(len: usize) -> u64 {
+    let stuffable = 34 + 8 * len as u64;
+    47 + 8 * len as u64 + (stuffable - 1) / 4
+}
+
 /// Why bytes do not make a CAN frame.
 #[derive(Clone, Copy, Debug, Error, PartialEq, Eq)]
 pub enum FrameError {
@@ -141,6 +150,14 @@ fn check_id(id: u32) -> Result<u16, FrameError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_bits_of_cia_figures() {
+        // 8 data bytes: 111 bits + 24 stuff bits = 135 (the figure).
+        assert_eq!(frame_bits(8), 135);
+        // SYNC without data: 47 + 8 stuff bits.
+        assert_eq!(frame_bits(0), 55);
+    }
     use proptest::prelude::*;
 
     #[test]

@@ -7,6 +7,7 @@
 
 use std::collections::VecDeque;
 
+use gantry_drives::canopen::frame::frame_bits;
 use gantry_drives::canopen::CanFrame;
 
 use super::node::CanNode;
@@ -29,14 +30,6 @@ pub struct Delivered {
     pub from: Sender,
     /// The frame.
     pub frame: CanFrame,
-}
-
-/// Worst-case bits of a classical base-format data frame with `len` data bytes: 47 fixed
-/// bits and 8 per byte, plus one stuff bit per 4 of the 34 + 8·len stuffable bits, the
-/// inter-frame space included.
-pub const fn frame_bits(len: usize) -> u64 {
-    let stuffable = 34 + 8 * len as u64;
-    47 + 8 * len as u64 + (stuffable - 1) / 4
 }
 
 /// The bus.
@@ -168,18 +161,5 @@ impl CanBus {
     /// Every frame the bus carried, in order.
     pub fn log(&self) -> &[Delivered] {
         &self.log
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn frame_bits_of_cia_figures() {
-        // 8 data bytes: 111 bits + 24 stuff bits = 135 (the figure).
-        assert_eq!(frame_bits(8), 135);
-        // SYNC without data: 47 + 8 stuff bits.
-        assert_eq!(frame_bits(0), 55);
     }
 }
