@@ -597,3 +597,297 @@ impl CoeSdo {
         };
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MAILBOX: Mailbox = Mailbox {
+        write_at: 0x1000,
+        write_len: 128,
+        read_at: 0x1080,
+        read_len: 128,
+    };
+
+    /// The bytes of the next write, and its access.
+    fn written(t: &CoeSdo) -> (MailboxAccess, Vec<u8>) {
+        let mut m = [0u8; MAX_MAILBOX];
+        let a = t.next_access(&mut m).expect("an access");
+        (a, m[..usize::from(MAILBOX.write_len)].to_vec())
+    }
+
+    /// A mailbox answer: CoE `service`, SDO bytes `sdo`, counter 0.
+    fn answer(service: u16, sdo: &[u8]) -> Vec<u8> {
+        let mut m = vec![0u8; ANSWER_KEEP];
+        m[0..2].copy_from_slice(&((COE_HEADER + sdo.len()) as u16).to_le_bytes());
+        m[5] = MAILBOX_TYPE_COE;
+        m[6..8].copy_from_slice(&(service << 12).to_le_bytes());
+        m[8..8 + sdo.len()].copy_from_slice(sdo);
+        m
+    }
+
+    /// Takes the write, finds SM1 full, reads `reply`.
+    fn exchange(t: &mut CoeSdo, reply: &[u8], now: u64) {
+        t.on_answer(MailboxAnswer::Written, &[], now);
+        assert_eq!(
+            t.next_access(&mut [0; MAX_MAILBOX]),
+            Some(MailboxAccess::ReadStatus { at: 0x080D })
+        );
+        t.on_answer(MailboxAnswer::Status(SM_STATUS_MAILBOX_FULL), &[], now);
+        assert_eq!(
+            t.next_access(&mut [0; MAX_MAILBOX]),
+            Some(MailboxAccess::Read {
+                at: 0x1080,
+                len: 128
+            })
+        );
+        t.on_answer(MailboxAnswer::Read, reply, now);
+    }
+
+    #[test]
+    fn the_mailbox_is_read_from_the_sync_manager_registers() {
+        let mut regs = [0u8; 16];
+        regs[..8].copy_from_slice(&[0x00, 0x10, 128, 0, 0x26, 0, 0x01, 0]);
+        regs[8..].copy_from_slice(&[0x80, 0x10, 128, 0, 0x22, 0, 0x01, 0]);
+        assert_eq!(Mailbox::from_sync_managers(&regs), Some(MAILBOX));
+        // Disabled, buffered, the wrong way round, too small: no mailbox.
+        for (at, value) in [(6, 0x00), (4, 0x24), (4, 0x22), (2, 8)] {
+            let mut bad = regs;
+            bad[at] = value;
+            assert_eq!(Mailbox::from_sync_managers(&bad), None, "byte {at}");
+        }
+    }
+
+    #[test]
+    fn an_expedited_download_is_one_message_as_etg_1000_6_lays_it_out() {
+        let data = SdoData::new(&[0x08]).unwrap();
+        let t = CoeSdo::new(MAILBOX, SdoRequest::download(0, 0x6060, 0, data), None, 0);
+        let (access, m) = written(&t);
+        assert_eq!(
+            access,
+            MailboxAccess::Write {
+                at: 0x1000,
+                len: 128
+            }
+        );
+        // Length 10, address 0, channel 0, type CoE with counter 0; CoE: SDO request;
+        // command 0x2F (download, expedited, size indicated, 3 bytes unused).
+        assert_eq!(
+            &m[..16],
+            &[10, 0, 0, 0, 0, 0x03, 0x00, 0x20, 0x2F, 0x60, 0x60, 0x00, 0x08, 0, 0, 0]
+        );
+        assert!(m[16..].iter().all(|&b| b == 0), "the rest of SM0 zero");
+    }
+
+    #[test]
+    fn the_first_message_carries_the_counter_after_the_last_one() {
+        let req = SdoRequest::upload(0, 0x1018, 1);
+        let (_, m) = written(&CoeSdo::new(MAILBOX, req, Some(3), 0));
+        assert_eq!(m[5], 0x03 | (4 << 4));
+        let (_, m) = written(&CoeSdo::new(MAILBOX, req, Some(7), 0));
+        assert_eq!(m[5], 0x03 | (1 << 4), "after 7 comes 1, never 0");
+        assert_eq!(&m[8..12], &[0x40, 0x18, 0x10, 0x01]);
+    }
+
+    #[test]
+    fn a_refused_or_lost_write_goes_again_unchanged() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1018, 1), Some(2), 0);
+        let first = written(&t);
+        t.on_answer(MailboxAnswer::Refused, &[], 1);
+        assert_eq!(written(&t), first, "SM0 still full: the same message");
+        t.on_answer(MailboxAnswer::None, &[], 2);
+        assert_eq!(
+            written(&t),
+            first,
+            "lost: the same counter, a repeat if it arrived"
+        );
+        exchange(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x43, 0x18, 0x10, 1, 0xAA, 0, 0, 0]),
+            3,
+        );
+        assert_eq!(
+            t.outcome(),
+            Some(Ok(SdoData::new(&[0xAA, 0, 0, 0]).unwrap()))
+        );
+    }
+
+    #[test]
+    fn a_segmented_upload_alternates_the_toggle_and_checks_the_size() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1008, 0), None, 0);
+        // Normal initiate response: 12 bytes announced, 4 here.
+        let mut init = vec![0x41, 0x08, 0x10, 0x00, 12, 0, 0, 0];
+        init.extend(b"gant");
+        exchange(&mut t, &answer(COE_SDO_RESPONSE, &init), 1);
+        let (_, m) = written(&t);
+        assert_eq!(&m[8..10], &[0x60, 0], "upload segment request, toggle 0");
+        assert_eq!(m[5] >> 4, 1, "a new message, a new counter");
+        // 5 bytes, padded to 7 (2 unused), not the last.
+        exchange(
+            &mut t,
+            &answer(
+                COE_SDO_RESPONSE,
+                &[0x04, b'r', b'y', b' ', b's', b'i', 0, 0],
+            ),
+            2,
+        );
+        let (_, m) = written(&t);
+        assert_eq!(m[8], 0x70, "toggle 1");
+        // The toggle of the answer must be the request's.
+        let mut stale = t;
+        exchange(
+            &mut stale,
+            &answer(COE_SDO_RESPONSE, &[0x01, b'm', 0, 0, 0, 0, 0, 0]),
+            3,
+        );
+        let (_, m) = written(&stale);
+        assert_eq!(
+            (m[8], u32::from_le_bytes(m[12..16].try_into().unwrap())),
+            (0x80, 0x0503_0000),
+            "aborted at the slave: toggle bit not alternated"
+        );
+        stale.on_answer(MailboxAnswer::Written, &[], 4);
+        assert!(matches!(
+            stale.outcome(),
+            Some(Err(SdoError::Protocol { .. }))
+        ));
+        // The last segment: 3 bytes (4 unused), toggle 1, last.
+        exchange(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x19, b'm', b'u', b'l', 0, 0, 0, 0]),
+            3,
+        );
+        assert_eq!(
+            t.outcome(),
+            Some(Ok(SdoData::new(b"gantry simul").unwrap()))
+        );
+    }
+
+    #[test]
+    fn a_segmented_download_sends_what_sm0_holds_then_segments() {
+        let data: Vec<u8> = (0..=255u8).collect();
+        let req = SdoRequest::download(1, 0x2100, 2, SdoData::new(&data).unwrap());
+        let mut t = CoeSdo::new(MAILBOX, req, None, 0);
+        let (_, m) = written(&t);
+        // Initiate: 0x21, size 256, then 112 bytes (128 − 6 − 2 − 8).
+        assert_eq!(&m[8..16], &[0x21, 0x00, 0x21, 0x02, 0, 1, 0, 0]);
+        assert_eq!(u16::from_le_bytes([m[0], m[1]]), 2 + 8 + 112);
+        assert_eq!(&m[16..128], &data[..112]);
+        exchange(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x60, 0x00, 0x21, 0x02, 0, 0, 0, 0]),
+            1,
+        );
+        // Segments of 119 bytes (128 − 9): the first not last, toggle 0.
+        let (_, m) = written(&t);
+        assert_eq!(m[8], 0x00);
+        assert_eq!(&m[9..128], &data[112..231]);
+        exchange(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x20, 0, 0, 0, 0, 0, 0, 0]),
+            2,
+        );
+        // The rest, 25 bytes, last, toggle 1.
+        let (_, m) = written(&t);
+        assert_eq!(m[8], 0x11);
+        assert_eq!(u16::from_le_bytes([m[0], m[1]]), 3 + 25);
+        assert_eq!(&m[9..34], &data[231..]);
+        exchange(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x30, 0, 0, 0, 0, 0, 0, 0]),
+            3,
+        );
+        assert_eq!(t.outcome(), Some(Ok(SdoData::EMPTY)));
+    }
+
+    #[test]
+    fn aborts_emergencies_and_mailbox_errors() {
+        let req = SdoRequest::upload(2, 0x2000, 0);
+        let mut t = CoeSdo::new(MAILBOX, req, None, 0);
+        // An emergency in between is not the answer: wait on.
+        exchange(
+            &mut t,
+            &answer(COE_EMERGENCY, &[0x10, 0x81, 0x11, 0, 0, 0, 0, 0]),
+            1,
+        );
+        assert_eq!(t.outcome(), None);
+        assert_eq!(
+            t.next_access(&mut [0; MAX_MAILBOX]),
+            Some(MailboxAccess::ReadStatus { at: 0x080D })
+        );
+        t.on_answer(MailboxAnswer::Status(SM_STATUS_MAILBOX_FULL), &[], 2);
+        let abort = answer(
+            COE_SDO_REQUEST,
+            &[0x80, 0x00, 0x20, 0x00, 0x00, 0x00, 0x02, 0x06],
+        );
+        t.on_answer(MailboxAnswer::Read, &abort, 2);
+        assert_eq!(
+            t.outcome(),
+            Some(Err(SdoError::Aborted {
+                drive: 2,
+                index: 0x2000,
+                sub: 0,
+                code: AbortCode::OBJECT_DOES_NOT_EXIST
+            }))
+        );
+        // A slave without CoE answers with a mailbox error reply.
+        let mut t = CoeSdo::new(MAILBOX, req, None, 0);
+        let mut error = vec![0u8; ANSWER_KEEP];
+        error[0] = 4;
+        error[5] = MAILBOX_TYPE_ERROR;
+        exchange(&mut t, &error, 1);
+        assert!(
+            matches!(t.outcome(), Some(Err(SdoError::Protocol { what, .. })) if what.contains("mailbox error")),
+            "{:?}",
+            t.outcome()
+        );
+    }
+
+    #[test]
+    fn a_silent_slave_times_out_with_the_time_waited() {
+        let mut req = SdoRequest::upload(0, 0x1018, 1);
+        req.timeout_ns = 50_000_000;
+        let mut t = CoeSdo::new(MAILBOX, req, None, 1_000);
+        t.on_answer(MailboxAnswer::Written, &[], 1_000_000);
+        let mut now = 1_000_000;
+        while t.outcome().is_none() {
+            now += 1_000_000;
+            t.on_answer(MailboxAnswer::Status(0), &[], now);
+        }
+        assert_eq!(
+            t.outcome(),
+            Some(Err(SdoError::TimedOut {
+                drive: 0,
+                index: 0x1018,
+                sub: 1,
+                waited_ms: 50
+            }))
+        );
+        assert_eq!(t.next_access(&mut [0; MAX_MAILBOX]), None);
+    }
+
+    #[test]
+    fn an_upload_larger_than_a_transfer_carries_is_aborted_at_the_slave() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1008, 0), None, 0);
+        exchange(
+            &mut t,
+            &answer(
+                COE_SDO_RESPONSE,
+                &[0x41, 0x08, 0x10, 0x00, 0x2C, 0x01, 0, 0],
+            ),
+            1,
+        );
+        let (_, m) = written(&t);
+        assert_eq!(&m[8..16], &[0x80, 0x08, 0x10, 0x00, 0x05, 0x00, 0x04, 0x05]);
+        t.on_answer(MailboxAnswer::Written, &[], 2);
+        assert_eq!(
+            t.outcome(),
+            Some(Err(SdoError::TooLarge {
+                drive: 0,
+                index: 0x1008,
+                sub: 0,
+                size: 300
+            }))
+        );
+    }
+}
