@@ -446,6 +446,9 @@ impl EthercatBus {
         if let Some(slot) = self.mailbox_counters.get_mut(*drive) {
             *slot = Some(sdo.counter());
         }
+        if let Some(Some(mailbox)) = self.mailboxes.get_mut(*drive) {
+            *mailbox = sdo.mailbox();
+        }
         if let Some(outcome) = sdo.outcome() {
             self.sdo_done = Some(outcome);
             self.sdo = None;
