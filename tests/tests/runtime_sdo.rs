@@ -81,7 +81,20 @@ fn reads_and_writes_while_an_axis_moves_miss_no_setpoint(
     let other = rig.start_move(1, -40.0);
     rig.run(50);
 
-    // Expedited upload: the vendor id the simulator's servo has (0x1018:01).
+    // Expedited upload: the vendor id the simulator's servo has (0x1018:01). Each cycle
+    // of it sends one frame, as a cycle without it does: the mailbox access goes in the
+    // process data's frame.
+    let h = ctl.sdo(SdoRequest::upload(0, 0x1018, 1)).expect("queued");
+    let mut frames = Vec::new();
+    while h.outcome().is_none() {
+        let before = rig.engine.bus().replies();
+        rig.cycle();
+        frames.push(rig.engine.bus().replies() - before);
+    }
+    assert!(
+        frames.iter().all(|&f| f == 1),
+        "frames per cycle: {frames:?}"
+    );
     let (r, cycles) = transfer(rig, &ctl, SdoRequest::upload(0, 0x1018, 1));
     let vendor = r.expect("0x1018:01");
     assert_eq!(vendor.len(), 4);

@@ -20,6 +20,16 @@ fn value(svc: &Service, args: &[&str]) -> String {
     svc.ok(args).trim().to_string()
 }
 
+/// One raw line on the socket, its reply.
+fn raw_request(socket: &std::path::Path, line: &str) -> serde_json::Value {
+    use std::io::{BufRead, Write};
+    let mut s = std::os::unix::net::UnixStream::connect(socket).unwrap();
+    writeln!(s, "{line}").unwrap();
+    let mut reply = String::new();
+    std::io::BufReader::new(s).read_line(&mut reply).unwrap();
+    serde_json::from_str(&reply).unwrap()
+}
+
 /// SIGTERM: the service ends as usual after the transfers (bus to PreOp, exit 0).
 fn stop(mut svc: Service) {
     let (status, out) = svc.terminate();
@@ -146,6 +156,30 @@ fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
     assert!(e.contains("cannot be used with"), "{e}");
     let e = svc.fails(&["sdo", "upload", "0x1000:0"]);
     assert!(e.contains("--axis") && e.contains("--drive"), "{e}");
+    // What a script may send on the socket, checked there too.
+    for (line, says) in [
+        (
+            r#"{"v":1,"cmd":"sdo","axis":"x","direction":"download","index":24672,"sub":0,"data":"zz"}"#,
+            r#"sdo: data "zz" is not hex bytes"#,
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","axis":"x","drive":0,"direction":"upload","index":4096,"sub":0}"#,
+            "sdo: name the drive by its axis or by its bus position, one of the two",
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","drive":0,"direction":"download","index":24672,"sub":0}"#,
+            "sdo: a download needs data",
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","drive":0,"direction":"upload","index":65536,"sub":0}"#,
+            "invalid request",
+        ),
+    ] {
+        let reply = raw_request(&svc.socket, line);
+        assert_eq!(reply["ok"], false, "{line}");
+        let e = reply["error"].as_str().unwrap();
+        assert!(e.contains(says), "{line}: {e}");
+    }
     stop(svc);
 }
 
