@@ -150,6 +150,10 @@ fn pdo_mappings_are_checked_against_the_eds() {
         err(R, 1, &[entry(0x0002, 1, 8)]),
         MappingError::Dummy { .. }
     ));
+    assert_eq!(
+        err(T, 1, &[entry(0x0005, 0, 8)]).to_string(),
+        "0x0005:00: acme_sx400.eds allows no dummy entry of type 0x0005 here ([DummyUsage]; RPDOs only)"
+    );
     assert!(matches!(
         err(R, 1, &[entry(0x0006, 0, 8)]),
         MappingError::Length { want: 16, .. }

@@ -329,6 +329,12 @@ impl NodeDictionary {
         self.od.entries().iter().map(|e| (e.index, e.sub))
     }
 
+    /// The values an SDO download may write to the servo object `index`:`sub`
+    /// (inclusive), if the device limits them (its EDS's LowLimit/HighLimit).
+    pub fn servo_range(&self, index: u16, sub: u8) -> Option<(i64, i64)> {
+        self.od.entry(index, sub).ok().and_then(|e| e.range)
+    }
+
     /// The node id.
     pub fn node(&self) -> NodeId {
         self.node

@@ -93,8 +93,8 @@ pub enum MappingError {
         /// The EDS.
         file: String,
     },
-    /// A dummy entry the device does not support.
-    #[error("{entry}: {file} does not allow dummy mapping of type 0x{:04X} ([DummyUsage])", .entry.index)]
+    /// A dummy entry the device does not support (or in a TPDO).
+    #[error("{entry}: {file} allows no dummy entry of type 0x{:04X} here ([DummyUsage]; RPDOs only)", .entry.index)]
     Dummy {
         /// The entry.
         entry: MappingEntry,
@@ -171,9 +171,13 @@ impl Eds {
             });
         }
         // Dummy entries: the index of a data type (CiA 301 §7.4.7.1), sub 0, if
-        // [DummyUsage] allows that type.
+        // [DummyUsage] allows that type; in RPDOs only (they let a device skip received
+        // bytes meant for another; a TPDO has nothing to fill them with).
         if (0x0001..=0x0007).contains(&entry.index) {
-            if entry.sub != 0 || !self.dummy_allowed(entry.index) {
+            if entry.sub != 0
+                || !self.dummy_allowed(entry.index)
+                || direction != PdoDirection::Receive
+            {
                 return Err(MappingError::Dummy {
                     entry,
                     file: file(),
