@@ -13,7 +13,8 @@ use gantry_drives::canopen::eds::{
 use gantry_drives::canopen::sdo::{Access, ObjectSize};
 use gantry_sim::canopen::eds as sim_eds;
 use gantry_sim::canopen::pdo::{self, Direction};
-use gantry_sim::canopen::{CanNode, CanNodeConfig};
+use gantry_sim::canopen::{CanNode, CanNodeConfig, DeviceKind};
+use gantry_sim::plant::switches::SwitchCam;
 
 fn node(n: u8) -> CanNode {
     CanNode::new(CanNodeConfig::servo(id(n))).unwrap()
@@ -40,10 +41,12 @@ fn served(node: &CanNode) -> Vec<(u16, u8)> {
     v
 }
 
-#[test]
-fn the_eds_describes_what_the_node_serves_and_nothing_else() {
-    let mut n = node(5);
-    let e = read(&mut n);
+/// The EDS of `n` (node 5) against the node: every described entry served with the
+/// access, size, PDO directions and power-on value the EDS gives, every served entry
+/// described.
+fn agrees_with_the_node(n: &mut CanNode) -> eds::Eds {
+    let kind = n.dictionary().kind();
+    let e = read(n);
     let mut described = Vec::new();
     for o in e.objects.values() {
         for (&sub, s) in &o.subs {
@@ -79,7 +82,7 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
                 (PdoDirection::Receive, Direction::Receive),
                 (PdoDirection::Transmit, Direction::Transmit),
             ] {
-                let node_maps = bits > 0 && pdo::mappable(node_dir, raw).is_ok();
+                let node_maps = bits > 0 && pdo::mappable(kind, node_dir, raw).is_ok();
                 assert_eq!(s.mappable_in(dir), node_maps, "{place} {dir}");
             }
             // The power-on value, read by SDO now.
@@ -90,17 +93,29 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
                     .default_value
                     .as_ref()
                     .unwrap_or_else(|| panic!("{place}"));
-                match (eds_value.integer_on(5), &node_value) {
+                let node_id = n.node().get();
+                match (eds_value.integer_on(node_id), &node_value) {
                     (Some(v), Value::Integer(w)) => assert_eq!(v, *w, "{place}"),
                     _ => assert_eq!(eds_value, &node_value, "{place}"),
                 }
             }
         }
     }
-    let served = served(&n);
+    let served = served(n);
     described.sort_unstable();
     assert_eq!(described, served, "described vs served");
-    assert!(served.len() > 150, "{} objects", served.len());
+    assert_eq!(
+        e.entry(0x1000, 0).unwrap().default_value,
+        Some(Value::Integer(i128::from(kind.device_type())))
+    );
+    e
+}
+
+#[test]
+fn the_eds_describes_what_the_node_serves_and_nothing_else() {
+    let mut n = node(5);
+    let e = agrees_with_the_node(&mut n);
+    assert!(e.objects.values().map(|o| o.subs.len()).sum::<usize>() > 150);
     // What a master reads from it.
     assert_eq!(e.file_info.eds_version, "4.0");
     assert_eq!(e.device_info.product_number, Some(0x402));
@@ -189,11 +204,44 @@ fn mappings_the_eds_check_accepts_are_what_the_node_accepts() {
         ] {
             let entry = MappingEntry { index, sub, bits };
             let eds_ok = e.check_pdo(dir, 1, &[entry]).is_ok();
-            let node_ok = pdo::mappable(node_dir, entry.to_u32()).is_ok();
+            let node_ok = pdo::mappable(DeviceKind::Servo, node_dir, entry.to_u32()).is_ok();
             assert_eq!(eds_ok, node_ok, "{entry} {dir}");
             tried += 1;
             accepted += usize::from(eds_ok);
         }
     }
     assert!(accepted >= 16 + 6, "{accepted} of {tried}");
+}
+
+#[test]
+fn the_encoder_and_input_module_eds_agree_with_their_nodes() {
+    let mut enc = CanNode::new(CanNodeConfig::encoder(id(5), 4096, 0.0)).unwrap();
+    let e = agrees_with_the_node(&mut enc);
+    assert_eq!(e.device_info.product_number, Some(0x5101));
+    assert!(e.pdo_mappable(0x6004, 0, PdoDirection::Transmit));
+    assert!(!e.pdo_mappable(0x6003, 0, PdoDirection::Receive));
+    assert_eq!(e.entry(0x6003, 0).unwrap().access, AccessType::ReadWrite);
+    assert_eq!(
+        e.entry(0x6001, 0).unwrap().default_value,
+        Some(Value::Integer(4096))
+    );
+    // Its TPDO1 maps the position value; nothing can go into an RPDO but dummies.
+    assert_eq!(
+        e.entry(0x1A00, 1).unwrap().default_value,
+        Some(Value::Integer(0x6004_0020))
+    );
+    let cam = SwitchCam {
+        input: 0,
+        from: 0,
+        to: 10,
+        normally_closed: false,
+    };
+    let mut sw = CanNode::new(CanNodeConfig::switches(id(5), id(1), &[cam]).unwrap()).unwrap();
+    let e = agrees_with_the_node(&mut sw);
+    let inputs = e.object(0x6000).unwrap();
+    assert_eq!(inputs.object_type, ObjectType::Array);
+    assert_eq!(inputs.sub(1).unwrap().name, "Read input 8-bit");
+    assert!(e.pdo_mappable(0x6000, 1, PdoDirection::Transmit));
+    assert_eq!(e.entry(0x6002, 1).unwrap().access, AccessType::ReadWrite);
+    assert_eq!(e.device_info.product_number, Some(0x1008));
 }

@@ -7,12 +7,15 @@
 //! project). The node-relative COB-IDs are written as `$NODEID+…` (one file serves every
 //! node id, as a vendor's does). Not on the cycle path: it allocates.
 
+use std::collections::BTreeMap;
+
 use gantry_drives::canopen::eds::{
     self, AccessType, DataType, Eds, Object, ObjectType, SubObject, Value,
 };
 use gantry_drives::canopen::sdo::{AbortCode, Access, ObjectSize};
 use gantry_drives::cia402::objects::{self, DataType as Cia402Type};
 
+use super::device::{profile_array, profile_object, DeviceKind};
 use super::dictionary::{
     ABORT_CONNECTION_OPTION_CODE, COB_ID_EMCY, COB_ID_SYNC, COMMUNICATION_CYCLE_PERIOD,
     CONSUMER_HEARTBEAT_TIME, DEVICE_NAME, DEVICE_TYPE, ERROR_BEHAVIOUR, ERROR_HISTORY,
@@ -165,17 +168,24 @@ fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
         "Missed SYNC setpoint limit",
         U16,
     ));
-    // The servo's objects, typed by the CiA 402 table (all are VARs at sub 0).
-    let mut servo: Vec<(u16, u8)> = node.dictionary().servo_objects().collect();
-    servo.sort_unstable();
-    servo.dedup();
-    for (index, sub) in servo {
-        let (name, ty) = match objects::lookup(index, sub) {
-            Some(o) => (o.name.to_string(), eds_type(o.kind)),
-            None if index == ABORT_CONNECTION_OPTION_CODE => {
+    // The device's profile objects: typed by the CiA 402 table (the servo's) or the
+    // device's own (CiA 406, CiA 401); an index with sub-indices above 0 is an ARRAY.
+    let kind = node.dictionary().kind();
+    let mut entries: Vec<(u16, u8)> = node.dictionary().servo_objects().collect();
+    entries.sort_unstable();
+    entries.dedup();
+    let mut by_index: BTreeMap<u16, Vec<Spec>> = BTreeMap::new();
+    for (index, sub) in entries {
+        let (name, ty) = match (
+            objects::lookup(index, sub),
+            profile_object(kind, index, sub),
+        ) {
+            (_, Some((name, t))) => (name.to_string(), eds_type(t)),
+            (Some(o), None) => (o.name.to_string(), eds_type(o.kind)),
+            (None, None) if index == ABORT_CONNECTION_OPTION_CODE => {
                 ("Abort connection option code".to_string(), I16)
             }
-            None => {
+            (None, None) => {
                 let size = match node.object_info(index, sub).map(|i| i.size) {
                     Ok(ObjectSize::Fixed(n)) => n,
                     _ => 4,
@@ -188,17 +198,27 @@ fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
                 (format!("Object {index:04X}sub{sub}"), ty)
             }
         };
-        v.push(var(index, &name, ty));
+        by_index.entry(index).or_default().push((sub, name, ty));
+    }
+    for (index, specs) in by_index {
+        match specs.as_slice() {
+            [(0, name, ty)] => v.push(var(index, name, *ty)),
+            _ => {
+                let name = profile_array(kind, index)
+                    .map_or_else(|| format!("Object {index:04X}"), str::to_string);
+                v.push((index, name, ObjectType::Array, specs));
+            }
+        }
     }
     v.sort_by_key(|o| o.0);
     v
 }
 
 /// Whether the node's PDO rules let `index`:`sub` of `ty` into a PDO going `direction`.
-fn node_maps(direction: Direction, index: u16, sub: u8, ty: DataType) -> bool {
+fn node_maps(kind: DeviceKind, direction: Direction, index: u16, sub: u8, ty: DataType) -> bool {
     let bits = ty.bits().unwrap_or(0);
     let entry = (u32::from(index) << 16) | (u32::from(sub) << 8) | bits;
-    bits > 0 && bits <= 64 && pdo::mappable(direction, entry).is_ok()
+    bits > 0 && bits <= 64 && pdo::mappable(kind, direction, entry).is_ok()
 }
 
 /// The EDS access of an entry the server gives `access`: a read-write entry the node
@@ -258,16 +278,22 @@ pub fn model(node: &mut CanNode, file_name: &str) -> Eds {
             _ => None,
         }
     };
+    let kind = node.dictionary().kind();
     let mut e = Eds::new(file_name);
     e.file_info.file_version = 1;
     e.file_info.description = format!(
-        "Simulated CiA 402 servo drive (written for node {})",
+        "Simulated {} (written for node {})",
+        match kind {
+            DeviceKind::Servo => "CiA 402 servo drive",
+            DeviceKind::Encoder => "CiA 406 incremental encoder",
+            DeviceKind::Switches => "CiA 401 digital inputs (switch cams)",
+        },
         node.node().get()
     );
     e.file_info.created_by = format!("gantry-sim {}", env!("CARGO_PKG_VERSION"));
     let d = &mut e.device_info;
     d.vendor_name = "gantry".into();
-    d.product_name = super::dictionary::DEVICE_NAME_VALUE.into();
+    d.product_name = kind.name().into();
     d.vendor_number = identity(node, 1);
     d.product_number = identity(node, 2);
     d.revision_number = identity(node, 3);
@@ -287,8 +313,8 @@ pub fn model(node: &mut CanNode, file_name: &str) -> Eds {
     for (index, name, object_type, specs) in layout(node) {
         let mut subs = Vec::with_capacity(specs.len());
         for (sub, sub_name, ty) in specs {
-            let rpdo = node_maps(Direction::Receive, index, sub, ty);
-            let tpdo = node_maps(Direction::Transmit, index, sub, ty);
+            let rpdo = node_maps(kind, Direction::Receive, index, sub, ty);
+            let tpdo = node_maps(kind, Direction::Transmit, index, sub, ty);
             let access = node
                 .object_info(index, sub)
                 .map(|i| i.access)
