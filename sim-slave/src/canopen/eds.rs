@@ -22,11 +22,12 @@ use super::dictionary::{
     ERROR_REGISTER, IDENTITY, INHIBIT_TIME_EMCY, MISSED_SETPOINT_LIMIT, PREDEFINED_ERROR_FIELD,
     PRODUCER_HEARTBEAT_TIME, SOFTWARE_VERSION, SYNC_COUNTER_OVERFLOW,
 };
-use super::node::CanNode;
+use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use super::pdo::{
     self, Direction, MAX_MAPPED, PDO_COUNT, RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION,
     TPDO_MAPPING,
 };
+use crate::config::SimConfig;
 
 /// The EDS type of a CiA 402 object type.
 pub const fn eds_type(kind: Cia402Type) -> DataType {
@@ -339,6 +340,51 @@ pub fn model(node: &mut CanNode, file_name: &str) -> Eds {
         e.insert(object);
     }
     e
+}
+
+/// A chain node whose EDS cannot be written.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum ChainEdsError {
+    /// No slave has that node id.
+    #[error("no slave of the chain has node = {node} (the slaves' node ids: {known})")]
+    NoSuchNode {
+        /// The id asked for.
+        node: u8,
+        /// Those there are.
+        known: String,
+    },
+    /// The slave cannot be a node.
+    #[error(transparent)]
+    Slave(#[from] SlaveNodeError),
+    /// The node cannot be built.
+    #[error(transparent)]
+    Node(#[from] CanNodeError),
+}
+
+/// The EDS of the slave with CANopen node id `node` in a chain description, as that
+/// node powers on, named `file_name` (what `gantry-sim eds` writes).
+pub fn for_chain_node(config: &SimConfig, node: u8, file_name: &str) -> Result<Eds, ChainEdsError> {
+    let index = config
+        .slaves
+        .iter()
+        .position(|s| s.node() == Some(node))
+        .ok_or_else(|| ChainEdsError::NoSuchNode {
+            node,
+            known: {
+                let ids: Vec<String> = config
+                    .slaves
+                    .iter()
+                    .filter_map(|s| s.node().map(|n| n.to_string()))
+                    .collect();
+                if ids.is_empty() {
+                    "none".to_string()
+                } else {
+                    ids.join(", ")
+                }
+            },
+        })?;
+    let mut n = CanNode::new(CanNodeConfig::from_slave(config, index)?)?;
+    Ok(model(&mut n, file_name))
 }
 
 /// The EDS text of `node` as it powers on (see [`model`]).
