@@ -7,6 +7,7 @@
 //! master.
 
 pub mod bus;
+pub mod device;
 pub mod dictionary;
 pub mod eds;
 pub mod nmt;
@@ -14,4 +15,5 @@ pub mod node;
 pub mod pdo;
 
 pub use bus::CanBus;
-pub use node::{CanNode, CanNodeConfig, CanNodeError};
+pub use device::{CanDevice, CanDeviceConfig, DeviceKind};
+pub use node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
