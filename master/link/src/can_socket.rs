@@ -18,6 +18,7 @@
 //! (master and simulator) talk over one vcan interface; a socket never receives its own
 //! frames (`CAN_RAW_RECV_OWN_MSGS` stays off).
 
+use std::cell::Cell;
 use std::fmt;
 use std::io;
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd, RawFd};
@@ -175,7 +176,7 @@ pub struct CanSocket {
     socket: socketcan::CanSocket,
     interface: InterfaceName,
     /// Frames skipped because they cannot be CANopen frames (29-bit identifiers).
-    skipped: u64,
+    skipped: Cell<u64>,
 }
 
 /// `CLOCK_MONOTONIC` now, ns (the clock of [`CanSocket::recv_until`]'s deadline).
@@ -239,7 +240,7 @@ impl CanSocket {
         Ok(Self {
             socket,
             interface: name,
-            skipped: 0,
+            skipped: Cell::new(0),
         })
     }
 
@@ -251,7 +252,7 @@ impl CanSocket {
     /// Frames received and skipped so far because they were not base-format (11-bit)
     /// frames, the only ones CANopen's predefined connection set uses.
     pub fn skipped(&self) -> u64 {
-        self.skipped
+        self.skipped.get()
     }
 
     /// Sends one frame without waiting. A full transmit queue is
@@ -280,7 +281,7 @@ impl CanSocket {
     }
 
     /// The next frame already received, if any; never waits.
-    pub fn try_recv(&mut self) -> Result<Option<Received>, CanSocketError> {
+    pub fn try_recv(&self) -> Result<Option<Received>, CanSocketError> {
         loop {
             match self.socket.read_frame_with_timestamps() {
                 Ok((frame, stamps)) => {
@@ -289,7 +290,7 @@ impl CanSocket {
                         return Ok(Some(Received { frame, stamp_ns }));
                     }
                     // A 29-bit or error frame shares the bus; not ours.
-                    self.skipped += 1;
+                    self.skipped.set(self.skipped.get() + 1);
                 }
                 Err(e) => {
                     return match e.raw_os_error() {
@@ -315,7 +316,7 @@ impl CanSocket {
     /// The next frame, waiting for it at most until `deadline_ns` on `CLOCK_MONOTONIC`
     /// (see [`monotonic_ns`]); None when none came by then. A deadline already past
     /// still returns a frame that is waiting.
-    pub fn recv_until(&mut self, deadline_ns: u64) -> Result<Option<Received>, CanSocketError> {
+    pub fn recv_until(&self, deadline_ns: u64) -> Result<Option<Received>, CanSocketError> {
         loop {
             if let Some(received) = self.try_recv()? {
                 return Ok(Some(received));
