@@ -221,6 +221,7 @@ fn axis(
     AxisSection {
         name: name.into(),
         drive,
+        node: None,
         kind: "linear".into(),
         units: "mm".into(),
         modulo: None,
