@@ -11,7 +11,7 @@
 use std::io::{self, Write};
 
 use gantry_drives::canopen::cob_id::{CobId, NodeId, RPDO1_BASE, TPDO1_BASE};
-use gantry_drives::canopen::heartbeat::Heartbeat;
+use gantry_drives::canopen::heartbeat::{Heartbeat, NmtState};
 use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
 use gantry_drives::canopen::sdo::{
     AbortCode, DownloadMode, Multiplexer, Outcome, SdoClient, SdoConfig, Side, UploadMode,
@@ -128,6 +128,20 @@ pub enum StartError {
         node: u8,
         /// Its 0x1000.
         device_type: u32,
+    },
+    /// A node's heartbeat did not report Operational after NMT start.
+    #[error(
+        "CANopen node {node}: not Operational {waited_ms} ms after NMT start (its last \
+         heartbeat: {})",
+        match state { Some(s) => format!("{s:?}"), None => "none".to_string() }
+    )]
+    NotStarted {
+        /// The node.
+        node: u8,
+        /// What its last heartbeat said.
+        state: Option<NmtState>,
+        /// How long gantry waited.
+        waited_ms: u64,
     },
     /// The SDO client's configuration.
     #[error("CANopen: SDO client: {0}")]
@@ -456,10 +470,12 @@ fn upload_u32(
 }
 
 /// Bring-up: every step in order on `link`, printing them to `out`. Returns what each
-/// node said of itself; the nodes are Operational, their PDOs synchronous.
+/// node said of itself; the nodes are Operational (each said so in a heartbeat within
+/// `consumer_ns` of NMT start), their PDOs synchronous.
 pub fn run(
     link: &mut dyn CanLink,
     drives: &[DriveSetup],
+    consumer_ns: u64,
     out: &mut (dyn Write + Send),
 ) -> Result<Vec<NodeInfo>, StartError> {
     // What waits from before (a node's power-on boot-up) is not the answer to our reset.
@@ -583,6 +599,37 @@ pub fn run(
             &nmt(NmtCommand::Start, NmtTarget::Node(d.node)),
             "sending NMT start",
         )?;
+    }
+    // Each node's next heartbeat (its new 0x1017 time) says it is Operational.
+    let start = link.now_ns();
+    let deadline = start + consumer_ns;
+    let mut state: Vec<Option<NmtState>> = vec![None; drives.len()];
+    while state.iter().any(|s| *s != Some(NmtState::Operational)) {
+        let Some(r) = link.receive(deadline).map_err(|source| StartError::Link {
+            what: "waiting for the nodes' heartbeats",
+            source,
+        })?
+        else {
+            break;
+        };
+        if let Ok(hb) = Heartbeat::parse(&r.frame) {
+            if let Some(i) = drives.iter().position(|d| d.node == hb.node) {
+                if let Some(slot) = state.get_mut(i) {
+                    *slot = Some(hb.state);
+                }
+            }
+        }
+    }
+    if let Some((d, s)) = drives
+        .iter()
+        .zip(&state)
+        .find(|(_, s)| **s != Some(NmtState::Operational))
+    {
+        return Err(StartError::NotStarted {
+            node: d.node.get(),
+            state: *s,
+            waited_ms: link.now_ns().saturating_sub(start) / 1_000_000,
+        });
     }
     let _ = writeln!(out, "CANopen: {} nodes operational", drives.len());
     Ok(infos)
