@@ -13,8 +13,15 @@ use serde::Deserialize;
 pub struct AxisSection {
     /// Name used by commands (`gantry move x …`).
     pub name: String,
-    /// Position of its drive in the chain (0 = next to the master).
+    /// Position of its drive on the bus: on EtherCAT the slave's position in the chain
+    /// (0 = next to the master), written in the file. On CANopen it is not written: the
+    /// configuration sets it to the axis' own position in the file (axis `i` is on bus
+    /// position `i`, the node its `node` names — each axis has a node of its own).
+    #[serde(default = "drive_unset")]
     pub drive: usize,
+    /// CANopen: the node id of the axis' drive (1..=127, one node per axis).
+    #[serde(default)]
+    pub node: Option<u8>,
     /// `"linear"` or `"rotary"`.
     #[serde(default = "linear")]
     pub kind: String,
@@ -56,6 +63,12 @@ pub struct AxisSection {
     pub switches: super::switches::SwitchesSection,
 }
 
+/// `drive` as read when the file does not give it.
+pub const DRIVE_UNSET: usize = usize::MAX;
+
+fn drive_unset() -> usize {
+    DRIVE_UNSET
+}
 fn linear() -> String {
     "linear".into()
 }
