@@ -254,7 +254,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
