@@ -39,6 +39,13 @@ pub trait CycleBus {
         let _ = drive;
         true
     }
+    /// The error drive `drive` reported outside its process data (CANopen: its EMCY),
+    /// while in force (until the drive reports it gone). Without such a channel (EtherCAT
+    /// drives report through 0x603F in the process data): none.
+    fn drive_error(&self, drive: usize) -> Option<DriveError> {
+        let _ = drive;
+        None
+    }
     /// Whether any drive cannot be reached.
     fn any_fault(&self) -> bool;
     /// Forgets the faults once a drive is back (after a reset); they return with the next
@@ -86,6 +93,17 @@ pub trait CycleBus {
     fn take_sdo(&mut self) -> Option<SdoResult> {
         None
     }
+}
+
+/// An error a drive reported outside its process data ([`CycleBus::drive_error`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DriveError {
+    /// The error code (CiA 301 / CiA 402 emergency code: the drive's 0x603F for its
+    /// faults).
+    pub code: u16,
+    /// It came with the last exchange: a new error, which stops the axis whether or not
+    /// the drive faulted (the cycle gives it to the kernel as the drive's fault once).
+    pub fresh: bool,
 }
 
 /// How an exchange went.
