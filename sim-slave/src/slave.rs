@@ -748,10 +748,10 @@ impl Slave {
 
     /// Writes the answer the firmware worked on to SM1 and marks it full, once it is due.
     fn post_answer(&mut self) {
-        if !self
+        if self
             .answer_due
             .as_ref()
-            .is_some_and(|(due, _)| *due <= self.now)
+            .is_none_or(|(due, _)| *due > self.now)
         {
             return;
         }
