@@ -575,10 +575,11 @@ impl Slave {
                 }
             }
             // A request that waited for the answer before it to be read is served now.
-            let waiting = self
-                .mailbox(Kind::MailboxWrite)
+            let waiting = emptied
+                .then(|| self.mailbox(Kind::MailboxWrite))
+                .flatten()
                 .filter(|(_, s)| s.status & status::MAILBOX_FULL != 0);
-            if let (true, Some((n, s))) = (emptied, waiting) {
+            if let Some((n, s)) = waiting {
                 self.on_mailbox_write(n, s);
             }
         }
