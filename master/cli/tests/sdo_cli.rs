@@ -39,7 +39,9 @@ fn stop(mut svc: Service) {
 
 #[test]
 fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
-    let svc = Service::start("sdo-cli");
+    // The last drive's firmware answers its mailbox in 40 ms (its `[slave.al]` table is
+    // the file's last).
+    let svc = Service::start_with("sdo-cli", |servos| servos + "mailbox_ms = 40\n");
     // The simulated servo: CiA 402, device type 0x00020192 (0x1000), CSP (0x6060 = 8).
     assert_eq!(
         value(
@@ -156,6 +158,31 @@ fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
     assert!(e.contains("cannot be used with"), "{e}");
     let e = svc.fails(&["sdo", "upload", "0x1000:0"]);
     assert!(e.contains("--axis") && e.contains("--drive"), "{e}");
+    // A drive slower than the time given it (its firmware answers in 40 ms): the
+    // transfer times out and says so; its late answer is passed over by the next one.
+    let e = svc.fails(&[
+        "sdo",
+        "upload",
+        "--axis",
+        "c",
+        "0x1018:1",
+        "--timeout",
+        "0.01",
+    ]);
+    assert!(
+        e.contains("drive 3: SDO 0x1018:01: no answer within 1"),
+        "{e}"
+    );
+    assert_eq!(
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "c", "0x6060:0", "--type", "u8"]
+        ),
+        "8"
+    );
+    let e = svc.fails(&["sdo", "upload", "--axis", "c", "0x6060:0", "--timeout", "0"]);
+    assert!(e.contains("--timeout must be 0.001 to 60 s"), "{e}");
+
     // What a script may send on the socket, checked there too.
     for (line, says) in [
         (

@@ -38,6 +38,12 @@ impl Service {
     /// The example configuration as shipped, with `bus.simulator_record` on, from a
     /// folder of its own.
     pub fn start(tag: &str) -> Self {
+        Self::start_with(tag, |servos| servos)
+    }
+
+    /// [`Service::start`] with the simulated chain's file (`sim-4-servos.toml`) as
+    /// `servos` changes it.
+    pub fn start_with(tag: &str, servos: impl FnOnce(String) -> String) -> Self {
         let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
@@ -48,7 +54,8 @@ impl Service {
             text.replace(off, "simulator_record = \"drive-records.json\""),
         )
         .unwrap();
-        std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
+        let chain = std::fs::read_to_string(example("sim-4-servos.toml")).unwrap();
+        std::fs::write(dir.join("sim-4-servos.toml"), servos(chain)).unwrap();
         let socket = dir.join("gantry.sock");
         let child = gantry()
             .args(["run", "--no-rt", "--config"])
