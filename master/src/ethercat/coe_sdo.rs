@@ -286,6 +286,11 @@ pub struct CoeSdo {
     data: SdoData,
     size: u32,
     sent: usize,
+    /// The transfer before this one timed out with its request out: its answer may
+    /// still come, so an initiate answer that is not this transfer's is passed over.
+    late_answer_possible: bool,
+    /// This transfer timed out with a request out (see `late_answer_possible`).
+    left_unanswered: bool,
 }
 
 impl CoeSdo {
@@ -308,7 +313,23 @@ impl CoeSdo {
             data: SdoData::EMPTY,
             size: 0,
             sent: 0,
+            late_answer_possible: false,
+            left_unanswered: false,
         }
+    }
+
+    /// The same transfer, told that the one before it timed out with its request out
+    /// ([`CoeSdo::left_unanswered`]): an initiate answer that is not for this request (another
+    /// object, another command) is that late answer and passed over, instead of a
+    /// protocol error.
+    pub fn after_unanswered(mut self, late_answer_possible: bool) -> Self {
+        self.late_answer_possible = late_answer_possible;
+        self
+    }
+
+    /// Whether it timed out with a request out, whose answer may still come.
+    pub fn left_unanswered(&self) -> bool {
+        self.left_unanswered
     }
 
     /// The counter of the last message sent (the next transfer starts after it).
@@ -393,6 +414,9 @@ impl CoeSdo {
         if matches!(self.step, Step::Done(_)) || waited_ns < self.request.timeout_ns {
             return;
         }
+        self.left_unanswered =
+            matches!(self.step, Step::Await(_) | Step::Read(_) | Step::Repeat(_))
+                || self.late_answer_possible;
         let r = &self.request;
         self.step = Step::Done(Err(SdoError::TimedOut {
             drive: r.drive,
@@ -460,7 +484,7 @@ impl CoeSdo {
         };
         match (msg, r.kind) {
             (Message::Initiate, SdoKind::Upload) => {
-                if !names_object {
+                if !names_object || (scs != 2 && self.late_answer_possible) {
                     // A late answer to an earlier transfer (one that timed out): not ours.
                     return Step::Await(msg);
                 }
@@ -529,7 +553,7 @@ impl CoeSdo {
                 }
             }
             (Message::Initiate, SdoKind::Download(data)) => {
-                if !names_object {
+                if !names_object || (scs != 3 && self.late_answer_possible) {
                     // A late answer to an earlier transfer (one that timed out): not ours.
                     return Step::Await(msg);
                 }
@@ -932,6 +956,35 @@ mod tests {
             "{:?}",
             t.outcome()
         );
+    }
+
+    #[test]
+    fn a_late_answer_to_a_transfer_that_timed_out_is_passed_over() {
+        let mut up = SdoRequest::upload(0, 0x6060, 0);
+        up.timeout_ns = 10;
+        let mut t = CoeSdo::new(MAILBOX, up, None, 0);
+        t.on_answer(MailboxAnswer::Written, &[], 20);
+        assert!(matches!(t.outcome(), Some(Err(SdoError::TimedOut { .. }))));
+        assert!(t.left_unanswered(), "its request was out");
+        // The next transfer, a download to the same object, first meets the late upload
+        // answer: passed over, then its own answer.
+        let data = SdoData::new(&[9]).unwrap();
+        let req = SdoRequest::download(0, 0x6060, 0, data);
+        let mut t = CoeSdo::new(MAILBOX, req, Some(t.counter()), 0).after_unanswered(true);
+        let late = answer(COE_SDO_RESPONSE, &[0x4F, 0x60, 0x60, 0x00, 8, 0, 0, 0]);
+        exchange(&mut t, &late, 1);
+        assert_eq!(t.outcome(), None, "not ours: waiting on");
+        exchange_read(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x60, 0x60, 0x60, 0, 0, 0, 0, 0]),
+            2,
+        );
+        assert_eq!(t.outcome(), Some(Ok(SdoData::EMPTY)));
+        assert!(!t.left_unanswered());
+        // Without a transfer left unanswered, the same answer is a protocol error.
+        let mut t = CoeSdo::new(MAILBOX, req, Some(3), 0);
+        exchange(&mut t, &late, 1);
+        assert!(matches!(t.outcome(), Some(Err(SdoError::Protocol { .. }))));
     }
 
     #[test]
