@@ -8,22 +8,20 @@
 //! cycle's.
 
 use std::collections::VecDeque;
-use std::io;
 use std::sync::{Arc, Mutex};
 
-use gantry::canopen::{CanLink, CanopenBus, Received};
+use gantry::canopen::CanopenBus;
 use gantry::runtime::bus::CycleBus;
 use gantry::runtime::clock::StepClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::Engine;
 use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
-use gantry_drives::canopen::{CanFrame, NodeId};
+use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_sim::canopen::CanNode;
-use gantry_tests::can_rig::{can_config, servos};
+use gantry_tests::can_rig::{can_config, servos, Nodes, NodesLink, QUEUE};
 
 mod counting {
     include!("../../kernel/tests/common/counting_alloc.rs");
@@ -32,86 +30,11 @@ mod counting {
 #[global_allocator]
 static ALLOC: counting::Counting = counting::Counting;
 
-const QUEUE: usize = 4096;
-
-/// Nodes behind a fixed queue: a frame the master sends reaches every node at once, what
-/// they answer waits in the queue for the master.
-struct Nodes {
-    nodes: Vec<CanNode>,
-    queue: VecDeque<CanFrame>,
-    clock_ns: u64,
-    stepped: bool,
-    drop: Option<u16>,
-    overflow: u64,
-}
-
-impl Nodes {
-    fn push(queue: &mut VecDeque<CanFrame>, overflow: &mut u64, drop: Option<u16>, f: &[CanFrame]) {
-        for frame in f {
-            if Some(frame.id()) == drop {
-                continue;
-            }
-            if queue.len() < QUEUE {
-                queue.push_back(*frame);
-            } else {
-                *overflow += 1;
-            }
-        }
-    }
-
-    fn tick(&mut self, to_ns: u64) {
-        self.clock_ns = self.clock_ns.max(to_ns);
-        for n in &mut self.nodes {
-            let out = n.tick(self.clock_ns);
-            Self::push(&mut self.queue, &mut self.overflow, self.drop, out);
-        }
-    }
-
-    fn deliver(&mut self, frame: &CanFrame) {
-        for n in &mut self.nodes {
-            let out = n.receive(frame, self.clock_ns);
-            Self::push(&mut self.queue, &mut self.overflow, self.drop, out);
-        }
-    }
-}
-
-type Shared = Arc<Mutex<Nodes>>;
-
-struct NodesLink(Shared);
-
-impl CanLink for NodesLink {
-    fn send(&mut self, frame: &CanFrame) -> io::Result<()> {
-        self.0.lock().unwrap().deliver(frame);
-        Ok(())
-    }
-
-    fn receive(&mut self, deadline_ns: u64) -> io::Result<Option<Received>> {
-        let mut s = self.0.lock().unwrap();
-        loop {
-            if let Some(frame) = s.queue.pop_front() {
-                return Ok(Some(Received {
-                    frame,
-                    at_ns: Some(s.clock_ns),
-                }));
-            }
-            if s.stepped || s.clock_ns >= deadline_ns {
-                return Ok(None);
-            }
-            let next = deadline_ns.min(s.clock_ns + 100_000);
-            s.tick(next);
-        }
-    }
-
-    fn now_ns(&self) -> u64 {
-        self.0.lock().unwrap().clock_ns
-    }
-}
-
 #[test]
 fn the_canopen_cycle_does_not_allocate() {
     let ids = [1u8, 2, 3, 4];
     let config = can_config(&ids, 2000, "csp");
-    let shared: Shared = Arc::new(Mutex::new(Nodes {
+    let shared = Arc::new(Mutex::new(Nodes {
         nodes: servos(&ids),
         queue: VecDeque::with_capacity(QUEUE),
         clock_ns: 0,
