@@ -6,6 +6,9 @@
 //! line is the master's alone. The bus was brought up on simulated nodes before (SDO
 //! mapping: 8 drives × 1 RPDO + 2 TPDOs of the full CSP layout, at 4 ms they fit 1 Mbit/s).
 //! Also timed: the same cycle on the simulated nodes (master + 8 simulated drives).
+//!
+//! Measured (2026-11-25, this 2-core shared VM, release): master alone median 3.3 µs
+//! (mean 7.3, slowest of 100 17 µs); master + 8 simulated nodes median 26.7 µs.
 
 use std::collections::VecDeque;
 use std::io;
