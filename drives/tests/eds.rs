@@ -1,8 +1,8 @@
 //! EDS/DCF (CiA 306-1): a vendor-shaped servo EDS read and queried (checked once by hand:
 //! python-canopen 2.4.1's `import_od` reads the same file to the same data types, access,
 //! PDO mapping and defaults, but for the access of the CompactSubObj sub-indices 0, which
-//! it takes from the object and we give as `ro`: the count CompactSubObj fixes), round trips through
-//! the writer, a DCF, the PDO mapping check, one fixture per reader error with the file,
+//! it takes from the object and we give as `ro`: the count CompactSubObj fixes), round
+//! trips through the writer, a DCF, the PDO mapping check, one fixture per reader error with the file,
 //! line and section it names, and random input that must never panic.
 
 use gantry_drives::canopen::eds::{
@@ -174,7 +174,21 @@ fn pdo_mappings_are_checked_against_the_eds() {
         "TPDO 5 does not exist: acme_sx400.eds has 4"
     );
     assert!(matches!(err(T, 0, &[]), MappingError::NoPdo { .. }));
-    // The 32-bit form written to 0x1600:n.
+    // A device whose mapping cannot change (Granularity=0).
+    let mut fixed = e.clone();
+    fixed.device_info.granularity = 0;
+    assert_eq!(
+        fixed
+            .check_pdo(T, 1, &[entry(0x6041, 0, 16)])
+            .unwrap_err()
+            .to_string(),
+        "0x6041:00: acme_sx400.eds has Granularity=0: its PDO mapping cannot be changed"
+    );
+    // The 32-bit form written to 0x1600:n, and from the drive layer's objects.
+    assert_eq!(
+        MappingEntry::from(gantry_drives::cia402::objects::TARGET_POSITION),
+        entry(0x607A, 0, 32)
+    );
     assert_eq!(MappingEntry::from_u32(0x607A_0020), entry(0x607A, 0, 32));
     assert_eq!(entry(0x6040, 0, 16).to_u32(), 0x6040_0010);
 }
@@ -794,6 +808,12 @@ proptest! {
             prop_assert_eq!(back.as_ref().ok(), Some(&e), "{:?}", back.as_ref().err());
         }
     }
+
+}
+
+proptest! {
+    // Each case reads the 1460-line vendor file: fewer cases, each a whole file.
+    #![proptest_config(ProptestConfig::with_cases(150))]
 
     /// The vendor file with one line dropped or replaced: never a panic.
     #[test]
