@@ -114,6 +114,40 @@ fn the_encoder_node_counts_its_shaft_and_sends_the_position_value_at_sync() {
     );
 }
 
+#[test]
+fn the_encoder_node_obeys_nmt() {
+    let node = CanNode::new(CanNodeConfig::encoder(id(6), 1000, 1.0)).unwrap();
+    let mut m = Master::with_nodes(vec![node]);
+    m.step(0);
+    m.nmt(NmtCommand::Start, Some(6));
+    for _ in 0..500 {
+        cycle(&mut m, &[]);
+    }
+    m.write(6, 0x6003, 0, &7u32.to_le_bytes()).unwrap();
+    // Stopped: no TPDO at SYNC, no SDO answer (CiA 301 Table 41).
+    m.nmt(NmtCommand::Stop, Some(6));
+    m.take_inbox();
+    assert!(cycle(&mut m, &[]).iter().all(|(id, _)| *id != 0x186));
+    assert!(m.read(6, 0x6004, 0).is_err(), "no SDO in Stopped");
+    // Reset node: boot-up, pre-operational; the counter restarts at 0 and the preset
+    // object reads its power-on 0; the shaft (1 rev/s, 1000 counts/rev) turned on.
+    m.take_inbox();
+    let at_reset = m.now;
+    m.nmt(NmtCommand::ResetNode, Some(6));
+    let boot = heartbeats(&m.take_inbox(), 6);
+    assert_eq!(boot.len(), 1, "{boot:?}");
+    assert_eq!(u32_of(&m.read(6, 0x6003, 0).unwrap()), 0);
+    let since = (m.now - at_reset) as f64 * 1e-6;
+    let v = i64::from(u32_of(&m.read(6, 0x6004, 0).unwrap()));
+    assert!(
+        (v - since as i64).abs() <= 2,
+        "{v} counts {since} ms after the reset"
+    );
+    m.nmt(NmtCommand::Start, Some(6));
+    m.take_inbox();
+    assert!(cycle(&mut m, &[]).iter().any(|(id, _)| *id == 0x186));
+}
+
 /// Expected input byte at `position` with the two cams.
 fn levels(position: i64) -> u8 {
     u8::from(REFERENCE.level(position)) | (u8::from(POSITIVE_LIMIT.level(position)) << 1)
