@@ -58,6 +58,7 @@ use thiserror::Error;
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
 use crate::esc::al::{Firmware, TransitionTimes};
+use crate::plant::servo::probe::DriveSwitches;
 use crate::plant::servo::ServoParams;
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
 
@@ -111,6 +112,8 @@ fn default_cycle_us() -> u32 {
 }
 
 /// One slave of the chain.
+// Read once at start: the servo's size costs nothing worth a box.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum SlaveConfig {
@@ -244,6 +247,66 @@ pub struct ServoConfig {
     pub fault_reaction_option_code: i16,
     /// How long its firmware takes for each AL transition (`[slave.al]`).
     pub al: AlConfig,
+    /// Switch cams on its own travel, read by its digital inputs 0x60FD
+    /// (`[slave.switches]`).
+    pub switches: ServoSwitches,
+}
+
+/// `[slave.switches]` of a servo: where on its travel (counts, both ends included) each
+/// switch its digital inputs (0x60FD) read is actuated. 0x60FD reports each switch
+/// function active (CiA 402: 1 = active), as a drive set up for its contacts' type does,
+/// so there is no polarity here; the home switch is also both touch probes' input.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServoSwitches {
+    /// Bit 0: the negative limit switch.
+    pub negative_limit: Option<[i64; 2]>,
+    /// Bit 1: the positive limit switch.
+    pub positive_limit: Option<[i64; 2]>,
+    /// Bit 2: the home (reference) switch.
+    pub home: Option<[i64; 2]>,
+}
+
+impl ServoSwitches {
+    /// The cams, each on its 0x60FD bit, named by their key.
+    fn cams(&self) -> impl Iterator<Item = (&'static str, SwitchCam)> + '_ {
+        [
+            ("negative_limit", self.negative_limit),
+            ("positive_limit", self.positive_limit),
+            ("home", self.home),
+        ]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(input, (key, range))| {
+            range.map(|[from, to]| {
+                (
+                    key,
+                    SwitchCam {
+                        input: input as u8,
+                        from,
+                        to,
+                        normally_closed: false,
+                    },
+                )
+            })
+        })
+    }
+
+    /// The drive's switches.
+    pub fn drive_switches(&self) -> DriveSwitches {
+        let mut cams = [SwitchCam {
+            input: 0,
+            from: 0,
+            to: 0,
+            normally_closed: false,
+        }; 3];
+        let mut n = 0;
+        for ((_, c), slot) in self.cams().zip(cams.iter_mut()) {
+            *slot = c;
+            n += 1;
+        }
+        DriveSwitches::new(cams.get(..n).unwrap_or_default())
+    }
 }
 
 impl Default for ServoConfig {
@@ -277,6 +340,7 @@ impl Default for ServoConfig {
             disable_operation_option_code: p.disable_operation_option_code,
             fault_reaction_option_code: p.fault_reaction_option_code,
             al: AlConfig::default(),
+            switches: ServoSwitches::default(),
         }
     }
 }
@@ -296,6 +360,7 @@ impl ServoConfig {
             max_speed_rpm: c.max_speed_rpm,
             pole_pairs: c.pole_pairs,
             index_at: c.index_at,
+            switches: c.switches.drive_switches(),
             commutation_offset: c.commutation_offset,
             loop_rate_hz: c.loop_rate_hz,
             current_loop_hz: c.current_loop_hz,
@@ -483,6 +548,14 @@ impl SimConfig {
                             n => n,
                         };
                         return Err(invalid(format!("slave[{i}].{name}"), &e.reason));
+                    }
+                    for (key, cam) in servo.switches.cams() {
+                        if cam.from > cam.to {
+                            return Err(invalid(
+                                format!("slave[{i}].switches.{key}"),
+                                &format!("from {} is above to {}", cam.from, cam.to),
+                            ));
+                        }
                     }
                     if !(servo.dc_drift_ppm.is_finite()
                         && servo.dc_drift_ppm.abs() <= MAX_DC_DRIFT_PPM)
@@ -730,6 +803,37 @@ mod tests {
         let c = SimConfig::parse(&example, "doc").unwrap();
         assert_eq!(c.slaves.len(), 3);
         assert_eq!(c.chain().unwrap().slaves().len(), 3);
+    }
+
+    #[test]
+    fn a_servo_s_switch_cams() {
+        let c = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.switches]\nhome = [100, 200]\npositive_limit = [5000, 9000]\n",
+            "sim.toml",
+        )
+        .unwrap();
+        let SlaveConfig::Servo(servo) = &c.slaves[0] else {
+            panic!("{:?}", c.slaves[0]);
+        };
+        let switches = servo.params().switches;
+        assert_eq!(switches.digital_inputs(150), 0b100);
+        assert_eq!(switches.digital_inputs(6000), 0b010);
+        assert_eq!(switches.digital_inputs(-6000), 0);
+        let e = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.switches]\nhome = [300, 200]\n",
+            "sim.toml",
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "sim.toml: slave[0].switches.home: from 300 is above to 200"
+        );
+        let e = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\n[slave.switches]\nreference = [1, 2]\n",
+            "sim.toml",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("unknown field `reference`"), "{e}");
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! `tests/tests/`; what they share lives here, in the master (`gantry::ethercat`) and in the binary's
 //! in-process simulator (`gantry_cli::simulator`, `gantry_cli::embedded`).
 
+pub mod can;
 pub mod cyclic_frame;
 pub mod dc_phase;
 pub mod drive_counts;

@@ -43,7 +43,7 @@ const MODES_OF_OPERATION: usize = 4;
 const TOUCH_PROBE_FUNCTION: usize = 5;
 
 /// The objects the views know in the inputs (TxPDO, drive → master).
-pub const INPUT_OBJECTS: [ObjectId; 10] = [
+pub const INPUT_OBJECTS: [ObjectId; 13] = [
     objects::STATUSWORD,
     objects::POSITION_ACTUAL_VALUE,
     objects::VELOCITY_ACTUAL_VALUE,
@@ -54,6 +54,9 @@ pub const INPUT_OBJECTS: [ObjectId; 10] = [
     objects::TOUCH_PROBE_STATUS,
     objects::TOUCH_PROBE_POS1_POS_VALUE,
     objects::DIGITAL_INPUTS,
+    objects::TOUCH_PROBE_POS1_NEG_VALUE,
+    objects::TOUCH_PROBE_POS2_POS_VALUE,
+    objects::TOUCH_PROBE_POS2_NEG_VALUE,
 ];
 const STATUSWORD: usize = 0;
 const POSITION_ACTUAL_VALUE: usize = 1;
@@ -65,6 +68,9 @@ const MODES_OF_OPERATION_DISPLAY: usize = 6;
 const TOUCH_PROBE_STATUS: usize = 7;
 const TOUCH_PROBE_POS1_POS_VALUE: usize = 8;
 const DIGITAL_INPUTS: usize = 9;
+const TOUCH_PROBE_POS1_NEG_VALUE: usize = 10;
+const TOUCH_PROBE_POS2_POS_VALUE: usize = 11;
+const TOUCH_PROBE_POS2_NEG_VALUE: usize = 12;
 
 /// One direction of the process data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -361,6 +367,27 @@ impl<'m, T: AsRef<[u8]>> InputImage<'m, T> {
     pub fn digital_inputs(&self) -> Option<u32> {
         self.0.get(DIGITAL_INPUTS).map(u32::from_le_bytes)
     }
+
+    /// 0x60BB Touch probe position 1 negative value (increments).
+    pub fn touch_probe_pos1_neg_value(&self) -> Option<i32> {
+        self.0
+            .get(TOUCH_PROBE_POS1_NEG_VALUE)
+            .map(i32::from_le_bytes)
+    }
+
+    /// 0x60BC Touch probe position 2 positive value (increments).
+    pub fn touch_probe_pos2_pos_value(&self) -> Option<i32> {
+        self.0
+            .get(TOUCH_PROBE_POS2_POS_VALUE)
+            .map(i32::from_le_bytes)
+    }
+
+    /// 0x60BD Touch probe position 2 negative value (increments).
+    pub fn touch_probe_pos2_neg_value(&self) -> Option<i32> {
+        self.0
+            .get(TOUCH_PROBE_POS2_NEG_VALUE)
+            .map(i32::from_le_bytes)
+    }
 }
 
 impl<T: AsRef<[u8]> + AsMut<[u8]>> InputImage<'_, T> {
@@ -413,6 +440,21 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> InputImage<'_, T> {
     /// Sets 0x60FD Digital inputs (nothing when not mapped).
     pub fn set_digital_inputs(&mut self, value: u32) {
         self.0.put(DIGITAL_INPUTS, &value.to_le_bytes());
+    }
+
+    /// Sets 0x60BB Touch probe position 1 negative value (nothing when not mapped).
+    pub fn set_touch_probe_pos1_neg_value(&mut self, value: i32) {
+        self.0.put(TOUCH_PROBE_POS1_NEG_VALUE, &value.to_le_bytes());
+    }
+
+    /// Sets 0x60BC Touch probe position 2 positive value (nothing when not mapped).
+    pub fn set_touch_probe_pos2_pos_value(&mut self, value: i32) {
+        self.0.put(TOUCH_PROBE_POS2_POS_VALUE, &value.to_le_bytes());
+    }
+
+    /// Sets 0x60BD Touch probe position 2 negative value (nothing when not mapped).
+    pub fn set_touch_probe_pos2_neg_value(&mut self, value: i32) {
+        self.0.put(TOUCH_PROBE_POS2_NEG_VALUE, &value.to_le_bytes());
     }
 }
 

@@ -124,6 +124,27 @@ pub const TOUCH_PROBE_POS1_POS_VALUE: ObjectId = obj(
     DataType::I32,
     "Touch probe position 1 positive value",
 );
+/// 0x60BB Touch probe position 1 negative value.
+pub const TOUCH_PROBE_POS1_NEG_VALUE: ObjectId = obj(
+    0x60BB,
+    0,
+    DataType::I32,
+    "Touch probe position 1 negative value",
+);
+/// 0x60BC Touch probe position 2 positive value.
+pub const TOUCH_PROBE_POS2_POS_VALUE: ObjectId = obj(
+    0x60BC,
+    0,
+    DataType::I32,
+    "Touch probe position 2 positive value",
+);
+/// 0x60BD Touch probe position 2 negative value.
+pub const TOUCH_PROBE_POS2_NEG_VALUE: ObjectId = obj(
+    0x60BD,
+    0,
+    DataType::I32,
+    "Touch probe position 2 negative value",
+);
 /// 0x60F4 Following error actual value.
 pub const FOLLOWING_ERROR_ACTUAL_VALUE: ObjectId =
     obj(0x60F4, 0, DataType::I32, "Following error actual value");
@@ -133,7 +154,7 @@ pub const DIGITAL_INPUTS: ObjectId = obj(0x60FD, 0, DataType::U32, "Digital inpu
 pub const TARGET_VELOCITY: ObjectId = obj(0x60FF, 0, DataType::I32, "Target velocity");
 
 /// Every object above, for tables and lookups.
-pub const ALL: [ObjectId; 32] = [
+pub const ALL: [ObjectId; 35] = [
     ERROR_CODE,
     CONTROLWORD,
     STATUSWORD,
@@ -163,6 +184,9 @@ pub const ALL: [ObjectId; 32] = [
     TOUCH_PROBE_FUNCTION,
     TOUCH_PROBE_STATUS,
     TOUCH_PROBE_POS1_POS_VALUE,
+    TOUCH_PROBE_POS1_NEG_VALUE,
+    TOUCH_PROBE_POS2_POS_VALUE,
+    TOUCH_PROBE_POS2_NEG_VALUE,
     FOLLOWING_ERROR_ACTUAL_VALUE,
     DIGITAL_INPUTS,
     TARGET_VELOCITY,

@@ -52,8 +52,8 @@ impl Latch {
     }
 }
 
-/// Touch-probe latches of one axis (CiA 402 touch probe 1: 0x60BA positive edge,
-/// 0x60BC negative edge of its input; touch probe on the encoder's zero pulse).
+/// Touch-probe latches of one axis (CiA 402 touch probe 1 on its input: 0x60BA positive
+/// edge, 0x60BB negative edge; touch probe 2 on the encoder's zero pulse: 0x60BC).
 ///
 /// The probe input is the reference switch — or, for homing on a limit switch
 /// (`SwitchConfig::LimitSwitch`), the limit switch the drive's touch-probe source (vendor

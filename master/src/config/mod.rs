@@ -7,10 +7,12 @@
 mod axis;
 mod bus;
 mod error;
+mod switches;
 
 pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection};
 pub use bus::{BusSection, FaultsSection, RtSection};
 pub use error::ConfigError;
+pub use switches::{SwitchSource, SwitchesSection};
 
 use gantry_kernel::AxisConfig;
 use serde::Deserialize;

@@ -2,7 +2,9 @@
 //! [`crate::plant::servo`] behind an NMT slave ([`nmt`]), SDO server on its object
 //! dictionary ([`dictionary`]), PDOs with the CiA 301 configuration rules ([`pdo`]),
 //! SYNC, EMCY and heartbeat, sans-I/O ([`node::CanNode`]); its EDS ([`eds`]); and an
-//! in-memory CAN bus that delivers frames to several nodes in lockstep ([`bus::CanBus`]).
+//! in-memory CAN bus that delivers frames to several nodes in lockstep ([`bus::CanBus`]);
+//! the nodes of a chain description behind one CAN interface ([`network::CanNetwork`],
+//! `gantry-sim --can`).
 //! The wire formats and the SDO machines are `gantry_drives::canopen`, shared with the
 //! master.
 
@@ -10,10 +12,12 @@ pub mod bus;
 pub mod device;
 pub mod dictionary;
 pub mod eds;
+pub mod network;
 pub mod nmt;
 pub mod node;
 pub mod pdo;
 
 pub use bus::CanBus;
 pub use device::{CanDevice, CanDeviceConfig, DeviceKind};
+pub use network::{CanNetwork, CanNetworkError};
 pub use node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};

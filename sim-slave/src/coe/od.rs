@@ -250,6 +250,7 @@ impl ObjectDictionary {
             objects::TARGET_POSITION,
             objects::TARGET_VELOCITY,
             objects::TARGET_TORQUE,
+            objects::TOUCH_PROBE_FUNCTION,
         ] {
             od.insert(o.index, o.sub, &vec![0; o.kind.size()], true);
         }
@@ -262,6 +263,12 @@ impl ObjectDictionary {
             objects::TORQUE_ACTUAL_VALUE,
             objects::ERROR_CODE,
             objects::FOLLOWING_ERROR_ACTUAL_VALUE,
+            objects::TOUCH_PROBE_STATUS,
+            objects::TOUCH_PROBE_POS1_POS_VALUE,
+            objects::TOUCH_PROBE_POS1_NEG_VALUE,
+            objects::TOUCH_PROBE_POS2_POS_VALUE,
+            objects::TOUCH_PROBE_POS2_NEG_VALUE,
+            objects::DIGITAL_INPUTS,
         ] {
             od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
         }

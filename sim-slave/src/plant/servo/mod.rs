@@ -46,6 +46,7 @@
 
 pub mod motor;
 pub mod params;
+pub mod probe;
 
 use gantry_drives::cia402::controlword::Command;
 use gantry_drives::cia402::image::{InputImage, OutputImage, PdoMap};
@@ -60,6 +61,7 @@ use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
 use motor::{Drive, Gains, Motor};
 pub use params::{ParamError, ServoParams};
+use probe::{Edge, TouchProbe};
 
 /// Most process data bytes per direction the model handles.
 const MAX_PDO_BYTES: usize = 64;
@@ -81,19 +83,6 @@ const MAX_SUBSTEPS: usize = 1600;
 const CSP: i8 = 8;
 const CSV: i8 = 9;
 const CST: i8 = 10;
-
-/// Touch probe function bits (CiA 402 0x60B8): enable probe 1; continuous (else first
-/// event only); trigger on the encoder's zero impulse (else the probe input); sample the
-/// positive edge.
-mod tp {
-    pub const ENABLE_1: u16 = 1 << 0;
-    pub const CONTINUOUS_1: u16 = 1 << 1;
-    pub const ZERO_IMPULSE_1: u16 = 1 << 2;
-    pub const POSITIVE_EDGE_1: u16 = 1 << 4;
-    /// Touch probe status (0x60B9): probe 1 enabled; positive edge value stored.
-    pub const STATUS_ENABLED_1: u16 = 1 << 0;
-    pub const STATUS_STORED_1: u16 = 1 << 1;
-}
 
 /// How the drive brakes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -219,9 +208,8 @@ pub struct ServoDrive {
     braking: Option<Braking>,
     /// Where the drive holds the load in Quick stop active once stopped.
     hold: f64,
-    touch_probe_function: u16,
-    touch_probe_status: u16,
-    touch_probe_pos1: i32,
+    /// Touch probes 1 and 2 (0x60B8–0x60BD).
+    probe: TouchProbe,
     layout: PdoLayout,
     /// Where `layout` puts each object: the process data is read and written through the
     /// view the master uses too (`gantry_drives::cia402::image`).
@@ -279,9 +267,7 @@ impl ServoDrive {
             following_time: 0.0,
             braking: None,
             hold: p,
-            touch_probe_function: 0,
-            touch_probe_status: 0,
-            touch_probe_pos1: 0,
+            probe: TouchProbe::default(),
             map: PdoMap::of(&layout),
             layout,
             record: DriveRecord::default(),
@@ -298,43 +284,33 @@ impl ServoDrive {
         electrical.cos()
     }
 
-    fn set_touch_probe(&mut self, function: u16) {
-        if function & tp::ENABLE_1 == 0 {
-            self.touch_probe_status = 0;
-        } else if self.touch_probe_function & tp::ENABLE_1 == 0 {
-            // Rising edge of the enable: arm, nothing stored yet.
-            self.touch_probe_status = tp::STATUS_ENABLED_1;
-        }
-        self.touch_probe_function = function;
-    }
-
-    /// The index pulse: once per revolution at `index_at`. Touch probe 1, armed on the zero
-    /// impulse with the positive edge, stores the exact position where it was crossed.
-    fn watch_index(&mut self, from: f64, to: f64) {
-        let f = self.touch_probe_function;
-        let armed = f & tp::ENABLE_1 != 0
-            && f & tp::ZERO_IMPULSE_1 != 0
-            && f & tp::POSITIVE_EDGE_1 != 0
-            && (f & tp::CONTINUOUS_1 != 0 || self.touch_probe_status & tp::STATUS_STORED_1 == 0);
-        if !armed || from == to {
+    /// The probes and switches see the load move from `from` to `to` (counts): the home
+    /// switch's edges and the index pulse, in the order of travel, each latched where it
+    /// happened.
+    fn watch_travel(&mut self, from: i64, to: i64) {
+        if from == to {
             return;
         }
-        let rev = f64::from(self.params.counts_per_rev.max(1));
-        let at = f64::from(self.params.index_at);
-        // The first index position passed going from `from` to `to`.
-        let crossed = if to > from {
-            let k = ((from - at) / rev).floor() + 1.0;
-            let p = at + k * rev;
-            (p <= to).then_some(p)
-        } else {
-            let k = ((from - at) / rev).ceil() - 1.0;
-            let p = at + k * rev;
-            (p >= to).then_some(p)
-        };
-        if let Some(p) = crossed {
-            self.touch_probe_pos1 = wrap32(p);
-            self.touch_probe_status |= tp::STATUS_STORED_1;
+        let p = &self.params;
+        let index =
+            probe::index_crossing(from, to, i64::from(p.index_at), i64::from(p.counts_per_rev));
+        let [a, b] = p.switches.home_edges(from, to);
+        let mut events = [a, b, index];
+        // In the order of travel.
+        events.sort_by_key(|e| e.map_or(i64::MAX, |e| (e.at - from).abs()));
+        for e in events.into_iter().flatten() {
+            self.probe.event(e);
         }
+    }
+
+    /// The touch probes (0x60B8–0x60BD).
+    pub fn touch_probe(&self) -> &TouchProbe {
+        &self.probe
+    }
+
+    /// 0x60FD Digital inputs now: the switch cams on the drive's travel.
+    pub fn digital_inputs(&self) -> u32 {
+        self.params.switches.digital_inputs(self.position_counts())
     }
 
     /// Uses the layout the master mapped (at PreOp → SafeOp).
@@ -440,8 +416,7 @@ impl ServoDrive {
         self.braking = None;
         self.hold = p;
         self.pending_touch_probe = None;
-        self.touch_probe_function = 0;
-        self.touch_probe_status = 0;
+        self.probe = TouchProbe::default();
         self.record.disabled();
     }
 
@@ -557,7 +532,29 @@ impl ServoDrive {
             objects::FAULT_REACTION_OPTION_CODE,
             i64::from(s.fault_reaction_option_code),
         );
-        for (o, v) in values.into_iter().chain([fault_reaction]) {
+        let tp = &self.probe;
+        let io = [
+            (objects::TOUCH_PROBE_FUNCTION, i64::from(tp.function())),
+            (objects::TOUCH_PROBE_STATUS, i64::from(tp.status())),
+            (
+                objects::TOUCH_PROBE_POS1_POS_VALUE,
+                i64::from(tp.value(0, Edge::Positive)),
+            ),
+            (
+                objects::TOUCH_PROBE_POS1_NEG_VALUE,
+                i64::from(tp.value(0, Edge::Negative)),
+            ),
+            (
+                objects::TOUCH_PROBE_POS2_POS_VALUE,
+                i64::from(tp.value(1, Edge::Positive)),
+            ),
+            (
+                objects::TOUCH_PROBE_POS2_NEG_VALUE,
+                i64::from(tp.value(1, Edge::Negative)),
+            ),
+            (objects::DIGITAL_INPUTS, i64::from(self.digital_inputs())),
+        ];
+        for (o, v) in values.into_iter().chain([fault_reaction]).chain(io) {
             let bytes = v.to_le_bytes();
             if let Some(b) = bytes.get(..o.kind.size()) {
                 // An object the dictionary does not carry is not the drive's to add.
@@ -596,6 +593,11 @@ impl ServoDrive {
         }
         if let Some(v) = get(objects::TARGET_TORQUE) {
             self.target_torque = v as i16;
+        }
+        if let Some(v) = get(objects::TOUCH_PROBE_FUNCTION) {
+            if v as u16 != self.probe.function() {
+                self.pending_touch_probe = Some(v as u16);
+            }
         }
         if let Some(v) = get(objects::MODES_OF_OPERATION) {
             if matches!(v as i8, CSP | CSV | CST) {
@@ -751,7 +753,7 @@ impl ServoDrive {
     pub fn run(&mut self, dt_s: f64) {
         let dt = if dt_s.is_finite() { dt_s.max(0.0) } else { 0.0 };
         if let Some(f) = self.pending_touch_probe.take() {
-            self.set_touch_probe(f);
+            self.probe.set_function(f);
         }
         self.apply_controlword();
         if !matches!(
@@ -775,7 +777,9 @@ impl ServoDrive {
             let efficiency = self.torque_efficiency();
             let mut torque = 0.0;
             for _ in 0..n {
+                let from = self.position_counts();
                 self.substep(&g, limit, efficiency);
+                self.watch_travel(from, self.position_counts());
                 torque += self.motor.torque;
             }
             self.torque_mean = torque / n as f64;
@@ -790,7 +794,6 @@ impl ServoDrive {
         }
         self.since_take += dt;
         self.since_change += dt;
-        self.watch_index(before, self.motor.position);
     }
 
     /// The controlword taken acts on the state machine: transitions that stop the motor
@@ -1083,10 +1086,13 @@ impl ServoDrive {
             img.set_error_code(self.error_code);
             img.set_modes_of_operation_display(self.mode);
             img.set_following_error_actual_value(self.following_error() as i32);
-            img.set_touch_probe_status(self.touch_probe_status);
-            img.set_touch_probe_pos1_pos_value(self.touch_probe_pos1);
-            // No digital inputs wired on the model (limit and home switches come later).
-            img.set_digital_inputs(0);
+            let tp = &self.probe;
+            img.set_touch_probe_status(tp.status());
+            img.set_touch_probe_pos1_pos_value(tp.value(0, Edge::Positive));
+            img.set_touch_probe_pos1_neg_value(tp.value(0, Edge::Negative));
+            img.set_touch_probe_pos2_pos_value(tp.value(1, Edge::Positive));
+            img.set_touch_probe_pos2_neg_value(tp.value(1, Edge::Negative));
+            img.set_digital_inputs(self.digital_inputs());
         }
     }
 

@@ -30,6 +30,8 @@ pub struct ServoParams {
     pub pole_pairs: u32,
     /// Where in the revolution the encoder's index pulse sits (counts).
     pub index_at: u32,
+    /// Switch cams on the drive's own travel, read by its digital inputs (0x60FD).
+    pub switches: super::probe::DriveSwitches,
     /// The motor's true commutation offset (counts), unknown to the master until it is
     /// commissioned.
     pub commutation_offset: i32,
@@ -77,6 +79,7 @@ impl Default for ServoParams {
             max_speed_rpm: 6000.0,
             pole_pairs: 5,
             index_at: 1000,
+            switches: super::probe::DriveSwitches::default(),
             commutation_offset: 0,
             loop_rate_hz: 16_000.0,
             current_loop_hz: 2000.0,

@@ -15,7 +15,7 @@ const OUT: [ObjectId; 6] = [
     TARGET_TORQUE,
     TOUCH_PROBE_FUNCTION,
 ];
-const IN: [ObjectId; 9] = [
+const IN: [ObjectId; 13] = [
     STATUSWORD,
     POSITION_ACTUAL_VALUE,
     VELOCITY_ACTUAL_VALUE,
@@ -25,6 +25,10 @@ const IN: [ObjectId; 9] = [
     FOLLOWING_ERROR_ACTUAL_VALUE,
     TOUCH_PROBE_STATUS,
     TOUCH_PROBE_POS1_POS_VALUE,
+    TOUCH_PROBE_POS1_NEG_VALUE,
+    TOUCH_PROBE_POS2_POS_VALUE,
+    TOUCH_PROBE_POS2_NEG_VALUE,
+    DIGITAL_INPUTS,
 ];
 
 /// What the master reads.
@@ -39,6 +43,10 @@ struct Inputs {
     following: i32,
     tp_status: u16,
     tp_pos1: i32,
+    tp_pos1_neg: i32,
+    tp_pos2: i32,
+    tp_pos2_neg: i32,
+    digital_inputs: u32,
 }
 
 /// A drive with every object mapped, and what the master writes to it.
@@ -105,7 +113,7 @@ impl Rig {
     }
 
     fn inputs(&self) -> Inputs {
-        let mut b = [0u8; 25];
+        let mut b = [0u8; 41];
         self.mem.ecat_read(PROCESS_RAM + 0x100, &mut b, false);
         let i32_at = |at: usize| i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
         Inputs {
@@ -118,6 +126,10 @@ impl Rig {
             following: i32_at(15),
             tp_status: u16::from_le_bytes([b[19], b[20]]),
             tp_pos1: i32_at(21),
+            tp_pos1_neg: i32_at(25),
+            tp_pos2: i32_at(29),
+            tp_pos2_neg: i32_at(33),
+            digital_inputs: i32_at(37) as u32,
         }
     }
 }
@@ -644,6 +656,105 @@ fn csv_follows_the_target_velocity_and_cst_accelerates_with_torque() {
     assert!(r.d.position() > 0.0);
 }
 
+/// A servo whose home switch cam covers `from..=to` and limit switches lie far out.
+fn with_switches(from: i64, to: i64) -> ServoParams {
+    let cam = |input, from, to| crate::plant::switches::SwitchCam {
+        input,
+        from,
+        to,
+        normally_closed: false,
+    };
+    ServoParams {
+        switches: probe::DriveSwitches::new(&[
+            cam(0, i64::MIN, -1_000_000),
+            cam(1, 1_000_000, i64::MAX),
+            cam(2, from, to),
+        ]),
+        ..p()
+    }
+}
+
+#[test]
+fn digital_inputs_read_the_switch_cams_on_the_drive_s_travel() {
+    let mut r = Rig::enabled(0, with_switches(50_000, 60_000), CSP);
+    assert_eq!(r.cycle().digital_inputs, 0);
+    let mut seen = Vec::new();
+    while r.target < 1_100_000 {
+        r.target += 5000;
+        let i = r.cycle();
+        seen.push((i.position, i.digital_inputs));
+    }
+    let i = r.cycles(50);
+    assert_eq!(i.digital_inputs, objects::digital_inputs::POSITIVE_LIMIT);
+    // The home bit is set exactly while the reported position is on the cam.
+    for (p, di) in seen {
+        let home = di & objects::digital_inputs::HOME_SWITCH != 0;
+        assert_eq!(home, (50_000..=60_000).contains(&p), "at {p}: 0x{di:X}");
+    }
+    while r.target > -1_100_000 {
+        r.target -= 5000;
+        r.cycle();
+    }
+    let i = r.cycles(50);
+    assert_eq!(i.digital_inputs, objects::digital_inputs::NEGATIVE_LIMIT);
+    assert_eq!(r.d.record().faults, 0);
+}
+
+#[test]
+fn touch_probes_latch_the_home_switch_edges_and_the_index_to_the_count() {
+    // Probe 1: the probe input (the home switch), both edges; probe 2: the zero impulse.
+    let probe_1 =
+        probe::function::ENABLE | probe::function::POSITIVE_EDGE | probe::function::NEGATIVE_EDGE;
+    let probe_2 = (probe::function::ENABLE
+        | probe::function::SOURCE_ZERO_IMPULSE
+        | probe::function::POSITIVE_EDGE)
+        << 8;
+    let rev = i64::from(p().counts_per_rev);
+    // Slow, and close to the motor's top speed (6.5·10⁶ counts/s).
+    for step in [700, 6000] {
+        let mut r = Rig::enabled(0, with_switches(123_457, 150_001), CSP);
+        r.tp = probe_1 | probe_2;
+        r.cycle();
+        // Up across the cam at `step` counts per millisecond: edges at the first count
+        // on the cam and the first count past it; the first index after the rising edge
+        // is not the first index passed, so probe 2 holds the first one (single event).
+        while r.target < 300_000 {
+            r.target += step;
+            r.cycle();
+        }
+        let i = r.cycles(50);
+        assert_eq!(i.tp_pos1, 123_457, "rising edge at {step}/ms");
+        assert_eq!(i.tp_pos1_neg, 150_002, "falling edge at {step}/ms");
+        assert_eq!(i64::from(i.tp_pos2), 1000, "first index");
+        assert_eq!(
+            i.tp_status, 0x43C7,
+            "probe 1 both edges, probe 2 its positive edge stored, each toggled once: 0x{:04X}",
+            i.tp_status
+        );
+        // Re-armed, back down: the edges are the first count of each new state going
+        // down, the index the first one below the start.
+        r.tp = 0;
+        r.cycle();
+        r.tp = probe_1 | probe_2;
+        r.cycle();
+        let start = i64::from(r.cycle().position);
+        while r.target > 0 {
+            r.target -= step.min(r.target);
+            r.cycle();
+        }
+        let i = r.cycles(50);
+        assert_eq!(i.tp_pos1, 150_001, "rising edge going down at {step}/ms");
+        assert_eq!(
+            i.tp_pos1_neg, 123_456,
+            "falling edge going down at {step}/ms"
+        );
+        let below = 1000 + (start - 1000 - 1).div_euclid(rev) * rev;
+        assert_eq!(i64::from(i.tp_pos2), below, "index going down at {step}/ms");
+        assert_eq!(i.tp_pos2_neg, 0, "the zero impulse has no negative edge");
+        assert_eq!(r.d.record().faults, 0);
+    }
+}
+
 #[test]
 fn touch_probe_latches_the_index_pulse_exactly() {
     let mut r = Rig::enabled(0, p(), CSP);
@@ -663,7 +774,8 @@ fn touch_probe_latches_the_index_pulse_exactly() {
         r.cycle();
     }
     let i = r.cycles(50);
-    assert_eq!((i.tp_status, i.tp_pos1), (0x0003, 1000));
+    // Enabled, positive edge stored, its toggle bit flipped once.
+    assert_eq!((i.tp_status, i.tp_pos1), (0x0043, 1000));
     // Re-arm (enable off, on) and come back: the crossing going down is stored too.
     r.tp = 0;
     r.cycle();
@@ -673,7 +785,7 @@ fn touch_probe_latches_the_index_pulse_exactly() {
         r.cycle();
     }
     let i = r.cycles(50);
-    assert_eq!((i.tp_status, i.tp_pos1), (0x0003, 1000 + rev));
+    assert_eq!((i.tp_status, i.tp_pos1), (0x0043, 1000 + rev));
     assert_eq!(r.d.record().faults, 0);
 }
 
