@@ -13,6 +13,11 @@ use proptest::prelude::*;
 
 const VENDOR: &str = include_str!("eds/acme_sx400.eds");
 
+thread_local! {
+    /// The vendor EDS, read once per test thread.
+    static VENDOR_EDS: eds::Eds = vendor();
+}
+
 fn vendor() -> eds::Eds {
     eds::read(VENDOR, "acme_sx400.eds").unwrap_or_else(|e| panic!("{e}"))
 }
@@ -174,6 +179,13 @@ fn pdo_mappings_are_checked_against_the_eds() {
         "TPDO 5 does not exist: acme_sx400.eds has 4"
     );
     assert!(matches!(err(T, 0, &[]), MappingError::NoPdo { .. }));
+    // A hand-built model claiming more PDOs than CiA 301 numbers: refused, no overflow.
+    let mut many = e.clone();
+    many.device_info.nr_of_tx_pdo = u16::MAX;
+    assert!(matches!(
+        many.check_pdo(T, u16::MAX, &[]),
+        Err(MappingError::NoPdo { .. })
+    ));
     // A device whose mapping cannot change (Granularity=0).
     let mut fixed = e.clone();
     fixed.device_info.granularity = 0;
@@ -796,6 +808,34 @@ proptest! {
     #[test]
     fn random_text_never_panics(text in "\\PC{0,400}") {
         let _ = eds::read(&text, "random.eds");
+    }
+
+    /// Any value text for any type, any bytes for any type, any mapping: a value or an
+    /// error, never a panic.
+    #[test]
+    fn values_and_mappings_never_panic(
+        text in "\\PC{0,30}",
+        bytes in prop::collection::vec(any::<u8>(), 0..12),
+        code in 0u16..0x30,
+        node in any::<u8>(),
+        receive in any::<bool>(),
+        pdo in any::<u16>(),
+        raw in prop::collection::vec(any::<u32>(), 0..12),
+    ) {
+        if let Some(ty) = DataType::from_code(code) {
+            if let Ok(Some(v)) = Value::parse(&text, ty) {
+                let _ = v.to_le_bytes(ty, node);
+                // Written and read back, the same value (compared as written: NaN).
+                let back = Value::parse(&v.to_eds(ty), ty);
+                prop_assert_eq!(back.map(|b| b.map(|b| b.to_eds(ty))), Ok(Some(v.to_eds(ty))));
+            }
+            if let Ok(v) = Value::from_le_bytes(&bytes, ty) {
+                let _ = v.to_le_bytes(ty, node);
+            }
+        }
+        let dir = if receive { PdoDirection::Receive } else { PdoDirection::Transmit };
+        let entries: Vec<MappingEntry> = raw.iter().map(|&r| MappingEntry::from_u32(r)).collect();
+        let _ = VENDOR_EDS.with(|e| e.check_pdo(dir, pdo, &entries));
     }
 
     /// Near-EDS text (the reader's own vocabulary): never a panic; what it accepts it

@@ -266,10 +266,19 @@ impl Eds {
                 file: self.file.clone(),
             });
         }
-        let index = match direction {
+        let base: u16 = match direction {
             PdoDirection::Receive => 0x1600,
             PdoDirection::Transmit => 0x1A00,
-        } + (pdo - 1);
+        };
+        // CiA 301 numbers at most 512 PDOs each way (a model built by hand may claim more).
+        let Some(index) = base.checked_add(pdo - 1).filter(|_| pdo <= 512) else {
+            return Err(MappingError::NoPdo {
+                direction,
+                pdo,
+                max,
+                file: self.file.clone(),
+            });
+        };
         // The mapping object's entries: its sub-indices above 0.
         let room = self
             .object(index)
