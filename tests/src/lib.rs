@@ -2,6 +2,7 @@
 //! `tests/tests/`; what they share lives here, in the master (`gantry::ethercat`) and in the binary's
 //! in-process simulator (`gantry_cli::simulator`, `gantry_cli::embedded`).
 
+pub mod can;
 pub mod can_rig;
 pub mod cyclic_frame;
 pub mod dc_phase;

@@ -19,7 +19,7 @@ fn records(rig: &CanRig) -> Vec<Option<DriveRecord>> {
     let sim = rig.sim();
     NODES
         .iter()
-        .map(|&n| Some(*sim.node(n).servo().record()))
+        .map(|&n| sim.node(n).servo().map(|s| *s.record()))
         .collect()
 }
 
@@ -52,7 +52,7 @@ fn four_drives_move_ptp_on_sync_with_no_setpoint_missed() {
         for (axis, &to) in round.iter().enumerate() {
             let counts = (to / 5.0 * 131_072.0_f64).round() as i64;
             let sim = rig.sim();
-            let servo = sim.node(NODES[axis]).servo();
+            let servo = sim.node(NODES[axis]).servo().expect("a servo node");
             assert_eq!(
                 i64::from(servo.actual_counts()),
                 counts,

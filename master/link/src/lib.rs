@@ -13,4 +13,5 @@
     )
 )]
 
+pub mod can_socket;
 pub mod raw_socket;

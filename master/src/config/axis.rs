@@ -58,6 +58,9 @@ pub struct AxisSection {
     /// code) or `"csp-minimal"` (controlword/target, statusword/actual).
     #[serde(default = "csp")]
     pub pdo: String,
+    /// Limit and reference switches and the touch probe (`[axis.switches]`).
+    #[serde(default)]
+    pub switches: super::switches::SwitchesSection,
 }
 
 /// `drive` as read when the file does not give it.
@@ -167,16 +170,20 @@ impl AxisSection {
         .map_err(|e| ("scaling".into(), e.to_string()))
     }
 
-    /// The PDO layout named by `pdo`.
+    /// The PDO layout named by `pdo`, with what `[axis.switches]` needs added.
     pub fn pdo_layout(&self) -> Result<PdoLayout, (String, String)> {
-        match self.pdo.as_str() {
-            "csp" => Ok(PdoLayout::csp()),
-            "csp-minimal" => Ok(PdoLayout::csp_minimal()),
-            other => Err((
-                "pdo".into(),
-                format!("{other:?} is not a layout (\"csp\", \"csp-minimal\")"),
-            )),
-        }
+        let mut layout = match self.pdo.as_str() {
+            "csp" => PdoLayout::csp(),
+            "csp-minimal" => PdoLayout::csp_minimal(),
+            other => {
+                return Err((
+                    "pdo".into(),
+                    format!("{other:?} is not a layout (\"csp\", \"csp-minimal\")"),
+                ))
+            }
+        };
+        self.switches.extend(&mut layout)?;
+        Ok(layout)
     }
 
     /// The kernel's configuration of this axis (checked by the kernel's own rules).

@@ -7,12 +7,14 @@
 mod axis;
 mod bus;
 mod error;
+mod switches;
 
 pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection, DRIVE_UNSET};
 pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
 };
 pub use error::ConfigError;
+pub use switches::{SwitchSource, SwitchesSection};
 
 use gantry_kernel::AxisConfig;
 use serde::Deserialize;

@@ -156,6 +156,57 @@ fn an_unreadable_file_is_named_with_why() {
     );
 }
 
+#[test]
+fn switches_add_their_objects_to_the_layout_and_name_their_mistakes() {
+    let with = |switches: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp-minimal\"\nswitches = {{ {switches} }}"),
+            1,
+        )
+    };
+    let c = Config::parse(
+        &with(
+            "negative_limit = { from = \"drive\", normally_closed = true }, reference = \"drive\"",
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    let x = &c.axes[0];
+    let layout = x.pdo_layout().unwrap();
+    let names: Vec<&str> = layout.inputs.iter().map(|o| o.name).collect();
+    assert_eq!(
+        names,
+        [
+            "Statusword",
+            "Position actual value",
+            "Digital inputs",
+            "Touch probe status",
+            "Touch probe position 1 positive value",
+            "Touch probe position 1 negative value",
+            "Touch probe position 2 positive value"
+        ]
+    );
+    assert_eq!(
+        layout.outputs.len(),
+        3,
+        "controlword, target, touch probe function"
+    );
+    let w = x.switches.wiring().unwrap();
+    assert_eq!((w.used, w.inverted), (0b101, 0b001));
+    // Without a reference switch, no probe unless asked for.
+    let c = Config::parse(&with("positive_limit = \"drive\""), "g.toml").unwrap();
+    assert_eq!(c.axes[0].pdo_layout().unwrap().inputs.len(), 3);
+    let e = Config::parse(&with("reference = \"io\""), "g.toml")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "g.toml:33: axis[0].switches.reference: \"io\": only \"drive\" (the drive's digital \
+         inputs 0x60FD) is read; switches on an I/O module are not supported yet"
+    );
+}
+
 /// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
 /// lines added to `[bus]`.
 fn canopen(nodes: &[&str], bus: &str) -> Result<Config, ConfigError> {
@@ -203,7 +254,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));

@@ -8,6 +8,8 @@ use std::fmt;
 
 use gantry_kernel::axis::command::CommandError;
 
+use super::sdo::{SdoError, SdoRequest, SdoResult};
+
 /// A bus as the cycle uses it. Drives are named by their position on the bus (what an
 /// axis' `drive` says in the configuration). Every method runs in the cycle thread: no
 /// allocation, no lock that the application could hold.
@@ -75,6 +77,21 @@ pub trait CycleBus {
     /// corrected for).
     fn dc_measured(&self) -> bool {
         true
+    }
+    /// Starts an SDO transfer ([`SdoRequest`]) beside the process data: from the next
+    /// exchange on, each exchange does at most one step of it under the same deadline,
+    /// never delaying the process data, until it ends or `request.timeout_ns` after
+    /// `now_ns` passes; its outcome comes from [`CycleBus::take_sdo`]. Refused at once
+    /// ([`SdoError::Busy`]) while another transfer runs, or when the bus cannot do it —
+    /// by default, [`SdoError::NotSupported`].
+    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
+        let _ = (request, now_ns);
+        Err(SdoError::NotSupported)
+    }
+    /// How the transfer started last ended, once it has (taken once): the object's bytes
+    /// for an upload, none for a download.
+    fn take_sdo(&mut self) -> Option<SdoResult> {
+        None
     }
 }
 

@@ -11,7 +11,9 @@ use thiserror::Error;
 use super::bus::{CycleBus, DriveError};
 use crate::config::Config;
 use crate::drive_axis::AxisChannel;
-use gantry_drives::csp::{encode_outputs, CspChannel, CspInputs, FAULT_CODE_NOT_MAPPED};
+use gantry_drives::csp::{
+    encode_outputs, encode_touch_probe, CspChannel, CspInputs, FAULT_CODE_NOT_MAPPED,
+};
 
 /// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
 /// emergency class 0x81xx, "communication"); the reason is the bus' (see
@@ -165,6 +167,7 @@ impl Cycle {
             let scaling = a.scaling().map_err(axis_error)?;
             let mut channel =
                 CspChannel::with_layout(scaling, &layout).map_err(|e| setup_error(e.into()))?;
+            channel.set_switch_wiring(a.switches.wiring().map_err(axis_error)?);
             // A modulo period that cannot be counted is refused here, by name (the cycle
             // would fault the axis).
             channel
@@ -352,6 +355,9 @@ impl Cycle {
         );
         let (cw, target) = channel.outputs(sp, inputs);
         encode_outputs(&channel.offsets, bytes, cw, target);
+        if let Some(f) = channel.probe_function() {
+            encode_touch_probe(&channel.offsets, bytes, f);
+        }
         Ok(())
     }
 }

@@ -1,10 +1,22 @@
 //! `gantry-sim`: the simulated EtherCAT network as its own process, answering on a
-//! network interface (e.g. one end of a veth pair) in real time.
+//! network interface (e.g. one end of a veth pair) in real time; or, with `--can`, the
+//! chain's CANopen nodes on a CAN interface (e.g. vcan0).
 //!
 //! ```text
 //! gantry-sim --interface veth-sim --config sim.toml [--seconds 10] [--priority 80]
 //!            [--record records.json]
+//! gantry-sim --can vcan0 --config sim.toml [--seconds 10] [--priority 80]
+//! gantry-sim eds --config sim.toml --node N --out node.eds
 //! ```
+//!
+//! On CAN every slave needs a node id (`node = N`); each servo becomes a CiA 402 node,
+//! the encoder a CiA 406 one, the switch-cam module a CiA 401 one following its servo
+//! (`gantry_sim::canopen::CanNetwork`): each boots (boot-up message) when the process
+//! starts, answers SDO, NMT, SYNC and RPDOs as they come and runs its timers (heartbeat,
+//! event TPDOs, the drive's loops without SYNC) every `cycle_us` of the chain.
+//!
+//! `gantry-sim eds` writes the electronic data sheet (CiA 306) of the chain's CANopen node
+//! `N` (the slave with `node = N`), as a vendor ships one with a device, and exits.
 //!
 //! On SIGTERM or SIGINT (within one period) or after `--seconds` it prints a summary and
 //! exits: frames served and dropped, and the largest gaps the drives saw — between frames,
@@ -21,18 +33,29 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use gantry_drives::canopen::CanFrame;
+use gantry_link::can_socket::{monotonic_ns, CanSocket, CanSocketError};
 use gantry_link::raw_socket::RawSocket;
+use gantry_sim::canopen::CanNetwork;
 use gantry_sim::config::SimConfig;
 use gantry_sim::plant::record::write_records;
 use gantry_sim::realtime::{Gaps, WallClock};
 
-/// The simulated EtherCAT network on a network interface.
+/// The simulated EtherCAT network on a network interface, or the chain's CANopen nodes on a
+/// CAN interface.
 #[derive(Parser, Debug)]
 #[command(name = "gantry-sim", version)]
+#[command(
+    after_help = "gantry-sim eds --config FILE --node N --out FILE: the EDS (CiA 306) \
+of the chain's CANopen node N"
+)]
 struct Args {
     /// Network interface to answer on (the master sends on the other end of the wire).
-    #[arg(long)]
-    interface: String,
+    #[arg(long, required_unless_present = "can", conflicts_with = "can")]
+    interface: Option<String>,
+    /// CAN interface to simulate the chain's CANopen nodes on (instead of EtherCAT).
+    #[arg(long, value_name = "IFACE")]
+    can: Option<String>,
     /// TOML file that lists the chain.
     #[arg(long)]
     config: String,
@@ -42,8 +65,8 @@ struct Args {
     /// Run under SCHED_FIFO at this priority (1–99; needs CAP_SYS_NICE).
     #[arg(long)]
     priority: Option<i32>,
-    /// Write the drives' records here (JSON) on exit.
-    #[arg(long)]
+    /// Write the drives' records here (JSON) on exit (EtherCAT only).
+    #[arg(long, conflicts_with = "can")]
     record: Option<PathBuf>,
 }
 
@@ -77,7 +100,52 @@ fn catch_stop_signals() -> Result<(), String> {
     Ok(())
 }
 
+/// `gantry-sim eds`: the EDS of one node of the chain.
+#[derive(Parser, Debug)]
+#[command(name = "gantry-sim eds")]
+struct EdsArgs {
+    /// TOML file that lists the chain.
+    #[arg(long)]
+    config: String,
+    /// CANopen node id of the slave (its `node = N`).
+    #[arg(long)]
+    node: u8,
+    /// Where to write the EDS.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes the EDS of `--node` to `--out`.
+fn eds(args: &EdsArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let config = SimConfig::load(&args.config)?;
+    let name = args
+        .out
+        .file_name()
+        .map_or_else(|| "node.eds".into(), |n| n.to_string_lossy().into_owned());
+    let eds = gantry_sim::canopen::eds::for_chain_node(&config, args.node, &name)
+        .map_err(|e| format!("{}: {e}", args.config))?;
+    std::fs::write(&args.out, gantry_drives::canopen::eds::write_eds(&eds))
+        .map_err(|e| format!("{}: {e}", args.out.display()))?;
+    println!(
+        "gantry-sim: EDS of node {} written to {}",
+        args.node,
+        args.out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
+    // A subcommand of its own arguments: the network's are not needed for it.
+    if std::env::args_os().nth(1).is_some_and(|a| a == "eds") {
+        let args = EdsArgs::parse_from(std::env::args_os().skip(1));
+        return match eds(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("gantry-sim eds: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let args = Args::parse();
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
@@ -90,8 +158,13 @@ fn main() -> ExitCode {
 
 fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     let config = SimConfig::load(&args.config)?;
+    let interface = match (&args.interface, &args.can) {
+        (_, Some(can)) => return run_can(args, &config, can),
+        (Some(interface), None) => interface,
+        (None, None) => return Err("give --interface IFACE (EtherCAT) or --can IFACE".into()),
+    };
     let mut chain = config.chain()?;
-    let socket = RawSocket::open(&args.interface)?;
+    let socket = RawSocket::open(interface)?;
     socket.stamp_arrivals()?;
     if let Some(priority) = args.priority {
         set_fifo(priority)?;
@@ -100,7 +173,7 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "gantry-sim: {} slaves on {}, applications every {} µs",
         chain.slaves().len(),
-        args.interface,
+        interface,
         config.cycle_us
     );
     let period = Duration::from_micros(u64::from(config.cycle_us));
@@ -155,6 +228,86 @@ fn run(args: &Args) -> Result<(), Box<dyn std::error::Error>> {
         println!("gantry-sim: drive records written to {}", path.display());
     }
     served_result?;
+    Ok(())
+}
+
+/// The chain's CANopen nodes on CAN interface `can` until SIGTERM/SIGINT or `--seconds`:
+/// frames from the wire go to the nodes as they come (at their kernel receive time), the
+/// nodes' timers run every `cycle_us`, and what the nodes send goes out at once.
+fn run_can(args: &Args, config: &SimConfig, can: &str) -> Result<(), Box<dyn std::error::Error>> {
+    let mut network = CanNetwork::from_config(config, &args.config)?;
+    let socket = CanSocket::open(can)?;
+    if let Some(priority) = args.priority {
+        set_fifo(priority)?;
+    }
+    catch_stop_signals()?;
+    let nodes: Vec<String> = network
+        .nodes()
+        .iter()
+        .map(|n| n.node().get().to_string())
+        .collect();
+    println!(
+        "gantry-sim: CANopen nodes {} on {can}, timers every {} µs",
+        nodes.join(", "),
+        config.cycle_us
+    );
+    let period = u64::from(config.cycle_us) * 1_000;
+    let start = monotonic_ns();
+    let end = args
+        .seconds
+        .map(|s| start.saturating_add((s.max(0.0) * 1e9) as u64));
+    // The nodes' clock: ns since start, never going back (a frame's kernel stamp may be
+    // older than the last tick).
+    let mut now = 0u64;
+    let mut next_tick = start;
+    let mut lost = 0u64;
+    let result = loop {
+        let wall = monotonic_ns();
+        if STOP.load(Ordering::SeqCst) || end.is_some_and(|end| wall >= end) {
+            break Ok(());
+        }
+        let mut failure = None;
+        let mut send = |frame: &CanFrame| match socket.send(frame) {
+            Ok(()) => {}
+            // A full transmit queue loses the frame, as a real controller's would.
+            Err(CanSocketError::BufferFull { .. }) => lost += 1,
+            Err(e) => {
+                failure.get_or_insert(e);
+            }
+        };
+        // The timers first, so a busy bus cannot starve them.
+        if wall >= next_tick {
+            now = now.max(wall - start);
+            network.tick(now, &mut send);
+            next_tick = if next_tick + period > wall {
+                next_tick + period
+            } else {
+                wall + period
+            };
+        }
+        match socket.recv_until(next_tick) {
+            Ok(Some(received)) => {
+                let at = received.stamp_ns.unwrap_or_else(monotonic_ns);
+                now = now.max(at.saturating_sub(start));
+                network.receive(&received.frame, now, &mut send);
+            }
+            Ok(None) => {}
+            Err(e) => break Err(e),
+        }
+        if let Some(e) = failure {
+            break Err(e);
+        }
+    };
+    let counters = network.counters();
+    let _ = writeln!(
+        std::io::stdout(),
+        "gantry-sim: received {} frames, sent {}, lost {lost} (transmit queue full), \
+         skipped {} (29-bit or error frames)",
+        counters.received,
+        counters.sent,
+        socket.skipped()
+    );
+    result?;
     Ok(())
 }
 

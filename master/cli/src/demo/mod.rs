@@ -252,6 +252,7 @@ fn axis(
         homing_required: true,
         target_monitoring: Default::default(),
         pdo: "csp".into(),
+        switches: Default::default(),
     }
 }
 
