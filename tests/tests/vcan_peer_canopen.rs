@@ -18,7 +18,7 @@
 //! `canopen`); built with `--features vcan`, run in the VM of deploy/vm/. Fails without
 //! them.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
