@@ -463,7 +463,16 @@ mod tests {
             InterfaceName::new("fifteen-bytes-x").unwrap().to_string(),
             "fifteen-bytes-x"
         );
-        for bad in ["", "sixteen-bytes-xx", "a/b", "a b", "a\0b"] {
+        for bad in [
+            "",
+            ".",
+            "..",
+            "sixteen-bytes-xx",
+            "a/b",
+            "a:1",
+            "a b",
+            "a\0b",
+        ] {
             assert!(InterfaceName::new(bad).is_none(), "{bad:?}");
         }
         let e = CanSocket::open("a/b").unwrap_err().to_string();
