@@ -44,15 +44,17 @@ pub struct InterfaceName {
 }
 
 impl InterfaceName {
-    /// The name, or None if it is empty, longer than 15 bytes or holds a NUL or a `/`
-    /// (Linux refuses such names: `dev_valid_name`).
+    /// The name, or None if Linux could not have made it (`dev_valid_name`): empty, `.`
+    /// or `..`, longer than 15 bytes, or holding a NUL, `/`, `:` or white space.
     pub fn new(name: &str) -> Option<Self> {
         let raw = name.as_bytes();
         if raw.is_empty()
+            || name == "."
+            || name == ".."
             || raw.len() > MAX_INTERFACE_NAME
             || raw
                 .iter()
-                .any(|&b| b == 0 || b == b'/' || b.is_ascii_whitespace())
+                .any(|&b| b == 0 || b == b'/' || b == b':' || b.is_ascii_whitespace())
         {
             return None;
         }
