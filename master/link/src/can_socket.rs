@@ -162,6 +162,27 @@ pub enum CanSocketError {
     },
 }
 
+/// As an `io::Error` (for a link trait that speaks `io::Result`). The errors of the cycle
+/// path — transmit queue full (`ENOBUFS`), interface down (`ENETDOWN`), gone (`ENODEV`),
+/// any other OS error — convert without allocating, as their OS error codes (the interface
+/// name stays with the socket: [`CanSocket::interface`]); the errors of
+/// [`CanSocket::open`] keep their whole message.
+impl From<CanSocketError> for io::Error {
+    fn from(e: CanSocketError) -> Self {
+        match e {
+            CanSocketError::BufferFull { .. } => io::Error::from_raw_os_error(libc::ENOBUFS),
+            CanSocketError::Down { .. } => io::Error::from_raw_os_error(libc::ENETDOWN),
+            CanSocketError::NoInterface { .. } => io::Error::from_raw_os_error(libc::ENODEV),
+            CanSocketError::Io { source, .. } => source,
+            e @ (CanSocketError::BadName { .. }
+            | CanSocketError::NotCan { .. }
+            | CanSocketError::NoCanSupport { .. }) => {
+                io::Error::new(io::ErrorKind::InvalidInput, e.to_string())
+            }
+        }
+    }
+}
+
 /// A frame received, with when it came.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Received {
@@ -507,6 +528,29 @@ mod tests {
             "{e:?}"
         );
         assert!(e.to_string().contains("lo is not a CAN interface"), "{e}");
+    }
+
+    #[test]
+    fn cycle_errors_become_os_errors_and_open_errors_keep_their_text() {
+        let vcan0 = InterfaceName::new("vcan0").unwrap();
+        let full: io::Error = CanSocketError::BufferFull {
+            interface: vcan0,
+            id: 0x80,
+        }
+        .into();
+        assert_eq!(full.raw_os_error(), Some(libc::ENOBUFS));
+        let down: io::Error = CanSocketError::Down { interface: vcan0 }.into();
+        assert_eq!(down.raw_os_error(), Some(libc::ENETDOWN));
+        let not_can: io::Error = CanSocketError::NotCan {
+            interface: InterfaceName::new("lo").unwrap(),
+            hardware_type: 772,
+        }
+        .into();
+        assert_eq!(not_can.kind(), io::ErrorKind::InvalidInput);
+        assert!(
+            not_can.to_string().contains("lo is not a CAN interface"),
+            "{not_can}"
+        );
     }
 
     #[test]
