@@ -850,3 +850,37 @@ fn drive_setpoint_turns_belong_to_the_drive_position_under_a_set_position_offset
         "drive frame ends at 10° + 720°: {last:?}"
     );
 }
+
+/// PLCopen MC_Reset: ErrorStop → Standstill only with the drive's power on. A drive that
+/// left Operation enabled without a fault while its axis was in ErrorStop (a CANopen node
+/// reset by its power or another master: Switch on disabled) leaves the axis Disabled
+/// after the reset, not Standstill on a drive that takes no set value; one that stayed
+/// enabled goes back to Standstill.
+#[test]
+fn reset_leaves_the_axis_disabled_when_its_drive_lost_power_without_a_fault() {
+    for drive_kept_power in [true, false] {
+        let mut cfg = linear("x");
+        cfg.kind = AxisKind::Real;
+        let mut k = Kernel::new(DT, vec![cfg]).unwrap();
+        k.command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+        )
+        .unwrap();
+        k.step(&drive_at(0.0, true, None));
+        assert_eq!(k.axis_status(0).unwrap().state, AxisState::Standstill);
+        // The bus lost the drive for a while (the master's communication fault).
+        k.step(&drive_at(0.0, false, Some(0x8100)));
+        assert_eq!(k.axis_status(0).unwrap().state, AxisState::ErrorStop);
+        // Back: enabled still, or switched off without a fault.
+        k.step(&drive_at(0.0, drive_kept_power, None));
+        let h = k.command(0, Command::Reset).unwrap();
+        assert_eq!(k.command_status(h), CommandStatus::Done);
+        let expected = if drive_kept_power {
+            AxisState::Standstill
+        } else {
+            AxisState::Disabled
+        };
+        assert_eq!(k.axis_status(0).unwrap().state, expected);
+    }
+}

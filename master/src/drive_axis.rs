@@ -7,6 +7,7 @@ use gantry_drives::cia402::Controlword;
 use gantry_drives::csp::{CspChannel, CspFeedback, CspInputs, CspSetpoint};
 use gantry_drives::scaling::ScalingError;
 use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
+use gantry_kernel::homing::{Latch, ProbeLatches, SwitchInputs};
 use gantry_kernel::mechanics::Modulo;
 
 /// A drive channel driven by a kernel axis.
@@ -33,14 +34,25 @@ pub fn csp_setpoint(sp: &AxisSetpoint) -> CspSetpoint {
     }
 }
 
-/// The kernel's feedback from the drive layer's.
+/// The kernel's feedback from the drive layer's: positions, state, the switches the drive
+/// reads and the positions its touch probes latched this cycle.
 pub fn axis_feedback(fb: CspFeedback) -> AxisFeedback {
+    let latch = |p: Option<f64>| p.map(Latch::at).unwrap_or_default();
     AxisFeedback {
         position: fb.position,
         velocity: fb.velocity,
         operation_enabled: fb.operation_enabled,
         fault: fb.fault,
-        ..Default::default()
+        switches: SwitchInputs {
+            negative_limit: fb.switches.negative_limit,
+            positive_limit: fb.switches.positive_limit,
+            reference: fb.switches.home,
+        },
+        probe: ProbeLatches {
+            rising: latch(fb.latches.rising),
+            falling: latch(fb.latches.falling),
+            index: latch(fb.latches.index),
+        },
     }
 }
 
@@ -91,6 +103,7 @@ mod tests {
             position: 25_000,
             velocity: Some(1000),
             error_code: Some(0),
+            ..CspInputs::default()
         };
         let fb = ch.feedback(&inputs);
         assert_eq!(

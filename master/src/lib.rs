@@ -9,6 +9,7 @@
 #![deny(missing_docs)]
 
 pub mod axis_fault;
+pub mod canopen;
 pub mod config;
 pub mod drive_axis;
 pub mod error_chain;

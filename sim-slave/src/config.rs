@@ -510,10 +510,10 @@ impl SimConfig {
                     "a CANopen node id must be 1 to 127",
                 ));
             }
-            let Some(taken) = seen.get_mut(usize::from(node)) else {
-                continue;
-            };
-            if std::mem::replace(taken, true) {
+            if seen
+                .get_mut(usize::from(node))
+                .is_some_and(|s| std::mem::replace(s, true))
+            {
                 return Err(invalid(
                     format!("slave[{i}].node"),
                     &format!("node id {node} is already used by another slave"),

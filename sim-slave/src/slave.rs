@@ -76,6 +76,9 @@ pub struct Slave {
     answered: bool,
     /// The SDO server's segmented transfer, if one runs.
     sdo: coe::SdoServer,
+    /// The counter of the last mailbox request served (ETG.1000.6 Table 29): a request
+    /// with the same non-zero counter is a repeat of it and is discarded.
+    mailbox_counter: u8,
     /// Whether the ESC loaded its EEPROM's configuration area (DL status bit 0).
     eeprom_loaded: bool,
     /// The ports wired (DL status), as the chain last set them.
@@ -138,6 +141,7 @@ impl Slave {
             arrival: Arrival::default(),
             answered: false,
             sdo: coe::SdoServer::default(),
+            mailbox_counter: 0,
             eeprom_loaded,
             wired: [false; 4],
             firmware: Firmware::SIMPLE,
@@ -271,6 +275,12 @@ impl Slave {
     /// The object dictionary, if the slave has CoE.
     pub fn object_dictionary(&self) -> Option<&ObjectDictionary> {
         self.od.as_ref()
+    }
+
+    /// The object dictionary, to add objects a device of a test has (a vendor's long
+    /// strings or tables), if the slave has CoE.
+    pub fn object_dictionary_mut(&mut self) -> Option<&mut ObjectDictionary> {
+        self.od.as_mut()
     }
 
     /// The same slave with an application behind its ESC.
@@ -541,6 +551,7 @@ impl Slave {
             }
         }
         if read {
+            let mut emptied = false;
             for n in 0..sm::COUNT {
                 let s = SyncManager::read_from(&self.memory, n);
                 if !s.enabled() || !s.completed_by(ado, len) {
@@ -550,12 +561,20 @@ impl Slave {
                     // The master read the last byte: the mailbox is empty again.
                     Kind::MailboxRead => {
                         sm::set_status(&mut self.memory, n, s.status & !status::MAILBOX_FULL);
+                        emptied = true;
                     }
                     Kind::BufferedRead => {
                         sm::set_status(&mut self.memory, n, s.status | status::INTERRUPT_READ);
                     }
                     _ => {}
                 }
+            }
+            // A request that waited for the answer before it to be read is served now.
+            let waiting = self
+                .mailbox(Kind::MailboxWrite)
+                .filter(|(_, s)| s.status & status::MAILBOX_FULL != 0);
+            if let (true, Some((n, s))) = (emptied, waiting) {
+                self.on_mailbox_write(n, s);
             }
         }
         served
@@ -699,6 +718,10 @@ impl Slave {
                 if s.kind() == Kind::MailboxRead {
                     self.answered = false;
                 }
+                // A mailbox set up anew starts its counting anew.
+                if s.kind() == Kind::MailboxWrite {
+                    self.mailbox_counter = 0;
+                }
             }
         }
         self.set_up_output_buffers();
@@ -759,15 +782,30 @@ impl Slave {
     /// A request arrived in the write mailbox (SyncManager `n`): serve it, put the answer
     /// in the read mailbox and mark that full; the write mailbox is empty again once the
     /// firmware took the request.
+    ///
+    /// As a real slave's firmware: while its send mailbox still holds an answer the master
+    /// has not read, it cannot answer, so it leaves the request in the receive mailbox —
+    /// which stays full, and the ESC refuses further writes (working counter 0) — until
+    /// the master reads the answer. A request whose non-zero counter repeats the last
+    /// one's is a repeat (the master did not see its write taken) and is discarded
+    /// (ETG.1000.6 Table 29; 0 is the start value and never a repeat).
     fn on_mailbox_write(&mut self, n: u16, s: SyncManager) {
         self.publish_sync_objects();
         let Some(od) = self.od.as_mut() else { return };
-        let mut request = vec![0u8; usize::from(s.length)];
-        self.memory.ecat_read(s.start, &mut request, false);
-        sm::set_status(&mut self.memory, n, s.status & !status::MAILBOX_FULL);
         let out = (0..sm::COUNT)
             .map(|k| (k, SyncManager::read_from(&self.memory, k)))
             .find(|(_, o)| o.enabled() && o.kind() == Kind::MailboxRead);
+        if out.is_some_and(|(_, o)| o.status & status::MAILBOX_FULL != 0) {
+            return;
+        }
+        let mut request = vec![0u8; usize::from(s.length)];
+        self.memory.ecat_read(s.start, &mut request, false);
+        sm::set_status(&mut self.memory, n, s.status & !status::MAILBOX_FULL);
+        let counter = request.get(5).map_or(0, |b| (b >> 4) & 0x07);
+        if counter != 0 && counter == self.mailbox_counter {
+            return;
+        }
+        self.mailbox_counter = counter;
         let out_len = out.map_or(0, |(_, o)| usize::from(o.length));
         // The drive's objects are live: its values in before, what was written out after.
         self.device.publish_objects(od);
@@ -1232,6 +1270,60 @@ mod tests {
         });
         assert!(!full(&s));
         assert_eq!(s.byte(sm_base(1) + 7) & REPEAT, REPEAT);
+    }
+
+    #[test]
+    fn a_repeated_counter_is_discarded_and_zero_never_repeats() {
+        let mut s = servo_with_mailbox();
+        let served = |s: &mut Slave, counter: u8| {
+            assert_eq!(
+                fp(s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(counter)).0,
+                1,
+                "the ESC takes the write"
+            );
+            let answered = full(s);
+            if answered {
+                assert_eq!(fp(s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]).0, 1);
+            }
+            answered
+        };
+        assert!(served(&mut s, 5));
+        assert!(
+            !served(&mut s, 5),
+            "the same counter again: a repeat, discarded"
+        );
+        assert!(served(&mut s, 6));
+        assert!(served(&mut s, 0));
+        assert!(served(&mut s, 0), "0 is the start value, never a repeat");
+        assert!(served(&mut s, 1));
+    }
+
+    #[test]
+    fn a_request_waits_in_the_receive_mailbox_until_the_answer_before_is_read() {
+        let mut s = servo_with_mailbox();
+        let sm0_full = |s: &Slave| s.byte(sm_base(0) + 5) & MAILBOX_FULL != 0;
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(1)).0,
+            1
+        );
+        assert!(full(&s) && !sm0_full(&s));
+        // The first answer is not read: the second request cannot be answered and stays.
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(2)).0,
+            1
+        );
+        assert!(sm0_full(&s), "not taken by the firmware");
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(3)).0,
+            0,
+            "a write to a full receive mailbox is refused, the request lost"
+        );
+        // Reading the first answer lets the firmware take the second.
+        assert_eq!(fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]).0, 1);
+        assert!(!sm0_full(&s));
+        assert!(full(&s), "the second request's answer");
+        let (_, answer) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]);
+        assert_eq!(&answer[8..12], &[0x43, 0x18, 0x10, 0x01]);
     }
 
     /// A slave with no firmware of its own and SyncManager `n` set to `regs`.

@@ -181,7 +181,7 @@ impl Rig {
     }
 
     fn servo(&self, i: usize) -> &gantry_sim::plant::servo::ServoDrive {
-        self.m.node(i).servo()
+        self.m.node(i).servo().expect("a servo node")
     }
 }
 

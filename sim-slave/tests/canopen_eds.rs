@@ -1,132 +1,247 @@
-//! The EDS the simulator writes for a node (CiA 306) agrees with the node: every object
-//! the SDO server serves has its section with the server's access, size and power-on
-//! value, and nothing is listed that the server does not serve.
+//! The EDS the simulator writes for a node (CiA 306-1), read back with gantry's EDS
+//! reader, agrees with the node: every object the SDO server serves is described with
+//! the server's access, size and power-on value and the PDO directions its mapping rules
+//! allow, nothing is described that the server does not serve, and a PDO mapping the
+//! EDS check accepts the node accepts too (and the reverse).
 
 mod canopen_common;
 
-use std::collections::BTreeMap;
-
 use canopen_common::*;
+use gantry_drives::canopen::eds::{
+    self, AccessType, DataType, MappingEntry, ObjectType, PdoDirection, Value,
+};
 use gantry_drives::canopen::sdo::{Access, ObjectSize};
-use gantry_sim::canopen::eds;
-use gantry_sim::canopen::{CanNode, CanNodeConfig};
+use gantry_sim::canopen::eds as sim_eds;
+use gantry_sim::canopen::pdo::{self, Direction};
+use gantry_sim::canopen::{CanNode, CanNodeConfig, DeviceKind};
+use gantry_sim::plant::switches::SwitchCam;
 
-type Ini = BTreeMap<String, BTreeMap<String, String>>;
-
-/// A minimal INI reader for the test (sections, key=value).
-fn parse(text: &str) -> Ini {
-    let mut ini = Ini::new();
-    let mut section = String::new();
-    for line in text.lines() {
-        let line = line.trim();
-        if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
-            section = name.to_string();
-            assert!(
-                ini.insert(section.clone(), BTreeMap::new()).is_none(),
-                "section [{section}] twice"
-            );
-        } else if let Some((k, v)) = line.split_once('=') {
-            let prev = ini
-                .get_mut(&section)
-                .unwrap()
-                .insert(k.to_string(), v.to_string());
-            assert!(prev.is_none(), "[{section}] {k} twice");
-        } else {
-            assert!(line.is_empty(), "stray line {line:?}");
-        }
-    }
-    ini
+fn node(n: u8) -> CanNode {
+    CanNode::new(CanNodeConfig::servo(id(n))).unwrap()
 }
 
-fn size_of(code: &str) -> Option<usize> {
-    match code {
-        "0x0002" | "0x0005" => Some(1),
-        "0x0003" | "0x0006" => Some(2),
-        "0x0004" | "0x0007" => Some(4),
-        "0x0009" => None,
-        other => panic!("data type {other}"),
-    }
-}
-
-#[test]
-fn eds_describes_what_the_node_serves() {
-    let mut node = CanNode::new(CanNodeConfig::servo(id(5))).unwrap();
-    let text = eds::write(&mut node, "servo5.eds");
-    let ini = parse(&text);
+fn read(node: &mut CanNode) -> eds::Eds {
+    let text = sim_eds::write(node, "servo.eds");
     if std::env::var_os("EDS_PRINT").is_some() {
         eprintln!("{text}");
     }
-    assert_eq!(ini["FileInfo"]["EDSVersion"], "4.0");
-    assert_eq!(ini["DeviceInfo"]["NrOfRXPDO"], "4");
-    assert_eq!(ini["DeviceInfo"]["ProductNumber"], "0x402");
-    assert_eq!(ini["MandatoryObjects"]["SupportedObjects"], "3");
-    assert_eq!(ini["MandatoryObjects"]["3"], "0x1018");
-    // Every sub-object section against the server.
-    let mut described = Vec::new();
-    for (name, keys) in &ini {
-        let (index, sub) = match name.split_once("sub") {
-            Some((i, s)) => (i, u8::from_str_radix(s, 16).unwrap()),
-            None if name.len() == 4 && keys["ObjectType"] == "0x7" => (name.as_str(), 0),
-            None => continue,
-        };
-        let index = u16::from_str_radix(index, 16).unwrap();
-        let info = node
-            .object_info(index, sub)
-            .unwrap_or_else(|e| panic!("[{name}] not served: {e}"));
-        let want = match info.access {
-            Access::ReadOnly => "ro",
-            Access::Const => "const",
-            Access::WriteOnly => "wo",
-            Access::ReadWrite => {
-                if keys["AccessType"] == "rww" {
-                    "rww"
-                } else {
-                    "rw"
-                }
-            }
-        };
-        assert_eq!(keys["AccessType"], want, "[{name}]");
-        match (size_of(&keys["DataType"]), info.size) {
-            (Some(n), ObjectSize::Fixed(m)) => assert_eq!(n, m, "[{name}] size"),
-            (None, ObjectSize::Fixed(_)) => {} // a string of its fixed length
-            (a, b) => panic!("[{name}] {a:?} vs {b:?}"),
-        }
-        described.push((index, sub));
-    }
-    // Nothing served is missing from the file.
-    let mut served = Vec::new();
+    eds::read(&text, "servo.eds").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Every (index, sub) the node's SDO server serves in the ranges a node can have.
+fn served(node: &CanNode) -> Vec<(u16, u8)> {
+    let mut v = Vec::new();
     for index in (0x1000..=0x2FFF).chain(0x6000..=0x67FF) {
         for sub in 0..=8 {
             if node.object_info(index, sub).is_ok() {
-                served.push((index, sub));
+                v.push((index, sub));
             }
         }
     }
+    v
+}
+
+/// The EDS of `n` (node 5) against the node: every described entry served with the
+/// access, size, PDO directions and power-on value the EDS gives, every served entry
+/// described.
+fn agrees_with_the_node(n: &mut CanNode) -> eds::Eds {
+    let kind = n.dictionary().kind();
+    let e = read(n);
+    let mut described = Vec::new();
+    for o in e.objects.values() {
+        for (&sub, s) in &o.subs {
+            described.push((o.index, sub));
+            let info = n
+                .object_info(o.index, sub)
+                .unwrap_or_else(|a| panic!("0x{:04X}:{sub} not served: {a}", o.index));
+            let place = format!("0x{:04X}:{sub:02X} {}", o.index, s.name);
+            // Access: what the server enforces.
+            let want = match info.access {
+                Access::ReadOnly => vec![AccessType::ReadOnly],
+                Access::Const => vec![AccessType::Const],
+                Access::WriteOnly => vec![AccessType::WriteOnly],
+                Access::ReadWrite => vec![
+                    AccessType::ReadWrite,
+                    AccessType::ReadWriteInput,
+                    AccessType::ReadWriteOutput,
+                ],
+            };
+            assert!(want.contains(&s.access), "{place}: {:?}", s.access);
+            // Size: what the server transfers.
+            match (s.data_type.bytes(), info.size) {
+                (Some(a), ObjectSize::Fixed(b)) => assert_eq!(a, b, "{place}"),
+                (None, ObjectSize::Fixed(_)) => {
+                    assert_eq!(s.data_type, DataType::VisibleString, "{place}")
+                }
+                (a, b) => panic!("{place}: {a:?} vs {b:?}"),
+            }
+            // Mappability: the node's own rule, both ways, with the type's length.
+            let bits = s.bits().unwrap_or(0);
+            let raw = (u32::from(o.index) << 16) | (u32::from(sub) << 8) | bits;
+            for (dir, node_dir) in [
+                (PdoDirection::Receive, Direction::Receive),
+                (PdoDirection::Transmit, Direction::Transmit),
+            ] {
+                let node_maps = bits > 0 && pdo::mappable(kind, node_dir, raw).is_ok();
+                assert_eq!(s.mappable_in(dir), node_maps, "{place} {dir}");
+            }
+            // The power-on value, read by SDO now.
+            let mut buf = [0u8; 64];
+            if let Ok(len) = n.read_object(o.index, sub, &mut buf) {
+                let node_value = Value::from_le_bytes(&buf[..len], s.data_type).unwrap();
+                let eds_value = s
+                    .default_value
+                    .as_ref()
+                    .unwrap_or_else(|| panic!("{place}"));
+                let node_id = n.node().get();
+                match (eds_value.integer_on(node_id), &node_value) {
+                    (Some(v), Value::Integer(w)) => assert_eq!(v, *w, "{place}"),
+                    _ => assert_eq!(eds_value, &node_value, "{place}"),
+                }
+            }
+        }
+    }
+    let served = served(n);
     described.sort_unstable();
-    assert_eq!(described, served);
-    assert!(served.len() > 150, "{} objects", served.len());
-    // A few values and the PDO flags.
-    assert_eq!(ini["6040"]["AccessType"], "rww");
-    assert_eq!(ini["6040"]["PDOMapping"], "1");
-    assert_eq!(ini["6041"]["PDOMapping"], "1");
-    assert_eq!(ini["6041"]["AccessType"], "ro");
-    assert_eq!(ini["6065"]["PDOMapping"], "0");
-    assert_eq!(ini["605A"]["DataType"], "0x0003");
-    assert_eq!(ini["605A"]["DefaultValue"], "2");
-    assert_eq!(ini["1017"]["DefaultValue"], "0x64");
-    assert_eq!(ini["1008"]["DefaultValue"], "gantry-sim CiA 402 servo");
-    assert_eq!(ini["1600sub2"]["DefaultValue"], "0x607A0020");
-    assert_eq!(ini["1400sub1"]["DefaultValue"], "0x205");
-    assert_eq!(ini["1401sub1"]["DefaultValue"], "0x80000305");
-    assert_eq!(ini["1800"]["SubNumber"], "6");
-    // The optional and manufacturer lists name every object section once.
-    let objects = ini
-        .keys()
-        .filter(|k| k.len() == 4 && u16::from_str_radix(k, 16).is_ok())
-        .count();
-    let listed: usize = ["MandatoryObjects", "OptionalObjects", "ManufacturerObjects"]
-        .iter()
-        .map(|s| ini[*s]["SupportedObjects"].parse::<usize>().unwrap())
-        .sum();
-    assert_eq!(listed, objects);
+    assert_eq!(described, served, "described vs served");
+    assert_eq!(
+        e.entry(0x1000, 0).unwrap().default_value,
+        Some(Value::Integer(i128::from(kind.device_type())))
+    );
+    e
+}
+
+#[test]
+fn the_eds_describes_what_the_node_serves_and_nothing_else() {
+    let mut n = node(5);
+    let e = agrees_with_the_node(&mut n);
+    assert!(e.objects.values().map(|o| o.subs.len()).sum::<usize>() > 150);
+    // What a master reads from it.
+    assert_eq!(e.file_info.eds_version, "4.0");
+    assert_eq!(e.device_info.product_number, Some(0x402));
+    assert_eq!(e.max_pdos(PdoDirection::Receive), 4);
+    assert_eq!(e.max_pdos(PdoDirection::Transmit), 4);
+    assert_eq!(e.device_info.granularity, 8);
+    let cw = e.entry(0x6040, 0).unwrap();
+    assert_eq!(
+        (cw.data_type, cw.access, cw.pdo_mapping),
+        (DataType::Unsigned16, AccessType::ReadWriteOutput, true)
+    );
+    assert_eq!(e.entry(0x6041, 0).unwrap().access, AccessType::ReadOnly);
+    assert!(e.pdo_mappable(0x6064, 0, PdoDirection::Transmit));
+    assert!(!e.pdo_mappable(0x6065, 0, PdoDirection::Transmit));
+    assert_eq!(
+        e.entry(0x605A, 0).unwrap().default_value,
+        Some(Value::Integer(2))
+    );
+    assert_eq!(
+        e.entry(0x1008, 0).unwrap().default_value,
+        Some(Value::Text("gantry-sim CiA 402 servo".into()))
+    );
+    assert_eq!(
+        e.entry(0x1600, 2).unwrap().default_value,
+        Some(Value::Integer(0x607A_0020))
+    );
+    assert_eq!(e.object(0x1800).unwrap().subs.len(), 6);
+    assert_eq!(e.object(0x1018).unwrap().object_type, ObjectType::Record);
+    // The predefined COB-IDs are node-relative: one file for every node id.
+    assert_eq!(
+        e.entry(0x1400, 1).unwrap().default_value,
+        Some(Value::NodeRelative(0x200))
+    );
+    assert_eq!(
+        e.entry(0x1401, 1).unwrap().default_value,
+        Some(Value::NodeRelative(0x8000_0300))
+    );
+    assert_eq!(
+        e.entry(0x1014, 0).unwrap().default_value,
+        Some(Value::NodeRelative(0x80))
+    );
+    // The limits of the servo's ranged objects.
+    assert_eq!(e.entry(0x6007, 0).unwrap().limits(), Some((0, 1)));
+}
+
+#[test]
+fn one_file_serves_every_node_id() {
+    let five = sim_eds::write(&mut node(5), "servo.eds");
+    let ninety = sim_eds::write(&mut node(90), "servo.eds");
+    // Only the description and the serial number (0x1018:04 = node id) differ.
+    let diff: Vec<(&str, &str)> = five
+        .lines()
+        .zip(ninety.lines())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert_eq!(diff.len(), 2, "{diff:?}");
+    assert!(diff[0].0.starts_with("Description="), "{diff:?}");
+    assert_eq!(diff[1], ("DefaultValue=0x5", "DefaultValue=0x5A"));
+}
+
+#[test]
+fn mappings_the_eds_check_accepts_are_what_the_node_accepts() {
+    let mut n = node(3);
+    let e = read(&mut n);
+    // Every single-entry mapping of every entry at its type's length, both ways, and
+    // the dummies.
+    let mut tried = 0;
+    let mut accepted = 0;
+    let mut entries: Vec<(u16, u8, u8)> = e
+        .objects
+        .values()
+        .flat_map(|o| {
+            o.subs
+                .iter()
+                .map(move |(&sub, s)| (o.index, sub, s.bits().unwrap_or(0).min(255) as u8))
+        })
+        .collect();
+    entries.extend((0x0001..=0x0007).map(|t| {
+        let bits = DataType::from_code(t).and_then(|d| d.bits()).unwrap_or(0) as u8;
+        (t, 0, bits)
+    }));
+    for (index, sub, bits) in entries {
+        for (dir, node_dir) in [
+            (PdoDirection::Receive, Direction::Receive),
+            (PdoDirection::Transmit, Direction::Transmit),
+        ] {
+            let entry = MappingEntry { index, sub, bits };
+            let eds_ok = e.check_pdo(dir, 1, &[entry]).is_ok();
+            let node_ok = pdo::mappable(DeviceKind::Servo, node_dir, entry.to_u32()).is_ok();
+            assert_eq!(eds_ok, node_ok, "{entry} {dir}");
+            tried += 1;
+            accepted += usize::from(eds_ok);
+        }
+    }
+    assert!(accepted >= 16 + 6, "{accepted} of {tried}");
+}
+
+#[test]
+fn the_encoder_and_input_module_eds_agree_with_their_nodes() {
+    let mut enc = CanNode::new(CanNodeConfig::encoder(id(5), 4096, 0.0)).unwrap();
+    let e = agrees_with_the_node(&mut enc);
+    assert_eq!(e.device_info.product_number, Some(0x5101));
+    assert!(e.pdo_mappable(0x6004, 0, PdoDirection::Transmit));
+    assert!(!e.pdo_mappable(0x6003, 0, PdoDirection::Receive));
+    assert_eq!(e.entry(0x6003, 0).unwrap().access, AccessType::ReadWrite);
+    assert_eq!(
+        e.entry(0x6001, 0).unwrap().default_value,
+        Some(Value::Integer(4096))
+    );
+    // Its TPDO1 maps the position value; nothing can go into an RPDO but dummies.
+    assert_eq!(
+        e.entry(0x1A00, 1).unwrap().default_value,
+        Some(Value::Integer(0x6004_0020))
+    );
+    let cam = SwitchCam {
+        input: 0,
+        from: 0,
+        to: 10,
+        normally_closed: false,
+    };
+    let mut sw = CanNode::new(CanNodeConfig::switches(id(5), id(1), &[cam]).unwrap()).unwrap();
+    let e = agrees_with_the_node(&mut sw);
+    let inputs = e.object(0x6000).unwrap();
+    assert_eq!(inputs.object_type, ObjectType::Array);
+    assert_eq!(inputs.sub(1).unwrap().name, "Read input 8-bit");
+    assert!(e.pdo_mappable(0x6000, 1, PdoDirection::Transmit));
+    assert_eq!(e.entry(0x6002, 1).unwrap().access, AccessType::ReadWrite);
+    assert_eq!(e.device_info.product_number, Some(0x1008));
 }

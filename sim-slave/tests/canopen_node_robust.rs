@@ -120,9 +120,9 @@ fn no_allocation_after_construction() {
     assert_eq!(after - before, 0, "allocations in 2000 cycles");
     // 2000 TPDOs, 40 SDO answers, heartbeats, boot-ups.
     assert!(frames >= 2040, "{frames} frames");
-    assert_eq!(node.servo().record().sync_missed, 0);
-    assert!(node.servo().record().targets > 1900);
-    assert_eq!(node.servo().record().faults, 0);
+    assert_eq!(node.servo().unwrap().record().sync_missed, 0);
+    assert!(node.servo().unwrap().record().targets > 1900);
+    assert_eq!(node.servo().unwrap().record().faults, 0);
 }
 
 fn any_frame() -> impl Strategy<Value = CanFrame> {

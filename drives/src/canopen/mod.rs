@@ -11,9 +11,13 @@
 //! ([`frame`], [`cob_id`]), NMT node control ([`nmt`]), heartbeat / boot-up ([`heartbeat`]),
 //! SYNC ([`sync`]), EMCY ([`emcy`]), SDO wire formats, abort codes, client and server
 //! ([`sdo`]). Not yet: the NMT master, PDO configuration, the SYNC producer, the EMCY and
-//! heartbeat consumers, EDS/DCF.
+//! heartbeat consumers.
+//!
+//! EDS/DCF ([`eds`], CiA 306-1) is configuration-time code beside them: it reads and
+//! writes files and allocates; nothing on the cycle path calls it.
 
 pub mod cob_id;
+pub mod eds;
 pub mod emcy;
 pub mod frame;
 pub mod heartbeat;

@@ -6,7 +6,9 @@ use crate::cia402::pdo::PdoLayout;
 use crate::cia402::{next_command, Controlword, State, Target};
 use crate::scaling::{CountExtender, ModuloCounts, Scaling, ScalingError};
 
+use super::probe::{DriveSwitches, ProbeArming, SwitchWiring};
 use super::{CspInputs, CspOffsets, LayoutError, COUNT_RANGE_FAULT, FAULT_CODE_NOT_MAPPED};
+use crate::cia402::objects;
 
 /// Set values of one axis for its drive (user units; the kernel's set values, as plain
 /// data).
@@ -35,6 +37,21 @@ pub struct CspFeedback {
     /// The drive reports a fault with this error code, or the channel faults the axis
     /// ([`COUNT_RANGE_FAULT`]).
     pub fault: Option<u16>,
+    /// The limit and home switches from 0x60FD (all inactive where not wired).
+    pub switches: DriveSwitches,
+    /// Positions the touch probes latched this cycle (units, like `position`).
+    pub latches: CspLatches,
+}
+
+/// Positions a drive's touch probes latched, new this cycle (units).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CspLatches {
+    /// The home switch became active here.
+    pub rising: Option<f64>,
+    /// The home switch became inactive here.
+    pub falling: Option<f64>,
+    /// The index pulse passed here.
+    pub index: Option<f64>,
 }
 
 /// The master side of one drive.
@@ -70,6 +87,10 @@ pub struct CspChannel {
     /// The axis' modulo period cannot be counted (see [`CspChannel::set_modulo_period`]): the
     /// drive is never driven and the axis faults.
     unusable: Option<ScalingError>,
+    /// Which 0x60FD bits are switches, and their polarity.
+    wiring: SwitchWiring,
+    /// The touch probes' arming (used where the layout maps 0x60B8 and 0x60B9).
+    probe: ProbeArming,
 }
 
 /// A set position with no 64-bit count.
@@ -98,6 +119,32 @@ impl CspChannel {
             last_target: 0,
             count_error: None,
             unusable: None,
+            wiring: SwitchWiring::default(),
+            probe: ProbeArming::default(),
+        }
+    }
+
+    /// Reads the limit and home switches from 0x60FD as `wiring` says.
+    pub fn set_switch_wiring(&mut self, wiring: SwitchWiring) {
+        self.wiring = wiring;
+    }
+
+    /// 0x60B8 for this cycle's outputs, where the layout maps it (arms the probes; see
+    /// [`super::probe`]).
+    pub fn probe_function(&self) -> Option<u16> {
+        self.offsets
+            .map()
+            .output_offset(objects::TOUCH_PROBE_FUNCTION)
+            .map(|_| self.probe.function())
+    }
+
+    /// A drive position (32-bit counts, latched near the last actual value) in units.
+    fn latch_units(&self, counts: i32) -> f64 {
+        let near = self.actual as i32;
+        let counts = self.actual + i64::from(counts.wrapping_sub(near));
+        match self.modulo {
+            Some(mc) => mc.to_position(counts).1,
+            None => self.scaling.counts_to_units(counts),
         }
     }
 
@@ -191,7 +238,18 @@ impl CspChannel {
                     .filter(|c| *c != 0)
                     .unwrap_or(FAULT_CODE_NOT_MAPPED),
             );
+        let new = match inputs.probe {
+            Some(p) if self.probe_function().is_some() => self.probe.update(&p),
+            _ => Default::default(),
+        };
+        let latches = CspLatches {
+            rising: new.rising.map(|c| self.latch_units(c)),
+            falling: new.falling.map(|c| self.latch_units(c)),
+            index: new.index.map(|c| self.latch_units(c)),
+        };
         CspFeedback {
+            switches: self.wiring.read(inputs.digital_inputs.unwrap_or(0)),
+            latches,
             position,
             velocity: inputs.velocity.map_or(0.0, |v| {
                 self.scaling.counts_to_units(i64::from(v)) - self.scaling.counts_to_units(0)

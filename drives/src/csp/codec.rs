@@ -4,6 +4,7 @@
 use crate::cia402::image::{ImageError, InputImage, OutputImage};
 use crate::cia402::{Controlword, Statusword};
 
+use super::probe::ProbeInputs;
 use super::{CspOffsets, MODE_CSP};
 
 /// Decoded inputs of a CSP drive.
@@ -17,6 +18,10 @@ pub struct CspInputs {
     pub velocity: Option<i32>,
     /// Error code 0x603F, when mapped.
     pub error_code: Option<u16>,
+    /// Digital inputs 0x60FD, when mapped.
+    pub digital_inputs: Option<u32>,
+    /// Touch probe status and values, when 0x60B9 is mapped.
+    pub probe: Option<ProbeInputs>,
 }
 
 impl CspInputs {
@@ -30,6 +35,15 @@ impl CspInputs {
             position: img.position_actual_value().unwrap_or_default(),
             velocity: img.velocity_actual_value(),
             error_code: img.error_code(),
+            digital_inputs: img.digital_inputs(),
+            probe: img.touch_probe_status().map(|status| ProbeInputs {
+                status,
+                values: [
+                    img.touch_probe_pos1_pos_value(),
+                    img.touch_probe_pos1_neg_value(),
+                    img.touch_probe_pos2_pos_value(),
+                ],
+            }),
         })
     }
 }
@@ -42,5 +56,13 @@ pub fn encode_outputs(at: &CspOffsets, bytes: &mut [u8], cw: Controlword, target
         img.set_controlword(cw);
         img.set_target_position(target);
         img.set_modes_of_operation(MODE_CSP);
+    }
+}
+
+/// Encodes 0x60B8 Touch probe function where the layout maps it (see
+/// [`super::CspChannel::probe_function`]).
+pub fn encode_touch_probe(at: &CspOffsets, bytes: &mut [u8], function: u16) {
+    if let Ok(mut img) = OutputImage::new_checked(bytes, at.map()) {
+        img.set_touch_probe_function(function);
     }
 }

@@ -28,9 +28,10 @@
 mod channel;
 mod codec;
 mod offsets;
+pub mod probe;
 
-pub use channel::{CountError, CspChannel, CspFeedback, CspSetpoint};
-pub use codec::{encode_outputs, CspInputs};
+pub use channel::{CountError, CspChannel, CspFeedback, CspLatches, CspSetpoint};
+pub use codec::{encode_outputs, encode_touch_probe, CspInputs};
 pub use offsets::{CspOffsets, LayoutError};
 
 use crate::cia402::ModeOfOperation;

@@ -428,6 +428,9 @@ pub struct Axis {
     reset_pending: Option<(handle::HandleId, u64)>,
     /// The drive reported a fault in the last feedback.
     drive_fault: bool,
+    /// Whether the drive reported Operation enabled in the last feedback (None: the axis
+    /// has had no drive feedback, e.g. stepped without a drive).
+    drive_enabled: Option<bool>,
     /// Axis position minus drive position (SetPosition on a real axis moves no motor).
     position_offset: f64,
     actual_p: f64,
@@ -487,6 +490,7 @@ impl Axis {
             enable_handle: None,
             reset_pending: None,
             drive_fault: false,
+            drive_enabled: None,
             position_offset: 0.0,
             actual_p: p0,
             actual_v: 0.0,
@@ -688,6 +692,7 @@ impl Axis {
             return;
         }
         self.drive_fault = fb.fault.is_some();
+        self.drive_enabled = Some(fb.operation_enabled);
         if let Some((h, since)) = self.reset_pending {
             if fb.fault.is_none() {
                 // The drive cleared its fault and dropped power: the axis is Disabled

@@ -13,5 +13,6 @@ pub mod plot;
 pub mod profile;
 pub mod rt_check;
 pub mod scan;
+pub mod sdo;
 pub mod simulator;
 pub mod status_table;

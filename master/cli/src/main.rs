@@ -12,6 +12,7 @@ use gantry_cli::client::{self, Client};
 use gantry_cli::demo::{self, DemoArgs};
 use gantry_cli::profile::{self, Request};
 use gantry_cli::scan;
+use gantry_cli::sdo::{self as sdo_cli, SdoType, Target};
 use gantry_cli::simulator::{SimLink, Simulator};
 
 /// Options of the commands that talk to a running gantry.
@@ -195,6 +196,12 @@ enum Cmd {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// Read (upload) or write (download) an object of a drive while `gantry run` runs:
+    /// the transfer goes beside the process data, which keeps running.
+    Sdo {
+        #[command(subcommand)]
+        op: SdoOp,
+    },
     /// Check this machine for real-time use and measure the cycle's wake-up latency
     /// (beside cyclictest when rt-tests is installed).
     RtCheck {
@@ -345,6 +352,61 @@ enum AxisCmd {
     },
 }
 
+/// Which drive an SDO transfer goes to: by axis or by bus position.
+#[derive(clap::Args, Debug)]
+#[group(required = true, multiple = false)]
+struct SdoTarget {
+    /// The axis whose drive it is.
+    #[arg(long)]
+    axis: Option<String>,
+    /// The drive's position on the bus (0 is the first slave).
+    #[arg(long)]
+    drive: Option<usize>,
+}
+
+impl SdoTarget {
+    fn target(self) -> Target {
+        match (self.axis, self.drive) {
+            (Some(a), _) => Target::Axis(a),
+            (None, Some(d)) => Target::Drive(d),
+            // clap's group requires one of them.
+            (None, None) => Target::Drive(usize::MAX),
+        }
+    }
+}
+
+/// `gantry sdo upload|download`.
+#[derive(Subcommand, Debug)]
+enum SdoOp {
+    /// Read an object: prints its value as --type.
+    Upload {
+        #[command(flatten)]
+        target: SdoTarget,
+        /// The object: INDEX:SUB in hex (e.g. 0x6061:0).
+        object: String,
+        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
+        #[arg(long = "type", default_value = "hex")]
+        ty: SdoType,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Write an object: VALUE as --type.
+    Download {
+        #[command(flatten)]
+        target: SdoTarget,
+        /// The object: INDEX:SUB in hex (e.g. 0x6060:0).
+        object: String,
+        /// The value (decimal or 0x… for integers; hex digits for --type hex).
+        #[arg(allow_hyphen_values = true)]
+        value: String,
+        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
+        #[arg(long = "type", default_value = "hex")]
+        ty: SdoType,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+}
+
 /// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
 fn finite(text: &str) -> Result<f64, String> {
     let value: f64 = text
@@ -439,6 +501,38 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             client::status(&mut c, opts.json, &mut std::io::stdout())?;
         }
         Cmd::Axis(command) => AxisCommand::of(command).send()?,
+        Cmd::Sdo { op } => {
+            let (target, object, value, ty, opts) = match op {
+                SdoOp::Upload {
+                    target,
+                    object,
+                    ty,
+                    client,
+                } => (target, object, None, ty, client),
+                SdoOp::Download {
+                    target,
+                    object,
+                    value,
+                    ty,
+                    client,
+                } => (target, object, Some(value), ty, client),
+            };
+            // What was typed is checked before the service is asked.
+            let (_, _) = sdo_cli::parse_address(&object)?;
+            if let Some(v) = &value {
+                sdo_cli::encode(ty, v)?;
+            }
+            let mut c = opts.connect()?;
+            sdo_cli::run(
+                &mut c,
+                target.target(),
+                &object,
+                value.as_deref(),
+                ty,
+                opts.json,
+                &mut std::io::stdout(),
+            )?;
+        }
         Cmd::Trace {
             axes,
             seconds,

@@ -13,8 +13,15 @@ use serde::Deserialize;
 pub struct AxisSection {
     /// Name used by commands (`gantry move x …`).
     pub name: String,
-    /// Position of its drive in the chain (0 = next to the master).
+    /// Position of its drive on the bus: on EtherCAT the slave's position in the chain
+    /// (0 = next to the master), written in the file. On CANopen it is not written: the
+    /// configuration sets it to the axis' own position in the file (axis `i` is on bus
+    /// position `i`, the node its `node` names — each axis has a node of its own).
+    #[serde(default = "drive_unset")]
     pub drive: usize,
+    /// CANopen: the node id of the axis' drive (1..=127, one node per axis).
+    #[serde(default)]
+    pub node: Option<u8>,
     /// `"linear"` or `"rotary"`.
     #[serde(default = "linear")]
     pub kind: String,
@@ -51,8 +58,17 @@ pub struct AxisSection {
     /// code) or `"csp-minimal"` (controlword/target, statusword/actual).
     #[serde(default = "csp")]
     pub pdo: String,
+    /// Limit and reference switches and the touch probe (`[axis.switches]`).
+    #[serde(default)]
+    pub switches: super::switches::SwitchesSection,
 }
 
+/// `drive` as read when the file does not give it.
+pub const DRIVE_UNSET: usize = usize::MAX;
+
+fn drive_unset() -> usize {
+    DRIVE_UNSET
+}
 fn linear() -> String {
     "linear".into()
 }
@@ -154,16 +170,20 @@ impl AxisSection {
         .map_err(|e| ("scaling".into(), e.to_string()))
     }
 
-    /// The PDO layout named by `pdo`.
+    /// The PDO layout named by `pdo`, with what `[axis.switches]` needs added.
     pub fn pdo_layout(&self) -> Result<PdoLayout, (String, String)> {
-        match self.pdo.as_str() {
-            "csp" => Ok(PdoLayout::csp()),
-            "csp-minimal" => Ok(PdoLayout::csp_minimal()),
-            other => Err((
-                "pdo".into(),
-                format!("{other:?} is not a layout (\"csp\", \"csp-minimal\")"),
-            )),
-        }
+        let mut layout = match self.pdo.as_str() {
+            "csp" => PdoLayout::csp(),
+            "csp-minimal" => PdoLayout::csp_minimal(),
+            other => {
+                return Err((
+                    "pdo".into(),
+                    format!("{other:?} is not a layout (\"csp\", \"csp-minimal\")"),
+                ))
+            }
+        };
+        self.switches.extend(&mut layout)?;
+        Ok(layout)
     }
 
     /// The kernel's configuration of this axis (checked by the kernel's own rules).

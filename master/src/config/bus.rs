@@ -6,9 +6,10 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BusSection {
-    /// `"ethercat"` (CANopen comes later).
+    /// `"ethercat"` or `"canopen"`.
     pub kind: String,
-    /// Network interface wired to the drives.
+    /// Network interface wired to the drives (an Ethernet port for EtherCAT, a SocketCAN
+    /// interface such as `can0` for CANopen).
     #[serde(default)]
     pub interface: Option<String>,
     /// Instead of an interface: a `gantry-sim` chain file, simulated in this process by the
@@ -32,7 +33,38 @@ pub struct BusSection {
     /// How much trouble on the wire is ridden through.
     #[serde(default)]
     pub faults: FaultsSection,
+    /// CANopen only: the CAN bit rate (bit/s, one of CiA 102's: 10k, 20k, 50k, 125k,
+    /// 250k, 500k, 800k, 1M). The bus-load check weighs the cycle's frames against it.
+    #[serde(default)]
+    pub bitrate: Option<u32>,
+    /// CANopen only: each node's heartbeat producer time 0x1017 (ms; default
+    /// [`DEFAULT_HEARTBEAT_MS`]).
+    #[serde(default)]
+    pub heartbeat_ms: Option<u16>,
+    /// CANopen only: how long gantry, the heartbeat consumer, lets a node stay silent
+    /// before its axes stop (ms; default three heartbeat times).
+    #[serde(default)]
+    pub heartbeat_timeout_ms: Option<u32>,
 }
+
+/// Which bus a configuration drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BusKind {
+    /// EtherCAT.
+    Ethercat,
+    /// CANopen (CiA 301 / CiA 402).
+    Canopen,
+}
+
+/// Heartbeat producer time given to every CANopen node unless `[bus] heartbeat_ms` says
+/// otherwise (ms).
+pub const DEFAULT_HEARTBEAT_MS: u16 = 100;
+
+/// The bit rates of CiA 102 (the CAN physical layer CANopen devices implement; 1 Mbit/s
+/// up to 25 m of cable).
+pub const CIA_102_BITRATES: [u32; 8] = [
+    10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
+];
 
 fn yes() -> bool {
     true
@@ -61,16 +93,43 @@ impl Default for FaultsSection {
 }
 
 impl BusSection {
+    /// The bus kind (`kind` was checked at parse time; anything else reads as EtherCAT).
+    pub fn bus_kind(&self) -> BusKind {
+        match self.kind.as_str() {
+            "canopen" => BusKind::Canopen,
+            _ => BusKind::Ethercat,
+        }
+    }
+
+    /// CANopen: the heartbeat producer time given to the nodes (ms).
+    pub fn heartbeat_producer_ms(&self) -> u16 {
+        self.heartbeat_ms.unwrap_or(DEFAULT_HEARTBEAT_MS)
+    }
+
+    /// CANopen: the silence after which a node's axes stop (ms).
+    pub fn heartbeat_consumer_ms(&self) -> u32 {
+        self.heartbeat_timeout_ms
+            .unwrap_or(3 * u32::from(self.heartbeat_producer_ms()))
+    }
+
     /// Checks values; the error names the key (below `bus.`) and the reason.
     pub(super) fn check(&self) -> Result<(), (String, String)> {
-        if self.kind != "ethercat" {
-            return Err((
-                "kind".into(),
-                format!(
-                    "{:?} is not a bus gantry drives yet (\"ethercat\")",
-                    self.kind
-                ),
-            ));
+        let kind = match self.kind.as_str() {
+            "ethercat" => BusKind::Ethercat,
+            "canopen" => BusKind::Canopen,
+            _ => {
+                return Err((
+                    "kind".into(),
+                    format!(
+                        "{:?} is not a bus gantry drives (\"ethercat\" or \"canopen\")",
+                        self.kind
+                    ),
+                ))
+            }
+        };
+        match kind {
+            BusKind::Ethercat => self.check_ethercat()?,
+            BusKind::Canopen => self.check_canopen()?,
         }
         match (&self.interface, &self.simulator) {
             (Some(_), Some(_)) => {
@@ -104,6 +163,72 @@ impl BusSection {
             return Err((
                 "faults".into(),
                 "limits count cycles in a row and must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// What only CANopen has is refused on EtherCAT.
+    fn check_ethercat(&self) -> Result<(), (String, String)> {
+        for (key, given) in [
+            ("bitrate", self.bitrate.is_some()),
+            ("heartbeat_ms", self.heartbeat_ms.is_some()),
+            ("heartbeat_timeout_ms", self.heartbeat_timeout_ms.is_some()),
+        ] {
+            if given {
+                return Err((
+                    key.into(),
+                    "is a CANopen setting (kind = \"canopen\"); EtherCAT runs at 100 Mbit/s \
+                     and its slaves have no heartbeat"
+                        .into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The CANopen settings: a CiA 102 bit rate, heartbeat times that a node can keep.
+    fn check_canopen(&self) -> Result<(), (String, String)> {
+        let Some(bitrate) = self.bitrate else {
+            return Err((
+                "bitrate".into(),
+                "missing: the CAN bit rate in bit/s (e.g. 1000000), which the bus-load \
+                 check weighs the cycle's frames against"
+                    .into(),
+            ));
+        };
+        if !CIA_102_BITRATES.contains(&bitrate) {
+            return Err((
+                "bitrate".into(),
+                format!(
+                    "{bitrate} bit/s is not a CiA 102 bit rate (10000, 20000, 50000, 125000, \
+                     250000, 500000, 800000, 1000000)"
+                ),
+            ));
+        }
+        if self.heartbeat_ms == Some(0) {
+            return Err((
+                "heartbeat_ms".into(),
+                "0 switches the heartbeat off; gantry watches every node by it (give 1 to \
+                 65535 ms)"
+                    .into(),
+            ));
+        }
+        let producer = u32::from(self.heartbeat_producer_ms());
+        let consumer = self.heartbeat_consumer_ms();
+        if consumer <= producer {
+            return Err((
+                "heartbeat_timeout_ms".into(),
+                format!(
+                    "{consumer} ms is not longer than the heartbeat time {producer} ms: every \
+                     node would time out between two heartbeats (CiA 301 §7.2.8.3.2.3)"
+                ),
+            ));
+        }
+        if self.pcap.is_some() {
+            return Err((
+                "pcap".into(),
+                "captures EtherCAT frames; on CANopen record the bus with candump".into(),
             ));
         }
         Ok(())

@@ -7,10 +7,14 @@
 mod axis;
 mod bus;
 mod error;
+mod switches;
 
-pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection};
-pub use bus::{BusSection, FaultsSection, RtSection};
+pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection, DRIVE_UNSET};
+pub use bus::{
+    BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
+};
 pub use error::ConfigError;
+pub use switches::{SwitchSource, SwitchesSection};
 
 use gantry_kernel::AxisConfig;
 use serde::Deserialize;
@@ -88,10 +92,69 @@ impl Config {
         }
         let mut axes = Vec::with_capacity(file.axes.len());
         let mut kernel_axes = Vec::with_capacity(file.axes.len());
+        let kind = bus.bus_kind();
         for (i, spanned) in file.axes.into_iter().enumerate() {
             let span = spanned.span();
-            let a = spanned.into_inner();
+            let mut a = spanned.into_inner();
             let key = |k: &str| format!("axis[{i}].{k}");
+            match (kind, a.drive, a.node) {
+                (BusKind::Ethercat, DRIVE_UNSET, _) => {
+                    return Err(at(
+                        span,
+                        key("drive"),
+                        "missing: the position of the axis' drive in the chain (0 = next to \
+                         the master)"
+                            .into(),
+                    ))
+                }
+                (BusKind::Ethercat, _, Some(_)) => {
+                    return Err(at(
+                        span,
+                        key("node"),
+                        "is a CANopen node id; on EtherCAT an axis names its drive's \
+                         position (drive = N)"
+                            .into(),
+                    ))
+                }
+                (BusKind::Ethercat, _, None) => {}
+                (BusKind::Canopen, DRIVE_UNSET, None) => {
+                    return Err(at(
+                        span,
+                        key("node"),
+                        "missing: the CANopen node id of the axis' drive (1..=127)".into(),
+                    ))
+                }
+                (BusKind::Canopen, DRIVE_UNSET, Some(node)) => {
+                    if !(1..=127).contains(&node) {
+                        return Err(at(
+                            span,
+                            key("node"),
+                            format!(
+                                "{node} is outside 1..=127 (CiA 301: a 7-bit node id, 0 \
+                                 addresses every node)"
+                            ),
+                        ));
+                    }
+                    if let Some(other) = axes.iter().position(|b: &AxisSection| b.node == a.node) {
+                        return Err(at(
+                            span,
+                            key("node"),
+                            format!("node {node} is also axis[{other}]'s"),
+                        ));
+                    }
+                    // Bus position i: the i-th axis' node (see `AxisSection::drive`).
+                    a.drive = i;
+                }
+                (BusKind::Canopen, _, _) => {
+                    return Err(at(
+                        span,
+                        key("drive"),
+                        "on CANopen an axis names its drive by node id (node = N), not by \
+                         drive position"
+                            .into(),
+                    ))
+                }
+            }
             if let Some(other) = axes.iter().position(|b: &AxisSection| b.name == a.name) {
                 return Err(at(
                     span,
@@ -112,13 +175,20 @@ impl Config {
             kernel_axes.push(k);
             axes.push(a);
         }
-        Ok(Self {
+        let config = Self {
             path: path.into(),
             bus,
             rt: file.rt,
             axes,
             kernel_axes,
-        })
+        };
+        if kind == BusKind::Canopen {
+            // The cycle's frames must fit the bit rate (issue 12 §2: refused with the figure).
+            crate::canopen::load::BusLoad::of_config(&config)
+                .and_then(|load| load.check())
+                .map_err(|e| at(bus_span.clone(), "bus.bitrate".into(), e.to_string()))?;
+        }
+        Ok(config)
     }
 }
 

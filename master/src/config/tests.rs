@@ -155,3 +155,158 @@ fn an_unreadable_file_is_named_with_why() {
         "{why:?}"
     );
 }
+
+#[test]
+fn switches_add_their_objects_to_the_layout_and_name_their_mistakes() {
+    let with = |switches: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp-minimal\"\nswitches = {{ {switches} }}"),
+            1,
+        )
+    };
+    let c = Config::parse(
+        &with(
+            "negative_limit = { from = \"drive\", normally_closed = true }, reference = \"drive\"",
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    let x = &c.axes[0];
+    let layout = x.pdo_layout().unwrap();
+    let names: Vec<&str> = layout.inputs.iter().map(|o| o.name).collect();
+    assert_eq!(
+        names,
+        [
+            "Statusword",
+            "Position actual value",
+            "Digital inputs",
+            "Touch probe status",
+            "Touch probe position 1 positive value",
+            "Touch probe position 1 negative value",
+            "Touch probe position 2 positive value"
+        ]
+    );
+    assert_eq!(
+        layout.outputs.len(),
+        3,
+        "controlword, target, touch probe function"
+    );
+    let w = x.switches.wiring().unwrap();
+    assert_eq!((w.used, w.inverted), (0b101, 0b001));
+    // Without a reference switch, no probe unless asked for.
+    let c = Config::parse(&with("positive_limit = \"drive\""), "g.toml").unwrap();
+    assert_eq!(c.axes[0].pdo_layout().unwrap().inputs.len(), 3);
+    let e = Config::parse(&with("reference = \"io\""), "g.toml")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "g.toml:33: axis[0].switches.reference: \"io\": only \"drive\" (the drive's digital \
+         inputs 0x60FD) is read; switches on an I/O module are not supported yet"
+    );
+}
+
+/// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
+/// lines added to `[bus]`.
+fn canopen(nodes: &[&str], bus: &str) -> Result<Config, ConfigError> {
+    let mut text =
+        format!("[bus]\nkind = \"canopen\"\ninterface = \"can0\"\ncycle_us = 1000\n{bus}\n");
+    for (i, node) in nodes.iter().enumerate() {
+        text += &format!(
+            "[[axis]]\nname = \"a{i}\"\n{node}\npdo = \"csp-minimal\"\n\
+             scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+             max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n"
+        );
+    }
+    Config::parse(&text, "c.toml")
+}
+
+#[test]
+fn canopen_axes_are_on_bus_positions_in_file_order_by_node() {
+    let c = canopen(&["node = 7", "node = 3"], "bitrate = 1000000").unwrap();
+    assert_eq!(c.bus.bus_kind(), BusKind::Canopen);
+    assert_eq!((c.axes[0].node, c.axes[0].drive), (Some(7), 0));
+    assert_eq!((c.axes[1].node, c.axes[1].drive), (Some(3), 1));
+    assert_eq!(c.bus.heartbeat_producer_ms(), DEFAULT_HEARTBEAT_MS);
+    assert_eq!(c.bus.heartbeat_consumer_ms(), 300);
+}
+
+#[test]
+fn canopen_mistakes_name_file_line_key_and_reason() {
+    let e = |nodes: &[&str], bus: &str| canopen(nodes, bus).unwrap_err().to_string();
+    assert_eq!(
+        e(&["node = 1"], ""),
+        "c.toml:1: bus.bitrate: missing: the CAN bit rate in bit/s (e.g. 1000000), which the \
+         bus-load check weighs the cycle's frames against"
+    );
+    assert!(e(&["node = 1"], "bitrate = 900000")
+        .contains("bus.bitrate: 900000 bit/s is not a CiA 102 bit rate"));
+    assert_eq!(
+        e(&["drive = 0"], "bitrate = 1000000"),
+        "c.toml:8: axis[0].drive: on CANopen an axis names its drive by node id (node = N), \
+         not by drive position"
+    );
+    assert_eq!(
+        e(&["name2 = 1"], "bitrate = 1000000")
+            .lines()
+            .next()
+            .unwrap(),
+        "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
+         `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
+    );
+    assert!(e(&["", ""], "bitrate = 1000000")
+        .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
+    assert!(e(&["node = 0"], "bitrate = 1000000").ends_with(
+        "axis[0].node: 0 is outside 1..=127 (CiA 301: a 7-bit node id, 0 addresses every node)"
+    ));
+    assert!(e(&["node = 4", "node = 4"], "bitrate = 1000000")
+        .ends_with("axis[1].node: node 4 is also axis[0]'s"));
+    assert!(e(
+        &["node = 4"],
+        "bitrate = 1000000\nheartbeat_timeout_ms = 100"
+    )
+    .contains("bus.heartbeat_timeout_ms: 100 ms is not longer than the heartbeat time 100 ms"));
+    // Four minimal drives do not fit 1 Mbit/s at 1 ms: refused with the figure.
+    let four = e(
+        &["node = 1", "node = 2", "node = 3", "node = 4"],
+        "bitrate = 1000000",
+    );
+    assert_eq!(
+        four,
+        "c.toml:5: bus.bitrate: 4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (978 bits \
+         in the 950 µs the cycle waits for its TPDOs, heartbeats included); can0 has 1 Mbit/s"
+    );
+}
+
+#[test]
+fn canopen_settings_are_refused_on_ethercat_and_node_ids_too() {
+    let l = line_of("cycle_us = 1000");
+    let e = mistake("cycle_us = 1000", "cycle_us = 1000\nbitrate = 1000000");
+    assert_eq!(
+        e,
+        format!(
+            "g.toml:{}: bus.bitrate: is a CANopen setting (kind = \"canopen\"); EtherCAT runs \
+             at 100 Mbit/s and its slaves have no heartbeat",
+            l + 1
+        )
+    );
+    let e = mistake("drive = 0", "drive = 0\nnode = 5");
+    assert!(
+        e.ends_with("axis[0].node: is a CANopen node id; on EtherCAT an axis names its drive's position (drive = N)"),
+        "{e}"
+    );
+    let e = mistake("drive = 0", "# no drive");
+    assert!(
+        e.ends_with("axis[0].drive: missing: the position of the axis' drive in the chain (0 = next to the master)"),
+        "{e}"
+    );
+    let e = mistake("kind = \"ethercat\"", "kind = \"profibus\"");
+    assert!(
+        e.ends_with(
+            "bus.kind: \"profibus\" is not a bus gantry drives (\"ethercat\" or \"canopen\")"
+        ),
+        "{e}"
+    );
+}

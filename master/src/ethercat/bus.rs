@@ -16,6 +16,7 @@ use ethercrab::{
 use gantry_kernel::axis::command::CommandError;
 use thiserror::Error;
 
+use super::coe_sdo::{self, CoeSdo, Mailbox, MailboxAnswer};
 use super::doorbell::BlockOn;
 use super::frame::{self, ProcessImage};
 use super::health::{BusFault, BusHealth, Exchange, HealthConfig, States};
@@ -28,6 +29,7 @@ use crate::pcap::PcapWriter;
 use crate::runtime::bus::{BusCounters, CycleBus, Reply, Restored, Unreachable};
 use crate::runtime::clock::now_ns;
 use crate::runtime::cycle::SetupError;
+use crate::runtime::sdo::{SdoError, SdoRequest, SdoResult};
 
 /// Most slaves on one bus.
 pub const MAX_SLAVES: usize = 64;
@@ -198,6 +200,19 @@ pub struct EthercatBus {
     recovered: Option<Result<Recovered, RecoveryError>>,
     /// Asking the slaves for OP at start.
     op_request: OpRequest,
+    /// Per slave: its CoE mailbox as the bring-up left it (`None`: no mailbox).
+    mailboxes: Vec<Option<Mailbox>>,
+    /// Per slave: the counter of the last mailbox message the cycle sent it.
+    mailbox_counters: Vec<Option<u8>>,
+    /// The SDO transfer in progress: the slave's position, its station address, the
+    /// machine.
+    sdo: Option<(usize, u16, CoeSdo)>,
+    /// A finished SDO transfer, until the engine takes it.
+    sdo_done: Option<SdoResult>,
+    /// The mailbox message being sent (made once, at bring-up).
+    sdo_message: Box<[u8; coe_sdo::MAX_MAILBOX]>,
+    /// The answer read (made once, at bring-up).
+    sdo_answer: Box<[u8; coe_sdo::ANSWER_KEEP]>,
 }
 
 /// The slaves are asked for OP by the cycle, one AL control write per cycle beside the
@@ -277,6 +292,7 @@ impl EthercatBus {
         let image = with_group!(&group, g => ProcessImage::of_group(g, &md, MAX_DATAGRAM))
             .map_err(|e| StartError::setup("the process data image")(e.into()))?;
         let health = watch_health(config, &md, &group, &image);
+        let mailboxes = read_mailboxes(&runner, &md, &group, &replies)?;
         let dc = DcStatus {
             active: matches!(group, Groups::Dc(_)),
             ..DcStatus::default()
@@ -305,6 +321,12 @@ impl EthercatBus {
             recovery: None,
             recovered: None,
             op_request: OpRequest::Waiting,
+            mailbox_counters: vec![None; mailboxes.len()],
+            mailboxes,
+            sdo: None,
+            sdo_done: None,
+            sdo_message: Box::new([0; coe_sdo::MAX_MAILBOX]),
+            sdo_answer: Box::new([0; coe_sdo::ANSWER_KEEP]),
         })
     }
 
@@ -406,6 +428,37 @@ impl EthercatBus {
         // The capture flushed, the link closed (the simulator's thread stops with it).
         self.runner.finish_io();
     }
+}
+
+impl EthercatBus {
+    /// The SDO transfer's step after an exchange: the answer to its access if it had
+    /// one (`accessed`), else only its clock.
+    fn step_sdo(&mut self, accessed: bool, answer: Option<MailboxAnswer>) {
+        let Some((drive, _, sdo)) = self.sdo.as_mut() else {
+            return;
+        };
+        if accessed {
+            let got = answer.unwrap_or(MailboxAnswer::None);
+            sdo.on_answer(got, &self.sdo_answer[..], now_ns());
+        } else {
+            sdo.tick(now_ns());
+        }
+        if let Some(slot) = self.mailbox_counters.get_mut(*drive) {
+            *slot = Some(sdo.counter());
+        }
+        if let Some(outcome) = sdo.outcome() {
+            self.sdo_done = Some(outcome);
+            self.sdo = None;
+        }
+    }
+}
+
+/// What the exchange's one access beside the process data answered.
+enum Accessed {
+    /// A register access of a reset or of the request for OP.
+    Register(Answer),
+    /// A mailbox access of an SDO transfer.
+    Mailbox(MailboxAnswer),
 }
 
 /// The DC system time register (ETG.1000.4 Table 60).
@@ -659,6 +712,37 @@ fn to_safe_op(
     Ok(group)
 }
 
+/// Bring-up, step 7: each slave's mailbox, read back from its SyncManager 0 and 1
+/// registers as the bring-up set them (the cycle's SDO transfers use them).
+#[inline(never)]
+fn read_mailboxes(
+    runner: &BlockOn,
+    md: &MainDevice<'static>,
+    group: &Groups,
+    replies: &AtomicU64,
+) -> Result<Vec<Option<Mailbox>>, StartError> {
+    runner
+        .run_step(
+            || async {
+                let mut found = Vec::new();
+                with_group!(group, g => {
+                    for sd in g.iter(md) {
+                        let regs = sd
+                            .register_read::<[u8; 2 * coe_sdo::SM_REGISTERS]>(coe_sdo::SM0)
+                            .await?;
+                        found.push(Mailbox::from_sync_managers(&regs));
+                    }
+                });
+                Ok::<_, ethercrab::error::Error>(found)
+            },
+            replies,
+            BRING_UP_SILENCE_NS,
+            STEP_LIMIT_NS,
+        )
+        .map_err(|e| step_error("reading the mailboxes", e))?
+        .map_err(|e| step_error("reading the mailboxes", e))
+}
+
 /// Bring-up, step 6: the health monitor of the bus' slaves and process data, with the
 /// configuration's fault limits, the slaves given [`transition::OP_TIMEOUT`] to reach OP.
 fn watch_health(
@@ -778,6 +862,14 @@ impl CycleBus for EthercatBus {
         };
         let pending = recovering
             .or(asking.map(|k| (k, RegisterAccess::WriteAlControl(recovery::AL_STATE_OP))));
+        // Otherwise a step of the SDO transfer in progress, through the slave's mailbox.
+        let mailbox = match (&pending, &self.sdo) {
+            (None, Some((_, address, sdo))) => sdo
+                .next_access(&mut self.sdo_message[..])
+                .map(|a| (*address, a)),
+            _ => None,
+        };
+        let (message, answer_buf) = (&self.sdo_message[..], &mut self.sdo_answer[..]);
         // While the slaves are on their way to OP, the cycle after anything went wrong, and
         // while a fault stands, each slave's state is read (ethercrab's `tx_rx`); one
         // steady cycle in `AL_STATUS_EVERY` reads their summary; otherwise the LRW goes
@@ -788,7 +880,17 @@ impl CycleBus for EthercatBus {
         let (dc_reference, group) = (self.dc_reference, &self.group);
         let (answer, accessed) = with_group!(group, g => {
             let sd = pending.and_then(|(drive, a)| Some((g.subdevice(md, drive).ok()?, a)));
-            let access_fut = sd.as_ref().map(|(sd, a)| access(sd, *a));
+            let register = sd.as_ref().map(|(sd, a)| access(sd, *a));
+            let mailbox = mailbox.map(|(address, a)| {
+                coe_sdo::mailbox_access(md, address, a, message, answer_buf)
+            });
+            let access_fut = (register.is_some() || mailbox.is_some()).then_some(async move {
+                match (register, mailbox) {
+                    (Some(r), _) => Accessed::Register(r.await),
+                    (None, Some(m)) => Accessed::Mailbox(m.await),
+                    (None, None) => Accessed::Register(Answer::None),
+                }
+            });
             let cyclic = cyclic_exchange(g, md, image, states, stats, read_states, summary, g.len() as u16);
             // With DC the reference clock's time goes round too (one FRMW), but in the
             // cycle whose BRD of AL status takes its place: one fixed datagram at most.
@@ -846,6 +948,12 @@ impl CycleBus for EthercatBus {
             }
         };
         self.note_faults();
+        let (accessed, mailbox_answer) = match accessed {
+            Some(Accessed::Register(a)) => (Some(a), None),
+            Some(Accessed::Mailbox(m)) => (None, Some(m)),
+            None => (None, None),
+        };
+        self.step_sdo(mailbox.is_some(), mailbox_answer);
         if let Some(k) = asking {
             // Not taken (lost frame, no answer): the same slave again next cycle.
             if accessed == Some(Answer::Written) {
@@ -935,6 +1043,32 @@ impl CycleBus for EthercatBus {
 
     fn dc_offset_ns(&self) -> Option<u64> {
         self.dc.active.then_some(self.dc.cycle_offset_ns)
+    }
+
+    /// A CoE SDO transfer through the slave's mailbox (`ethercat::coe_sdo`: one mailbox
+    /// register access per exchange, when no reset uses the exchange's access).
+    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
+        if self.sdo.is_some() || self.sdo_done.is_some() {
+            return Err(SdoError::Busy);
+        }
+        let drive = request.drive;
+        let address = with_group!(&self.group, g => g
+            .subdevice(&self.md, drive)
+            .map(|sd| sd.configured_address()))
+        .map_err(|_| SdoError::NoDrive { drive })?;
+        let mailbox = self
+            .mailboxes
+            .get(drive)
+            .copied()
+            .flatten()
+            .ok_or(SdoError::NoChannel { drive })?;
+        let last = self.mailbox_counters.get(drive).copied().flatten();
+        self.sdo = Some((drive, address, CoeSdo::new(mailbox, *request, last, now_ns)));
+        Ok(())
+    }
+
+    fn take_sdo(&mut self) -> Option<SdoResult> {
+        self.sdo_done.take()
     }
 
     fn dc_measured(&self) -> bool {

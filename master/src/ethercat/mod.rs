@@ -5,6 +5,7 @@
 
 pub mod bus;
 pub mod coalesce;
+pub mod coe_sdo;
 pub mod doorbell;
 pub mod frame;
 pub mod health;

@@ -8,6 +8,8 @@ use std::fmt;
 
 use gantry_kernel::axis::command::CommandError;
 
+use super::sdo::{SdoError, SdoRequest, SdoResult};
+
 /// A bus as the cycle uses it. Drives are named by their position on the bus (what an
 /// axis' `drive` says in the configuration). Every method runs in the cycle thread: no
 /// allocation, no lock that the application could hold.
@@ -36,6 +38,13 @@ pub trait CycleBus {
     fn inputs_fresh(&self, drive: usize) -> bool {
         let _ = drive;
         true
+    }
+    /// The error drive `drive` reported outside its process data (CANopen: its EMCY),
+    /// while in force (until the drive reports it gone). Without such a channel (EtherCAT
+    /// drives report through 0x603F in the process data): none.
+    fn drive_error(&self, drive: usize) -> Option<DriveError> {
+        let _ = drive;
+        None
     }
     /// Whether any drive cannot be reached.
     fn any_fault(&self) -> bool;
@@ -69,6 +78,32 @@ pub trait CycleBus {
     fn dc_measured(&self) -> bool {
         true
     }
+    /// Starts an SDO transfer ([`SdoRequest`]) beside the process data: from the next
+    /// exchange on, each exchange does at most one step of it under the same deadline,
+    /// never delaying the process data, until it ends or `request.timeout_ns` after
+    /// `now_ns` passes; its outcome comes from [`CycleBus::take_sdo`]. Refused at once
+    /// ([`SdoError::Busy`]) while another transfer runs, or when the bus cannot do it —
+    /// by default, [`SdoError::NotSupported`].
+    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
+        let _ = (request, now_ns);
+        Err(SdoError::NotSupported)
+    }
+    /// How the transfer started last ended, once it has (taken once): the object's bytes
+    /// for an upload, none for a download.
+    fn take_sdo(&mut self) -> Option<SdoResult> {
+        None
+    }
+}
+
+/// An error a drive reported outside its process data ([`CycleBus::drive_error`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DriveError {
+    /// The error code (CiA 301 / CiA 402 emergency code: the drive's 0x603F for its
+    /// faults).
+    pub code: u16,
+    /// It came with the last exchange: a new error, which stops the axis whether or not
+    /// the drive faulted (the cycle gives it to the kernel as the drive's fault once).
+    pub fresh: bool,
 }
 
 /// How an exchange went.

@@ -17,6 +17,19 @@ pub fn now_ns() -> u64 {
 /// status, the trace) before the next deadline: at most a tenth of the period.
 const REPLY_MARGIN_NS: u64 = 50_000;
 
+/// How long after its start a cycle of `period_ns` waits for its bus' replies at most
+/// ([`Wake::reply_by_ns`]): the period less the margin kept for the rest of its work. A
+/// bus whose frames take longer than this every cycle cannot run at this period (the
+/// CANopen bus-load check weighs its frames against it).
+pub const fn reply_window_ns(period_ns: u64) -> u64 {
+    let margin = if period_ns / 10 < REPLY_MARGIN_NS {
+        period_ns / 10
+    } else {
+        REPLY_MARGIN_NS
+    };
+    period_ns - margin
+}
+
 /// Where the engine's cycles get their time from ([`crate::runtime::engine::Engine::cycle`]).
 pub trait Clock {
     /// Waits for the next cycle's start; what the wait saw.
@@ -152,7 +165,7 @@ impl CycleClock {
         }
         Wake {
             deadline_ns,
-            reply_by_ns: self.next_ns - (self.period_ns / 10).min(REPLY_MARGIN_NS),
+            reply_by_ns: self.next_ns - self.period_ns + reply_window_ns(self.period_ns),
             period_ns: self.period_ns,
             latency_ns: if overrun {
                 0

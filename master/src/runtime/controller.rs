@@ -12,7 +12,8 @@ use gantry_kernel::axis::handle::CommandStatus;
 use thiserror::Error;
 
 use super::engine::AppEnds;
-use super::protocol::{Request, Snapshot, TraceSample};
+use super::protocol::{Request, SdoDone, SdoJob, Snapshot, TraceSample};
+use super::sdo::{SdoRequest, SdoResult};
 use super::stats::{CycleCounters, CycleFigures, FigureBook};
 
 /// Why a request did not reach the cycle.
@@ -27,13 +28,28 @@ pub enum ControlError {
     /// Waiting for a command timed out.
     #[error("no final status within {0:?}")]
     Timeout(Duration),
+    /// The cycle thread has ended: nothing more will be answered.
+    #[error("the cycle has ended (the service is shutting down)")]
+    Ended,
 }
+
+/// The application's ends of the SDO channels, and outcomes that arrived for handles
+/// other than the one that drained them.
+struct SdoEnds {
+    jobs: rtrb::Producer<SdoJob>,
+    done: rtrb::Consumer<SdoDone>,
+    arrived: Vec<SdoDone>,
+}
+
+/// Outcomes kept for handles not asking yet (the oldest, of handles given up, drop out).
+const SDO_ARRIVED_KEEP: usize = 32;
 
 struct Shared {
     requests: Mutex<rtrb::Producer<Request>>,
     snapshot: Mutex<triple_buffer::Output<Snapshot>>,
     trace: Mutex<rtrb::Consumer<TraceSample>>,
     figures: Mutex<FigureBook>,
+    sdo: Mutex<SdoEnds>,
     next_id: AtomicU64,
     axes: Vec<String>,
 }
@@ -58,6 +74,11 @@ impl Controller {
                 snapshot: Mutex::new(ends.snapshot),
                 trace: Mutex::new(ends.trace),
                 figures: Mutex::new(FigureBook::new(ends.samples)),
+                sdo: Mutex::new(SdoEnds {
+                    jobs: ends.sdo_jobs,
+                    done: ends.sdo_done,
+                    arrived: Vec::with_capacity(SDO_ARRIVED_KEEP),
+                }),
                 next_id: AtomicU64::new(1),
                 axes,
             }),
@@ -129,6 +150,33 @@ impl Controller {
         }
     }
 
+    /// Starts an SDO transfer on the bus, beside the process data
+    /// ([`crate::runtime::bus::CycleBus::start_sdo`]); its outcome follows on the handle.
+    pub fn sdo(&self, request: SdoRequest) -> Result<SdoHandle, ControlError> {
+        let id = self.shared.next_id.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.sdo)
+            .jobs
+            .push(SdoJob { id, request })
+            .map_err(|_| ControlError::QueueFull)?;
+        Ok(SdoHandle {
+            id,
+            controller: self.clone(),
+        })
+    }
+
+    /// The outcome of SDO job `id`, once the cycle thread has handed it back.
+    fn sdo_outcome(&self, id: u64) -> Option<SdoResult> {
+        let mut ends = lock(&self.shared.sdo);
+        while let Ok(done) = ends.done.pop() {
+            if ends.arrived.len() == SDO_ARRIVED_KEEP {
+                ends.arrived.remove(0);
+            }
+            ends.arrived.push(done);
+        }
+        let at = ends.arrived.iter().position(|d| d.id == id)?;
+        Some(ends.arrived.remove(at).result)
+    }
+
     fn status_of(&self, id: u64) -> Option<CommandStatus> {
         lock(&self.shared.snapshot).read().status_of(id)
     }
@@ -182,6 +230,37 @@ impl CommandHandle {
                 return s;
             }
             tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    }
+}
+
+/// An SDO transfer on its way.
+#[derive(Clone)]
+pub struct SdoHandle {
+    id: u64,
+    controller: Controller,
+}
+
+impl SdoHandle {
+    /// How it ended, once it has (taken once).
+    pub fn outcome(&self) -> Option<SdoResult> {
+        self.controller.sdo_outcome(self.id)
+    }
+
+    /// Blocks until it ends, the cycle ends, or `timeout` passes.
+    pub fn wait(&self, timeout: Duration) -> Result<SdoResult, ControlError> {
+        let end = Instant::now() + timeout;
+        loop {
+            if let Some(r) = self.outcome() {
+                return Ok(r);
+            }
+            if lock(&self.controller.shared.snapshot).read().ended {
+                return Err(ControlError::Ended);
+            }
+            if Instant::now() >= end {
+                return Err(ControlError::Timeout(timeout));
+            }
+            std::thread::sleep(Duration::from_millis(1));
         }
     }
 }

@@ -8,10 +8,12 @@ use gantry_kernel::mechanics::Modulo;
 use gantry_kernel::Kernel;
 use thiserror::Error;
 
-use super::bus::CycleBus;
+use super::bus::{CycleBus, DriveError};
 use crate::config::Config;
 use crate::drive_axis::AxisChannel;
-use gantry_drives::csp::{encode_outputs, CspChannel, CspInputs};
+use gantry_drives::csp::{
+    encode_outputs, encode_touch_probe, CspChannel, CspInputs, FAULT_CODE_NOT_MAPPED,
+};
 
 /// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
 /// emergency class 0x81xx, "communication"); the reason is the bus' (see
@@ -165,6 +167,7 @@ impl Cycle {
             let scaling = a.scaling().map_err(axis_error)?;
             let mut channel =
                 CspChannel::with_layout(scaling, &layout).map_err(|e| setup_error(e.into()))?;
+            channel.set_switch_wiring(a.switches.wiring().map_err(axis_error)?);
             // A modulo period that cannot be counted is refused here, by name (the cycle
             // would fault the axis).
             channel
@@ -220,6 +223,24 @@ impl Cycle {
                 continue;
             }
             self.read_inputs(axis, bus.inputs(drive))?;
+            if let Some(e) = bus.drive_error(drive) {
+                self.drive_error(axis, e)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// An error the drive reported outside its process data (a CANopen EMCY): a new one
+    /// faults the axis with its code (ErrorStop with the drive's own code and text, even
+    /// if the drive does not fault for it); one in force names the fault of a drive whose
+    /// layout does not carry 0x603F ([`FAULT_CODE_NOT_MAPPED`] otherwise).
+    fn drive_error(&mut self, axis: usize, e: DriveError) -> Result<(), CycleError> {
+        let feedback = self
+            .feedback
+            .get_mut(axis)
+            .ok_or(CycleError::NoDrive(axis))?;
+        if e.fresh || feedback.fault == Some(FAULT_CODE_NOT_MAPPED) {
+            feedback.fault = Some(e.code);
         }
         Ok(())
     }
@@ -334,6 +355,9 @@ impl Cycle {
         );
         let (cw, target) = channel.outputs(sp, inputs);
         encode_outputs(&channel.offsets, bytes, cw, target);
+        if let Some(f) = channel.probe_function() {
+            encode_touch_probe(&channel.offsets, bytes, f);
+        }
         Ok(())
     }
 }

@@ -13,12 +13,16 @@ use super::clock::{now_ns, Clock, CycleClock, Wake};
 use super::cycle::{Cycle, COMMUNICATION_FAULT};
 use super::phase::PhaseLock;
 use super::protocol::{
-    DriveStatus, Request, Snapshot, TraceSample, Tracked, TRACE_AXES, TRACKED_COMMANDS,
+    DriveStatus, Request, SdoDone, SdoJob, Snapshot, TraceSample, Tracked, TRACE_AXES,
+    TRACKED_COMMANDS,
 };
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
 const REQUESTS_PER_CYCLE: usize = 32;
+/// SDO transfers waiting for the bus at most, and outcomes waiting for the application
+/// (one transfer runs at a time; a commissioning engineer types them one by one).
+pub const SDO_QUEUE: usize = 8;
 /// Cycles between snapshots.
 const PUBLISH_EVERY: u64 = 10;
 /// Cycles a shutdown waits for the axes to stop and the drives to switch off.
@@ -85,6 +89,10 @@ pub struct AppEnds {
     /// Each cycle's durations, for the figures the application computes
     /// (`stats::FigureBook`).
     pub samples: rtrb::Consumer<CycleSample>,
+    /// SDO transfers to the cycle.
+    pub sdo_jobs: rtrb::Producer<SdoJob>,
+    /// How they ended.
+    pub sdo_done: rtrb::Consumer<SdoDone>,
 }
 
 /// The channels between the cycle thread and the application, made before the bus goes
@@ -101,6 +109,8 @@ pub struct Channels {
     ),
     trace: (rtrb::Producer<TraceSample>, rtrb::Consumer<TraceSample>),
     stats: (CycleStats, rtrb::Consumer<CycleSample>),
+    sdo_jobs: (rtrb::Producer<SdoJob>, rtrb::Consumer<SdoJob>),
+    sdo_done: (rtrb::Producer<SdoDone>, rtrb::Consumer<SdoDone>),
 }
 
 impl Channels {
@@ -111,6 +121,8 @@ impl Channels {
             snapshot: triple_buffer::triple_buffer(&Snapshot::sized(axes)),
             trace: rtrb::RingBuffer::new(trace_capacity.max(1)),
             stats: CycleStats::new(),
+            sdo_jobs: rtrb::RingBuffer::new(SDO_QUEUE),
+            sdo_done: rtrb::RingBuffer::new(SDO_QUEUE),
         }
     }
 }
@@ -158,6 +170,10 @@ pub struct Engine<B: CycleBus> {
     /// Answered cycles in a row whose frame the phase lock held, at start; `None` once
     /// the slaves were asked for OP.
     held_before_op: Option<u32>,
+    sdo_jobs: rtrb::Consumer<SdoJob>,
+    sdo_done: rtrb::Producer<SdoDone>,
+    /// The id of the SDO transfer the bus is carrying.
+    sdo_active: Option<u64>,
 }
 
 /// A restore the bus finished for a reset ([`Engine::last_restore`]).
@@ -196,6 +212,8 @@ impl<B: CycleBus> Engine<B> {
             snapshot: (mut snap_in, mut snap_out),
             trace: (trace_tx, trace_rx),
             stats: (stats, samples),
+            sdo_jobs: (sdo_tx, sdo_rx),
+            sdo_done: (done_tx, done_rx),
         } = channels;
         let axes = cycle.len();
         // Channels made for another number of axes: a snapshot that fits.
@@ -236,12 +254,17 @@ impl<B: CycleBus> Engine<B> {
             next_reset: 0,
             recovery_timeout_ns,
             held_before_op: Some(0),
+            sdo_jobs: sdo_rx,
+            sdo_done: done_tx,
+            sdo_active: None,
         };
         let app = AppEnds {
             requests: req_tx,
             snapshot: snap_out,
             trace: trace_rx,
             samples,
+            sdo_jobs: sdo_tx,
+            sdo_done: done_rx,
         };
         (engine, app)
     }
@@ -324,8 +347,10 @@ impl<B: CycleBus> Engine<B> {
         let t1 = now_ns();
         let reply_by = self.late_reply.reply_by(&wake, t1);
         self.start_recovery(t1);
+        self.start_sdo(t1);
         self.answered = self.bus.exchange(reply_by) == Reply::Answered;
         self.finish_recovery();
+        self.finish_sdo();
         self.start_operation_when_ready();
         let t2 = now_ns();
         let in_a_row = self
@@ -573,6 +598,37 @@ impl<B: CycleBus> Engine<B> {
         };
         if let Some(slot) = self.tracked.iter_mut().find(|e| e.id == id) {
             *slot = entry;
+        }
+    }
+
+    /// Hands the next SDO transfer to the bus when none runs; one the bus refuses at
+    /// once (no such drive, not supported) ends here.
+    fn start_sdo(&mut self, now_ns: u64) {
+        if self.sdo_active.is_some() {
+            return;
+        }
+        let Ok(job) = self.sdo_jobs.pop() else {
+            return;
+        };
+        match self.bus.start_sdo(&job.request, now_ns) {
+            Ok(()) => self.sdo_active = Some(job.id),
+            Err(e) => {
+                // The application gave up on it if its queue is full: dropped.
+                let _ = self.sdo_done.push(SdoDone {
+                    id: job.id,
+                    result: Err(e),
+                });
+            }
+        }
+    }
+
+    /// Hands a finished SDO transfer's outcome to the application.
+    fn finish_sdo(&mut self) {
+        let Some(result) = self.bus.take_sdo() else {
+            return;
+        };
+        if let Some(id) = self.sdo_active.take() {
+            let _ = self.sdo_done.push(SdoDone { id, result });
         }
     }
 

@@ -11,4 +11,5 @@ pub mod histogram;
 pub mod phase;
 pub mod protocol;
 pub mod rt;
+pub mod sdo;
 pub mod stats;

@@ -9,6 +9,7 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::status::AxisStatus;
 
 use super::bus::Unreachable;
+use super::sdo::{SdoRequest, SdoResult};
 use super::stats::CycleFigures;
 
 /// Axes a trace sample holds.
@@ -37,6 +38,24 @@ pub enum Request {
     },
     /// Stop moving axes, disable the drives, end the cycle.
     Shutdown,
+}
+
+/// An SDO transfer for the cycle thread to hand to the bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoJob {
+    /// Request id (the handle's).
+    pub id: u64,
+    /// The transfer.
+    pub request: SdoRequest,
+}
+
+/// How an SDO transfer ended, from the cycle thread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoDone {
+    /// The job's id.
+    pub id: u64,
+    /// The object's bytes (upload), none (download), or why it failed.
+    pub result: SdoResult,
 }
 
 /// Status of one request as the cycle thread last saw it.

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! Commands: `status`, `enable`, `disable`, `move`, `jog`, `halt`, `stop`, `release`,
-//! `set_position`, `reset`, `command` (status of a handle), `wait`, `trace`, `shutdown`. A malformed or
+//! `set_position`, `reset`, `command` (status of a handle), `wait`, `trace`, `sdo`, `shutdown`. A malformed or
 //! hostile request gets an error reply; nothing of it reaches the cycle thread.
 //!
 //! [`Request`] is the one description of a request: the CLI serialises it
@@ -205,6 +205,22 @@ impl Word for JogDirection {
 }
 word_impls!(JogDirection);
 
+/// Which way an SDO transfer goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SdoDirection {
+    /// Read the object from the drive.
+    Upload,
+    /// Write the object to the drive.
+    Download,
+}
+
+impl Word for SdoDirection {
+    const FIELD: &'static str = "direction";
+    const NAMES: &'static [(&'static str, Self)] =
+        &[("upload", Self::Upload), ("download", Self::Download)];
+}
+word_impls!(SdoDirection);
+
 /// `null` is the default, as an absent field is (version-1 clients send `"buffer": null`).
 fn null_is_default<'de, D, T>(d: D) -> Result<T, D::Error>
 where
@@ -310,6 +326,28 @@ pub enum Request {
         /// Seconds to record (up to 60).
         seconds: f64,
     },
+    /// Read or write an object of a drive (SDO) while the cycle runs; the drive named by
+    /// an axis or by its position on the bus (exactly one of the two).
+    Sdo {
+        /// The axis whose drive it is.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<String>,
+        /// Or the drive's position on the bus.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        drive: Option<usize>,
+        /// Upload (read) or download (write).
+        direction: SdoDirection,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Download: the bytes to write, as hex (two digits a byte, as on the wire).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        data: Option<String>,
+        /// Seconds the drive may take (default 2).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        timeout_s: Option<f64>,
+    },
     /// Quick-stop, disable, take the bus down and end the service.
     Shutdown,
 }
@@ -331,6 +369,7 @@ impl Request {
             Self::Command { .. } => "command",
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
+            Self::Sdo { .. } => "sdo",
             Self::Shutdown => "shutdown",
         }
     }
@@ -347,6 +386,7 @@ impl Request {
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
             | Self::Reset { axis } => Some(axis),
+            Self::Sdo { axis, .. } => axis.as_deref(),
             Self::Status
             | Self::Command { .. }
             | Self::Wait { .. }
@@ -469,6 +509,15 @@ mod tests {
                 axes: vec!["x".into(), "y".into()],
                 seconds: 2.5,
             },
+            Request::Sdo {
+                axis: Some(axis()),
+                drive: None,
+                direction: SdoDirection::Download,
+                index: 0x6060,
+                sub: 0,
+                data: Some("08".into()),
+                timeout_s: Some(1.5),
+            },
             Request::Shutdown,
         ]
     }
@@ -493,11 +542,12 @@ mod tests {
             Request::Wait { .. } => 11,
             Request::Trace { .. } => 12,
             Request::Shutdown => 13,
+            Request::Sdo { .. } => 14,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..14).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..15).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 14, "{words:?}");
+        assert_eq!(words.len(), 15, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

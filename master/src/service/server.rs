@@ -21,11 +21,12 @@ use thiserror::Error;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
-use super::protocol::{self, JogDirection, MoveMode, Request, MAX_LINE};
+use super::protocol::{self, JogDirection, MoveMode, Request, SdoDirection, MAX_LINE};
 use crate::config::Config;
 use crate::error_chain::Chain;
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::protocol::{Snapshot, TraceSample};
+use crate::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_DATA, SDO_TIMEOUT_NS};
 
 /// Trace samples kept for `trace` requests (60 s at 1 kHz).
 const TRACE_KEEP: usize = 60_000;
@@ -208,12 +209,91 @@ pub enum Refused {
         /// The time waited.
         timeout_s: f64,
     },
+    /// An SDO request names its drive by neither or both of axis and drive.
+    #[error("sdo: name the drive by its axis or by its bus position, one of the two")]
+    SdoTarget,
+    /// An SDO download's data is not hex bytes, or too many.
+    #[error("sdo: data {0:?} is not hex bytes (two digits a byte, at most {SDO_MAX_DATA} bytes)")]
+    SdoData(String),
+    /// A download without data.
+    #[error("sdo: a download needs data")]
+    SdoNoData,
+    /// The transfer failed.
+    #[error(transparent)]
+    Sdo(#[from] SdoError),
     /// An axis beyond those the trace records.
     #[error(
         "only the first {} axes are traced",
         crate::runtime::protocol::TRACE_AXES
     )]
     NotTraced,
+}
+
+/// An SDO transfer, waited for in a blocking thread (the controller polls its outcome).
+#[allow(clippy::too_many_arguments)]
+async fn sdo(
+    state: &ServerState,
+    axis: Option<String>,
+    drive: Option<usize>,
+    direction: SdoDirection,
+    index: u16,
+    sub: u8,
+    data: Option<String>,
+    timeout_s: Option<f64>,
+) -> Result<Value, Refused> {
+    let ctl = &state.controller;
+    let drive = match (axis, drive) {
+        (Some(a), None) => {
+            let i = ctl.axis(&a)?;
+            state
+                .config
+                .axes
+                .get(i)
+                .map(|c| c.drive)
+                .ok_or(Refused::NoConfig(a))?
+        }
+        (None, Some(d)) => d,
+        _ => return Err(Refused::SdoTarget),
+    };
+    let mut request = match (direction, data) {
+        (SdoDirection::Upload, _) => SdoRequest::upload(drive, index, sub),
+        (SdoDirection::Download, None) => return Err(Refused::SdoNoData),
+        (SdoDirection::Download, Some(hex)) => {
+            let bytes = from_hex(&hex).ok_or_else(|| Refused::SdoData(hex.clone()))?;
+            let data = SdoData::new(&bytes).ok_or(Refused::SdoData(hex))?;
+            SdoRequest::download(drive, index, sub, data)
+        }
+    };
+    if let Some(t) = timeout_s {
+        request.timeout_ns = (number("timeout_s", t)?.clamp(0.001, 60.0) * 1e9) as u64;
+    }
+    let handle = ctl.sdo(request)?;
+    // The bus times the transfer out itself; a cycle that stopped taking requests is
+    // waited for a little longer, then reported.
+    let wait =
+        Duration::from_nanos(request.timeout_ns.max(SDO_TIMEOUT_NS)) + Duration::from_secs(2);
+    let outcome = tokio::task::spawn_blocking(move || handle.wait(wait))
+        .await
+        .map_err(|_| Refused::Control(ControlError::Ended))??;
+    let data = outcome?;
+    Ok(json!({ "drive": drive, "data": to_hex(data.as_slice()) }))
+}
+
+/// Bytes as hex, two lower-case digits each.
+pub fn to_hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Hex digits as bytes (`None` unless an even number of hex digits).
+pub fn from_hex(text: &str) -> Option<Vec<u8>> {
+    let digits = text.as_bytes();
+    if digits.len() % 2 != 0 || !digits.iter().all(u8::is_ascii_hexdigit) {
+        return None;
+    }
+    digits
+        .chunks(2)
+        .map(|pair| u8::from_str_radix(std::str::from_utf8(pair).ok()?, 16).ok())
+        .collect()
 }
 
 fn number(field: &'static str, value: f64) -> Result<f64, Refused> {
@@ -318,6 +398,15 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             },
         )),
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
+        Request::Sdo {
+            axis: a,
+            drive,
+            direction,
+            index,
+            sub,
+            data,
+            timeout_s,
+        } => sdo(state, a, drive, direction, index, sub, data, timeout_s).await,
         Request::Command { handle } => {
             let h = find(state, handle)?;
             Ok(h.status().map_or(json!({"status": "Pending"}), status_name))

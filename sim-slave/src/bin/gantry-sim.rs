@@ -6,12 +6,16 @@
 //! gantry-sim --interface veth-sim --config sim.toml [--seconds 10] [--priority 80]
 //!            [--record records.json]
 //! gantry-sim --can vcan0 --config sim.toml [--seconds 10] [--priority 80]
+//! gantry-sim eds --config sim.toml --node N --out node.eds
 //! ```
 //!
 //! On CAN every slave needs a node id (`node = N`); each servo becomes a CiA 402 node
 //! (`gantry_sim::canopen::CanNetwork`): it boots (boot-up message) when the process
 //! starts, answers SDO, NMT, SYNC and RPDOs as they come and runs its timers (heartbeat,
 //! event TPDOs, the drive's loops without SYNC) every `cycle_us` of the chain.
+//!
+//! `gantry-sim eds` writes the electronic data sheet (CiA 306) of the chain's CANopen node
+//! `N` (the slave with `node = N`), as a vendor ships one with a device, and exits.
 //!
 //! On SIGTERM or SIGINT (within one period) or after `--seconds` it prints a summary and
 //! exits: frames served and dropped, and the largest gaps the drives saw — between frames,
@@ -40,6 +44,10 @@ use gantry_sim::realtime::{Gaps, WallClock};
 /// CAN interface.
 #[derive(Parser, Debug)]
 #[command(name = "gantry-sim", version)]
+#[command(
+    after_help = "gantry-sim eds --config FILE --node N --out FILE: the EDS (CiA 306) \
+of the chain's CANopen node N"
+)]
 struct Args {
     /// Network interface to answer on (the master sends on the other end of the wire).
     #[arg(long, required_unless_present = "can", conflicts_with = "can")]
@@ -91,7 +99,52 @@ fn catch_stop_signals() -> Result<(), String> {
     Ok(())
 }
 
+/// `gantry-sim eds`: the EDS of one node of the chain.
+#[derive(Parser, Debug)]
+#[command(name = "gantry-sim eds")]
+struct EdsArgs {
+    /// TOML file that lists the chain.
+    #[arg(long)]
+    config: String,
+    /// CANopen node id of the slave (its `node = N`).
+    #[arg(long)]
+    node: u8,
+    /// Where to write the EDS.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes the EDS of `--node` to `--out`.
+fn eds(args: &EdsArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let config = SimConfig::load(&args.config)?;
+    let name = args
+        .out
+        .file_name()
+        .map_or_else(|| "node.eds".into(), |n| n.to_string_lossy().into_owned());
+    let eds = gantry_sim::canopen::eds::for_chain_node(&config, args.node, &name)
+        .map_err(|e| format!("{}: {e}", args.config))?;
+    std::fs::write(&args.out, gantry_drives::canopen::eds::write_eds(&eds))
+        .map_err(|e| format!("{}: {e}", args.out.display()))?;
+    println!(
+        "gantry-sim: EDS of node {} written to {}",
+        args.node,
+        args.out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
+    // A subcommand of its own arguments: the network's are not needed for it.
+    if std::env::args_os().nth(1).is_some_and(|a| a == "eds") {
+        let args = EdsArgs::parse_from(std::env::args_os().skip(1));
+        return match eds(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("gantry-sim eds: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let args = Args::parse();
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,

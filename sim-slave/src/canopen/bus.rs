@@ -4,6 +4,13 @@
 //! order) and delivers the winner to every other participant at once, the master
 //! included. With a bit rate, each frame occupies the bus for its worst-case length
 //! (47 + 8·n bits plus stuff bits: 135 bits for 8 data bytes) and is received when it ends.
+//!
+//! A module that follows a servo's axis (the switch-cam inputs, [`CanNode::coupled_axis`])
+//! is handed that servo's position before every tick and every frame it gets, and gets
+//! them after the other nodes: at a SYNC the servo first runs its loops to the SYNC, then
+//! the module samples its cams at that position — the inputs its TPDO carries and the
+//! position the servo's TPDO carries agree to the count, as on EtherCAT
+//! ([`follow_axis`]; `gantry-sim --can` delivers in the same order).
 
 use std::collections::VecDeque;
 
@@ -100,7 +107,14 @@ impl CanBus {
     pub fn run(&mut self, now_ns: u64) {
         self.now_ns = self.now_ns.max(now_ns);
         let now = self.now_ns();
-        for (i, n) in self.nodes.iter_mut().enumerate() {
+        for (pass, i) in delivery_order(self.nodes.len()) {
+            if follows_axis(&self.nodes, i) != pass {
+                continue;
+            }
+            follow_axis(&mut self.nodes, i);
+            let Some(n) = self.nodes.get_mut(i) else {
+                continue;
+            };
             let out = n.tick(now);
             if let Some(q) = self.queues.get_mut(i + 1) {
                 q.extend(out.iter().copied());
@@ -130,10 +144,14 @@ impl CanBus {
             if from != Sender::Master {
                 self.received.push(d);
             }
-            for (i, n) in self.nodes.iter_mut().enumerate() {
-                if from == Sender::Node(i) {
+            for (pass, i) in delivery_order(self.nodes.len()) {
+                if from == Sender::Node(i) || follows_axis(&self.nodes, i) != pass {
                     continue;
                 }
+                follow_axis(&mut self.nodes, i);
+                let Some(n) = self.nodes.get_mut(i) else {
+                    continue;
+                };
                 let out = n.receive(&frame, end);
                 if let Some(q) = self.queues.get_mut(i + 1) {
                     q.extend(out.iter().copied());
@@ -161,5 +179,36 @@ impl CanBus {
     /// Every frame the bus carried, in order.
     pub fn log(&self) -> &[Delivered] {
         &self.log
+    }
+}
+
+/// The order in which `n` nodes get a tick or a frame: `(pass, i)` for both passes over
+/// the nodes in bus order; pass `false` serves the nodes that follow no axis, pass `true`
+/// those that follow one ([`follows_axis`]), so a module samples its servo's position
+/// after the servo has run to the same time.
+pub fn delivery_order(n: usize) -> impl Iterator<Item = (bool, usize)> {
+    [false, true]
+        .into_iter()
+        .flat_map(move |pass| (0..n).map(move |i| (pass, i)))
+}
+
+/// Whether node `i` follows a servo's axis.
+pub fn follows_axis(nodes: &[CanNode], i: usize) -> bool {
+    nodes.get(i).is_some_and(|n| n.coupled_axis().is_some())
+}
+
+/// If node `i` follows a servo's axis, hands it that servo's present position (a module
+/// whose servo is not on the bus keeps the last position it had, none at first: its
+/// cams rest).
+pub fn follow_axis(nodes: &mut [CanNode], i: usize) {
+    let Some(axis) = nodes.get(i).and_then(CanNode::coupled_axis) else {
+        return;
+    };
+    let position = nodes
+        .iter()
+        .find(|n| n.node() == axis)
+        .and_then(CanNode::axis_position);
+    if let (Some(p), Some(n)) = (position, nodes.get_mut(i)) {
+        n.sense_axis(p);
     }
 }

@@ -1,11 +1,12 @@
 //! The CANopen node's object dictionary (CiA 301 §7.4, §7.5): the communication objects
-//! it owns (0x1000–0x1FFF) and the servo's CiA 402 objects (0x6000–0x9FFF, the same as on
+//! it owns (0x1000–0x1FFF) and its device's profile objects (0x6000–0x9FFF: the servo's CiA
+//! 402 objects, the same as on
 //! EtherCAT), served to the SDO server through the `ObjectDictionary` trait of
 //! `gantry-drives`. No allocation after [`NodeDictionary::new`].
 //!
 //! | Object | Access | What |
 //! |---|---|---|
-//! | 0x1000 | const | device type 0x00020192: CiA 402 (0x0192), servo drive (0x0002) |
+//! | 0x1000 | const | device type: 0x00020192 CiA 402 servo drive; the encoder's and input module's in [`super::device`] |
 //! | 0x1001 | ro | error register (CiA 301 §7.5.2.2) |
 //! | 0x1003:00 / 01–08 | rw / ro | pre-defined error field: the last 8 EMCY codes, newest at sub 1; writing 0 to sub 0 clears it (§7.5.2.3) |
 //! | 0x1005 | const | COB-ID SYNC 0x080 |
@@ -22,24 +23,22 @@
 //! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping |
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
 //! | 0x6007 | rw | abort connection option code (CiA 402-2): 0 none, 1 fault |
-//! | 0x6040… | | the servo's objects (`ServoDrive::install_objects`) and every mappable one |
+//! | 0x6000… | | the device's objects (`CanDevice::install_objects`) and every mappable one |
 
 use gantry_drives::canopen::cob_id::{CobId, NodeId, SYNC_COB_ID};
 use gantry_drives::canopen::sdo::{
     AbortCode, Access, EntryInfo, Multiplexer, ObjectDictionary as SdoDictionary, ObjectSize,
 };
-use gantry_drives::cia402::image::{self, PdoMap};
 use gantry_drives::cia402::objects::ObjectId;
-use gantry_drives::cia402::pdo::PdoLayout;
 
+use super::device::{image_offset, CanDevice, DeviceKind};
 use super::pdo::{self, Direction, Pdo, PDO_COUNT};
 use crate::coe::od::{ObjectDictionary as Od, OdError};
-use crate::plant::servo::ServoDrive;
 
 /// 0x1000 device type.
 pub const DEVICE_TYPE: u16 = 0x1000;
 /// Device type value of a CiA 402 servo drive: profile 0x0192 (402), type 0x0002 (servo).
-pub const DEVICE_TYPE_CIA402_SERVO: u32 = 0x0002_0192;
+pub const DEVICE_TYPE_CIA402_SERVO: u32 = super::device::DEVICE_TYPE_SERVO;
 /// 0x1001 error register.
 pub const ERROR_REGISTER: u16 = 0x1001;
 /// 0x1003 pre-defined error field.
@@ -54,8 +53,8 @@ pub const COMMUNICATION_CYCLE_PERIOD: u16 = 0x1006;
 pub const DEVICE_NAME: u16 = 0x1008;
 /// 0x100A manufacturer software version.
 pub const SOFTWARE_VERSION: u16 = 0x100A;
-/// Value of 0x1008.
-pub const DEVICE_NAME_VALUE: &str = "gantry-sim CiA 402 servo";
+/// Value of 0x1008 of the servo (the other devices': [`DeviceKind::name`]).
+pub const DEVICE_NAME_VALUE: &str = DeviceKind::Servo.name();
 /// Value of 0x100A: the simulator's version.
 pub const SOFTWARE_VERSION_VALUE: &str = env!("CARGO_PKG_VERSION");
 /// 0x1014 COB-ID EMCY.
@@ -120,30 +119,27 @@ pub struct Communication {
 }
 
 impl Communication {
-    /// Power-on values for `node`: RPDO1 = controlword + target position and TPDO1 =
-    /// statusword + position actual value, synchronous on every SYNC, on their predefined
-    /// COB-IDs (the same process data as the EtherCAT servo's power-up mapping); the other
-    /// PDOs exist not (COB-ID bit 31) and map nothing.
-    pub fn power_on(node: NodeId, heartbeat_producer_ms: u16) -> Self {
-        let layout = PdoLayout::csp_minimal();
+    /// Power-on values for `node` of a `kind` device: RPDO1 and TPDO1 map the device's
+    /// power-on objects ([`DeviceKind::power_on_mapping`]; the servo's: controlword +
+    /// target position and statusword + position actual value, the EtherCAT servo's
+    /// power-up mapping), synchronous on every SYNC, on their predefined COB-IDs; a PDO
+    /// that maps nothing and the others exist not (COB-ID bit 31).
+    pub fn power_on(node: NodeId, heartbeat_producer_ms: u16, kind: DeviceKind) -> Self {
+        let (outputs, inputs) = kind.power_on_mapping();
         let id = |c: Result<CobId, _>| c.map(CobId::id).unwrap_or(0);
-        let mut rpdo = [Pdo::unused(Direction::Receive, 0); PDO_COUNT];
-        let mut tpdo = [Pdo::unused(Direction::Transmit, 0); PDO_COUNT];
+        let mut rpdo = [Pdo::unused(kind, Direction::Receive, 0); PDO_COUNT];
+        let mut tpdo = [Pdo::unused(kind, Direction::Transmit, 0); PDO_COUNT];
         for (n, (r, t)) in rpdo.iter_mut().zip(tpdo.iter_mut()).enumerate() {
             let k = n as u8 + 1;
-            *r = Pdo::unused(Direction::Receive, id(CobId::rpdo(k, node)));
-            *t = Pdo::unused(Direction::Transmit, id(CobId::tpdo(k, node)));
+            *r = Pdo::unused(kind, Direction::Receive, id(CobId::rpdo(k, node)));
+            *t = Pdo::unused(kind, Direction::Transmit, id(CobId::tpdo(k, node)));
         }
-        rpdo[0] = Pdo::synchronous(
-            Direction::Receive,
-            id(CobId::rpdo(1, node)),
-            &layout.outputs,
-        );
-        tpdo[0] = Pdo::synchronous(
-            Direction::Transmit,
-            id(CobId::tpdo(1, node)),
-            &layout.inputs,
-        );
+        if !outputs.is_empty() {
+            rpdo[0] = Pdo::synchronous(kind, Direction::Receive, id(CobId::rpdo(1, node)), outputs);
+        }
+        if !inputs.is_empty() {
+            tpdo[0] = Pdo::synchronous(kind, Direction::Transmit, id(CobId::tpdo(1, node)), inputs);
+        }
         Self {
             heartbeat_consumer: 0,
             heartbeat_producer_ms,
@@ -189,7 +185,7 @@ pub struct Changed {
     pub sync_watchdog: bool,
 }
 
-/// The node's dictionary and the servo behind it.
+/// The node's dictionary and the device behind it.
 #[derive(Debug)]
 pub struct NodeDictionary {
     node: NodeId,
@@ -204,16 +200,16 @@ pub struct NodeDictionary {
     error_count: u8,
     /// 0x2010.
     pub missed_setpoint_limit: u16,
-    /// The servo.
-    pub servo: ServoDrive,
+    /// The application: the servo, the encoder or the input module.
+    pub device: CanDevice,
     od: Od,
     od_power_on: Od,
-    /// Full output image (every [`image::OUTPUT_OBJECTS`] once): what the servo takes.
+    /// Full output image (every [`DeviceKind::outputs`] object once): what the device
+    /// takes.
     pub rx_image: [u8; IMAGE_BYTES],
-    /// Full input image (every [`image::INPUT_OBJECTS`] once): what TPDOs are cut from.
+    /// Full input image (every [`DeviceKind::inputs`] object once): what TPDOs are cut
+    /// from.
     pub tx_image: [u8; IMAGE_BYTES],
-    /// Offsets in the full images.
-    pub map: PdoMap,
     /// What the last SDO writes changed (the node takes and clears it).
     pub changed: Changed,
 }
@@ -278,29 +274,26 @@ pub fn image_put(image: &mut [u8], at: Option<usize>, o: ObjectId, bytes: &[u8])
 
 impl NodeDictionary {
     /// The dictionary of `node` with `identity` (vendor, product, revision, serial) and
-    /// `servo` behind it; 0x1017 powers on with `heartbeat_producer_ms`.
+    /// `device` behind it; 0x1017 powers on with `heartbeat_producer_ms`.
     pub fn new(
         node: NodeId,
         identity: [u32; 4],
         heartbeat_producer_ms: u16,
-        mut servo: ServoDrive,
+        mut device: CanDevice,
     ) -> Self {
-        let full = PdoLayout {
-            outputs: image::OUTPUT_OBJECTS.to_vec(),
-            inputs: image::INPUT_OBJECTS.to_vec(),
-        };
-        servo.configure(full.clone());
-        let map = PdoMap::of(&full);
+        let kind = device.kind();
         let mut od = Od::default();
-        for o in image::OUTPUT_OBJECTS {
+        for o in kind.outputs() {
             od.insert(o.index, o.sub, &vec![0; o.kind.size()], true);
         }
-        for o in image::INPUT_OBJECTS {
+        for o in kind.inputs() {
             od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
         }
-        od.insert_ranged(ABORT_CONNECTION_OPTION_CODE, 0, &1i16.to_le_bytes(), 0, 1);
-        servo.install_objects(&mut od);
-        let comm = Communication::power_on(node, heartbeat_producer_ms);
+        if kind == DeviceKind::Servo {
+            od.insert_ranged(ABORT_CONNECTION_OPTION_CODE, 0, &1i16.to_le_bytes(), 0, 1);
+        }
+        device.install_objects(&mut od);
+        let comm = Communication::power_on(node, heartbeat_producer_ms, kind);
         let mut d = Self {
             node,
             identity,
@@ -310,12 +303,11 @@ impl NodeDictionary {
             error_history: [0; ERROR_HISTORY],
             error_count: 0,
             missed_setpoint_limit: DEFAULT_MISSED_SETPOINT_LIMIT,
-            servo,
+            device,
             od_power_on: Od::default(),
             od,
             rx_image: [0; IMAGE_BYTES],
             tx_image: [0; IMAGE_BYTES],
-            map,
             changed: Changed::default(),
         };
         d.refresh_objects();
@@ -324,9 +316,30 @@ impl NodeDictionary {
         d
     }
 
-    /// The servo's objects (0x6000…): index, sub-index, in the order installed.
+    /// The device's profile objects (0x6000…): index, sub-index, in the order installed.
     pub fn servo_objects(&self) -> impl Iterator<Item = (u16, u8)> + '_ {
         self.od.entries().iter().map(|e| (e.index, e.sub))
+    }
+
+    /// Which device.
+    pub fn kind(&self) -> DeviceKind {
+        self.device.kind()
+    }
+
+    /// Offset of `o` in the full input image.
+    pub fn input_offset(&self, o: ObjectId) -> Option<usize> {
+        image_offset(self.kind().inputs(), o)
+    }
+
+    /// Offset of `o` in the full output image.
+    pub fn output_offset(&self, o: ObjectId) -> Option<usize> {
+        image_offset(self.kind().outputs(), o)
+    }
+
+    /// The values an SDO download may write to the device object `index`:`sub`
+    /// (inclusive), if the device limits them (its EDS's LowLimit/HighLimit).
+    pub fn servo_range(&self, index: u16, sub: u8) -> Option<(i64, i64)> {
+        self.od.entry(index, sub).ok().and_then(|e| e.range)
     }
 
     /// The node id.
@@ -365,24 +378,24 @@ impl NodeDictionary {
         self.error_count = 0;
     }
 
-    /// Reset application: 0x2000–0x9FFF to power-on values, the servo restarts.
+    /// Reset application: 0x2000–0x9FFF to power-on values, the device restarts.
     pub fn reset_application(&mut self) {
         self.missed_setpoint_limit = DEFAULT_MISSED_SETPOINT_LIMIT;
-        self.servo.power_on_reset();
+        self.device.power_on_reset();
         self.od.copy_values_from(&self.od_power_on);
         // The command objects start from where the drive is, not where it powered on.
-        self.servo.take_objects(&self.od);
+        self.device.take_objects(&self.od, 0, 0);
         self.refresh_objects();
         self.sync_rx_image();
     }
 
-    /// Writes the servo's present values into its objects (before an SDO read) and the
+    /// Writes the device's present values into its objects (before an SDO read) and the
     /// full input image.
     pub fn refresh_objects(&mut self) {
-        self.servo.publish_objects(&mut self.od);
-        self.servo.publish_input_image(&mut self.tx_image);
-        for o in image::INPUT_OBJECTS {
-            if let Some(at) = self.map.input_offset(o) {
+        self.device.publish_objects(&mut self.od);
+        self.device.publish_input_image(&mut self.tx_image);
+        for &o in self.kind().inputs() {
+            if let Some(at) = self.input_offset(o) {
                 if let Some(b) = self.tx_image.get(at..at + o.kind.size()) {
                     let _ = self.od.set(o.index, o.sub, b);
                 }
@@ -393,9 +406,10 @@ impl NodeDictionary {
     /// Copies the command objects' values into the full output image (after an SDO write
     /// or a reset, so that the next SYNC takes what SDO wrote for objects no RPDO maps).
     pub fn sync_rx_image(&mut self) {
-        for o in image::OUTPUT_OBJECTS {
+        for &o in self.kind().outputs() {
+            let offset = self.output_offset(o);
             if let Ok(b) = self.od.read(o.index, o.sub) {
-                image_put(&mut self.rx_image, self.map.output_offset(o), o, b);
+                image_put(&mut self.rx_image, offset, o, b);
             }
         }
     }
@@ -411,7 +425,7 @@ impl NodeDictionary {
             (ERROR_REGISTER, 0) => Ok(fixed(ReadOnly, 1)),
             (PREDEFINED_ERROR_FIELD, 0) => Ok(fixed(ReadWrite, 1)),
             (PREDEFINED_ERROR_FIELD, 1..=8) => Ok(fixed(ReadOnly, 4)),
-            (DEVICE_NAME, 0) => Ok(fixed(Const, DEVICE_NAME_VALUE.len())),
+            (DEVICE_NAME, 0) => Ok(fixed(Const, self.kind().name().len())),
             (SOFTWARE_VERSION, 0) => Ok(fixed(Const, SOFTWARE_VERSION_VALUE.len())),
             (CONSUMER_HEARTBEAT_TIME, 0) | (IDENTITY, 0) | (ERROR_BEHAVIOUR, 0) => {
                 Ok(fixed(Const, 1))
@@ -486,7 +500,7 @@ impl SdoDictionary for NodeDictionary {
 
     fn read(&mut self, mux: Multiplexer, out: &mut [u8]) -> Result<usize, AbortCode> {
         match (mux.index, mux.sub) {
-            (DEVICE_TYPE, 0) => put(out, &DEVICE_TYPE_CIA402_SERVO.to_le_bytes()),
+            (DEVICE_TYPE, 0) => put(out, &self.kind().device_type().to_le_bytes()),
             (ERROR_REGISTER, 0) => put(out, &[self.error_register]),
             (PREDEFINED_ERROR_FIELD, 0) => put(out, &[self.error_count]),
             (PREDEFINED_ERROR_FIELD, s) => {
@@ -497,7 +511,7 @@ impl SdoDictionary for NodeDictionary {
                 let e = self.error_history.get(usize::from(s) - 1).copied();
                 put(out, &e.ok_or(AbortCode::NO_DATA)?.to_le_bytes())
             }
-            (DEVICE_NAME, 0) => put(out, DEVICE_NAME_VALUE.as_bytes()),
+            (DEVICE_NAME, 0) => put(out, self.kind().name().as_bytes()),
             (COMMUNICATION_CYCLE_PERIOD, 0) => put(out, &self.comm.cycle_period_us.to_le_bytes()),
             (SOFTWARE_VERSION, 0) => put(out, SOFTWARE_VERSION_VALUE.as_bytes()),
             (COB_ID_SYNC, 0) => put(out, &u32::from(SYNC_COB_ID).to_le_bytes()),
@@ -653,7 +667,7 @@ impl SdoDictionary for NodeDictionary {
             (index, sub) => {
                 self.refresh_objects();
                 self.od.write(index, sub, data).map_err(od_abort)?;
-                self.servo.take_objects(&self.od);
+                self.device.take_objects(&self.od, index, sub);
                 self.sync_rx_image();
                 Ok(())
             }
@@ -664,10 +678,16 @@ impl SdoDictionary for NodeDictionary {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plant::servo::ServoDrive;
 
     fn dict() -> NodeDictionary {
         let node = NodeId::new(3).unwrap();
-        NodeDictionary::new(node, [1, 2, 3, 4], 100, ServoDrive::new(0, 0, 0))
+        NodeDictionary::new(
+            node,
+            [1, 2, 3, 4],
+            100,
+            CanDevice::Servo(ServoDrive::new(0, 0, 0)),
+        )
     }
 
     #[test]

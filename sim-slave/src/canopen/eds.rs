@@ -1,144 +1,78 @@
 //! The electronic data sheet of a simulated node (CiA 306-1 EDS, version 4.0): what a
 //! vendor ships with a device so that a master knows each object's data type, access
-//! and PDO mappability. Written from the node itself — every object its SDO server
-//! serves, with the access the server enforces and its power-on value — so the file and
-//! the device cannot disagree. Not on the cycle path: it allocates.
+//! and PDO mappability. Built from the node itself — every object its SDO server
+//! serves, with the access the server enforces, the PDO direction its mapping rules
+//! allow, its power-on value and the range a download may write — into the shared model
+//! of `gantry_drives::canopen::eds`, and written by its writer (one EDS writer for the
+//! project). The node-relative COB-IDs are written as `$NODEID+…` (one file serves every
+//! node id, as a vendor's does). Not on the cycle path: it allocates.
 
-use std::fmt::Write as _;
+use std::collections::BTreeMap;
 
+use gantry_drives::canopen::eds::{
+    self, AccessType, DataType, Eds, Object, ObjectType, SubObject, Value,
+};
 use gantry_drives::canopen::sdo::{AbortCode, Access, ObjectSize};
-use gantry_drives::cia402::image;
-use gantry_drives::cia402::objects::{self, DataType};
+use gantry_drives::cia402::objects::{self, DataType as Cia402Type};
 
+use super::device::{profile_array, profile_object, DeviceKind};
 use super::dictionary::{
     ABORT_CONNECTION_OPTION_CODE, COB_ID_EMCY, COB_ID_SYNC, COMMUNICATION_CYCLE_PERIOD,
-    CONSUMER_HEARTBEAT_TIME, DEVICE_NAME, DEVICE_NAME_VALUE, DEVICE_TYPE, ERROR_BEHAVIOUR,
-    ERROR_HISTORY, ERROR_REGISTER, IDENTITY, INHIBIT_TIME_EMCY, MISSED_SETPOINT_LIMIT,
-    PREDEFINED_ERROR_FIELD, PRODUCER_HEARTBEAT_TIME, SOFTWARE_VERSION, SYNC_COUNTER_OVERFLOW,
+    CONSUMER_HEARTBEAT_TIME, DEVICE_NAME, DEVICE_TYPE, ERROR_BEHAVIOUR, ERROR_HISTORY,
+    ERROR_REGISTER, IDENTITY, INHIBIT_TIME_EMCY, MISSED_SETPOINT_LIMIT, PREDEFINED_ERROR_FIELD,
+    PRODUCER_HEARTBEAT_TIME, SOFTWARE_VERSION, SYNC_COUNTER_OVERFLOW,
 };
-use super::node::CanNode;
+use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use super::pdo::{
-    MAX_MAPPED, PDO_COUNT, RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION, TPDO_MAPPING,
+    self, Direction, MAX_MAPPED, PDO_COUNT, RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION,
+    TPDO_MAPPING,
 };
+use crate::config::SimConfig;
 
-/// CiA 301 Table 44 data types an EDS names by number.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum EdsType {
-    /// INTEGER8 (0x0002).
-    I8,
-    /// INTEGER16 (0x0003).
-    I16,
-    /// INTEGER32 (0x0004).
-    I32,
-    /// UNSIGNED8 (0x0005).
-    U8,
-    /// UNSIGNED16 (0x0006).
-    U16,
-    /// UNSIGNED32 (0x0007).
-    U32,
-    /// VISIBLE_STRING (0x0009).
-    VisibleString,
-}
-
-impl EdsType {
-    /// The data type index (CiA 301 Table 44).
-    pub const fn code(self) -> u16 {
-        match self {
-            Self::I8 => 0x0002,
-            Self::I16 => 0x0003,
-            Self::I32 => 0x0004,
-            Self::U8 => 0x0005,
-            Self::U16 => 0x0006,
-            Self::U32 => 0x0007,
-            Self::VisibleString => 0x0009,
-        }
-    }
-
-    /// Size in bytes (None: a string).
-    pub const fn size(self) -> Option<usize> {
-        match self {
-            Self::I8 | Self::U8 => Some(1),
-            Self::I16 | Self::U16 => Some(2),
-            Self::I32 | Self::U32 => Some(4),
-            Self::VisibleString => None,
-        }
-    }
-
-    const fn of(kind: DataType) -> Self {
-        match kind {
-            DataType::I8 => Self::I8,
-            DataType::U8 => Self::U8,
-            DataType::I16 => Self::I16,
-            DataType::U16 => Self::U16,
-            DataType::I32 => Self::I32,
-            DataType::U32 => Self::U32,
-        }
+/// The EDS type of a CiA 402 object type.
+pub const fn eds_type(kind: Cia402Type) -> DataType {
+    match kind {
+        Cia402Type::I8 => DataType::Integer8,
+        Cia402Type::U8 => DataType::Unsigned8,
+        Cia402Type::I16 => DataType::Integer16,
+        Cia402Type::U16 => DataType::Unsigned16,
+        Cia402Type::I32 => DataType::Integer32,
+        Cia402Type::U32 => DataType::Unsigned32,
     }
 }
 
-/// One sub-object as the EDS describes it.
-#[derive(Clone, Debug, PartialEq, Eq)]
-struct Var {
-    sub: u8,
-    name: String,
-    ty: EdsType,
+/// One entry to describe: sub-index, name, type.
+type Spec = (u8, String, DataType);
+
+fn spec(sub: u8, name: &str, ty: DataType) -> Spec {
+    (sub, name.to_string(), ty)
 }
 
-/// One object: its name and sub-objects (one at sub 0 for a VAR).
-#[derive(Clone, Debug, PartialEq, Eq)]
-struct Object {
-    index: u16,
-    name: String,
-    /// 0x7 VAR, 0x8 ARRAY, 0x9 RECORD.
-    object_type: u8,
-    subs: Vec<Var>,
-}
-
-fn var(index: u16, name: &str, ty: EdsType) -> Object {
-    Object {
-        index,
-        name: name.to_string(),
-        object_type: 0x7,
-        subs: vec![Var {
-            sub: 0,
-            name: name.to_string(),
-            ty,
-        }],
-    }
-}
-
-fn compound(index: u16, name: &str, object_type: u8, subs: &[(u8, &str, EdsType)]) -> Object {
-    Object {
-        index,
-        name: name.to_string(),
-        object_type,
-        subs: subs
-            .iter()
-            .map(|&(sub, n, ty)| Var {
-                sub,
-                name: n.to_string(),
-                ty,
-            })
-            .collect(),
-    }
-}
-
-/// The objects of the node, in index order.
-fn objects(node: &CanNode) -> Vec<Object> {
-    use EdsType::*;
+/// The objects of the node, in index order: (index, name, object type, entries).
+fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
+    use DataType::{Integer16 as I16, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
+    let var = |index: u16, name: &str, ty: DataType| {
+        (
+            index,
+            name.to_string(),
+            ObjectType::Var,
+            vec![spec(0, name, ty)],
+        )
+    };
+    let highest = |n| spec(0, "Highest sub-index supported", n);
     let mut v = vec![
         var(DEVICE_TYPE, "Device type", U32),
         var(ERROR_REGISTER, "Error register", U8),
     ];
-    let mut errors = vec![(0u8, "Number of errors", U8)];
+    let mut errors = vec![spec(0, "Number of errors", U8)];
     for s in 1..=ERROR_HISTORY as u8 {
-        errors.push((s, "Standard error field", U32));
+        errors.push(spec(s, "Standard error field", U32));
     }
-    v.push(compound(
+    v.push((
         PREDEFINED_ERROR_FIELD,
-        "Pre-defined error field",
-        0x8,
-        &errors,
+        "Pre-defined error field".into(),
+        ObjectType::Array,
+        errors,
     ));
     v.push(var(COB_ID_SYNC, "COB-ID SYNC message", U32));
     v.push(var(
@@ -146,34 +80,35 @@ fn objects(node: &CanNode) -> Vec<Object> {
         "Communication cycle period",
         U32,
     ));
-    v.push(var(DEVICE_NAME, "Manufacturer device name", VisibleString));
+    v.push(var(
+        DEVICE_NAME,
+        "Manufacturer device name",
+        DataType::VisibleString,
+    ));
     v.push(var(
         SOFTWARE_VERSION,
         "Manufacturer software version",
-        VisibleString,
+        DataType::VisibleString,
     ));
     v.push(var(COB_ID_EMCY, "COB-ID EMCY", U32));
     v.push(var(INHIBIT_TIME_EMCY, "Inhibit time EMCY", U16));
-    v.push(compound(
+    v.push((
         CONSUMER_HEARTBEAT_TIME,
-        "Consumer heartbeat time",
-        0x8,
-        &[
-            (0, "Highest sub-index supported", U8),
-            (1, "Consumer heartbeat time", U32),
-        ],
+        "Consumer heartbeat time".into(),
+        ObjectType::Array,
+        vec![highest(U8), spec(1, "Consumer heartbeat time", U32)],
     ));
     v.push(var(PRODUCER_HEARTBEAT_TIME, "Producer heartbeat time", U16));
-    v.push(compound(
+    v.push((
         IDENTITY,
-        "Identity object",
-        0x9,
-        &[
-            (0, "Highest sub-index supported", U8),
-            (1, "Vendor-ID", U32),
-            (2, "Product code", U32),
-            (3, "Revision number", U32),
-            (4, "Serial number", U32),
+        "Identity object".into(),
+        ObjectType::Record,
+        vec![
+            highest(U8),
+            spec(1, "Vendor-ID", U32),
+            spec(2, "Product code", U32),
+            spec(3, "Revision number", U32),
+            spec(4, "Serial number", U32),
         ],
     ));
     v.push(var(
@@ -181,55 +116,52 @@ fn objects(node: &CanNode) -> Vec<Object> {
         "Synchronous counter overflow value",
         U8,
     ));
-    v.push(compound(
+    v.push((
         ERROR_BEHAVIOUR,
-        "Error behavior",
-        0x8,
-        &[
-            (0, "Highest sub-index supported", U8),
-            (1, "Communication error", U8),
-        ],
+        "Error behavior".into(),
+        ObjectType::Array,
+        vec![highest(U8), spec(1, "Communication error", U8)],
     ));
-    let mut mapping = vec![(0u8, "Number of mapped objects", U8)];
+    let mut mapping = vec![spec(0, "Number of mapped objects", U8)];
     for s in 1..=MAX_MAPPED as u8 {
-        mapping.push((s, "Mapping entry", U32));
+        mapping.push((s, format!("Mapping entry {s}"), U32));
     }
     for n in 0..PDO_COUNT as u16 {
-        v.push(compound(
+        v.push((
             RPDO_COMMUNICATION + n,
-            "RPDO communication parameter",
-            0x9,
-            &[
-                (0, "Highest sub-index supported", U8),
-                (1, "COB-ID used by RPDO", U32),
-                (2, "Transmission type", U8),
-                (5, "Event timer", U16),
+            format!("RPDO {} communication parameter", n + 1),
+            ObjectType::Record,
+            vec![
+                highest(U8),
+                spec(1, "COB-ID used by RPDO", U32),
+                spec(2, "Transmission type", U8),
+                spec(5, "Event timer", U16),
             ],
         ));
-        v.push(compound(
+        v.push((
             RPDO_MAPPING + n,
-            "RPDO mapping parameter",
-            0x9,
-            &mapping,
+            format!("RPDO {} mapping parameter", n + 1),
+            ObjectType::Record,
+            mapping.clone(),
         ));
-        v.push(compound(
+        v.push((
             TPDO_COMMUNICATION + n,
-            "TPDO communication parameter",
-            0x9,
-            &[
-                (0, "Highest sub-index supported", U8),
-                (1, "COB-ID used by TPDO", U32),
-                (2, "Transmission type", U8),
-                (3, "Inhibit time", U16),
-                (5, "Event timer", U16),
-                (6, "SYNC start value", U8),
+            format!("TPDO {} communication parameter", n + 1),
+            ObjectType::Record,
+            vec![
+                highest(U8),
+                spec(1, "COB-ID used by TPDO", U32),
+                spec(2, "Transmission type", U8),
+                spec(3, "Inhibit time", U16),
+                spec(5, "Event timer", U16),
+                spec(6, "SYNC start value", U8),
             ],
         ));
-        v.push(compound(
+        v.push((
             TPDO_MAPPING + n,
-            "TPDO mapping parameter",
-            0x9,
-            &mapping,
+            format!("TPDO {} mapping parameter", n + 1),
+            ObjectType::Record,
+            mapping.clone(),
         ));
     }
     v.push(var(
@@ -237,17 +169,24 @@ fn objects(node: &CanNode) -> Vec<Object> {
         "Missed SYNC setpoint limit",
         U16,
     ));
-    // The servo's objects, typed by the CiA 402 table (all are VARs at sub 0).
-    let mut servo: Vec<(u16, u8)> = node.dictionary().servo_objects().collect();
-    servo.sort_unstable();
-    servo.dedup();
-    for (index, sub) in servo {
-        let (name, ty) = match objects::lookup(index, sub) {
-            Some(o) => (o.name.to_string(), EdsType::of(o.kind)),
-            None if index == ABORT_CONNECTION_OPTION_CODE => {
+    // The device's profile objects: typed by the CiA 402 table (the servo's) or the
+    // device's own (CiA 406, CiA 401); an index with sub-indices above 0 is an ARRAY.
+    let kind = node.dictionary().kind();
+    let mut entries: Vec<(u16, u8)> = node.dictionary().servo_objects().collect();
+    entries.sort_unstable();
+    entries.dedup();
+    let mut by_index: BTreeMap<u16, Vec<Spec>> = BTreeMap::new();
+    for (index, sub) in entries {
+        let (name, ty) = match (
+            objects::lookup(index, sub),
+            profile_object(kind, index, sub),
+        ) {
+            (_, Some((name, t))) => (name.to_string(), eds_type(t)),
+            (Some(o), None) => (o.name.to_string(), eds_type(o.kind)),
+            (None, None) if index == ABORT_CONNECTION_OPTION_CODE => {
                 ("Abort connection option code".to_string(), I16)
             }
-            None => {
+            (None, None) => {
                 let size = match node.object_info(index, sub).map(|i| i.size) {
                     Ok(ObjectSize::Fixed(n)) => n,
                     _ => 4,
@@ -260,159 +199,195 @@ fn objects(node: &CanNode) -> Vec<Object> {
                 (format!("Object {index:04X}sub{sub}"), ty)
             }
         };
-        v.push(var(index, &name, ty));
+        by_index.entry(index).or_default().push((sub, name, ty));
     }
-    v.sort_by_key(|o| o.index);
+    for (index, specs) in by_index {
+        match specs.as_slice() {
+            [(0, name, ty)] => v.push(var(index, name, *ty)),
+            _ => {
+                let name = profile_array(kind, index)
+                    .map_or_else(|| format!("Object {index:04X}"), str::to_string);
+                v.push((index, name, ObjectType::Array, specs));
+            }
+        }
+    }
+    v.sort_by_key(|o| o.0);
     v
 }
 
-fn access_type(access: Access, rpdo: bool) -> &'static str {
+/// Whether the node's PDO rules let `index`:`sub` of `ty` into a PDO going `direction`.
+fn node_maps(kind: DeviceKind, direction: Direction, index: u16, sub: u8, ty: DataType) -> bool {
+    let bits = ty.bits().unwrap_or(0);
+    let entry = (u32::from(index) << 16) | (u32::from(sub) << 8) | bits;
+    bits > 0 && bits <= 64 && pdo::mappable(kind, direction, entry).is_ok()
+}
+
+/// The EDS access of an entry the server gives `access`: a read-write entry the node
+/// maps only into RPDOs is `rww` (process output), only into TPDOs `rwr` (CiA 306-1
+/// §4.6.3).
+fn access_type(access: Access, rpdo: bool, tpdo: bool) -> AccessType {
     match access {
-        Access::ReadOnly => "ro",
-        Access::WriteOnly => "wo",
-        Access::Const => "const",
-        // CiA 306 §4.6.3: "rww" is rw and mappable into an RPDO.
-        Access::ReadWrite if rpdo => "rww",
-        Access::ReadWrite => "rw",
+        Access::ReadOnly => AccessType::ReadOnly,
+        Access::WriteOnly => AccessType::WriteOnly,
+        Access::Const => AccessType::Const,
+        Access::ReadWrite if rpdo && !tpdo => AccessType::ReadWriteOutput,
+        Access::ReadWrite if tpdo && !rpdo => AccessType::ReadWriteInput,
+        Access::ReadWrite => AccessType::ReadWrite,
     }
 }
 
-fn default_value(node: &mut CanNode, index: u16, sub: u8, ty: EdsType) -> String {
+/// Objects whose power-on value is a node's predefined COB-ID (`$NODEID` + base).
+fn node_relative(index: u16, sub: u8) -> bool {
+    let n = PDO_COUNT as u16;
+    (index == COB_ID_EMCY && sub == 0)
+        || (sub == 1
+            && [RPDO_COMMUNICATION, TPDO_COMMUNICATION]
+                .iter()
+                .any(|&base| (base..base + n).contains(&index)))
+}
+
+/// The power-on value of `index`:`sub`, as the node reads it now.
+fn default_value(node: &mut CanNode, index: u16, sub: u8, ty: DataType) -> Option<Value> {
     let mut buf = [0u8; 64];
     let bytes = match node.read_object(index, sub, &mut buf) {
-        Ok(n) => buf.get(..n).unwrap_or(&[]).to_vec(),
+        Ok(n) => buf.get(..n).unwrap_or(&[]),
         // 0x1003 beyond the errors recorded: none at power-on.
-        Err(AbortCode::NO_DATA) | Err(_) => Vec::new(),
+        Err(AbortCode::NO_DATA) | Err(_) => return None,
     };
-    let mut le = [0u8; 8];
-    for (d, s) in le.iter_mut().zip(&bytes) {
-        *d = *s;
-    }
-    let raw = u64::from_le_bytes(le);
-    match ty {
-        EdsType::VisibleString => String::from_utf8_lossy(&bytes).into_owned(),
-        EdsType::I8 => (raw as u8 as i8).to_string(),
-        EdsType::I16 => (raw as u16 as i16).to_string(),
-        EdsType::I32 => (raw as u32 as i32).to_string(),
-        EdsType::U8 | EdsType::U16 | EdsType::U32 => format!("0x{raw:X}"),
+    let v = Value::from_le_bytes(bytes, ty).ok()?;
+    match v {
+        Value::Integer(raw) if node_relative(index, sub) => {
+            let node_id = i128::from(node.node().get());
+            // The predefined COB-ID's identifier is base + node id; bit 31 may be set.
+            Some(if raw & 0x7F == node_id & 0x7F {
+                Value::NodeRelative(raw - node_id)
+            } else {
+                Value::Integer(raw)
+            })
+        }
+        v => Some(v),
     }
 }
 
 /// The EDS of `node` as it powers on (call it on a node fresh from `CanNode::new`: the
-/// default values are the values its objects hold now).
-pub fn write(node: &mut CanNode, file_name: &str) -> String {
-    let objs = objects(node);
+/// default values are the values its objects hold now), named `file_name`.
+pub fn model(node: &mut CanNode, file_name: &str) -> Eds {
     let identity = |node: &mut CanNode, sub| {
         let mut b = [0u8; 4];
         match node.read_object(IDENTITY, sub, &mut b) {
-            Ok(4) => u32::from_le_bytes(b),
-            _ => 0,
+            Ok(4) => Some(u32::from_le_bytes(b)),
+            _ => None,
         }
     };
-    let (vendor, product, revision) = (identity(node, 1), identity(node, 2), identity(node, 3));
-    let mut s = String::new();
-    let _ = writeln!(s, "[FileInfo]");
-    let _ = writeln!(s, "FileName={file_name}");
-    let _ = writeln!(s, "FileVersion=1\nFileRevision=0\nEDSVersion=4.0");
-    let _ = writeln!(
-        s,
-        "Description=Simulated CiA 402 servo drive, node {}",
+    let kind = node.dictionary().kind();
+    let mut e = Eds::new(file_name);
+    e.file_info.file_version = 1;
+    e.file_info.description = format!(
+        "Simulated {} (written for node {})",
+        match kind {
+            DeviceKind::Servo => "CiA 402 servo drive",
+            DeviceKind::Encoder => "CiA 406 incremental encoder",
+            DeviceKind::Switches => "CiA 401 digital inputs (switch cams)",
+        },
         node.node().get()
     );
-    let _ = writeln!(s, "CreatedBy=gantry-sim {}", env!("CARGO_PKG_VERSION"));
-    let _ = writeln!(s);
-    let _ = writeln!(s, "[DeviceInfo]");
-    let _ = writeln!(s, "VendorName=gantry");
-    let _ = writeln!(s, "VendorNumber=0x{vendor:X}");
-    let _ = writeln!(s, "ProductName={DEVICE_NAME_VALUE}");
-    let _ = writeln!(s, "ProductNumber=0x{product:X}");
-    let _ = writeln!(s, "RevisionNumber=0x{revision:X}");
-    for rate in [10, 20, 50, 125, 250, 500, 800, 1000] {
-        let _ = writeln!(s, "BaudRate_{rate}=1");
-    }
-    let _ = writeln!(
-        s,
-        "SimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8"
-    );
-    let _ = writeln!(s, "DynamicChannelsSupported=0\nGroupMessaging=0");
-    let _ = writeln!(
-        s,
-        "NrOfRXPDO={PDO_COUNT}\nNrOfTXPDO={PDO_COUNT}\nLSS_Supported=0"
-    );
-    let _ = writeln!(s);
-    let _ = writeln!(s, "[DummyUsage]");
-    // CiA 306 §4.5: which data types may be mapped as dummies (RPDOs; not BOOLEAN).
-    for d in 1..=7 {
-        let _ = writeln!(s, "Dummy000{d}={}", u8::from(d >= 2));
-    }
-    let _ = writeln!(s);
-    let mandatory = [DEVICE_TYPE, ERROR_REGISTER, IDENTITY];
-    let lists: [(&str, Vec<u16>); 3] = [
-        ("MandatoryObjects", mandatory.to_vec()),
-        (
-            "OptionalObjects",
-            objs.iter()
-                .map(|o| o.index)
-                .filter(|i| !mandatory.contains(i) && !(0x2000..0x6000).contains(i))
-                .collect(),
-        ),
-        (
-            "ManufacturerObjects",
-            objs.iter()
-                .map(|o| o.index)
-                .filter(|i| (0x2000..0x6000).contains(i))
-                .collect(),
-        ),
-    ];
-    for (section, list) in lists {
-        let _ = writeln!(s, "[{section}]");
-        let _ = writeln!(s, "SupportedObjects={}", list.len());
-        for (k, i) in list.iter().enumerate() {
-            let _ = writeln!(s, "{}=0x{i:04X}", k + 1);
+    e.file_info.created_by = format!("gantry-sim {}", env!("CARGO_PKG_VERSION"));
+    let d = &mut e.device_info;
+    d.vendor_name = "gantry".into();
+    d.product_name = kind.name().into();
+    d.vendor_number = identity(node, 1);
+    d.product_number = identity(node, 2);
+    d.revision_number = identity(node, 3);
+    // Every bit rate of CiA 301 (the simulated bus runs any).
+    e.device_info.baud_rates = [true; 8];
+    e.device_info.simple_boot_up_slave = true;
+    // Whole objects only (bit lengths are multiples of 8, CiA 301 §7.4.7.1).
+    e.device_info.granularity = 8;
+    e.device_info.nr_of_rx_pdo = PDO_COUNT as u16;
+    e.device_info.nr_of_tx_pdo = PDO_COUNT as u16;
+    // Dummy entries the node's RPDOs take (not BOOLEAN).
+    for d in pdo::DUMMIES {
+        if let Some(slot) = e.dummy_usage.get_mut(usize::from(d.index)) {
+            *slot = true;
         }
-        let _ = writeln!(s);
     }
-    for o in &objs {
-        let _ = writeln!(s, "[{:04X}]", o.index);
-        let _ = writeln!(s, "ParameterName={}", o.name);
-        let _ = writeln!(s, "ObjectType=0x{:X}", o.object_type);
-        if o.object_type == 0x7 {
-            if let Some(v) = o.subs.first() {
-                entry(&mut s, node, o.index, v);
+    for (index, name, object_type, specs) in layout(node) {
+        let mut subs = Vec::with_capacity(specs.len());
+        for (sub, sub_name, ty) in specs {
+            let rpdo = node_maps(kind, Direction::Receive, index, sub, ty);
+            let tpdo = node_maps(kind, Direction::Transmit, index, sub, ty);
+            let access = node
+                .object_info(index, sub)
+                .map(|i| i.access)
+                .unwrap_or(Access::ReadOnly);
+            let mut s = SubObject::new(&sub_name, ty, access_type(access, rpdo, tpdo));
+            s.pdo_mapping = rpdo || tpdo;
+            s.default_value = default_value(node, index, sub, ty);
+            if let Some((lo, hi)) = node.dictionary().servo_range(index, sub) {
+                s.low_limit = Some(Value::Integer(i128::from(lo)));
+                s.high_limit = Some(Value::Integer(i128::from(hi)));
             }
-            let _ = writeln!(s);
-            continue;
+            subs.push((sub, s));
         }
-        let _ = writeln!(s, "SubNumber={}", o.subs.len());
-        let _ = writeln!(s);
-        for v in &o.subs {
-            let _ = writeln!(s, "[{:04X}sub{:X}]", o.index, v.sub);
-            let _ = writeln!(s, "ParameterName={}", v.name);
-            let _ = writeln!(s, "ObjectType=0x7");
-            entry(&mut s, node, o.index, v);
-            let _ = writeln!(s);
-        }
+        let object = if object_type == ObjectType::Var {
+            match subs.pop() {
+                Some((_, s)) => Object::var(index, s),
+                None => continue,
+            }
+        } else {
+            Object::compound(index, &name, object_type, subs)
+        };
+        e.insert(object);
     }
-    s
+    e
 }
 
-fn entry(s: &mut String, node: &mut CanNode, index: u16, v: &Var) {
-    let rpdo = image::OUTPUT_OBJECTS
+/// A chain node whose EDS cannot be written.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum ChainEdsError {
+    /// No slave has that node id.
+    #[error("no slave of the chain has node = {node} (the slaves' node ids: {known})")]
+    NoSuchNode {
+        /// The id asked for.
+        node: u8,
+        /// Those there are.
+        known: String,
+    },
+    /// The slave cannot be a node.
+    #[error(transparent)]
+    Slave(#[from] SlaveNodeError),
+    /// The node cannot be built.
+    #[error(transparent)]
+    Node(#[from] CanNodeError),
+}
+
+/// The EDS of the slave with CANopen node id `node` in a chain description, as that
+/// node powers on, named `file_name` (what `gantry-sim eds` writes).
+pub fn for_chain_node(config: &SimConfig, node: u8, file_name: &str) -> Result<Eds, ChainEdsError> {
+    let index = config
+        .slaves
         .iter()
-        .any(|o| o.index == index && o.sub == v.sub);
-    let tpdo = image::INPUT_OBJECTS
-        .iter()
-        .any(|o| o.index == index && o.sub == v.sub);
-    let access = node
-        .object_info(index, v.sub)
-        .map(|i| i.access)
-        .unwrap_or(Access::ReadOnly);
-    let _ = writeln!(s, "DataType=0x{:04X}", v.ty.code());
-    let _ = writeln!(s, "AccessType={}", access_type(access, rpdo));
-    let _ = writeln!(
-        s,
-        "DefaultValue={}",
-        default_value(node, index, v.sub, v.ty)
-    );
-    let _ = writeln!(s, "PDOMapping={}", u8::from(rpdo || tpdo));
+        .position(|s| s.node() == Some(node))
+        .ok_or_else(|| ChainEdsError::NoSuchNode {
+            node,
+            known: {
+                let ids: Vec<String> = config
+                    .slaves
+                    .iter()
+                    .filter_map(|s| s.node().map(|n| n.to_string()))
+                    .collect();
+                if ids.is_empty() {
+                    "none".to_string()
+                } else {
+                    ids.join(", ")
+                }
+            },
+        })?;
+    let mut n = CanNode::new(CanNodeConfig::from_slave(config, index)?)?;
+    Ok(model(&mut n, file_name))
+}
+
+/// The EDS text of `node` as it powers on (see [`model`]).
+pub fn write(node: &mut CanNode, file_name: &str) -> String {
+    eds::write_eds(&model(node, file_name))
 }

@@ -9,6 +9,7 @@
 //! master.
 
 pub mod bus;
+pub mod device;
 pub mod dictionary;
 pub mod eds;
 pub mod network;
@@ -17,5 +18,6 @@ pub mod node;
 pub mod pdo;
 
 pub use bus::CanBus;
+pub use device::{CanDevice, CanDeviceConfig, DeviceKind};
 pub use network::{CanNetwork, CanNetworkError};
-pub use node::{CanNode, CanNodeConfig, CanNodeError};
+pub use node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};

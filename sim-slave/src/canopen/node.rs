@@ -30,12 +30,14 @@ use gantry_drives::canopen::CanFrame;
 use gantry_drives::cia402::State;
 use thiserror::Error;
 
+use super::device::{CanDevice, CanDeviceConfig, EncoderDevice, SwitchesDevice};
 use super::dictionary::{behaviour, image_put, NodeDictionary, IMAGE_BYTES};
 use super::nmt::{NmtAction, NmtSlaveState};
 use super::pdo::{Pdo, Trigger, PDO_COUNT};
 use crate::catalog;
-use crate::config::ServoConfig;
+use crate::config::{ServoConfig, SimConfig, SlaveConfig};
 use crate::plant::servo::{ParamError, ServoDrive, ServoParams};
+use crate::plant::switches::{self, check_cams, CamError, SwitchCam};
 
 /// Most frames one call returns (a block upload's sub-block of 127 segments and more).
 pub const OUTBOX_FRAMES: usize = 192;
@@ -77,7 +79,9 @@ pub struct CanNodeConfig {
     pub identity: [u32; 4],
     /// 0x1017 at power-on (ms, 0 = no heartbeat).
     pub heartbeat_ms: u16,
-    /// The servo's motor, load and tuning.
+    /// The device behind the node.
+    pub device: CanDeviceConfig,
+    /// The servo's motor, load and tuning (a servo node).
     pub params: ServoParams,
     /// The absolute encoder's position at power-up (counts).
     pub start_counts: i32,
@@ -100,6 +104,7 @@ impl CanNodeConfig {
                 u32::from(node.get()),
             ],
             heartbeat_ms: 100,
+            device: CanDeviceConfig::Servo,
             params: ServoParams::default(),
             start_counts: 0,
             sdo: SdoConfig::default(),
@@ -118,6 +123,109 @@ impl CanNodeConfig {
             ..Self::servo(node)
         }
     }
+
+    /// Node `node` with the encoder module (CiA 406) of `counts_per_rev` whose shaft
+    /// turns by itself at `shaft_speed_rev_s` (0: the test turns it); the catalog's
+    /// encoder identity, serial = node id.
+    pub fn encoder(node: NodeId, counts_per_rev: u32, shaft_speed_rev_s: f64) -> Self {
+        let mut c = Self::servo(node);
+        c.identity[1] = catalog::ENCODER_PRODUCT;
+        c.device = CanDeviceConfig::Encoder {
+            counts_per_rev,
+            shaft_speed_rev_s,
+        };
+        c
+    }
+
+    /// Node `node` with the switch-cam input module (CiA 401) whose `cams` move with
+    /// the servo at node `axis`; the catalog's input module identity, serial = node id.
+    pub fn switches(node: NodeId, axis: NodeId, cams: &[SwitchCam]) -> Result<Self, CamError> {
+        check_cams(cams)?;
+        let mut slots = [None; switches::INPUTS as usize];
+        for (slot, cam) in slots.iter_mut().zip(cams) {
+            *slot = Some(*cam);
+        }
+        let mut c = Self::servo(node);
+        c.identity[1] = catalog::SWITCHES_PRODUCT;
+        c.device = CanDeviceConfig::Switches { axis, cams: slots };
+        Ok(c)
+    }
+
+    /// The node of slave `index` of a chain description: its kind, its `node` id, for a
+    /// switch-cam module the node id of the servo its `axis` names.
+    pub fn from_slave(config: &SimConfig, index: usize) -> Result<Self, SlaveNodeError> {
+        let slave = config
+            .slaves
+            .get(index)
+            .ok_or(SlaveNodeError::NoSlave { index })?;
+        let node_of = |i: usize| {
+            config
+                .slaves
+                .get(i)
+                .and_then(SlaveConfig::node)
+                .and_then(|n| NodeId::new(n).ok())
+        };
+        let node = node_of(index).ok_or(SlaveNodeError::NoNodeId { index })?;
+        match slave {
+            SlaveConfig::Servo(servo) => Ok(Self::from_servo(node, servo)),
+            SlaveConfig::Encoder {
+                counts_per_rev,
+                shaft_speed,
+                ..
+            } => Ok(Self::encoder(node, *counts_per_rev, *shaft_speed)),
+            SlaveConfig::Switches { axis, cams, .. } => {
+                if !matches!(config.slaves.get(*axis), Some(SlaveConfig::Servo(_))) {
+                    return Err(SlaveNodeError::AxisNotServo { index, axis: *axis });
+                }
+                let axis_node =
+                    node_of(*axis).ok_or(SlaveNodeError::AxisNoNodeId { index, axis: *axis })?;
+                let cams: Vec<SwitchCam> = cams.iter().map(|&c| SwitchCam::from(c)).collect();
+                Self::switches(node, axis_node, &cams)
+                    .map_err(|source| SlaveNodeError::Cams { index, source })
+            }
+        }
+    }
+}
+
+/// A slave of a chain description that cannot be a CANopen node.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum SlaveNodeError {
+    /// No such slave.
+    #[error("slave[{index}] does not exist")]
+    NoSlave {
+        /// Its position.
+        index: usize,
+    },
+    /// It has no `node = N`.
+    #[error("slave[{index}] has no CANopen node id (node = 1..127)")]
+    NoNodeId {
+        /// Its position.
+        index: usize,
+    },
+    /// A switch-cam module's axis is no servo.
+    #[error("slave[{index}].axis = {axis} is not a servo")]
+    AxisNotServo {
+        /// Its position.
+        index: usize,
+        /// The axis it names.
+        axis: usize,
+    },
+    /// A switch-cam module's servo has no node id (on CAN the module follows it by id).
+    #[error("slave[{index}].axis = {axis}: that servo has no CANopen node id")]
+    AxisNoNodeId {
+        /// Its position.
+        index: usize,
+        /// The axis it names.
+        axis: usize,
+    },
+    /// The cams.
+    #[error("slave[{index}]: {source}")]
+    Cams {
+        /// Its position.
+        index: usize,
+        /// Why.
+        source: CamError,
+    },
 }
 
 /// A node that cannot be built.
@@ -130,6 +238,14 @@ pub enum CanNodeError {
         node: NodeId,
         /// Why.
         source: SdoConfigError,
+    },
+    /// The switch cams.
+    #[error("CANopen node {node}: {source}")]
+    Cams {
+        /// The node.
+        node: NodeId,
+        /// Why.
+        source: CamError,
     },
     /// The servo's parameters.
     #[error("CANopen node {node}: servo parameters: {source}")]
@@ -261,12 +377,30 @@ impl CanNode {
             vec![0u8; config.sdo_buffer].into_boxed_slice(),
         )
         .map_err(|source| CanNodeError::Sdo { node, source })?;
-        let servo = ServoDrive::with_params(0, 0, config.start_counts, config.params);
+        let device = match config.device {
+            CanDeviceConfig::Servo => CanDevice::Servo(ServoDrive::with_params(
+                0,
+                0,
+                config.start_counts,
+                config.params,
+            )),
+            CanDeviceConfig::Encoder {
+                counts_per_rev,
+                shaft_speed_rev_s,
+            } => CanDevice::Encoder(EncoderDevice::new(counts_per_rev, shaft_speed_rev_s)),
+            CanDeviceConfig::Switches { axis, cams } => {
+                let cams: Vec<SwitchCam> = cams.iter().flatten().copied().collect();
+                CanDevice::Switches(
+                    SwitchesDevice::new(axis, &cams)
+                        .map_err(|source| CanNodeError::Cams { node, source })?,
+                )
+            }
+        };
         Ok(Self {
             node,
             nmt: NmtSlaveState::Initialisation,
             sdo,
-            dict: NodeDictionary::new(node, config.identity, config.heartbeat_ms, servo),
+            dict: NodeDictionary::new(node, config.identity, config.heartbeat_ms, device),
             out: Outbox::new(),
             rpdo: [PdoRun::default(); PDO_COUNT],
             tpdo: [PdoRun::default(); PDO_COUNT],
@@ -301,14 +435,47 @@ impl CanNode {
         self.nmt
     }
 
-    /// The servo behind the node.
-    pub fn servo(&self) -> &ServoDrive {
-        &self.dict.servo
+    /// The servo behind the node (None: the node is another device).
+    pub fn servo(&self) -> Option<&ServoDrive> {
+        match &self.dict.device {
+            CanDevice::Servo(s) => Some(s),
+            _ => None,
+        }
     }
 
     /// The servo, mutable (a test injects what the wire cannot).
-    pub fn servo_mut(&mut self) -> &mut ServoDrive {
-        &mut self.dict.servo
+    pub fn servo_mut(&mut self) -> Option<&mut ServoDrive> {
+        match &mut self.dict.device {
+            CanDevice::Servo(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The device behind the node.
+    pub fn device(&self) -> &CanDevice {
+        &self.dict.device
+    }
+
+    /// The device, mutable (a test turns an encoder's shaft).
+    pub fn device_mut(&mut self) -> &mut CanDevice {
+        &mut self.dict.device
+    }
+
+    /// The position this node reports as its axis' (a servo's position actual value, in
+    /// counts), for modules on the same bus that follow it.
+    pub fn axis_position(&self) -> Option<i64> {
+        self.dict.device.axis_position()
+    }
+
+    /// The node whose axis this node's device follows (a switch-cam module's servo).
+    pub fn coupled_axis(&self) -> Option<NodeId> {
+        self.dict.device.coupled_axis()
+    }
+
+    /// The followed axis is at `position` (counts): the bus calls this before it hands
+    /// the node a frame or a tick.
+    pub fn sense_axis(&mut self, position: i64) {
+        self.dict.device.sense_axis(position);
     }
 
     /// The dictionary.
@@ -589,7 +756,7 @@ impl CanNode {
     /// communication); option 1 faults the drive if its power is on.
     fn connection_abort(&mut self, code: u16) {
         if self.dict.abort_connection_option() == 1 {
-            self.dict.servo.communication_fault(code);
+            self.dict.device.communication_fault(code);
         }
     }
 
@@ -597,10 +764,7 @@ impl CanNode {
     /// drive's fault EMCY when it faulted for it, else the error's own.
     fn communication_error(&mut self, code: u16) {
         self.connection_abort(code);
-        let faulted = matches!(
-            self.dict.servo.state(),
-            State::Fault | State::FaultReactionActive
-        ) && self.dict.servo.error_code() == code;
+        let faulted = self.dict.device.faulted() && self.dict.device.error_code() == code;
         if faulted && self.emcy_active != code {
             self.check_emcy();
         } else {
@@ -651,7 +815,7 @@ impl CanNode {
         let mut runs = 0;
         while left > 0 && runs < MAX_RUNS {
             let dt = left.min(MAX_RUN_NS);
-            self.dict.servo.run(dt as f64 * 1e-9);
+            self.dict.device.run(dt as f64 * 1e-9);
             left -= dt;
             runs += 1;
         }
@@ -669,7 +833,9 @@ impl CanNode {
             return;
         }
         // (2) Inputs sampled at the SYNC, synchronous TPDOs.
-        self.dict.servo.publish_input_image(&mut self.dict.tx_image);
+        self.dict
+            .device
+            .publish_input_image(&mut self.dict.tx_image);
         for n in 0..PDO_COUNT {
             let Some(p) = self.dict.comm.tpdo.get(n).copied() else {
                 continue;
@@ -733,13 +899,17 @@ impl CanNode {
             self.counters.missed_in_row = 0;
             self.counters.rpdos += 1;
             let image = self.dict.rx_image;
-            self.dict.servo.take_output_image(&image);
-        } else if any_sync && self.dict.servo.state() == State::OperationEnabled {
-            self.dict.servo.record_mut().missed(1);
+            self.dict.device.take_output_image(&image);
+        } else if any_sync && self.dict.device.drive_state() == Some(State::OperationEnabled) {
+            if let Some(r) = self.dict.device.record_mut() {
+                r.missed(1);
+            }
             self.counters.missed_in_row = self.counters.missed_in_row.saturating_add(1);
             let limit = u32::from(self.dict.missed_setpoint_limit);
             if limit > 0 && self.counters.missed_in_row >= limit {
-                self.dict.servo.communication_fault(emcy_code::RPDO_TIMEOUT);
+                self.dict
+                    .device
+                    .communication_fault(emcy_code::RPDO_TIMEOUT);
             }
         }
     }
@@ -767,9 +937,11 @@ impl CanNode {
                 if let Some(run) = self.rpdo.get_mut(n) {
                     // A second RPDO before the SYNC overwrites the first, never taken.
                     if run.pending.replace((bytes, data.len())).is_some()
-                        && self.dict.servo.state() == State::OperationEnabled
+                        && self.dict.device.drive_state() == Some(State::OperationEnabled)
                     {
-                        self.dict.servo.record_mut().doubled();
+                        if let Some(r) = self.dict.device.record_mut() {
+                            r.doubled();
+                        }
                     }
                 }
             }
@@ -777,7 +949,7 @@ impl CanNode {
                 self.decode(&p, &bytes, data.len());
                 self.counters.rpdos += 1;
                 let image = self.dict.rx_image;
-                self.dict.servo.take_output_image(&image);
+                self.dict.device.take_output_image(&image);
             }
         }
     }
@@ -791,12 +963,8 @@ impl CanNode {
                 break;
             }
             if let Some(src) = data.get(at..at + n) {
-                image_put(
-                    &mut self.dict.rx_image,
-                    self.dict.map.output_offset(o),
-                    o,
-                    src,
-                );
+                let offset = self.dict.output_offset(o);
+                image_put(&mut self.dict.rx_image, offset, o, src);
             }
             at += n;
         }
@@ -810,7 +978,6 @@ impl CanNode {
             let n = o.kind.size();
             let src = self
                 .dict
-                .map
                 .input_offset(o)
                 .and_then(|i| self.dict.tx_image.get(i..i + n));
             if let (Some(src), Some(dst)) = (src, data.get_mut(at..at + n)) {
@@ -833,7 +1000,7 @@ impl CanNode {
     /// timer (0x1800:05, ms) (CiA 301 §7.2.2.2, §7.5.2.36).
     fn event_tpdos(&mut self, now: u64) {
         let mut image = [0u8; IMAGE_BYTES];
-        self.dict.servo.publish_input_image(&mut image);
+        self.dict.device.publish_input_image(&mut image);
         self.dict.tx_image = image;
         for n in 0..PDO_COUNT {
             let Some(p) = self.dict.comm.tpdo.get(n).copied() else {
@@ -866,12 +1033,9 @@ impl CanNode {
     /// The error register from what is active (CiA 301 §7.5.2.2, Table 48).
     fn update_error_register(&mut self) {
         let mut reg = 0u8;
-        let fault = matches!(
-            self.dict.servo.state(),
-            State::Fault | State::FaultReactionActive
-        );
+        let fault = self.dict.device.faulted();
         if fault {
-            reg |= error_register_bits(self.dict.servo.error_code());
+            reg |= error_register_bits(self.dict.device.error_code());
         }
         if self.consumer_lost {
             reg |= error_register_bits(emcy_code::HEARTBEAT);
@@ -954,12 +1118,9 @@ impl CanNode {
         if !self.nmt.sync_emcy_allowed() {
             return;
         }
-        let fault = matches!(
-            self.dict.servo.state(),
-            State::Fault | State::FaultReactionActive
-        );
+        let fault = self.dict.device.faulted();
         let code = if fault {
-            self.dict.servo.error_code()
+            self.dict.device.error_code()
         } else {
             emcy_code::NO_ERROR
         };

@@ -25,13 +25,13 @@
 //!   0x06040042, more than [`MAX_MAPPED`] entries or an empty entry below it with
 //!   0x06040041 / 0x06090031.
 //!
-//! Mappable objects are those the servo codes its process data through
-//! ([`image::OUTPUT_OBJECTS`] into RPDOs, [`image::INPUT_OBJECTS`] into TPDOs), whole
+//! Mappable objects are those the device codes its process data through
+//! (its [`DeviceKind::outputs`] into RPDOs, its [`DeviceKind::inputs`] into TPDOs), whole
 //! objects only (bit lengths are multiples of 8), and in RPDOs the dummy entries
 //! ([`DUMMIES`]).
 
+use super::device::DeviceKind;
 use gantry_drives::canopen::sdo::AbortCode;
-use gantry_drives::cia402::image;
 use gantry_drives::cia402::objects::{DataType, ObjectId};
 use gantry_drives::cia402::pdo::parse_mapping_entry;
 
@@ -74,11 +74,11 @@ pub enum Direction {
 }
 
 impl Direction {
-    /// The objects that may be mapped this way.
-    pub fn mappable(self) -> &'static [ObjectId] {
+    /// The objects that may be mapped this way in a PDO of a `kind` device.
+    pub const fn mappable(self, kind: DeviceKind) -> &'static [ObjectId] {
         match self {
-            Self::Receive => &image::OUTPUT_OBJECTS,
-            Self::Transmit => &image::INPUT_OBJECTS,
+            Self::Receive => kind.outputs(),
+            Self::Transmit => kind.inputs(),
         }
     }
 
@@ -106,6 +106,8 @@ pub enum Trigger {
 /// One PDO's parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Pdo {
+    /// The device whose objects it maps.
+    pub kind: DeviceKind,
     /// Which way.
     pub direction: Direction,
     /// Sub 1: COB-ID with the valid bit.
@@ -125,9 +127,11 @@ pub struct Pdo {
 }
 
 impl Pdo {
-    /// An invalid PDO on `cob_id` (its predefined identifier) with no mapping.
-    pub const fn unused(direction: Direction, cob_id: u16) -> Self {
+    /// An invalid PDO of a `kind` device on `cob_id` (its predefined identifier) with
+    /// no mapping.
+    pub const fn unused(kind: DeviceKind, direction: Direction, cob_id: u16) -> Self {
         Self {
+            kind,
             direction,
             cob_id: COB_ID_INVALID | cob_id as u32,
             transmission_type: TT_EVENT_PROFILE,
@@ -140,8 +144,13 @@ impl Pdo {
     }
 
     /// A valid synchronous PDO (every SYNC) on `cob_id` mapping `objects` (at most 8).
-    pub fn synchronous(direction: Direction, cob_id: u16, objects: &[ObjectId]) -> Self {
-        let mut p = Self::unused(direction, cob_id);
+    pub fn synchronous(
+        kind: DeviceKind,
+        direction: Direction,
+        cob_id: u16,
+        objects: &[ObjectId],
+    ) -> Self {
+        let mut p = Self::unused(kind, direction, cob_id);
         p.cob_id = u32::from(cob_id);
         p.transmission_type = 1;
         for (e, o) in p.entries.iter_mut().zip(objects) {
@@ -172,11 +181,11 @@ impl Pdo {
     /// The mapped objects, in order (entries 1..=count).
     pub fn mapped(&self) -> impl Iterator<Item = ObjectId> + '_ {
         let n = usize::from(self.count).min(MAX_MAPPED);
-        let dir = self.direction;
+        let (kind, dir) = (self.kind, self.direction);
         self.entries
             .iter()
             .take(n)
-            .filter_map(move |e| mappable(dir, *e).ok())
+            .filter_map(move |e| mappable(kind, dir, *e).ok())
     }
 
     /// Data bytes of the PDO.
@@ -308,7 +317,7 @@ impl Pdo {
             }
             let mut bits = 0u32;
             for e in self.entries.iter().take(usize::from(n)) {
-                let o = mappable(self.direction, *e)?;
+                let o = mappable(self.kind, self.direction, *e)?;
                 bits += o.kind.size() as u32 * 8;
             }
             if bits > MAX_PDO_BITS {
@@ -325,15 +334,15 @@ impl Pdo {
             .get_mut(usize::from(sub) - 1)
             .ok_or(AbortCode::SUB_INDEX_DOES_NOT_EXIST)?;
         let v = u32::from_le_bytes(four(data));
-        mappable(self.direction, v)?;
+        mappable(self.kind, self.direction, v)?;
         *slot = v;
         Ok(())
     }
 }
 
-/// The object a mapping entry names, if it may be mapped in `direction` with that bit
-/// length; else 0x06040041.
-pub fn mappable(direction: Direction, entry: u32) -> Result<ObjectId, AbortCode> {
+/// The object a mapping entry names, if it may be mapped in `direction` in a PDO of a
+/// `kind` device with that bit length; else 0x06040041.
+pub fn mappable(kind: DeviceKind, direction: Direction, entry: u32) -> Result<ObjectId, AbortCode> {
     let (index, sub, bits) = parse_mapping_entry(entry);
     let same =
         |o: &ObjectId| o.index == index && o.sub == sub && o.kind.size() * 8 == usize::from(bits);
@@ -342,7 +351,7 @@ pub fn mappable(direction: Direction, entry: u32) -> Result<ObjectId, AbortCode>
         Direction::Transmit => &[],
     };
     direction
-        .mappable()
+        .mappable(kind)
         .iter()
         .chain(dummies)
         .copied()
@@ -399,6 +408,7 @@ mod tests {
     #[test]
     fn mapping_procedure_and_refusals() {
         let mut p = Pdo::synchronous(
+            DeviceKind::Servo,
             Direction::Receive,
             0x201,
             &[objects::CONTROLWORD, objects::TARGET_POSITION],
@@ -458,7 +468,12 @@ mod tests {
 
     #[test]
     fn communication_rules() {
-        let mut p = Pdo::synchronous(Direction::Transmit, 0x181, &[objects::STATUSWORD]);
+        let mut p = Pdo::synchronous(
+            DeviceKind::Servo,
+            Direction::Transmit,
+            0x181,
+            &[objects::STATUSWORD],
+        );
         // The identifier may not change while the PDO exists; validity may.
         assert_eq!(
             p.write_comm(1, &0x182u32.to_le_bytes()),
@@ -489,7 +504,7 @@ mod tests {
         assert!(p.is_valid());
         assert_eq!(p.can_id(), 0x281);
         assert_eq!(p.comm_entry(4), Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST));
-        let r = Pdo::unused(Direction::Receive, 0x201);
+        let r = Pdo::unused(DeviceKind::Servo, Direction::Receive, 0x201);
         assert_eq!(r.comm_entry(3), Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST));
     }
 }

@@ -10,10 +10,10 @@
 use super::abort::AbortCode;
 use super::block::{check_block_size, AckResult, BlockReceiver, BlockSender};
 use super::command::{
-    BlockSegment, ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, ABORT_BYTE0,
-    EXPEDITED_DATA, SDO_LEN, SEGMENT_DATA,
+    ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, EXPEDITED_DATA, SEGMENT_DATA,
 };
 use super::crc::Crc16;
+use super::timing::{Timing, Transfer};
 use super::{Outcome, SdoConfig, SdoConfigError, Side};
 use crate::canopen::cob_id::{CobId, NodeId};
 use crate::canopen::frame::CanFrame;
@@ -127,7 +127,7 @@ enum State {
     },
 }
 
-impl State {
+impl Transfer for State {
     fn mux(&self) -> Option<Multiplexer> {
         match *self {
             Self::Idle => None,
@@ -141,6 +141,23 @@ impl State {
             | Self::BlockUpload { mux, .. } => Some(mux),
         }
     }
+    fn sending(&mut self) -> Option<&mut BlockSender> {
+        match self {
+            Self::BlockDownload { sender, .. } => Some(sender),
+            _ => None,
+        }
+    }
+
+    fn receiving(&mut self) -> Option<&mut BlockReceiver> {
+        match self {
+            Self::BlockUpload { receiver, .. } => Some(receiver),
+            _ => None,
+        }
+    }
+
+    fn end(&mut self) {
+        *self = Self::Idle;
+    }
 }
 
 /// An SDO client for one server node, over the default SDO COB-IDs (0x600 + node
@@ -151,9 +168,7 @@ pub struct SdoClient<B> {
     config: SdoConfig,
     buf: B,
     state: State,
-    pending: Option<[u8; SDO_LEN]>,
-    deadline: Option<u64>,
-    silence_deadline: Option<u64>,
+    timing: Timing,
     uploaded: usize,
 }
 
@@ -162,14 +177,13 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// object the client can move).
     pub fn new(node: NodeId, config: SdoConfig, buf: B) -> Result<Self, SdoConfigError> {
         config.validate()?;
+        let timing = Timing::new(Side::Client, &config);
         Ok(Self {
             node,
             config,
             buf,
             state: State::Idle,
-            pending: None,
-            deadline: None,
-            silence_deadline: None,
+            timing,
             uploaded: 0,
         })
     }
@@ -266,7 +280,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 }
             }
         };
-        self.send(request.emit(), now_ns);
+        self.timing.send(request.emit(), now_ns);
         Ok(())
     }
 
@@ -292,7 +306,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             mux,
             block: mode == UploadMode::Block,
         };
-        self.send(request.emit(), now_ns);
+        self.timing.send(request.emit(), now_ns);
         Ok(())
     }
 
@@ -309,62 +323,22 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// next answer, e.g. by an abort, which supersedes it anyway.
     pub fn transmit(&mut self) -> Option<CanFrame> {
         let id = CobId::SdoRx(self.node).id();
-        if let Some(bytes) = self.pending.take() {
-            return Some(CanFrame::from_parts(id, bytes));
-        }
-        if let State::BlockDownload { ref mut sender, .. } = self.state {
-            let seg = sender.next_segment(self.buf.as_ref())?;
-            return Some(CanFrame::from_parts(id, seg.emit()));
-        }
-        None
+        self.timing.transmit(&mut self.state, id, self.buf.as_ref())
     }
 
     /// Checks the timeouts: the server's silence past `timeout_ns` aborts with 0x05040000;
     /// in a block upload, silence mid-sub-block past `sub_block_timeout_ns` acknowledges
     /// what arrived so the server sends the rest again.
     pub fn poll(&mut self, now_ns: u64) -> Option<Outcome> {
-        let mux = self.state.mux()?;
-        if let (Some(t), State::BlockUpload { receiver, .. }) =
-            (self.silence_deadline, &mut self.state)
-        {
-            if now_ns >= t {
-                self.silence_deadline = None;
-                if let Some(ackseq) = receiver.on_silence() {
-                    let block_size = receiver.block_size();
-                    let bytes = ClientCommand::BlockUploadAck { ackseq, block_size }.emit();
-                    self.send(bytes, now_ns);
-                }
-            }
-        }
-        match self.deadline {
-            Some(t) if now_ns >= t => Some(self.fail(mux, AbortCode::TIMED_OUT)),
-            _ => None,
-        }
-    }
-
-    fn send(&mut self, bytes: [u8; SDO_LEN], now_ns: u64) {
-        self.pending = Some(bytes);
-        self.arm(now_ns);
-    }
-
-    fn arm(&mut self, now_ns: u64) {
-        self.deadline = Some(now_ns.saturating_add(self.config.timeout_ns));
+        self.timing.poll(&mut self.state, now_ns)
     }
 
     fn fail(&mut self, mux: Multiplexer, code: AbortCode) -> Outcome {
-        self.pending = Some(ClientCommand::Abort { mux, code }.emit());
-        self.finish();
-        Outcome::Aborted {
-            mux,
-            code,
-            by: Side::Client,
-        }
+        self.timing.fail(&mut self.state, mux, code)
     }
 
     fn finish(&mut self) {
-        self.state = State::Idle;
-        self.deadline = None;
-        self.silence_deadline = None;
+        self.timing.finish(&mut self.state);
     }
 
     /// Takes a received frame; frames not on this server's response COB-ID are ignored,
@@ -375,13 +349,12 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         }
         let mux = self.state.mux()?;
         let data = frame.data();
-        if let State::BlockUpload { receiver, .. } = &self.state {
-            if !receiver.is_done() && data.first() != Some(&ABORT_BYTE0) {
-                return match BlockSegment::parse(data) {
-                    Ok(seg) => self.on_block_segment(mux, &seg, now_ns),
-                    Err(_) => Some(self.fail(mux, AbortCode::INVALID_COMMAND_SPECIFIER)),
-                };
-            }
+        let buf = self.buf.as_mut();
+        if let Some(taken) = self
+            .timing
+            .block_segment(&mut self.state, data, buf, now_ns)
+        {
+            return taken;
         }
         let cmd = match ServerCommand::parse(data) {
             Ok(c) => c,
@@ -398,37 +371,6 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         match self.step(mux, cmd, now_ns) {
             Ok(outcome) => outcome,
             Err(code) => Some(self.fail(mux, code)),
-        }
-    }
-
-    fn on_block_segment(
-        &mut self,
-        mux: Multiplexer,
-        seg: &BlockSegment,
-        now_ns: u64,
-    ) -> Option<Outcome> {
-        let State::BlockUpload { receiver, .. } = &mut self.state else {
-            return None;
-        };
-        match receiver.on_segment(seg, self.buf.as_mut()) {
-            Err(code) => Some(self.fail(mux, code)),
-            Ok(Some(ackseq)) => {
-                let block_size = receiver.block_size();
-                self.silence_deadline = None;
-                self.send(
-                    ClientCommand::BlockUploadAck { ackseq, block_size }.emit(),
-                    now_ns,
-                );
-                None
-            }
-            Ok(None) => {
-                self.silence_deadline = self
-                    .config
-                    .sub_block_timeout_ns
-                    .map(|t| now_ns.saturating_add(t));
-                self.arm(now_ns);
-                None
-            }
         }
     }
 
@@ -493,7 +435,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     crc: crc && self.config.crc,
                     sender: BlockSender::new(len, block_size),
                 };
-                self.arm(now_ns);
+                self.timing.arm(now_ns);
                 Ok(None)
             }
             (
@@ -514,7 +456,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                             crc,
                             sender,
                         };
-                        self.arm(now_ns);
+                        self.timing.arm(now_ns);
                     }
                     AckResult::Done => {
                         let crc = if crc {
@@ -524,7 +466,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                         };
                         let unused = sender.unused_in_last();
                         self.state = State::BlockDownloadEnd { mux, len };
-                        self.send(
+                        self.timing.send(
                             ClientCommand::BlockDownloadEnd { unused, crc }.emit(),
                             now_ns,
                         );
@@ -564,7 +506,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                             received: 0,
                             toggle: false,
                         };
-                        self.send(
+                        self.timing.send(
                             ClientCommand::UploadSegment { toggle: false }.emit(),
                             now_ns,
                         );
@@ -611,7 +553,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     received: end,
                     toggle: !toggle,
                 };
-                self.send(
+                self.timing.send(
                     ClientCommand::UploadSegment { toggle: !toggle }.emit(),
                     now_ns,
                 );
@@ -629,7 +571,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                     crc: crc && self.config.crc,
                     receiver: BlockReceiver::new(self.config.block_size),
                 };
-                self.send(ClientCommand::BlockUploadStart.emit(), now_ns);
+                self.timing
+                    .send(ClientCommand::BlockUploadStart.emit(), now_ns);
                 Ok(None)
             }
             (
@@ -659,7 +602,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 }
                 self.uploaded = len;
                 self.finish();
-                self.pending = Some(ClientCommand::BlockUploadEnd.emit());
+                self.timing.queue(ClientCommand::BlockUploadEnd.emit());
                 Ok(Some(Outcome::Uploaded { mux, len }))
             }
             _ => Err(AbortCode::INVALID_COMMAND_SPECIFIER),
@@ -692,6 +635,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
             toggle,
             last,
         };
-        self.send(ClientCommand::DownloadSegment(seg).emit(), now_ns);
+        self.timing
+            .send(ClientCommand::DownloadSegment(seg).emit(), now_ns);
     }
 }

@@ -20,6 +20,7 @@ pub mod crc;
 pub mod dictionary;
 pub mod packet;
 pub mod server;
+mod timing;
 
 pub use abort::AbortCode;
 pub use client::{DownloadMode, SdoClient, SdoClientError, UploadMode};

@@ -10,11 +10,11 @@
 use super::abort::AbortCode;
 use super::block::{check_block_size, AckResult, BlockReceiver, BlockSender};
 use super::command::{
-    BlockSegment, ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, ABORT_BYTE0,
-    EXPEDITED_DATA, SDO_LEN, SEGMENT_DATA,
+    ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, EXPEDITED_DATA, SEGMENT_DATA,
 };
 use super::crc::Crc16;
 use super::dictionary::{EntryInfo, ObjectDictionary, ObjectSize};
+use super::timing::{Timing, Transfer};
 use super::{Outcome, SdoConfig, SdoConfigError, Side};
 use crate::canopen::cob_id::{CobId, NodeId};
 use crate::canopen::frame::CanFrame;
@@ -60,7 +60,7 @@ enum State {
     },
 }
 
-impl State {
+impl Transfer for State {
     fn mux(&self) -> Option<Multiplexer> {
         match *self {
             Self::Idle => None,
@@ -72,6 +72,23 @@ impl State {
             | Self::BlockUploadEnd { mux, .. } => Some(mux),
         }
     }
+    fn sending(&mut self) -> Option<&mut BlockSender> {
+        match self {
+            Self::BlockUpload { sender, .. } => Some(sender),
+            _ => None,
+        }
+    }
+
+    fn receiving(&mut self) -> Option<&mut BlockReceiver> {
+        match self {
+            Self::BlockDownload { receiver, .. } => Some(receiver),
+            _ => None,
+        }
+    }
+
+    fn end(&mut self) {
+        *self = Self::Idle;
+    }
 }
 
 /// An SDO server of one node, on the default SDO COB-IDs (requests on 0x600 + node,
@@ -82,9 +99,7 @@ pub struct SdoServer<B> {
     config: SdoConfig,
     buf: B,
     state: State,
-    pending: Option<[u8; SDO_LEN]>,
-    deadline: Option<u64>,
-    silence_deadline: Option<u64>,
+    timing: Timing,
 }
 
 impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
@@ -92,14 +107,13 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     /// largest object served that way; larger ones are refused with 0x05040005).
     pub fn new(node: NodeId, config: SdoConfig, buf: B) -> Result<Self, SdoConfigError> {
         config.validate()?;
+        let timing = Timing::new(Side::Server, &config);
         Ok(Self {
             node,
             config,
             buf,
             state: State::Idle,
-            pending: None,
-            deadline: None,
-            silence_deadline: None,
+            timing,
         })
     }
 
@@ -119,62 +133,22 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     /// next answer, e.g. by an abort, which supersedes it anyway.
     pub fn transmit(&mut self) -> Option<CanFrame> {
         let id = CobId::SdoTx(self.node).id();
-        if let Some(bytes) = self.pending.take() {
-            return Some(CanFrame::from_parts(id, bytes));
-        }
-        if let State::BlockUpload { ref mut sender, .. } = self.state {
-            let seg = sender.next_segment(self.buf.as_ref())?;
-            return Some(CanFrame::from_parts(id, seg.emit()));
-        }
-        None
+        self.timing.transmit(&mut self.state, id, self.buf.as_ref())
     }
 
     /// Checks the timeouts (see [`SdoConfig`]): the client's silence past `timeout_ns`
     /// aborts with 0x05040000; silence mid-sub-block of a block download acknowledges what
     /// arrived in order.
     pub fn poll(&mut self, now_ns: u64) -> Option<Outcome> {
-        let mux = self.state.mux()?;
-        if let (Some(t), State::BlockDownload { receiver, .. }) =
-            (self.silence_deadline, &mut self.state)
-        {
-            if now_ns >= t {
-                self.silence_deadline = None;
-                if let Some(ackseq) = receiver.on_silence() {
-                    let block_size = receiver.block_size();
-                    let bytes = ServerCommand::BlockDownloadAck { ackseq, block_size }.emit();
-                    self.send(bytes, now_ns);
-                }
-            }
-        }
-        match self.deadline {
-            Some(t) if now_ns >= t => Some(self.fail(mux, AbortCode::TIMED_OUT)),
-            _ => None,
-        }
-    }
-
-    fn send(&mut self, bytes: [u8; SDO_LEN], now_ns: u64) {
-        self.pending = Some(bytes);
-        self.arm(now_ns);
-    }
-
-    fn arm(&mut self, now_ns: u64) {
-        self.deadline = Some(now_ns.saturating_add(self.config.timeout_ns));
+        self.timing.poll(&mut self.state, now_ns)
     }
 
     fn fail(&mut self, mux: Multiplexer, code: AbortCode) -> Outcome {
-        self.pending = Some(ServerCommand::Abort { mux, code }.emit());
-        self.finish();
-        Outcome::Aborted {
-            mux,
-            code,
-            by: Side::Server,
-        }
+        self.timing.fail(&mut self.state, mux, code)
     }
 
     fn finish(&mut self) {
-        self.state = State::Idle;
-        self.deadline = None;
-        self.silence_deadline = None;
+        self.timing.finish(&mut self.state);
     }
 
     /// Takes a received frame; frames not on this node's request COB-ID are ignored.
@@ -192,13 +166,12 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
         }
         let data = frame.data();
         let current = self.state.mux();
-        if let (Some(mux), State::BlockDownload { receiver, .. }) = (current, &self.state) {
-            if !receiver.is_done() && data.first() != Some(&ABORT_BYTE0) {
-                return match BlockSegment::parse(data) {
-                    Ok(seg) => self.on_block_segment(mux, &seg, now_ns),
-                    Err(_) => Some(self.fail(mux, AbortCode::INVALID_COMMAND_SPECIFIER)),
-                };
-            }
+        let buf = self.buf.as_mut();
+        if let Some(taken) = self
+            .timing
+            .block_segment(&mut self.state, data, buf, now_ns)
+        {
+            return taken;
         }
         let cmd = match ClientCommand::parse(data) {
             Ok(c) => c,
@@ -224,37 +197,6 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
         match result {
             Ok(outcome) => outcome,
             Err((mux, code)) => Some(self.fail(mux, code)),
-        }
-    }
-
-    fn on_block_segment(
-        &mut self,
-        mux: Multiplexer,
-        seg: &BlockSegment,
-        now_ns: u64,
-    ) -> Option<Outcome> {
-        let State::BlockDownload { receiver, .. } = &mut self.state else {
-            return None;
-        };
-        match receiver.on_segment(seg, self.buf.as_mut()) {
-            Err(code) => Some(self.fail(mux, code)),
-            Ok(Some(ackseq)) => {
-                let block_size = receiver.block_size();
-                self.silence_deadline = None;
-                self.send(
-                    ServerCommand::BlockDownloadAck { ackseq, block_size }.emit(),
-                    now_ns,
-                );
-                None
-            }
-            Ok(None) => {
-                self.silence_deadline = self
-                    .config
-                    .sub_block_timeout_ns
-                    .map(|t| now_ns.saturating_add(t));
-                self.arm(now_ns);
-                None
-            }
         }
     }
 
@@ -299,7 +241,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     fn normal_upload(&mut self, mux: Multiplexer, len: usize, now_ns: u64) -> Option<Outcome> {
         let buf = self.buf.as_ref().get(..len).unwrap_or(&[]);
         if let Some(payload) = Initiate::expedited(buf) {
-            self.pending = Some(ServerCommand::InitiateUpload { mux, payload }.emit());
+            self.timing
+                .queue(ServerCommand::InitiateUpload { mux, payload }.emit());
             return Some(Outcome::Uploaded { mux, len });
         }
         let payload = Initiate::Segmented {
@@ -311,7 +254,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
             sent: 0,
             toggle: false,
         };
-        self.send(
+        self.timing.send(
             ServerCommand::InitiateUpload { mux, payload }.emit(),
             now_ns,
         );
@@ -340,7 +283,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                 let bytes = data.get(..len).unwrap_or(&data);
                 info.size.check(bytes.len()).map_err(|c| (mux, c))?;
                 od.write(mux, bytes).map_err(|c| (mux, c))?;
-                self.pending = Some(ServerCommand::InitiateDownload { mux }.emit());
+                self.timing
+                    .queue(ServerCommand::InitiateDownload { mux }.emit());
                 Ok(Some(Outcome::Downloaded {
                     mux,
                     len: bytes.len(),
@@ -358,7 +302,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     received: 0,
                     toggle: false,
                 };
-                self.send(ServerCommand::InitiateDownload { mux }.emit(), now_ns);
+                self.timing
+                    .send(ServerCommand::InitiateDownload { mux }.emit(), now_ns);
                 Ok(None)
             }
             C::InitiateUpload { mux } => {
@@ -380,7 +325,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     crc: self.config.crc,
                     block_size,
                 };
-                self.send(answer.emit(), now_ns);
+                self.timing.send(answer.emit(), now_ns);
                 Ok(None)
             }
             C::BlockUploadInitiate {
@@ -407,7 +352,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     crc: self.config.crc,
                     size: Some(len as u32),
                 };
-                self.send(answer.emit(), now_ns);
+                self.timing.send(answer.emit(), now_ns);
                 Ok(None)
             }
             C::DownloadSegment(_)
@@ -469,7 +414,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     info.size.check(end).map_err(|c| (mux, c))?;
                     od.write(mux, data).map_err(|c| (mux, c))?;
                     self.finish();
-                    self.pending = Some(ServerCommand::DownloadSegment { toggle }.emit());
+                    self.timing
+                        .queue(ServerCommand::DownloadSegment { toggle }.emit());
                     return Ok(Some(Outcome::Downloaded { mux, len: end }));
                 }
                 self.state = State::DownloadSegment {
@@ -479,7 +425,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     received: end,
                     toggle: !toggle,
                 };
-                self.send(ServerCommand::DownloadSegment { toggle }.emit(), now_ns);
+                self.timing
+                    .send(ServerCommand::DownloadSegment { toggle }.emit(), now_ns);
                 Ok(None)
             }
             (
@@ -497,7 +444,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                 let seg = Segment::new(toggle, last, bytes);
                 if last {
                     self.finish();
-                    self.pending = Some(ServerCommand::UploadSegment(seg).emit());
+                    self.timing.queue(ServerCommand::UploadSegment(seg).emit());
                     return Ok(Some(Outcome::Uploaded { mux, len }));
                 }
                 self.state = State::UploadSegment {
@@ -506,7 +453,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     sent: end,
                     toggle: !toggle,
                 };
-                self.send(ServerCommand::UploadSegment(seg).emit(), now_ns);
+                self.timing
+                    .send(ServerCommand::UploadSegment(seg).emit(), now_ns);
                 Ok(None)
             }
             (
@@ -539,7 +487,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                 info.size.check(len).map_err(|c| (mux, c))?;
                 od.write(mux, data).map_err(|c| (mux, c))?;
                 self.finish();
-                self.pending = Some(ServerCommand::BlockDownloadEnd.emit());
+                self.timing.queue(ServerCommand::BlockDownloadEnd.emit());
                 Ok(Some(Outcome::Downloaded { mux, len }))
             }
             (
@@ -557,7 +505,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     crc,
                     sender: BlockSender::new(len, block_size),
                 };
-                self.arm(now_ns);
+                self.timing.arm(now_ns);
                 Ok(None)
             }
             (
@@ -577,7 +525,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                         crc,
                         sender,
                     };
-                    self.arm(now_ns);
+                    self.timing.arm(now_ns);
                     Ok(None)
                 }
                 Ok(AckResult::Done) => {
@@ -588,7 +536,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     };
                     let unused = sender.unused_in_last();
                     self.state = State::BlockUploadEnd { mux, len };
-                    self.send(ServerCommand::BlockUploadEnd { unused, crc }.emit(), now_ns);
+                    self.timing
+                        .send(ServerCommand::BlockUploadEnd { unused, crc }.emit(), now_ns);
                     Ok(None)
                 }
             },

@@ -22,6 +22,13 @@ impl Axis {
                 state: AxisState::ErrorStop,
             });
         }
+        // Standstill only with the drive's power on (PLCopen MC_Reset): a drive that
+        // left Operation enabled without a fault while the axis was in ErrorStop (a
+        // CANopen node reset, its power stage off) leaves the axis Disabled, to be
+        // enabled again, not Standstill on a drive that takes no set value.
+        if self.drive_enabled == Some(false) {
+            self.powered = false;
+        }
         self.enter(Event::Reset {
             powered: self.powered,
         });

@@ -221,6 +221,7 @@ fn axis(
     AxisSection {
         name: name.into(),
         drive,
+        node: None,
         kind: "linear".into(),
         units: "mm".into(),
         modulo: None,
@@ -251,6 +252,7 @@ fn axis(
         homing_required: true,
         target_monitoring: Default::default(),
         pdo: "csp".into(),
+        switches: Default::default(),
     }
 }
 
@@ -310,6 +312,9 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             pcap: None,
             dc: false,
             faults: FaultsSection::default(),
+            bitrate: None,
+            heartbeat_ms: None,
+            heartbeat_timeout_ms: None,
         },
         rt: RtSection::default(),
         axes,

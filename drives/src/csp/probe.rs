@@ -1,0 +1,275 @@
+//! The master's side of a drive's touch probe (CiA 402 0x60B8–0x60BC) and digital inputs
+//! (0x60FD): arm the probes, turn each value the drive latched into one "new latch" for
+//! exactly one cycle, and read the limit and home switches with their polarity.
+//!
+//! The probes run in first-event mode, which every drive with a touch probe has (the
+//! continuous mode's "new value" toggle bits are not in the profile): probe 1 on its input
+//! (wired to the home switch), both edges; probe 2 on the encoder's zero impulse, positive
+//! edge. When an edge is stored the channel reports it, clears that edge's sample-enable
+//! bit until the drive has cleared its stored bit, then sets it again: re-armed two cycles
+//! after a latch. An edge within those two cycles is not latched — homing takes one edge
+//! per phase, far apart. A drive whose probe is not enabled (after power-up or a reset)
+//! sees the enable bit's rising edge: the function is sent as 0 for one cycle, then armed;
+//! the channel then waits [`ARM_WAIT_CYCLES`] for the status to show it (outputs reach a
+//! drive and its status comes back a few cycles later) before it tries again.
+
+use crate::cia402::objects::digital_inputs;
+
+/// Function bits (probe 2 at bit 8).
+const ENABLE: u16 = 1 << 0;
+const ZERO_IMPULSE: u16 = 0b01 << 2;
+const POSITIVE: u16 = 1 << 4;
+const NEGATIVE: u16 = 1 << 5;
+/// Status bits (probe 2 at bit 8).
+const ENABLED: u16 = 1 << 0;
+const POSITIVE_STORED: u16 = 1 << 1;
+const NEGATIVE_STORED: u16 = 1 << 2;
+
+/// 0x60B8 as armed: probe 1 on its input, both edges; probe 2 on the zero impulse,
+/// positive edge; first event each.
+pub const PROBE_FUNCTION: u16 =
+    ENABLE | POSITIVE | NEGATIVE | (ENABLE | ZERO_IMPULSE | POSITIVE) << 8;
+
+/// Cycles an arming may take to show in the status before it is tried again.
+pub const ARM_WAIT_CYCLES: u8 = 16;
+
+/// The three edges the channel latches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Channel {
+    /// Probe 1 positive edge (0x60BA): the home switch becomes active.
+    Rising,
+    /// Probe 1 negative edge (0x60BB): the home switch becomes inactive.
+    Falling,
+    /// Probe 2 positive edge (0x60BC): the index pulse.
+    Index,
+}
+
+impl Channel {
+    const ALL: [Channel; 3] = [Channel::Rising, Channel::Falling, Channel::Index];
+
+    /// Its sample-enable bit in 0x60B8 and stored bit in 0x60B9.
+    const fn bits(self) -> (u16, u16) {
+        match self {
+            Channel::Rising => (POSITIVE, POSITIVE_STORED),
+            Channel::Falling => (NEGATIVE, NEGATIVE_STORED),
+            Channel::Index => (POSITIVE << 8, POSITIVE_STORED << 8),
+        }
+    }
+}
+
+/// Values the drive latched this cycle (32-bit counts), new ones only.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NewLatches {
+    /// The home switch became active here.
+    pub rising: Option<i32>,
+    /// The home switch became inactive here.
+    pub falling: Option<i32>,
+    /// The index pulse passed here.
+    pub index: Option<i32>,
+}
+
+/// What the drive's probe objects say this cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ProbeInputs {
+    /// 0x60B9.
+    pub status: u16,
+    /// 0x60BA, 0x60BB, 0x60BC (`None` where not mapped).
+    pub values: [Option<i32>; 3],
+}
+
+/// The arming of one drive's probes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ProbeArming {
+    /// Per channel: reported, its sample bit cleared until the drive clears the stored bit.
+    clearing: [bool; 3],
+    /// The function sent last.
+    function: u16,
+    /// Cycles left for an arming to show in the status.
+    waiting: u8,
+}
+
+impl ProbeArming {
+    /// 0x60B8 for this cycle's outputs.
+    pub fn function(&self) -> u16 {
+        self.function
+    }
+
+    /// Takes the drive's probe objects; returns the new latches and sets the function to
+    /// send.
+    pub fn update(&mut self, inputs: &ProbeInputs) -> NewLatches {
+        let st = inputs.status;
+        let mut new = NewLatches::default();
+        if st & ENABLED == 0 || st & (ENABLED << 8) == 0 {
+            // Not armed (power-up, reset): the enable's rising edge arms it.
+            self.clearing = [false; 3];
+            if self.function == 0 {
+                self.function = PROBE_FUNCTION;
+                self.waiting = ARM_WAIT_CYCLES;
+            } else if self.waiting > 0 {
+                self.waiting -= 1;
+            } else {
+                self.function = 0;
+            }
+            return new;
+        }
+        self.waiting = 0;
+        let mut f = PROBE_FUNCTION;
+        for (i, ch) in Channel::ALL.into_iter().enumerate() {
+            let (sample, stored) = ch.bits();
+            let Some(clearing) = self.clearing.get_mut(i) else {
+                continue;
+            };
+            if *clearing {
+                if st & stored == 0 {
+                    // The drive took the cleared sample bit: arm the edge again.
+                    *clearing = false;
+                } else {
+                    f &= !sample;
+                }
+            } else if st & stored != 0 {
+                let value = inputs.values.get(i).copied().flatten();
+                match ch {
+                    Channel::Rising => new.rising = value,
+                    Channel::Falling => new.falling = value,
+                    Channel::Index => new.index = value,
+                }
+                *clearing = true;
+                f &= !sample;
+            }
+        }
+        self.function = f;
+        new
+    }
+}
+
+/// How the switches' 0x60FD bits are read: which are wired, and which read inverted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SwitchWiring {
+    /// 0x60FD bits in use (negative limit, positive limit, home).
+    pub used: u32,
+    /// Bits whose level is inverted (a drive that reports the contact's level, wired
+    /// normally closed).
+    pub inverted: u32,
+}
+
+/// The switches a drive reports, active or not.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DriveSwitches {
+    /// Negative limit switch active.
+    pub negative_limit: bool,
+    /// Positive limit switch active.
+    pub positive_limit: bool,
+    /// Home switch active.
+    pub home: bool,
+}
+
+impl SwitchWiring {
+    /// The switches from 0x60FD.
+    pub fn read(&self, digital_inputs: u32) -> DriveSwitches {
+        let active = (digital_inputs ^ self.inverted) & self.used;
+        DriveSwitches {
+            negative_limit: active & digital_inputs::NEGATIVE_LIMIT != 0,
+            positive_limit: active & digital_inputs::POSITIVE_LIMIT != 0,
+            home: active & digital_inputs::HOME_SWITCH != 0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inputs(status: u16, values: [i32; 3]) -> ProbeInputs {
+        ProbeInputs {
+            status,
+            values: values.map(Some),
+        }
+    }
+
+    const ARMED: u16 = ENABLED | ENABLED << 8;
+
+    #[test]
+    fn arms_reports_each_latch_once_and_rearms() {
+        let mut p = ProbeArming::default();
+        // Power-up: not enabled; the function goes out and stays while the status may
+        // still be on its way; not enabled after that: 0 for one cycle so that the next
+        // one is a rising edge, then armed again.
+        assert_eq!(p.update(&inputs(0, [0; 3])), NewLatches::default());
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        for _ in 0..ARM_WAIT_CYCLES {
+            p.update(&inputs(0, [0; 3]));
+            assert_eq!(p.function(), PROBE_FUNCTION);
+        }
+        p.update(&inputs(0, [0; 3]));
+        assert_eq!(p.function(), 0);
+        p.update(&inputs(0, [0; 3]));
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        // Armed, nothing stored.
+        assert_eq!(p.update(&inputs(ARMED, [0; 3])), NewLatches::default());
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        // The rising edge is stored: reported once, its sample bit cleared.
+        let st = ARMED | POSITIVE_STORED;
+        let new = p.update(&inputs(st, [1234, 0, 0]));
+        assert_eq!(new.rising, Some(1234));
+        assert_eq!(p.function(), PROBE_FUNCTION & !POSITIVE);
+        // Still stored (the drive has not seen the cleared bit): not again.
+        assert_eq!(p.update(&inputs(st, [1234, 0, 0])), NewLatches::default());
+        assert_eq!(p.function(), PROBE_FUNCTION & !POSITIVE);
+        // Cleared by the drive: armed again.
+        p.update(&inputs(ARMED, [1234, 0, 0]));
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        // Index and falling edge in one cycle.
+        let st = ARMED | NEGATIVE_STORED | POSITIVE_STORED << 8;
+        let new = p.update(&inputs(st, [1234, 2000, 4096]));
+        assert_eq!(
+            new,
+            NewLatches {
+                rising: None,
+                falling: Some(2000),
+                index: Some(4096)
+            }
+        );
+        assert_eq!(p.function(), PROBE_FUNCTION & !NEGATIVE & !(POSITIVE << 8));
+    }
+
+    #[test]
+    fn a_drive_that_lost_its_arming_is_armed_again() {
+        let mut p = ProbeArming::default();
+        p.update(&inputs(0, [0; 3]));
+        p.update(&inputs(ARMED | POSITIVE_STORED, [5, 0, 0]));
+        // The drive reset: enable bits gone. Armed before, so no wait: 0 for one cycle,
+        // then the enable's rising edge.
+        p.update(&inputs(0, [0; 3]));
+        assert_eq!(p.function(), 0, "enable low for one cycle");
+        p.update(&inputs(0, [0; 3]));
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        // Armed afresh: a stored edge is new.
+        let new = p.update(&inputs(ARMED | POSITIVE_STORED, [7, 0, 0]));
+        assert_eq!(new.rising, Some(7));
+    }
+
+    #[test]
+    fn switches_with_polarity() {
+        let w = SwitchWiring {
+            used: digital_inputs::NEGATIVE_LIMIT | digital_inputs::HOME_SWITCH,
+            inverted: digital_inputs::NEGATIVE_LIMIT,
+        };
+        assert_eq!(
+            w.read(0),
+            DriveSwitches {
+                negative_limit: true,
+                positive_limit: false,
+                home: false
+            }
+        );
+        // The positive limit bit is not wired: ignored.
+        assert_eq!(
+            w.read(0b111),
+            DriveSwitches {
+                negative_limit: false,
+                positive_limit: false,
+                home: true
+            }
+        );
+    }
+}

@@ -1,0 +1,636 @@
+//! Bring-up of the CANopen bus (CiA 301 §7.3.2 NMT start-up, as an NMT master does it):
+//! NMT reset communication, every configured node's boot-up awaited, each checked by SDO
+//! to be a CiA 402 drive (0x1000) and named (0x1018), its PDOs configured by SDO in
+//! pre-operational by the procedure of CiA 301 §7.5.2.35–.38 (COB-ID invalid, mapping
+//! count 0, the entries, the count, transmission type 1 = synchronous at every SYNC, COB-ID
+//! valid), its heartbeat producer time (0x1017) and communication cycle period (0x1006)
+//! set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
+//! each SDO transfer [`SDO_TIMEOUT_NS`]). The same configuration writes
+//! ([`config_steps`]) bring a node back in a restore, one per exchange.
+
+use std::io::{self, Write};
+
+use gantry_drives::canopen::cob_id::{CobId, NodeId, RPDO1_BASE, TPDO1_BASE};
+use gantry_drives::canopen::heartbeat::{Heartbeat, NmtState};
+use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
+use gantry_drives::canopen::sdo::{
+    AbortCode, DownloadMode, Multiplexer, Outcome, SdoClient, SdoConfig, Side, UploadMode,
+};
+use gantry_drives::canopen::CanFrame;
+use gantry_drives::cia402::objects;
+use gantry_drives::cia402::pdo::PdoLayout;
+use thiserror::Error;
+
+use super::link::CanLink;
+use super::load::{BusLoad, LoadError};
+use super::pdo::{DrivePlan, PdoPlan};
+use crate::config::Config;
+
+/// How long the nodes have to send their boot-up after NMT reset communication.
+pub const BOOT_UP_TIMEOUT_NS: u64 = 2_000_000_000;
+/// How long a node has to answer each SDO request (CiA 301 leaves it to the application).
+pub const SDO_TIMEOUT_NS: u64 = 500_000_000;
+/// Longest single wait for a frame in the bring-up's loops (the SDO client's timeout is
+/// checked between waits).
+const POLL_NS: u64 = 1_000_000;
+/// 0x1000 device type.
+pub const DEVICE_TYPE: u16 = 0x1000;
+/// 0x1006 communication cycle period (µs).
+pub const COMMUNICATION_CYCLE_PERIOD: u16 = 0x1006;
+/// 0x1017 producer heartbeat time (ms).
+pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
+/// 0x1018 identity object.
+pub const IDENTITY: u16 = 0x1018;
+/// Device profile number of CiA 402 drives (0x1000 bits 0–15).
+pub const PROFILE_CIA402: u16 = 402;
+/// First RPDO communication parameter (CiA 301 §7.5.2.35).
+pub const RPDO_COMMUNICATION: u16 = 0x1400;
+/// First RPDO mapping parameter (§7.5.2.37).
+pub const RPDO_MAPPING: u16 = 0x1600;
+/// First TPDO communication parameter (§7.5.2.36).
+pub const TPDO_COMMUNICATION: u16 = 0x1800;
+/// First TPDO mapping parameter (§7.5.2.38).
+pub const TPDO_MAPPING: u16 = 0x1A00;
+/// COB-ID bit 31: the PDO does not exist.
+pub const COB_ID_INVALID: u32 = 1 << 31;
+/// Transmission type 1: synchronous, every SYNC (CiA 301 §7.5.2.35 Table 70).
+pub const TT_SYNC_EVERY: u8 = 1;
+/// Bytes of an SDO client's buffer (the bus moves objects of at most 4 bytes).
+pub const SDO_BUFFER: usize = 32;
+
+/// An SDO client of the bus.
+pub type Client = SdoClient<[u8; SDO_BUFFER]>;
+
+/// Why an SDO transfer of the bring-up failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SdoFailure {
+    /// The node aborted it.
+    Refused(AbortCode),
+    /// gantry aborted it (a timeout, a protocol error).
+    Aborted(AbortCode),
+}
+
+impl std::fmt::Display for SdoFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Refused(code) => write!(f, "the node refused: {code}"),
+            Self::Aborted(AbortCode::TIMED_OUT) => {
+                write!(f, "no answer within {} ms", SDO_TIMEOUT_NS / 1_000_000)
+            }
+            Self::Aborted(code) => write!(f, "gantry aborted: {code}"),
+        }
+    }
+}
+
+/// Why the CANopen bus did not come up.
+#[derive(Debug, Error)]
+pub enum StartError {
+    /// The frames do not fit the bit rate, or a layout does not fit the PDOs.
+    #[error("CANopen: {0}")]
+    Load(#[from] LoadError),
+    /// An axis names no node (the configuration is not for CANopen).
+    #[error("CANopen: axis {axis:?} has no node id")]
+    NoNode {
+        /// The axis.
+        axis: String,
+    },
+    /// The link failed.
+    #[error("CANopen: {what}")]
+    Link {
+        /// What was being done.
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: io::Error,
+    },
+    /// Nodes that sent no boot-up.
+    #[error(
+        "CANopen: no boot-up from node{} {} within {} ms of NMT reset communication \
+         (powered? node id? bit rate?)",
+        if missing.len() == 1 { "" } else { "s" },
+        list(missing),
+        waited_ms
+    )]
+    NoBootUp {
+        /// Their node ids.
+        missing: Vec<u8>,
+        /// How long gantry waited.
+        waited_ms: u64,
+    },
+    /// A node is not a CiA 402 drive.
+    #[error(
+        "CANopen node {node}: device type 0x{device_type:08X} is profile {}, not a CiA 402 \
+         drive (0x1000 bits 0–15 = 402)",
+        device_type & 0xFFFF
+    )]
+    NotCia402 {
+        /// The node.
+        node: u8,
+        /// Its 0x1000.
+        device_type: u32,
+    },
+    /// A node's heartbeat did not report Operational after NMT start.
+    #[error(
+        "CANopen node {node}: not Operational {waited_ms} ms after NMT start (its last \
+         heartbeat: {})",
+        match state { Some(s) => format!("{s:?}"), None => "none".to_string() }
+    )]
+    NotStarted {
+        /// The node.
+        node: u8,
+        /// What its last heartbeat said.
+        state: Option<NmtState>,
+        /// How long gantry waited.
+        waited_ms: u64,
+    },
+    /// The SDO client's configuration.
+    #[error("CANopen: SDO client: {0}")]
+    SdoConfig(gantry_drives::canopen::sdo::SdoConfigError),
+    /// An SDO transfer failed.
+    #[error("CANopen node {node}: {what} ({mux}): {failure}")]
+    Sdo {
+        /// The node.
+        node: u8,
+        /// What the transfer was for.
+        what: &'static str,
+        /// The object.
+        mux: Multiplexer,
+        /// Why it failed.
+        failure: SdoFailure,
+    },
+}
+
+fn list(ids: &[u8]) -> String {
+    ids.iter().map(u8::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// One SDO download of a node's configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SdoStep {
+    /// The object.
+    pub mux: Multiplexer,
+    /// Its value, little-endian (first `len` bytes).
+    pub data: [u8; 4],
+    /// Bytes of the value.
+    pub len: u8,
+    /// What it is for (for messages).
+    pub what: &'static str,
+}
+
+impl SdoStep {
+    fn new(index: u16, sub: u8, data: &[u8], what: &'static str) -> Self {
+        let mut d = [0u8; 4];
+        for (dst, src) in d.iter_mut().zip(data) {
+            *dst = *src;
+        }
+        Self {
+            mux: Multiplexer::new(index, sub),
+            data: d,
+            len: data.len().min(4) as u8,
+            what,
+        }
+    }
+
+    /// The value's bytes.
+    pub fn value(&self) -> &[u8] {
+        self.data.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+}
+
+/// Every SDO download that configures a node for the cycle, in order: per PDO 1..=4 of
+/// each direction, the procedure of CiA 301 §7.5.2.37 for those `plan` uses (COB-ID
+/// invalid, transmission type 1, mapping count 0, the entries, the count, COB-ID valid on
+/// its predefined identifier) and COB-ID invalid for the others (a vendor's defaults may
+/// have them valid); then 0x1017 heartbeat producer time, 0x1006 communication cycle
+/// period, and 0x6060 = CSP when the layout does not carry the mode.
+pub fn config_steps(
+    node: NodeId,
+    plan: &DrivePlan,
+    layout: &PdoLayout,
+    heartbeat_ms: u16,
+    cycle_us: u32,
+) -> Vec<SdoStep> {
+    let mut steps = Vec::new();
+    for (comm, mapping, base, pdos, what) in [
+        (
+            RPDO_COMMUNICATION,
+            RPDO_MAPPING,
+            RPDO1_BASE,
+            &plan.rpdos,
+            "RPDO",
+        ),
+        (
+            TPDO_COMMUNICATION,
+            TPDO_MAPPING,
+            TPDO1_BASE,
+            &plan.tpdos,
+            "TPDO",
+        ),
+    ] {
+        for n in 0..4u8 {
+            let comm = comm + u16::from(n);
+            let mapping = mapping + u16::from(n);
+            let cob = u32::from(base + 0x100 * u16::from(n) + u16::from(node.get()));
+            let used: Option<&PdoPlan> = pdos.iter().find(|p| p.number == n + 1);
+            steps.push(SdoStep::new(
+                comm,
+                1,
+                &(COB_ID_INVALID | cob).to_le_bytes(),
+                if what == "RPDO" {
+                    "RPDO COB-ID invalid"
+                } else {
+                    "TPDO COB-ID invalid"
+                },
+            ));
+            let Some(p) = used else { continue };
+            steps.push(SdoStep::new(comm, 2, &[TT_SYNC_EVERY], "transmission type"));
+            steps.push(SdoStep::new(mapping, 0, &[0], "mapping count 0"));
+            for (i, value) in p.mapping_values().enumerate() {
+                steps.push(SdoStep::new(
+                    mapping,
+                    i as u8 + 1,
+                    &value.to_le_bytes(),
+                    "mapping entry",
+                ));
+            }
+            steps.push(SdoStep::new(
+                mapping,
+                0,
+                &[p.entries.len() as u8],
+                "mapping count",
+            ));
+            steps.push(SdoStep::new(
+                comm,
+                1,
+                &cob.to_le_bytes(),
+                if what == "RPDO" {
+                    "RPDO COB-ID valid"
+                } else {
+                    "TPDO COB-ID valid"
+                },
+            ));
+        }
+    }
+    steps.push(SdoStep::new(
+        PRODUCER_HEARTBEAT_TIME,
+        0,
+        &heartbeat_ms.to_le_bytes(),
+        "heartbeat producer time",
+    ));
+    steps.push(SdoStep::new(
+        COMMUNICATION_CYCLE_PERIOD,
+        0,
+        &cycle_us.to_le_bytes(),
+        "communication cycle period",
+    ));
+    if !layout.outputs.contains(&objects::MODES_OF_OPERATION) {
+        let csp = gantry_drives::csp::MODE_CSP;
+        steps.push(SdoStep::new(
+            objects::MODES_OF_OPERATION.index,
+            0,
+            &csp.to_le_bytes(),
+            "modes of operation = CSP",
+        ));
+    }
+    steps
+}
+
+/// What bring-up found of one node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NodeInfo {
+    /// The node.
+    pub node: NodeId,
+    /// 0x1000.
+    pub device_type: u32,
+    /// 0x1018:01–04 (sub 1 is mandatory, 2–4 optional: None when the node has none).
+    pub identity: [Option<u32>; 4],
+}
+
+/// One drive as the configuration gives it: its node, layout and PDO plan.
+#[derive(Clone, Debug)]
+pub struct DriveSetup {
+    /// The axis' name.
+    pub axis: String,
+    /// The node.
+    pub node: NodeId,
+    /// The layout.
+    pub layout: PdoLayout,
+    /// Its PDOs.
+    pub plan: DrivePlan,
+    /// The SDO writes that configure it.
+    pub steps: Vec<SdoStep>,
+}
+
+/// The drives of `config`, in axis order (bus position `i` = axis `i`), after the load
+/// check.
+pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
+    BusLoad::of_config(config)?.check()?;
+    let heartbeat_ms = config.bus.heartbeat_producer_ms();
+    config
+        .axes
+        .iter()
+        .map(|a| {
+            let node =
+                a.node
+                    .and_then(|n| NodeId::new(n).ok())
+                    .ok_or_else(|| StartError::NoNode {
+                        axis: a.name.clone(),
+                    })?;
+            let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
+                axis: a.name.clone(),
+                reason,
+            })?;
+            let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
+                axis: a.name.clone(),
+                pdo: a.pdo.clone(),
+                source,
+            })?;
+            let steps = config_steps(node, &plan, &layout, heartbeat_ms, config.bus.cycle_us);
+            Ok(DriveSetup {
+                axis: a.name.clone(),
+                node,
+                layout,
+                plan,
+                steps,
+            })
+        })
+        .collect()
+}
+
+/// The SDO client gantry uses for `node` ([`SDO_TIMEOUT_NS`]).
+pub fn client(node: NodeId) -> Result<Client, StartError> {
+    let config = SdoConfig {
+        timeout_ns: SDO_TIMEOUT_NS,
+        ..SdoConfig::default()
+    };
+    SdoClient::new(node, config, [0u8; SDO_BUFFER]).map_err(StartError::SdoConfig)
+}
+
+/// Sends `frame`, naming what failed.
+pub fn send(
+    link: &mut dyn CanLink,
+    frame: &CanFrame,
+    what: &'static str,
+) -> Result<(), StartError> {
+    link.send(frame)
+        .map_err(|source| StartError::Link { what, source })
+}
+
+/// The NMT frame of `command` for `target`.
+pub fn nmt(command: NmtCommand, target: NmtTarget) -> CanFrame {
+    NmtFrame { command, target }.emit()
+}
+
+/// One blocking SDO transfer: a download of `data`, or an upload (`data` None) whose
+/// bytes are left in the client's buffer. Frames that are not the node's answer are
+/// passed to `other`.
+fn transfer(
+    link: &mut dyn CanLink,
+    client: &mut Client,
+    mux: Multiplexer,
+    data: Option<&[u8]>,
+    what: &'static str,
+    other: &mut dyn FnMut(&CanFrame),
+) -> Result<(), StartError> {
+    let node = client.node().get();
+    let now = link.now_ns();
+    let started = match data {
+        Some(d) => client.download(mux, d, DownloadMode::Auto, now),
+        None => client.upload(mux, UploadMode::Normal, now),
+    };
+    // A client made for this transfer is idle and the values fit: cannot fail.
+    if started.is_err() {
+        return Err(StartError::Sdo {
+            node,
+            what,
+            mux,
+            failure: SdoFailure::Aborted(AbortCode::GENERAL_ERROR),
+        });
+    }
+    let failed = |failure| StartError::Sdo {
+        node,
+        what,
+        mux,
+        failure,
+    };
+    loop {
+        while let Some(f) = client.transmit() {
+            send(link, &f, "sending an SDO request")?;
+        }
+        let now = link.now_ns();
+        let outcome = match client.poll(now) {
+            Some(o) => Some(o),
+            None => match link
+                .receive(now + POLL_NS)
+                .map_err(|source| StartError::Link {
+                    what: "receiving",
+                    source,
+                })? {
+                Some(r) if r.frame.id() == CobId::SdoTx(client.node()).id() => {
+                    client.receive(&r.frame, link.now_ns())
+                }
+                Some(r) => {
+                    other(&r.frame);
+                    None
+                }
+                None => None,
+            },
+        };
+        match outcome {
+            None => continue,
+            Some(Outcome::Downloaded { .. } | Outcome::Uploaded { .. }) => return Ok(()),
+            Some(Outcome::Aborted { code, by, .. }) => {
+                // The abort frame of ours goes out.
+                while let Some(f) = client.transmit() {
+                    send(link, &f, "sending an SDO abort")?;
+                }
+                return Err(failed(match by {
+                    Side::Server => SdoFailure::Refused(code),
+                    Side::Client => SdoFailure::Aborted(code),
+                }));
+            }
+        }
+    }
+}
+
+/// An upload of a 32-bit value.
+fn upload_u32(
+    link: &mut dyn CanLink,
+    client: &mut Client,
+    mux: Multiplexer,
+    what: &'static str,
+) -> Result<u32, StartError> {
+    transfer(link, client, mux, None, what, &mut |_| {})?;
+    let d = client.data();
+    let mut b = [0u8; 4];
+    for (dst, src) in b.iter_mut().zip(d) {
+        *dst = *src;
+    }
+    Ok(u32::from_le_bytes(b))
+}
+
+/// Bring-up: every step in order on `link`, printing them to `out`. Returns what each
+/// node said of itself; the nodes are Operational (each said so in a heartbeat within
+/// `consumer_ns` of NMT start), their PDOs synchronous.
+pub fn run(
+    link: &mut dyn CanLink,
+    drives: &[DriveSetup],
+    consumer_ns: u64,
+    out: &mut (dyn Write + Send),
+) -> Result<Vec<NodeInfo>, StartError> {
+    // What waits from before (a node's power-on boot-up) is not the answer to our reset.
+    let now = link.now_ns();
+    while link
+        .receive(now)
+        .map_err(|source| StartError::Link {
+            what: "receiving",
+            source,
+        })?
+        .is_some()
+    {}
+    send(
+        link,
+        &nmt(NmtCommand::ResetCommunication, NmtTarget::All),
+        "sending NMT reset communication",
+    )?;
+    let start = link.now_ns();
+    let deadline = start + BOOT_UP_TIMEOUT_NS;
+    let mut booted = vec![false; drives.len()];
+    while booted.iter().any(|b| !b) {
+        let Some(r) = link.receive(deadline).map_err(|source| StartError::Link {
+            what: "waiting for boot-up",
+            source,
+        })?
+        else {
+            break;
+        };
+        if let Ok(hb) = Heartbeat::parse(&r.frame) {
+            if hb.is_boot_up() {
+                if let Some(i) = drives.iter().position(|d| d.node == hb.node) {
+                    booted[i] = true;
+                }
+            }
+        }
+    }
+    let missing: Vec<u8> = drives
+        .iter()
+        .zip(&booted)
+        .filter(|(_, b)| !**b)
+        .map(|(d, _)| d.node.get())
+        .collect();
+    if !missing.is_empty() {
+        return Err(StartError::NoBootUp {
+            missing,
+            waited_ms: link.now_ns().saturating_sub(start) / 1_000_000,
+        });
+    }
+    let _ = writeln!(
+        out,
+        "CANopen: {} nodes booted after NMT reset communication",
+        drives.len()
+    );
+    let mut infos = Vec::with_capacity(drives.len());
+    for d in drives {
+        let mut c = client(d.node)?;
+        let node = d.node.get();
+        let device_type = upload_u32(
+            link,
+            &mut c,
+            Multiplexer::new(DEVICE_TYPE, 0),
+            "device type",
+        )?;
+        if device_type & 0xFFFF != u32::from(PROFILE_CIA402) {
+            return Err(StartError::NotCia402 { node, device_type });
+        }
+        let mut identity = [None; 4];
+        for (sub, slot) in (1u8..=4).zip(identity.iter_mut()) {
+            match upload_u32(link, &mut c, Multiplexer::new(IDENTITY, sub), "identity") {
+                Ok(v) => *slot = Some(v),
+                // Only the vendor id is mandatory (CiA 301 §7.5.2.23).
+                Err(StartError::Sdo {
+                    failure: SdoFailure::Refused(_),
+                    ..
+                }) if sub > 1 => {}
+                Err(e) => return Err(e),
+            }
+        }
+        let _ = writeln!(
+            out,
+            "  node {node} (axis {:?}): CiA 402 device type 0x{device_type:08X}, vendor \
+             0x{:08X}, product 0x{:08X}, revision 0x{:08X}, serial {}",
+            d.axis,
+            identity[0].unwrap_or(0),
+            identity[1].unwrap_or(0),
+            identity[2].unwrap_or(0),
+            identity[3].map_or("-".to_string(), |s| s.to_string()),
+        );
+        for step in &d.steps {
+            transfer(
+                link,
+                &mut c,
+                step.mux,
+                Some(step.value()),
+                step.what,
+                &mut |_| {},
+            )?;
+        }
+        let pdos = |what: &str, pdos: &[PdoPlan]| {
+            pdos.iter()
+                .map(|p| format!("{what}{} {} bytes", p.number, p.len))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let _ = writeln!(
+            out,
+            "  node {node}: {}, {}, synchronous every SYNC; {} SDO writes",
+            pdos("RPDO", &d.plan.rpdos),
+            pdos("TPDO", &d.plan.tpdos),
+            d.steps.len()
+        );
+        infos.push(NodeInfo {
+            node: d.node,
+            device_type,
+            identity,
+        });
+    }
+    for d in drives {
+        send(
+            link,
+            &nmt(NmtCommand::Start, NmtTarget::Node(d.node)),
+            "sending NMT start",
+        )?;
+    }
+    // Each node's next heartbeat (its new 0x1017 time) says it is Operational.
+    let start = link.now_ns();
+    let deadline = start + consumer_ns;
+    let mut state: Vec<Option<NmtState>> = vec![None; drives.len()];
+    while state.iter().any(|s| *s != Some(NmtState::Operational)) {
+        let Some(r) = link.receive(deadline).map_err(|source| StartError::Link {
+            what: "waiting for the nodes' heartbeats",
+            source,
+        })?
+        else {
+            break;
+        };
+        if let Ok(hb) = Heartbeat::parse(&r.frame) {
+            if let Some(i) = drives.iter().position(|d| d.node == hb.node) {
+                if let Some(slot) = state.get_mut(i) {
+                    *slot = Some(hb.state);
+                }
+            }
+        }
+    }
+    if let Some((d, s)) = drives
+        .iter()
+        .zip(&state)
+        .find(|(_, s)| **s != Some(NmtState::Operational))
+    {
+        return Err(StartError::NotStarted {
+            node: d.node.get(),
+            state: *s,
+            waited_ms: link.now_ns().saturating_sub(start) / 1_000_000,
+        });
+    }
+    let _ = writeln!(out, "CANopen: {} nodes operational", drives.len());
+    Ok(infos)
+}

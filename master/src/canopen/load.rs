@@ -1,0 +1,267 @@
+//! The bus-load check at configuration: a CANopen cycle's frames — every drive's RPDOs,
+//! the SYNC, every drive's TPDOs, the nodes' heartbeats averaged over the cycles — must fit
+//! the time the cycle waits for its replies at the configured bit rate, or the
+//! configuration is refused with the figures. Each frame is counted at its worst-case
+//! length with stuff bits ([`frame_bits`]: 135 bits for 8 data bytes, so 1 Mbit/s
+//! carries about 7 such frames per millisecond). EMCYs (sporadic) and the SDO round trip
+//! of a drive being restored (it has no PDOs meanwhile) are not counted.
+//!
+//! Figures (CSP layouts, heartbeat every 100 ms, 1 ms cycle, whose replies are waited for
+//! 950 µs): the minimal layout (controlword + target / statusword + actual, one 6-byte
+//! PDO each way, 230 bits a drive) fits 3 drives at 1 Mbit/s (747 bits) but not 4 (977
+//! bits: 1.03 Mbit/s in 950 µs); the full CSP layout (one 7-byte RPDO, TPDOs of 8 and 7
+//! bytes, 385 bits a drive) fits 2 (828 bits), and 4 need a 2 ms cycle (1597 bits in
+//! 1.95 ms: 0.82 Mbit/s).
+
+use std::fmt;
+
+use gantry_drives::canopen::frame::frame_bits;
+use thiserror::Error;
+
+use super::pdo::{DrivePlan, PlanError};
+use crate::config::Config;
+use crate::runtime::clock::reply_window_ns;
+
+/// Bits of a SYNC without counter (0 data bytes).
+pub const SYNC_BITS: u64 = frame_bits(0);
+/// Bits of a heartbeat (1 data byte).
+pub const HEARTBEAT_BITS: u64 = frame_bits(1);
+
+/// Why a configuration's frames cannot run on its bus.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum LoadError {
+    /// An axis' layout does not fit a node's PDOs.
+    #[error("axis {axis:?}: pdo = {pdo:?}: {source}")]
+    Layout {
+        /// The axis.
+        axis: String,
+        /// Its layout's name.
+        pdo: String,
+        /// Why.
+        source: PlanError,
+    },
+    /// An axis' `pdo` names no layout.
+    #[error("axis {axis:?}: {reason}")]
+    Pdo {
+        /// The axis.
+        axis: String,
+        /// Why.
+        reason: String,
+    },
+    /// The frames do not fit the bit rate.
+    #[error("{0}")]
+    Overloaded(BusLoad),
+}
+
+/// What one cycle puts on the bus.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BusLoad {
+    /// Drives (nodes).
+    pub drives: usize,
+    /// PDOs of each drive (RPDOs + TPDOs), in axis order.
+    pub pdos: Vec<usize>,
+    /// Bits a cycle's frames take at worst: SYNC, PDOs, heartbeats averaged.
+    pub bits: u64,
+    /// Of which the heartbeats, averaged over the cycles (bits, fractional).
+    pub heartbeat_bits: f64,
+    /// The cycle time (ns).
+    pub period_ns: u64,
+    /// The bit rate (bit/s).
+    pub bitrate: u32,
+    /// The interface's name (for the message).
+    pub interface: String,
+}
+
+impl BusLoad {
+    /// The load of `config`'s axes on its bus (CANopen: `bitrate` given).
+    pub fn of_config(config: &Config) -> Result<Self, LoadError> {
+        let mut plans = Vec::with_capacity(config.axes.len());
+        for a in &config.axes {
+            let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
+                axis: a.name.clone(),
+                reason,
+            })?;
+            let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
+                axis: a.name.clone(),
+                pdo: a.pdo.clone(),
+                source,
+            })?;
+            plans.push(plan);
+        }
+        Ok(Self::of(
+            &plans,
+            u64::from(config.bus.cycle_us) * 1000,
+            config.bus.bitrate.unwrap_or(0),
+            u64::from(config.bus.heartbeat_producer_ms()) * 1_000_000,
+            config
+                .bus
+                .interface
+                .clone()
+                .unwrap_or_else(|| "the bus".into()),
+        ))
+    }
+
+    /// The load of drives with these PDOs, cycling every `period_ns`, each node sending
+    /// a heartbeat every `heartbeat_ns` (0: none).
+    pub fn of(
+        plans: &[DrivePlan],
+        period_ns: u64,
+        bitrate: u32,
+        heartbeat_ns: u64,
+        interface: String,
+    ) -> Self {
+        let pdo_bits: u64 = plans.iter().map(DrivePlan::bits_per_cycle).sum();
+        let heartbeat_bits = if heartbeat_ns == 0 {
+            0.0
+        } else {
+            plans.len() as f64 * HEARTBEAT_BITS as f64 * period_ns as f64 / heartbeat_ns as f64
+        };
+        Self {
+            drives: plans.len(),
+            pdos: plans.iter().map(DrivePlan::pdo_count).collect(),
+            bits: SYNC_BITS + pdo_bits + heartbeat_bits.ceil() as u64,
+            heartbeat_bits,
+            period_ns,
+            bitrate,
+            interface,
+        }
+    }
+
+    /// How long the cycle waits for its frames (ns; [`reply_window_ns`]).
+    pub fn window_ns(&self) -> u64 {
+        reply_window_ns(self.period_ns)
+    }
+
+    /// The bit rate the frames need to fit the window (bit/s).
+    pub fn needed_bitrate(&self) -> f64 {
+        self.bits as f64 * 1e9 / self.window_ns().max(1) as f64
+    }
+
+    /// The share of the window the frames take at the bit rate (1.0 = all of it).
+    pub fn utilisation(&self) -> f64 {
+        self.needed_bitrate() / f64::from(self.bitrate.max(1))
+    }
+
+    /// Refuses a load over the bit rate.
+    pub fn check(self) -> Result<Self, LoadError> {
+        if self.needed_bitrate() > f64::from(self.bitrate) {
+            Err(LoadError::Overloaded(self))
+        } else {
+            Ok(self)
+        }
+    }
+}
+
+/// A bit rate in the unit that reads best.
+fn rate(bits_per_s: f64) -> String {
+    if bits_per_s >= 1e6 {
+        format!("{} Mbit/s", round(bits_per_s / 1e6))
+    } else {
+        format!("{} kbit/s", round(bits_per_s / 1e3))
+    }
+}
+
+/// Two decimals, without trailing zeros.
+fn round(x: f64) -> String {
+    let s = format!("{x:.2}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+impl fmt::Display for BusLoad {
+    /// "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (977 bits in the 950 µs the
+    /// cycle waits for its TPDOs); can0 has 1 Mbit/s".
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let drives = if self.drives == 1 { "drive" } else { "drives" };
+        match self.pdos.first() {
+            Some(&k) if self.pdos.iter().all(|&n| n == k) => {
+                write!(f, "{} {drives} × {k} PDOs", self.drives)?
+            }
+            _ => write!(
+                f,
+                "{} {drives} with {} PDOs",
+                self.drives,
+                self.pdos.iter().sum::<usize>()
+            )?,
+        }
+        let hz = 1e9 / self.period_ns.max(1) as f64;
+        let at = if hz >= 1000.0 {
+            format!("{} kHz", round(hz / 1000.0))
+        } else {
+            format!("{} Hz", round(hz))
+        };
+        write!(
+            f,
+            " + SYNC at {at} need {} ({} bits in the {} µs the cycle waits for its TPDOs, \
+             heartbeats included); {} has {}",
+            rate(self.needed_bitrate()),
+            self.bits,
+            self.window_ns() / 1000,
+            self.interface,
+            rate(f64::from(self.bitrate)),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gantry_drives::cia402::pdo::PdoLayout;
+
+    fn load(n: usize, layout: PdoLayout, cycle_us: u64, bitrate: u32) -> BusLoad {
+        let plans = vec![DrivePlan::of(&layout).unwrap(); n];
+        BusLoad::of(&plans, cycle_us * 1000, bitrate, 100_000_000, "can0".into())
+    }
+
+    #[test]
+    fn three_minimal_drives_fit_1_mbit_at_1_ms_and_four_do_not() {
+        let three = load(3, PdoLayout::csp_minimal(), 1000, 1_000_000);
+        // SYNC 55 + 3 × (115 + 115) + 3 heartbeats of 65 bits every 100 cycles.
+        assert_eq!(three.bits, 55 + 690 + 2);
+        assert!((three.heartbeat_bits - 1.95).abs() < 1e-9);
+        assert_eq!(three.window_ns(), 950_000);
+        assert!(three.utilisation() < 0.8, "{}", three.utilisation());
+        assert!(three.clone().check().is_ok());
+        let four = load(4, PdoLayout::csp_minimal(), 1000, 1_000_000);
+        assert_eq!(four.bits, 55 + 920 + 3);
+        assert_eq!(
+            four.check().unwrap_err().to_string(),
+            "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (978 bits in the 950 µs the \
+             cycle waits for its TPDOs, heartbeats included); can0 has 1 Mbit/s"
+        );
+    }
+
+    #[test]
+    fn the_full_csp_layout_fits_two_drives_at_1_ms_and_four_at_2_ms() {
+        assert!(load(2, PdoLayout::csp(), 1000, 1_000_000).check().is_ok());
+        let three = load(3, PdoLayout::csp(), 1000, 1_000_000);
+        assert_eq!(three.bits, 55 + 3 * 385 + 2);
+        assert!(three.check().is_err());
+        let four = load(4, PdoLayout::csp(), 2000, 1_000_000).check().unwrap();
+        assert_eq!(four.bits, 55 + 4 * 385 + 6);
+        assert_eq!(four.window_ns(), 1_950_000);
+        assert!((four.utilisation() - 1601.0 / 1950.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn eight_drives_at_1_khz_name_the_figure() {
+        let e = load(8, PdoLayout::csp(), 1000, 1_000_000)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "8 drives × 3 PDOs + SYNC at 1 kHz need 3.31 Mbit/s (3141 bits in the 950 µs the \
+             cycle waits for its TPDOs, heartbeats included); can0 has 1 Mbit/s"
+        );
+        let slow = load(1, PdoLayout::csp(), 250, 125_000)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            slow.starts_with(
+                "1 drive × 3 PDOs + SYNC at 4 kHz need 1.96 Mbit/s (441 bits in the 225 µs"
+            ) && slow.ends_with("can0 has 125 kbit/s"),
+            "{slow}"
+        );
+    }
+}

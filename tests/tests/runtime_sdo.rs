@@ -1,0 +1,295 @@
+//! SDO transfers while the cycle runs (`gantry sdo`), through the [`Controller`] and the
+//! engine on the in-process simulator in lockstep: CoE through each slave's mailbox, one
+//! mailbox register access per cycle beside the process data. While an axis moves, its
+//! drive is read and written — expedited, normal and segmented, both ways — and its
+//! records show every setpoint arrived (none missed, none doubled, with the strict
+//! 0x10F1:02 = 4), the move ends exactly where it should. An object the drive does not
+//! have is aborted with the drive's code and its CiA 301 text; a drive that never answers
+//! times out; what the bus cannot do is refused at once.
+
+use gantry::runtime::bus::CycleBus;
+use gantry::runtime::controller::Controller;
+use gantry::runtime::sdo::{SdoData, SdoError, SdoRequest, SdoResult};
+use gantry_drives::canopen::sdo::abort::AbortCode;
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
+use gantry_tests::rig::Rig;
+
+/// An object the test adds to a drive: longer than its 128-byte mailbox carries in one
+/// message (112 bytes), so both ways go in segments.
+const LONG: u16 = 0x2100;
+/// One that fits a single message (normal, not expedited, not segmented).
+const MEDIUM: u16 = 0x2101;
+
+fn rig(axes: usize) -> (Rig, gantry::config::Config) {
+    let config = gantry_tests::sim_config_strict(axes, 1000);
+    let rig = Rig::new(&config);
+    {
+        let mut chain = rig.chain.lock().unwrap();
+        for i in 0..axes {
+            let od = chain
+                .slave_mut(i)
+                .and_then(|s| s.object_dictionary_mut())
+                .expect("a servo with CoE");
+            let long: Vec<u8> = (0..200u32).map(|i| (i * 3) as u8).collect();
+            od.insert(LONG, 0, &long, true);
+            od.insert(MEDIUM, 0, b"gantry simulated servo", true);
+        }
+    }
+    (rig, config)
+}
+
+/// Runs `request` through the controller, cycling until it ends; its outcome and the
+/// cycles it took.
+fn transfer(rig: &mut Rig, ctl: &Controller, request: SdoRequest) -> (SdoResult, u32) {
+    let h = ctl.sdo(request).expect("queued");
+    for cycles in 1..=5000 {
+        rig.cycle();
+        if let Some(r) = h.outcome() {
+            return (r, cycles);
+        }
+    }
+    panic!("the transfer never ended");
+}
+
+fn data(bytes: &[u8]) -> SdoData {
+    SdoData::new(bytes).expect("fits")
+}
+
+/// One bus per process (ethercrab's frame storage is static): the cases run in turn on
+/// one rig, the ones that break the drives' record (a lost frame, a pulled cable) after
+/// the record is judged.
+#[test]
+fn sdo_transfers_beside_the_cycle() {
+    let (mut rig, config) = rig(2);
+    reads_and_writes_while_an_axis_moves_miss_no_setpoint(&mut rig, &config);
+    an_object_the_drive_does_not_have_is_aborted_with_its_code_and_text(&mut rig);
+    what_the_bus_cannot_do_is_refused_at_once(&mut rig);
+    a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(&mut rig);
+    a_drive_that_never_answers_times_out_and_the_next_transfer_works(&mut rig);
+}
+
+fn reads_and_writes_while_an_axis_moves_miss_no_setpoint(
+    rig: &mut Rig,
+    config: &gantry::config::Config,
+) {
+    let ctl = rig.ctl.clone();
+    rig.enable_and_home(0);
+    rig.enable_and_home(1);
+    let target = 100.0;
+    let moving = rig.start_move(0, target);
+    let other = rig.start_move(1, -40.0);
+    rig.run(50);
+
+    // Expedited upload: the vendor id the simulator's servo has (0x1018:01).
+    let (r, cycles) = transfer(rig, &ctl, SdoRequest::upload(0, 0x1018, 1));
+    let vendor = r.expect("0x1018:01");
+    assert_eq!(vendor.len(), 4);
+    // Write the request, poll SM1's status, read SM1: one access per cycle.
+    assert!(cycles <= 4, "an expedited upload took {cycles} cycles");
+
+    // Expedited download and the value read back: modes of operation 0x6060 (CSP, 8).
+    let (r, _) = transfer(rig, &ctl, SdoRequest::download(0, 0x6060, 0, data(&[8])));
+    assert_eq!(r, Ok(SdoData::EMPTY));
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x6060, 0));
+    assert_eq!(r.unwrap().as_slice(), &[8]);
+
+    // Normal (one message, size indicated) both ways.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, MEDIUM, 0));
+    assert_eq!(r.unwrap().as_slice(), b"gantry simulated servo");
+    let name = b"axis a0, left gantry beam";
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, MEDIUM, 0));
+    assert!(r.is_ok());
+    let (r, _) = transfer(rig, &ctl, SdoRequest::download(0, MEDIUM, 0, data(name)));
+    // The object keeps its length (22 bytes): the drive refuses another with the code.
+    assert_eq!(
+        r,
+        Err(SdoError::Aborted {
+            drive: 0,
+            index: MEDIUM,
+            sub: 0,
+            code: AbortCode::LENGTH_MISMATCH
+        })
+    );
+    let same_length = b"gantry simulated SERVO";
+    let request = SdoRequest::download(0, MEDIUM, 0, data(same_length));
+    let (r, _) = transfer(rig, &ctl, request);
+    assert_eq!(r, Ok(SdoData::EMPTY));
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, MEDIUM, 0));
+    assert_eq!(r.unwrap().as_slice(), same_length);
+
+    // Segmented both ways: 200 bytes through a 128-byte mailbox.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, LONG, 0));
+    let long: Vec<u8> = (0..200u32).map(|i| (i * 3) as u8).collect();
+    assert_eq!(r.unwrap().as_slice(), &long[..]);
+    let new: Vec<u8> = (0..200u32).map(|i| (255 - i) as u8).collect();
+    let (r, _) = transfer(rig, &ctl, SdoRequest::download(0, LONG, 0, data(&new)));
+    assert_eq!(r, Ok(SdoData::EMPTY));
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, LONG, 0));
+    assert_eq!(r.unwrap().as_slice(), &new[..]);
+    {
+        let chain = rig.chain.lock().unwrap();
+        let od = chain.slaves()[0].object_dictionary().unwrap();
+        assert_eq!(
+            od.read(LONG, 0).unwrap(),
+            &new[..],
+            "what reached the drive"
+        );
+    }
+
+    // The move was running all along and ends where it should.
+    assert!(
+        rig.status_now(&moving).is_none_or(|s| !s.is_final()),
+        "the transfers ran during the move"
+    );
+    assert_eq!(rig.finish(&moving, 5000), CommandStatus::Done);
+    assert_eq!(rig.finish(&other, 5000), CommandStatus::Done);
+    rig.run(20);
+    let actual = rig.snapshot().axes[0].actual_position;
+    assert!((actual - target).abs() < 1e-3, "ended at {actual}");
+    let actual = rig.snapshot().axes[1].actual_position;
+    assert!((actual + 40.0).abs() < 1e-3, "ended at {actual}");
+    // Every setpoint reached the drives: none missed or doubled at SYNC0, no target step
+    // beyond the axis' speed.
+    assert_drive_invariants(
+        &rig.chain.lock().unwrap(),
+        &DriveUnderTest::of_config(config),
+        1e-3,
+        TestConditions {
+            injects_following_error: false,
+            phase_locked: true,
+        },
+    );
+    let counters = rig.engine.bus().counters();
+    assert_eq!((counters.lost, counters.incomplete), (0, 0));
+}
+
+fn an_object_the_drive_does_not_have_is_aborted_with_its_code_and_text(rig: &mut Rig) {
+    let ctl = rig.ctl.clone();
+    rig.run(50);
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x2000, 0));
+    let e = r.unwrap_err();
+    assert_eq!(
+        e,
+        SdoError::Aborted {
+            drive: 0,
+            index: 0x2000,
+            sub: 0,
+            code: AbortCode::OBJECT_DOES_NOT_EXIST
+        }
+    );
+    assert_eq!(
+        e.to_string(),
+        "drive 0: SDO 0x2000:00 aborted: 0x06020000 Object does not exist in the object \
+         dictionary."
+    );
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x1018, 9));
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        "drive 0: SDO 0x1018:09 aborted: 0x06090011 Sub-index does not exist."
+    );
+    let (r, _) = transfer(rig, &ctl, SdoRequest::download(0, 0x1000, 0, data(&[0; 4])));
+    assert!(
+        matches!(r, Err(SdoError::Aborted { code, .. }) if code == AbortCode::READ_ONLY),
+        "{r:?}"
+    );
+    // The mailbox works on after aborts.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x6060, 0));
+    assert_eq!(r.unwrap().as_slice(), &[8]);
+}
+
+fn a_drive_that_never_answers_times_out_and_the_next_transfer_works(rig: &mut Rig) {
+    let ctl = rig.ctl.clone();
+    rig.run(50);
+    // The cable behind drive 0 is pulled: drive 1 gets nothing.
+    rig.chain.lock().unwrap().cut_before(Some(1));
+    let mut request = SdoRequest::upload(1, 0x1018, 1);
+    request.timeout_ns = 200_000_000;
+    let (r, _) = transfer(rig, &ctl, request);
+    // The bus times transfers on the host's clock (CLOCK_MONOTONIC, as its resets), not
+    // the lockstep network's: the wait is at least the timeout, and said.
+    let Err(SdoError::TimedOut {
+        drive: 1,
+        index: 0x1018,
+        sub: 1,
+        waited_ms,
+    }) = r
+    else {
+        panic!("{r:?}");
+    };
+    assert!(waited_ms >= 200, "gave up after {waited_ms} ms");
+    assert_eq!(
+        r.unwrap_err().to_string(),
+        format!("drive 1: SDO 0x1018:01: no answer within {waited_ms} ms")
+    );
+    // Drive 0 answers meanwhile.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x6060, 0));
+    assert_eq!(r.unwrap().as_slice(), &[8]);
+}
+
+fn a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(rig: &mut Rig) {
+    let ctl = rig.ctl.clone();
+    rig.run(50);
+    // Lose one frame at each step of a segmented download and of the upload after it:
+    // a write whose frame was lost goes again with the same counter (the slave discards
+    // it if it had arrived), a read again after a poll.
+    for lose_at in 0..6 {
+        let new: Vec<u8> = (0..200u32).map(|i| (i as u8) ^ lose_at).collect();
+        let h = ctl
+            .sdo(SdoRequest::download(0, LONG, 0, data(&new)))
+            .expect("queued");
+        for _ in 0..lose_at {
+            rig.cycle();
+        }
+        rig.chain.lock().unwrap().drop_frames(1);
+        let mut outcome = None;
+        for _ in 0..500 {
+            rig.cycle();
+            if let Some(r) = h.outcome() {
+                outcome = Some(r);
+                break;
+            }
+        }
+        assert_eq!(
+            outcome,
+            Some(Ok(SdoData::EMPTY)),
+            "frame lost at step {lose_at}"
+        );
+        let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, LONG, 0));
+        assert_eq!(
+            r.unwrap().as_slice(),
+            &new[..],
+            "frame lost at step {lose_at}"
+        );
+    }
+}
+
+fn what_the_bus_cannot_do_is_refused_at_once(rig: &mut Rig) {
+    let ctl = rig.ctl.clone();
+    rig.run(20);
+    let (r, cycles) = transfer(rig, &ctl, SdoRequest::upload(5, 0x1018, 1));
+    assert_eq!((r, cycles), (Err(SdoError::NoDrive { drive: 5 }), 1));
+    // An upload larger than a transfer in the cycle carries: aborted at the drive, and
+    // the size said.
+    let big = vec![7u8; 300];
+    rig.chain
+        .lock()
+        .unwrap()
+        .slave_mut(0)
+        .and_then(|s| s.object_dictionary_mut())
+        .unwrap()
+        .insert(0x2102, 0, &big, false);
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x2102, 0));
+    assert_eq!(
+        r,
+        Err(SdoError::TooLarge {
+            drive: 0,
+            index: 0x2102,
+            sub: 0,
+            size: 300
+        })
+    );
+    // The drive's segmented transfer was aborted: the next one starts clean.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x6060, 0));
+    assert_eq!(r.unwrap().as_slice(), &[8]);
+}
