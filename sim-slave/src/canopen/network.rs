@@ -8,9 +8,12 @@
 //! lets the simulated nodes hear each other.
 //!
 //! Which slaves become nodes: every slave of the chain needs a CANopen node id
-//! (`node = N` in its `[[slave]]`); a `servo` becomes a CiA 402 [`CanNode`]. The encoder
-//! and the switch-cam module have no CANopen node yet: a chain with one is refused (their
-//! place is the match in [`CanNetwork::from_config`]).
+//! (`node = N` in its `[[slave]]`); each becomes a [`CanNode`] of its kind
+//! ([`CanNodeConfig::from_slave`]: a CiA 402 servo, a CiA 406 encoder, a CiA 401 switch-cam
+//! module following its servo). Deliveries go in the in-memory bus's order
+//! ([`super::bus::delivery_order`]): a module that follows a servo's axis is handed the
+//! servo's position and served after the other nodes, so at a SYNC it samples its cams
+//! where the servo's TPDO says the servo is.
 
 use std::collections::VecDeque;
 
@@ -18,7 +21,8 @@ use gantry_drives::canopen::cob_id::NodeId;
 use gantry_drives::canopen::CanFrame;
 use thiserror::Error;
 
-use super::node::{CanNode, CanNodeConfig, CanNodeError};
+use super::bus::{delivery_order, follow_axis, follows_axis};
+use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use crate::config::{SimConfig, SlaveConfig};
 
 /// Frames one delivery round may queue (a block upload's 127 segments and the other
@@ -41,21 +45,6 @@ pub enum CanNetworkError {
         /// Its kind.
         kind: &'static str,
     },
-    /// A kind of slave that has no CANopen node in the simulator.
-    #[error(
-        "{path}: slave[{slave}] ({kind}, node {node}): the simulator has no CANopen {kind} \
-         node yet; only servos can be simulated on a CAN bus"
-    )]
-    Unsupported {
-        /// The configuration file.
-        path: String,
-        /// Its position in the chain.
-        slave: usize,
-        /// Its kind.
-        kind: &'static str,
-        /// Its node id.
-        node: u8,
-    },
     /// A node id out of 1..=127 (the configuration checks it; here for a hand-made one).
     #[error("{path}: slave[{slave}].node = {node}: a CANopen node id must be 1 to 127")]
     BadNodeId {
@@ -65,6 +54,15 @@ pub enum CanNetworkError {
         slave: usize,
         /// The id given.
         node: u8,
+    },
+    /// A slave that cannot be a CANopen node (e.g. a switch-cam module whose servo has
+    /// no node id).
+    #[error("{path}: {source}")]
+    Slave {
+        /// The configuration file.
+        path: String,
+        /// Why.
+        source: SlaveNodeError,
     },
     /// A node could not be built.
     #[error("{path}: slave[{slave}]: {source}")]
@@ -121,33 +119,25 @@ impl CanNetwork {
                     kind,
                 });
             };
-            let node = NodeId::new(id).map_err(|_| CanNetworkError::BadNodeId {
+            if NodeId::new(id).is_err() {
+                return Err(CanNetworkError::BadNodeId {
+                    path: path.into(),
+                    slave,
+                    node: id,
+                });
+            }
+            let node_config = CanNodeConfig::from_slave(config, slave).map_err(|source| {
+                CanNetworkError::Slave {
+                    path: path.into(),
+                    source,
+                }
+            })?;
+            let n = CanNode::new(node_config).map_err(|source| CanNetworkError::Node {
                 path: path.into(),
                 slave,
-                node: id,
+                source,
             })?;
-            match s {
-                SlaveConfig::Servo(servo) => {
-                    let n =
-                        CanNode::new(CanNodeConfig::from_servo(node, servo)).map_err(|source| {
-                            CanNetworkError::Node {
-                                path: path.into(),
-                                slave,
-                                source,
-                            }
-                        })?;
-                    nodes.push(n);
-                }
-                // The place for the encoder's and the switch-cam module's CANopen nodes.
-                SlaveConfig::Encoder { .. } | SlaveConfig::Switches { .. } => {
-                    return Err(CanNetworkError::Unsupported {
-                        path: path.into(),
-                        slave,
-                        kind,
-                        node: id,
-                    })
-                }
-            }
+            nodes.push(n);
         }
         Ok(Self::new(nodes))
     }
@@ -180,8 +170,10 @@ impl CanNetwork {
     /// nodes send in answer, in order (and the other nodes hear those too).
     pub fn receive(&mut self, frame: &CanFrame, now_ns: u64, send: &mut impl FnMut(&CanFrame)) {
         self.counters.received += 1;
-        for i in 0..self.nodes.len() {
-            self.collect(i, now_ns, Some(frame), send);
+        for (pass, i) in delivery_order(self.nodes.len()) {
+            if follows_axis(&self.nodes, i) == pass {
+                self.collect(i, now_ns, Some(frame), send);
+            }
         }
         self.deliver(now_ns, send);
     }
@@ -189,14 +181,16 @@ impl CanNetwork {
     /// Time passes to `now_ns` (boot-up, heartbeats, timeouts, the drives' loops):
     /// `send` gets what the nodes send.
     pub fn tick(&mut self, now_ns: u64, send: &mut impl FnMut(&CanFrame)) {
-        for i in 0..self.nodes.len() {
-            self.collect(i, now_ns, None, send);
+        for (pass, i) in delivery_order(self.nodes.len()) {
+            if follows_axis(&self.nodes, i) == pass {
+                self.collect(i, now_ns, None, send);
+            }
         }
         self.deliver(now_ns, send);
     }
 
-    /// Node `i` takes `frame` (or only the time); what it sends goes to `send` and to
-    /// the work queue for the others.
+    /// Node `i` takes `frame` (or only the time), having sensed the axis it follows if
+    /// any; what it sends goes to `send` and to the work queue for the others.
     fn collect(
         &mut self,
         i: usize,
@@ -204,6 +198,7 @@ impl CanNetwork {
         frame: Option<&CanFrame>,
         send: &mut impl FnMut(&CanFrame),
     ) {
+        follow_axis(&mut self.nodes, i);
         let Some(node) = self.nodes.get_mut(i) else {
             return;
         };
@@ -233,8 +228,8 @@ impl CanNetwork {
                 self.work.clear();
                 return;
             }
-            for i in 0..self.nodes.len() {
-                if i != from {
+            for (pass, i) in delivery_order(self.nodes.len()) {
+                if i != from && follows_axis(&self.nodes, i) == pass {
                     self.collect(i, now_ns, Some(&frame), send);
                 }
             }
@@ -356,7 +351,41 @@ mod tests {
     }
 
     #[test]
-    fn slaves_without_node_ids_or_canopen_nodes_are_refused_by_position() {
+    fn a_switch_cam_module_samples_its_servo_where_the_servo_reports_itself() {
+        let mut net = network(
+            "[[slave]]\nkind = \"servo\"\nnode = 1\nstart_position = 500\n\
+             [[slave]]\nkind = \"encoder\"\nnode = 2\n\
+             [[slave]]\nkind = \"switches\"\nnode = 3\naxis = 0\n\
+             [[slave.cam]]\ninput = 0\nfrom = 0\nto = 1000\n",
+        )
+        .unwrap();
+        let boot = collect(|send| net.tick(0, &mut |f| send(f)));
+        assert_eq!(
+            boot.iter().map(CanFrame::id).collect::<Vec<_>>(),
+            vec![0x701, 0x702, 0x703]
+        );
+        // NMT start all (node id 0), then SYNC: every node's synchronous TPDO1.
+        let start = CanFrame::new(0x000, &[0x01, 0x00]).unwrap();
+        let _ = collect(|send| net.receive(&start, 1_000_000, &mut |f| send(f)));
+        let sync = CanFrame::new(0x080, &[]).unwrap();
+        let out = collect(|send| net.receive(&sync, 2_000_000, &mut |f| send(f)));
+        let tpdo = |id: u16| {
+            out.iter()
+                .find(|f| f.id() == id)
+                .unwrap_or_else(|| panic!("TPDO 0x{id:03X} in {out:?}"))
+        };
+        // The servo is at 500 (statusword, then position actual value)...
+        assert_eq!(tpdo(0x181).data()[2..6], 500i32.to_le_bytes());
+        // ...inside the cam 0..=1000: the module's input 0 is set.
+        assert_eq!(tpdo(0x183).data()[0] & 1, 1, "{out:?}");
+        assert!(
+            out.iter().any(|f| f.id() == 0x182),
+            "the encoder's TPDO1: {out:?}"
+        );
+    }
+
+    #[test]
+    fn slaves_without_node_ids_or_valid_couplings_are_refused_by_position() {
         let e = network("[[slave]]\nkind = \"servo\"\nnode = 3\n[[slave]]\nkind = \"servo\"\n")
             .unwrap_err()
             .to_string();
@@ -364,12 +393,20 @@ mod tests {
             e.contains("sim.toml: slave[1] (servo) has no CANopen node id"),
             "{e}"
         );
-        let e = network("[[slave]]\nkind = \"encoder\"\nnode = 4\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("slave[0] (encoder, node 4): the simulator has no CANopen encoder node"),
-            "{e}"
+        let e = network(
+            "[[slave]]\nkind = \"servo\"\n[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 0\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("slave[0] (servo) has no CANopen node id"), "{e}");
+        let e = network(
+            "[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 1\n[[slave]]\nkind = \"servo\"\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "sim.toml: slave[0].axis = 1: that servo has no CANopen node id"
         );
         let e = CanNetwork::from_config(
             &SimConfig {
