@@ -123,9 +123,10 @@ fn four_drives_at_1khz_for_10_s_over_veth_through_the_engine() {
                 .map_err(|e| gantry::error_chain::Chain(&e).to_string())?;
                 tx.send(ends).map_err(|e| e.to_string())?;
                 let engine = engine.run(PERIOD_NS, &stop);
+                let counters = gantry::runtime::bus::CycleBus::counters(&engine.bus);
                 let ended = Ended {
-                    lost: engine.bus.health().lost_total,
-                    wkc_errors: engine.bus.health().wkc_total,
+                    lost: counters.lost,
+                    wkc_errors: counters.incomplete,
                 };
                 engine.into_bus().shut_down(&mut std::io::sink());
                 Ok(ended)

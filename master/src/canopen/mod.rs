@@ -18,6 +18,8 @@ pub mod bus;
 pub mod link;
 pub mod load;
 pub mod pdo;
+pub mod socket;
 
 pub use bus::CanopenBus;
 pub use link::{CanLink, Received};
+pub use socket::SocketLink;

@@ -55,6 +55,17 @@ pub trait LinkFactory: Send + Sync {
     /// configuration's bus is not one of this factory's.
     fn open(&self, config: &Config) -> Result<Option<Box<dyn Link>>, StartError>;
 
+    /// The CAN link for a CANopen configuration without `[bus] interface` (the binary's
+    /// in-process simulator); `None` when this factory has none.
+    fn open_can(
+        &self,
+        config: &Config,
+    ) -> Result<Option<Box<dyn crate::canopen::CanLink>>, crate::canopen::bring_up::StartError>
+    {
+        let _ = config;
+        Ok(None)
+    }
+
     /// The bus on the link this factory opened was shut down and its link closed: report
     /// what there is to report to `out` (the simulated drives' records).
     fn closed(&self, config: &Config, out: &mut (dyn std::io::Write + Send)) {

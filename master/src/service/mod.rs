@@ -14,8 +14,8 @@ use std::time::Duration;
 
 use thiserror::Error;
 
+use crate::bus::{AnyBus, BusError};
 use crate::config::{Config, ConfigError};
-use crate::ethercat::bus::{EthercatBus, StartError};
 use crate::ethercat::link::LinkFactory;
 use crate::runtime::controller::Controller;
 use crate::runtime::cycle::{Cycle, SetupError};
@@ -45,7 +45,7 @@ pub enum ServiceError {
     RealTime(#[from] RtError),
     /// The bus did not come up.
     #[error(transparent)]
-    Bus(#[from] StartError),
+    Bus(#[from] BusError),
     /// The cycle does not fit the configuration or its bus.
     #[error(transparent)]
     Cycle(#[from] SetupError),
@@ -94,14 +94,14 @@ pub fn start_cycle(
     real_time: bool,
     links: &dyn LinkFactory,
     log: &mut (dyn Write + Send),
-) -> Result<(Engine<EthercatBus>, AppEnds), ServiceError> {
+) -> Result<(Engine<AnyBus>, AppEnds), ServiceError> {
     if real_time {
         rt::enter(&config.rt)?;
     }
     // The channels first: made after the bus is in Op, their allocation would be a gap in
     // the process data that drives count as missed setpoints (see `Channels`).
     let channels = Channels::new(config.axes.len(), 1 << 16);
-    let bus = EthercatBus::bring_up_from(config, links, log)?;
+    let bus = AnyBus::bring_up(config, links, log)?;
     // The kernel and the drives' channels, for the bus as it came up.
     let cycle = match Cycle::from_config(config, &bus) {
         Ok(cycle) => cycle,

@@ -8,12 +8,11 @@
 //! lets the simulated nodes hear each other.
 //!
 //! Which slaves become nodes: every slave of the chain needs a CANopen node id
-//! (`node = N` in its `[[slave]]`); each becomes a [`CanNode`] of its kind
-//! ([`CanNodeConfig::from_slave`]: a CiA 402 servo, a CiA 406 encoder, a CiA 401 switch-cam
-//! module following its servo). Deliveries go in the in-memory bus's order
-//! ([`super::bus::delivery_order`]): a module that follows a servo's axis is handed the
-//! servo's position and served after the other nodes, so at a SYNC it samples its cams
-//! where the servo's TPDO says the servo is.
+//! (`node = N` in its `[[slave]]`); a `servo` becomes a CiA 402 [`CanNode`], an `encoder`
+//! a CiA 406 one, a `switches` module a CiA 401 one that follows its servo's node
+//! ([`CanNodeConfig::from_slave`]). Frames and ticks reach the nodes in the bus's
+//! [`delivery_order`], each switch-cam module handed its servo's position first
+//! ([`follow_axis`]), as on the in-memory bus.
 
 use std::collections::VecDeque;
 
@@ -45,6 +44,14 @@ pub enum CanNetworkError {
         /// Its kind.
         kind: &'static str,
     },
+    /// A slave that cannot be a CANopen node (e.g. its cams).
+    #[error("{path}: {source}")]
+    Slave {
+        /// The configuration file.
+        path: String,
+        /// Why.
+        source: SlaveNodeError,
+    },
     /// A node id out of 1..=127 (the configuration checks it; here for a hand-made one).
     #[error("{path}: slave[{slave}].node = {node}: a CANopen node id must be 1 to 127")]
     BadNodeId {
@@ -54,15 +61,6 @@ pub enum CanNetworkError {
         slave: usize,
         /// The id given.
         node: u8,
-    },
-    /// A slave that cannot be a CANopen node (e.g. a switch-cam module whose servo has
-    /// no node id).
-    #[error("{path}: {source}")]
-    Slave {
-        /// The configuration file.
-        path: String,
-        /// Why.
-        source: SlaveNodeError,
     },
     /// A node could not be built.
     #[error("{path}: slave[{slave}]: {source}")]
@@ -119,13 +117,11 @@ impl CanNetwork {
                     kind,
                 });
             };
-            if NodeId::new(id).is_err() {
-                return Err(CanNetworkError::BadNodeId {
-                    path: path.into(),
-                    slave,
-                    node: id,
-                });
-            }
+            NodeId::new(id).map_err(|_| CanNetworkError::BadNodeId {
+                path: path.into(),
+                slave,
+                node: id,
+            })?;
             let node_config = CanNodeConfig::from_slave(config, slave).map_err(|source| {
                 CanNetworkError::Slave {
                     path: path.into(),
@@ -189,8 +185,8 @@ impl CanNetwork {
         self.deliver(now_ns, send);
     }
 
-    /// Node `i` takes `frame` (or only the time), having sensed the axis it follows if
-    /// any; what it sends goes to `send` and to the work queue for the others.
+    /// Node `i` takes `frame` (or only the time); what it sends goes to `send` and to
+    /// the work queue for the others.
     fn collect(
         &mut self,
         i: usize,
@@ -351,41 +347,35 @@ mod tests {
     }
 
     #[test]
-    fn a_switch_cam_module_samples_its_servo_where_the_servo_reports_itself() {
+    fn the_encoder_and_a_switch_cam_module_following_its_servo_are_nodes() {
         let mut net = network(
-            "[[slave]]\nkind = \"servo\"\nnode = 1\nstart_position = 500\n\
-             [[slave]]\nkind = \"encoder\"\nnode = 2\n\
-             [[slave]]\nkind = \"switches\"\nnode = 3\naxis = 0\n\
-             [[slave.cam]]\ninput = 0\nfrom = 0\nto = 1000\n",
+            "[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 1\n[[slave.cam]]\ninput = 3\n\
+             from = 1000\nto = 2000\n[[slave]]\nkind = \"servo\"\nnode = 3\n\
+             start_position = 1500\n[[slave]]\nkind = \"encoder\"\nnode = 5\n",
         )
         .unwrap();
-        let boot = collect(|send| net.tick(0, &mut |f| send(f)));
-        assert_eq!(
-            boot.iter().map(CanFrame::id).collect::<Vec<_>>(),
-            vec![0x701, 0x702, 0x703]
-        );
-        // NMT start all (node id 0), then SYNC: every node's synchronous TPDO1.
-        let start = CanFrame::new(0x000, &[0x01, 0x00]).unwrap();
+        let _ = collect(|send| net.tick(0, &mut |f| send(f)));
+        let start = CanFrame::new(0, &[0x01, 0]).unwrap();
         let _ = collect(|send| net.receive(&start, 1_000_000, &mut |f| send(f)));
-        let sync = CanFrame::new(0x080, &[]).unwrap();
+        let sync = CanFrame::new(0x80, &[]).unwrap();
         let out = collect(|send| net.receive(&sync, 2_000_000, &mut |f| send(f)));
-        let tpdo = |id: u16| {
+        // TPDO1 of each: the servo at 1500, the cam on input 3 actuated there (the module
+        // first in the chain samples after the servo), the encoder's counter at 0.
+        let tpdo = |cob: u16| {
             out.iter()
-                .find(|f| f.id() == id)
-                .unwrap_or_else(|| panic!("TPDO 0x{id:03X} in {out:?}"))
+                .find(|f| f.id() == cob)
+                .map(|f| f.data().to_vec())
         };
-        // The servo is at 500 (statusword, then position actual value)...
-        assert_eq!(tpdo(0x181).data()[2..6], 500i32.to_le_bytes());
-        // ...inside the cam 0..=1000: the module's input 0 is set.
-        assert_eq!(tpdo(0x183).data()[0] & 1, 1, "{out:?}");
-        assert!(
-            out.iter().any(|f| f.id() == 0x182),
-            "the encoder's TPDO1: {out:?}"
+        assert_eq!(
+            tpdo(0x183).map(|d| d[2..6].to_vec()),
+            Some(1500i32.to_le_bytes().to_vec())
         );
+        assert_eq!(tpdo(0x184), Some(vec![0b1000]));
+        assert_eq!(tpdo(0x185), Some(vec![0, 0, 0, 0]));
     }
 
     #[test]
-    fn slaves_without_node_ids_or_valid_couplings_are_refused_by_position() {
+    fn slaves_without_node_ids_or_canopen_nodes_are_refused_by_position() {
         let e = network("[[slave]]\nkind = \"servo\"\nnode = 3\n[[slave]]\nkind = \"servo\"\n")
             .unwrap_err()
             .to_string();
@@ -393,20 +383,26 @@ mod tests {
             e.contains("sim.toml: slave[1] (servo) has no CANopen node id"),
             "{e}"
         );
-        let e = network(
-            "[[slave]]\nkind = \"servo\"\n[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 0\n",
+        let mut bad_cams = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\nnode = 3\n[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 0\n",
+            "sim.toml",
         )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("slave[0] (servo) has no CANopen node id"), "{e}");
-        let e = network(
-            "[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 1\n[[slave]]\nkind = \"servo\"\n",
-        )
-        .unwrap_err()
-        .to_string();
+        .unwrap();
+        if let Some(SlaveConfig::Switches { cams, .. }) = bad_cams.slaves.get_mut(1) {
+            let cam = crate::config::CamConfig {
+                input: 9,
+                from: 0,
+                to: 1,
+                normally_closed: false,
+            };
+            cams.push(cam);
+        }
+        let e = CanNetwork::from_config(&bad_cams, "sim.toml")
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
-            "sim.toml: slave[0].axis = 1: that servo has no CANopen node id"
+            "sim.toml: slave[1]: cam 0: input 9 does not exist (0 to 7)"
         );
         let e = CanNetwork::from_config(
             &SimConfig {

@@ -13,6 +13,7 @@
 //!   `futures_lite::block_on` (a parker): both must be killed, which shows the filter
 //!   catches what it is meant to.
 
+use gantry::runtime::bus::CycleBus;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Mutex, OnceLock};
 use std::task::{Poll, Waker};
@@ -89,7 +90,7 @@ fn engine() {
                     eprintln!("start: {}", gantry::error_chain::Chain(&e));
                     std::process::exit(4)
                 });
-            let dc = engine.bus().dc().active;
+            let dc = engine.bus().ethercat().is_some_and(|bus| bus.dc().active);
             let _ = tx.send((ends, simulator.chain(), dc));
             // From the first cycle of Engine::run to its end (the shutdown included).
             if let Err(e) = forbid_futex_in_this_thread() {
@@ -98,7 +99,7 @@ fn engine() {
             }
             FILTERED.store(true, Ordering::Release);
             let engine = engine.run(1_000_000, &STOP);
-            LOST_FRAMES.store(engine.bus.health().lost_total, Ordering::Relaxed);
+            LOST_FRAMES.store(engine.bus.counters().lost, Ordering::Relaxed);
             CYCLES.store(engine.counters().cycles, Ordering::Relaxed);
             FINISHED.store(true, Ordering::Release);
             park_forever();
