@@ -210,8 +210,22 @@ pub fn config_steps(
     heartbeat_ms: u16,
     cycle_us: u32,
 ) -> Vec<SdoStep> {
+    config_steps_for(node, plan, layout, heartbeat_ms, cycle_us, [4, 4])
+}
+
+/// [`config_steps`] for a node with `pdos[0]` RPDOs and `pdos[1]` TPDOs (its EDS'
+/// `NrOfRXPDO` / `NrOfTXPDO`, at most 4 each are touched): the PDOs a node does not have
+/// are left alone (a write to their objects would be aborted: 0x06020000, no object).
+pub fn config_steps_for(
+    node: NodeId,
+    plan: &DrivePlan,
+    layout: &PdoLayout,
+    heartbeat_ms: u16,
+    cycle_us: u32,
+    pdos: [u16; 2],
+) -> Vec<SdoStep> {
     let mut steps = Vec::new();
-    for (comm, mapping, base, pdos, what) in [
+    for ((comm, mapping, base, pdos, what), have) in [
         (
             RPDO_COMMUNICATION,
             RPDO_MAPPING,
@@ -226,8 +240,11 @@ pub fn config_steps(
             &plan.tpdos,
             "TPDO",
         ),
-    ] {
-        for n in 0..4u8 {
+    ]
+    .into_iter()
+    .zip(pdos)
+    {
+        for n in 0..have.min(4) as u8 {
             let comm = comm + u16::from(n);
             let mapping = mapping + u16::from(n);
             let cob = u32::from(base + 0x100 * u16::from(n) + u16::from(node.get()));
@@ -325,36 +342,62 @@ pub struct DriveSetup {
 /// check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    let heartbeat_ms = config.bus.heartbeat_producer_ms();
-    config
-        .axes
-        .iter()
-        .map(|a| {
-            let node =
-                a.node
-                    .and_then(|n| NodeId::new(n).ok())
-                    .ok_or_else(|| StartError::NoNode {
-                        axis: a.name.clone(),
-                    })?;
-            let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
-                axis: a.name.clone(),
-                reason,
-            })?;
-            let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
-                axis: a.name.clone(),
-                pdo: a.pdo.clone(),
-                source,
-            })?;
-            let steps = config_steps(node, &plan, &layout, heartbeat_ms, config.bus.cycle_us);
-            Ok(DriveSetup {
-                axis: a.name.clone(),
-                node,
-                layout,
-                plan,
-                steps,
-            })
-        })
+    (0..config.axes.len())
+        .map(|i| drive_setup(config, i))
         .collect()
+}
+
+/// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
+/// configure it (only the PDOs its EDS says it has, when the axis names one).
+pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartError> {
+    let a = config.axes.get(axis).ok_or_else(|| StartError::NoNode {
+        axis: format!("#{axis}"),
+    })?;
+    let node = a
+        .node
+        .and_then(|n| NodeId::new(n).ok())
+        .ok_or_else(|| StartError::NoNode {
+            axis: a.name.clone(),
+        })?;
+    let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
+        axis: a.name.clone(),
+        reason,
+    })?;
+    let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
+        axis: a.name.clone(),
+        pdo: a.pdo.clone(),
+        source,
+    })?;
+    let pdos = config.eds_of(axis).map_or([4, 4], |e| {
+        use gantry_drives::canopen::eds::PdoDirection;
+        [
+            e.max_pdos(PdoDirection::Receive),
+            e.max_pdos(PdoDirection::Transmit),
+        ]
+    });
+    let mut steps = config_steps_for(
+        node,
+        &plan,
+        &layout,
+        config.bus.heartbeat_producer_ms(),
+        config.bus.cycle_us,
+        pdos,
+    );
+    // 0x1006 is optional (CiA 301 §7.5.2.6): a device whose EDS has no communication
+    // cycle period is not told one (the write would be aborted, no object); every
+    // other write is one the drive must take, and its EDS is checked for it.
+    if let Some(eds) = config.eds_of(axis) {
+        if eds.entry(COMMUNICATION_CYCLE_PERIOD, 0).is_none() {
+            steps.retain(|s| s.mux.index != COMMUNICATION_CYCLE_PERIOD);
+        }
+    }
+    Ok(DriveSetup {
+        axis: a.name.clone(),
+        node,
+        layout,
+        plan,
+        steps,
+    })
 }
 
 /// The SDO client gantry uses for `node` ([`SDO_TIMEOUT_NS`]).
