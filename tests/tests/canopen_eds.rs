@@ -10,6 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use gantry::config::Config;
+use gantry_cli::sdo::{self, Target, Typing};
+use gantry_drives::canopen::eds::DataType;
 use gantry_drives::canopen::eds::{self, PdoDirection};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::can_rig::{servos, CanRig};
@@ -223,5 +225,101 @@ fn gantry_dcf_takes_the_simulated_nodes_eds_for_an_axis_without_one() {
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("axis \"x\" names no EDS"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn gantry_sdo_types_objects_by_the_eds_and_refuses_what_it_does_not_have() {
+    let d = dir("sdo");
+    simulated_servo_eds(&d);
+    let config = config(&d, &[3], "servo.eds").unwrap_or_else(|e| panic!("{e}"));
+    let rig = CanRig::new(&config, servos(&[3]));
+    // The control socket of a service on this bus (the cycle is not needed: what is
+    // checked here is answered from the configuration, before the bus is asked).
+    let state = gantry::service::server::ServerState::new(rig.ctl.clone(), config.clone(), false);
+    let socket = d.join("gantry.sock");
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .unwrap();
+    let listener = rt
+        .block_on(async { gantry::service::server::bind(&socket) })
+        .unwrap();
+    rt.spawn(gantry::service::server::serve(listener, state));
+    let mut client = gantry_cli::client::Client::connect(&socket).unwrap();
+    let eds = d.join("servo.eds").display().to_string();
+    let axis = || Some("a0".to_string());
+    // Without --type: the EDS' type, by axis or by bus position.
+    assert_eq!(
+        sdo::typing(&mut client, axis(), None, 0x6064, 0, None).unwrap(),
+        Typing::Eds {
+            ty: DataType::Integer32,
+            node: 3
+        }
+    );
+    assert_eq!(
+        sdo::typing(&mut client, None, Some(0), 0x6041, 0, None).unwrap(),
+        Typing::Eds {
+            ty: DataType::Unsigned16,
+            node: 3
+        }
+    );
+    // A given --type is taken as it is.
+    assert_eq!(
+        sdo::typing(
+            &mut client,
+            axis(),
+            None,
+            0x6064,
+            0,
+            Some(sdo::SdoType::Hex)
+        )
+        .unwrap(),
+        Typing::Given(sdo::SdoType::Hex)
+    );
+    let run = |client: &mut gantry_cli::client::Client,
+               object: &str,
+               value: Option<&str>,
+               ty: Option<sdo::SdoType>| {
+        let mut out = Vec::new();
+        sdo::run(
+            client,
+            Target::Axis("a0".into()),
+            object,
+            value,
+            ty,
+            false,
+            &mut out,
+        )
+        .map(|()| String::from_utf8(out).unwrap())
+        .map_err(|e| e.to_string())
+    };
+    // An object the EDS does not have: refused, with or without --type.
+    assert_eq!(
+        run(&mut client, "0x2001:0", None, None).unwrap_err(),
+        format!("0x2001:00 is not in {eds}")
+    );
+    let e = run(&mut client, "0x2001:0", Some("5"), Some(sdo::SdoType::U8)).unwrap_err();
+    assert_eq!(e, format!("sdo: 0x2001:00 is not in {eds}"));
+    // A value that does not fit the EDS' type, refused by the client.
+    let e = run(&mut client, "0x6060:0", Some("300"), None).unwrap_err();
+    assert!(
+        e.starts_with("value \"300\" is not a INTEGER8, the object's type in its EDS"),
+        "{e}"
+    );
+    // Writes the EDS says the drive would refuse: read-only, and the wrong width.
+    let e = run(&mut client, "0x6041:0", Some("5"), None).unwrap_err();
+    assert_eq!(
+        e,
+        format!("sdo: 0x6041:00 is ro in {eds}: it cannot be written")
+    );
+    let e = run(&mut client, "0x607A:0", Some("5"), Some(sdo::SdoType::U8)).unwrap_err();
+    assert_eq!(
+        e,
+        format!("sdo: 0x607A:00 is a INTEGER32 of 4 bytes in {eds}; 1 bytes given")
+    );
+    drop(client);
+    rt.shutdown_background();
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -222,8 +222,11 @@ pub enum Refused {
     #[error(transparent)]
     Sdo(#[from] SdoError),
     /// The drive's EDS says the drive would refuse it (nothing was sent).
-    #[error("sdo: {0}")]
+    #[error("sdo")]
     Eds(#[from] crate::canopen::eds::SdoEdsError),
+    /// An `object` request for an object the drive's EDS does not have.
+    #[error(transparent)]
+    Object(crate::canopen::eds::SdoEdsError),
     /// An axis beyond those the trace records.
     #[error(
         "only the first {} axes are traced",
@@ -315,13 +318,13 @@ fn object(
     let Some((i, eds)) = axis.and_then(|i| Some((i, state.config.eds_of(i)?))) else {
         return Ok(json!({ "drive": drive, "eds": null }));
     };
-    let e = eds
-        .entry(index, sub)
-        .ok_or(crate::canopen::eds::SdoEdsError::NotInEds {
+    let e = eds.entry(index, sub).ok_or_else(|| {
+        Refused::Object(crate::canopen::eds::SdoEdsError::NotInEds {
             index,
             sub,
             file: eds.file.clone(),
-        })?;
+        })
+    })?;
     Ok(json!({
         "drive": drive,
         "node": state.config.axes.get(i).and_then(|a| a.node),
