@@ -2,7 +2,7 @@
 //! 1 Mbit/s: the simulator writes its servo's EDS (as a vendor would ship it), a
 //! configuration names it (`[[axis]] eds = "servo.eds"`, relative to the file), the
 //! configuration is checked against it at load and the bus comes up on the simulated
-//! nodes and moves; an EDS that says an object of the layout is not mappable refuses the
+//! nodes and moves (a node whose identity is not the EDS' device stops the bring-up); an EDS that says an object of the layout is not mappable refuses the
 //! configuration before anything is sent, naming the object and the file; the DCF of
 //! what the bring-up configured reads back with the shared reader and holds, object by
 //! object, what the simulated nodes' dictionaries hold after the bring-up.
@@ -321,5 +321,45 @@ fn gantry_sdo_types_objects_by_the_eds_and_refuses_what_it_does_not_have() {
     );
     drop(client);
     rt.shutdown_background();
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn a_node_that_is_not_the_device_of_its_eds_stops_the_bring_up() {
+    let d = dir("identity");
+    let text = simulated_servo_eds(&d);
+    let product = text
+        .lines()
+        .find_map(|l| l.strip_prefix("ProductNumber="))
+        .expect("the simulated EDS names its product")
+        .to_string();
+    std::fs::write(
+        d.join("other.eds"),
+        text.replace(
+            &format!("ProductNumber={product}"),
+            "ProductNumber=0x00000999",
+        ),
+    )
+    .unwrap();
+    // The configuration suits the other device's EDS (same objects)…
+    let config = config(&d, &[3], "other.eds").unwrap_or_else(|e| panic!("{e}"));
+    // …but node 3 says it is another product.
+    let e = match CanRig::try_new(&config, servos(&[3])) {
+        Ok(_) => panic!("the bus came up on a node that is not the EDS' device"),
+        Err(e) => e.to_string(),
+    };
+    let read = eds::read(&text, "servo.eds")
+        .unwrap()
+        .device_info
+        .product_number
+        .unwrap();
+    assert_eq!(
+        e,
+        format!(
+            "CANopen node 3 (axis \"a0\"): its identity 0x1018:02 says product 0x{read:08X}, \
+             {} describes product 0x00000999 (ProductNumber): not the device of that EDS",
+            d.join("other.eds").display()
+        )
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }

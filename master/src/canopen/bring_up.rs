@@ -143,6 +143,31 @@ pub enum StartError {
         /// How long gantry waited.
         waited_ms: u64,
     },
+    /// A node is not the device its axis' EDS describes (CiA 306-1 §4.4 `VendorNumber`,
+    /// `ProductNumber` against 0x1018:01/02): the checks made against the EDS would be
+    /// of another device's objects.
+    #[error(
+        "CANopen node {node} (axis {axis:?}): its identity 0x1018:{sub:02X} says {what} \
+         0x{read:08X}, {file} describes {what} 0x{want:08X} ({key}): not the device of that EDS"
+    )]
+    WrongDevice {
+        /// The node.
+        node: u8,
+        /// Its axis.
+        axis: String,
+        /// "vendor" or "product".
+        what: &'static str,
+        /// 0x1018's sub-index.
+        sub: u8,
+        /// What the node said.
+        read: u32,
+        /// What the EDS says.
+        want: u32,
+        /// The EDS' key.
+        key: &'static str,
+        /// The EDS.
+        file: String,
+    },
     /// The SDO client's configuration.
     #[error("CANopen: SDO client: {0}")]
     SdoConfig(gantry_drives::canopen::sdo::SdoConfigError),
@@ -336,6 +361,45 @@ pub struct DriveSetup {
     pub plan: DrivePlan,
     /// The SDO writes that configure it.
     pub steps: Vec<SdoStep>,
+    /// What the axis' EDS says the node is, when it names one.
+    pub expect: Option<ExpectedIdentity>,
+}
+
+/// The identity an axis' EDS gives its node (`[DeviceInfo]`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExpectedIdentity {
+    /// The EDS.
+    pub file: String,
+    /// `VendorNumber=` (0x1018:01).
+    pub vendor: Option<u32>,
+    /// `ProductNumber=` (0x1018:02).
+    pub product: Option<u32>,
+}
+
+impl ExpectedIdentity {
+    /// The first of vendor and product in which the node's `identity` (0x1018:01–04 as
+    /// read) differs from the EDS. A sub-index the node does not have is not compared
+    /// (only the vendor id is mandatory, CiA 301 §7.5.2.23).
+    pub fn mismatch(&self, setup: &DriveSetup, identity: &[Option<u32>; 4]) -> Option<StartError> {
+        [
+            ("vendor", 1u8, "VendorNumber", self.vendor, identity[0]),
+            ("product", 2, "ProductNumber", self.product, identity[1]),
+        ]
+        .into_iter()
+        .find_map(|(what, sub, key, want, read)| match (want, read) {
+            (Some(want), Some(read)) if want != read => Some(StartError::WrongDevice {
+                node: setup.node.get(),
+                axis: setup.axis.clone(),
+                what,
+                sub,
+                read,
+                want,
+                key,
+                file: self.file.clone(),
+            }),
+            _ => None,
+        })
+    }
 }
 
 /// The drives of `config`, in axis order (bus position `i` = axis `i`), after the load
@@ -397,6 +461,11 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
         layout,
         plan,
         steps,
+        expect: config.eds_of(axis).map(|e| ExpectedIdentity {
+            file: e.file.clone(),
+            vendor: e.device_info.vendor_number,
+            product: e.device_info.product_number,
+        }),
     })
 }
 
@@ -596,6 +665,9 @@ pub fn run(
                 }) if sub > 1 => {}
                 Err(e) => return Err(e),
             }
+        }
+        if let Some(e) = d.expect.as_ref().and_then(|x| x.mismatch(d, &identity)) {
+            return Err(e);
         }
         let _ = writeln!(
             out,
