@@ -283,17 +283,16 @@ fn gantry_sdo_types_objects_by_the_eds_and_refuses_what_it_does_not_have() {
                value: Option<&str>,
                ty: Option<sdo::SdoType>| {
         let mut out = Vec::new();
-        sdo::run(
-            client,
-            Target::Axis("a0".into()),
-            object,
+        let transfer = sdo::Transfer {
+            target: Target::Axis("a0".into()),
+            address: object,
             value,
             ty,
-            false,
-            &mut out,
-        )
-        .map(|()| String::from_utf8(out).unwrap())
-        .map_err(|e| e.to_string())
+            timeout_s: None,
+        };
+        sdo::run(client, &transfer, false, &mut out)
+            .map(|()| String::from_utf8(out).unwrap())
+            .map_err(|e| e.to_string())
     };
     // An object the EDS does not have: refused, with or without --type.
     assert_eq!(
