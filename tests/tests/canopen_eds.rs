@@ -362,3 +362,26 @@ fn a_node_that_is_not_the_device_of_its_eds_stops_the_bring_up() {
     );
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn the_switches_and_probe_layout_suits_the_simulators_eds_and_comes_up() {
+    let d = dir("switches");
+    simulated_servo_eds(&d);
+    // The minimal layout with the drive's switches and the touch probe: 1 RPDO, 3 TPDOs.
+    let text = format!(
+        "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\
+         [[axis]]\nname = \"x\"\nnode = 3\neds = \"servo.eds\"\npdo = \"csp-minimal\"\n\
+         scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+         max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n{}",
+        gantry_tests::homing::AXIS_SWITCHES_TOML
+    );
+    let path = d.join("c.toml");
+    std::fs::write(&path, text).unwrap();
+    let config = Config::load(&path.display().to_string()).unwrap_or_else(|e| panic!("{e}"));
+    let setup = gantry::canopen::bring_up::drive_setup(&config, 0).unwrap();
+    assert_eq!((setup.plan.rpdos.len(), setup.plan.tpdos.len()), (1, 3));
+    let mut rig = CanRig::new(&config, servos(&[3]));
+    assert!(rig.log.contains("TPDO3"), "{}", rig.log);
+    rig.enable_and_home(0);
+    std::fs::remove_dir_all(&d).unwrap();
+}
