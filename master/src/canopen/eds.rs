@@ -236,3 +236,61 @@ pub fn check_sdo(
     }
     Ok(e)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gantry_drives::canopen::eds::{AccessType, DataType, Object, SubObject};
+
+    fn sheet() -> Eds {
+        let mut eds = Eds::new("drive.eds");
+        for (index, ty, access) in [
+            (0x2000, DataType::Unsigned8, AccessType::WriteOnly),
+            (0x6041, DataType::Unsigned16, AccessType::ReadOnly),
+            (0x1008, DataType::VisibleString, AccessType::Const),
+            (0x607A, DataType::Integer32, AccessType::ReadWriteOutput),
+            (0x2100, DataType::Domain, AccessType::ReadWrite),
+        ] {
+            eds.insert(Object::var(index, SubObject::new("x", ty, access)));
+        }
+        eds
+    }
+
+    #[test]
+    fn an_sdo_the_eds_says_the_drive_would_refuse_is_named() {
+        let eds = sheet();
+        let e = |index, sub, download| {
+            check_sdo(&eds, index, sub, download)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(e(0x2001, 0, None), "0x2001:00 is not in drive.eds");
+        assert_eq!(e(0x607A, 1, Some(4)), "0x607A:01 is not in drive.eds");
+        assert_eq!(
+            e(0x2000, 0, None),
+            "0x2000:00 is wo in drive.eds: it cannot be read"
+        );
+        assert_eq!(
+            e(0x6041, 0, Some(2)),
+            "0x6041:00 is ro in drive.eds: it cannot be written"
+        );
+        assert_eq!(
+            e(0x1008, 0, Some(3)),
+            "0x1008:00 is const in drive.eds: it cannot be written"
+        );
+        assert_eq!(
+            e(0x607A, 0, Some(2)),
+            "0x607A:00 is a INTEGER32 of 4 bytes in drive.eds; 2 bytes given"
+        );
+        // What the drive takes.
+        assert_eq!(
+            check_sdo(&eds, 0x607A, 0, Some(4)).unwrap().data_type,
+            DataType::Integer32
+        );
+        assert!(check_sdo(&eds, 0x6041, 0, None).is_ok());
+        assert!(check_sdo(&eds, 0x2000, 0, Some(1)).is_ok());
+        assert!(check_sdo(&eds, 0x1008, 0, None).is_ok());
+        // A variable-length entry takes any length.
+        assert!(check_sdo(&eds, 0x2100, 0, Some(200)).is_ok());
+    }
+}
