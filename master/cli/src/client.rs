@@ -292,7 +292,7 @@ pub fn command(
         _ => (None, false),
     };
     let cmd = request.cmd();
-    let request_is_move = matches!(request, Request::Move { .. });
+    let request_is_move = matches!(request, Request::Move { .. } | Request::Home { .. });
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
     if no_wait {
@@ -326,6 +326,10 @@ pub fn command(
         let p = a["position"].as_f64()?;
         let units = a["units"].as_str().unwrap_or("");
         Some(match goal {
+            _ if cmd == "home" => format!(
+                "{axis} {p:10.3} {units} homing: {}",
+                homing_phase(&a["homing"])
+            ),
             Some((from, to)) if (to - from).abs() > 1e-9 => {
                 let frac = ((p - from) / (to - from)).clamp(0.0, 1.0);
                 let bar: String = (0..20)
@@ -410,6 +414,23 @@ fn after_reset(axis: &str, state: &str) -> String {
 }
 
 /// What a finished command did, in words, before the position it left the axis at.
+/// The phase a homing run is in, from its status bits (Jetter MoveHome: started, switch
+/// found, reference found, reference set).
+fn homing_phase(h: &Value) -> &'static str {
+    let bit = |k: &str| h[k] == json!(true);
+    if bit("reference_set") {
+        "reference set"
+    } else if bit("reference_found") {
+        "reference found, going to the normal position"
+    } else if bit("switch_found") {
+        "switch found, searching the reference"
+    } else if bit("started") {
+        "searching the switch"
+    } else {
+        "starting"
+    }
+}
+
 fn outcome(cmd: &str) -> &'static str {
     match cmd {
         "enable" => "enabled at",
@@ -419,6 +440,7 @@ fn outcome(cmd: &str) -> &'static str {
         "release" => "released at",
         "set_position" => "position set to",
         "reset" => "reset at",
+        "home" => "homed; stands at",
         _ => "done at",
     }
 }

@@ -6,7 +6,9 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use gantry::service::protocol::{BufferMode, JogDirection, MoveMode, Request as Line};
+use gantry::service::protocol::{
+    BufferMode, HomeMode, HomeSwitches, JogDirection, MoveMode, Request as Line,
+};
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
 use gantry_cli::demo::{self, DemoArgs};
@@ -70,6 +72,39 @@ impl AxisCommand {
                     deceleration,
                     jerk,
                     buffer,
+                },
+                no_wait,
+                client,
+            ),
+            AxisCmd::Home {
+                axis,
+                direction,
+                switches,
+                mode,
+                speed_switch,
+                max_distance_switch,
+                speed_reference,
+                max_distance_reference,
+                acceleration,
+                jerk,
+                reference_offset,
+                normal_position,
+                no_wait,
+                client,
+            } => (
+                Line::Home {
+                    axis,
+                    direction,
+                    switches,
+                    mode,
+                    speed_switch,
+                    max_distance_switch,
+                    speed_reference,
+                    max_distance_reference,
+                    acceleration,
+                    jerk,
+                    reference_offset,
+                    normal_position,
                 },
                 no_wait,
                 client,
@@ -307,6 +342,50 @@ enum AxisCmd {
         /// aborting, buffered, blending-low, blending-previous, blending-next, blending-high.
         #[arg(long, default_value = "aborting")]
         buffer: BufferMode,
+        /// Return at once with the command's handle.
+        #[arg(long)]
+        no_wait: bool,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
+    /// the phases; what is left out keeps the axis' last-used parameters.
+    Home {
+        /// Axis name.
+        axis: String,
+        /// Search direction: + or - (or positive, negative).
+        #[arg(long, allow_hyphen_values = true)]
+        direction: Option<JogDirection>,
+        /// ref-and-limit, ref, limit or none (the index pulse only).
+        #[arg(long)]
+        switches: Option<HomeSwitches>,
+        /// edge, edge-2 (switch fast, edge slowly), zero-pulse, zero-pulse-2.
+        #[arg(long)]
+        mode: Option<HomeMode>,
+        /// Speed of the switch search (units/s).
+        #[arg(long, value_parser = finite)]
+        speed_switch: Option<f64>,
+        /// Longest switch search (units).
+        #[arg(long, value_parser = finite)]
+        max_distance_switch: Option<f64>,
+        /// Speed of the reference search (units/s).
+        #[arg(long, value_parser = finite)]
+        speed_reference: Option<f64>,
+        /// Longest reference search (units).
+        #[arg(long, value_parser = finite)]
+        max_distance_reference: Option<f64>,
+        /// Acceleration (units/s²).
+        #[arg(long, value_parser = finite)]
+        acceleration: Option<f64>,
+        /// Jerk (units/s³).
+        #[arg(long, value_parser = finite)]
+        jerk: Option<f64>,
+        /// The position the reference gets (units).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        reference_offset: Option<f64>,
+        /// Where the axis goes after homing (units).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        normal_position: Option<f64>,
         /// Return at once with the command's handle.
         #[arg(long)]
         no_wait: bool,

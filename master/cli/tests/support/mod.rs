@@ -44,6 +44,16 @@ impl Service {
     /// [`Service::start`] with the simulated chain's file (`sim-4-servos.toml`) as
     /// `servos` changes it.
     pub fn start_with(tag: &str, servos: impl FnOnce(String) -> String) -> Self {
+        Self::start_edited(tag, |config| config, servos)
+    }
+
+    /// [`Service::start_with`], with the configuration (`sim-4-axes.toml`) as `config`
+    /// changes it too.
+    pub fn start_edited(
+        tag: &str,
+        config: impl FnOnce(String) -> String,
+        servos: impl FnOnce(String) -> String,
+    ) -> Self {
         let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
@@ -51,7 +61,7 @@ impl Service {
         assert!(text.contains(off), "the example documents simulator_record");
         std::fs::write(
             dir.join("gantry.toml"),
-            text.replace(off, "simulator_record = \"drive-records.json\""),
+            config(text.replace(off, "simulator_record = \"drive-records.json\"")),
         )
         .unwrap();
         let chain = std::fs::read_to_string(example("sim-4-servos.toml")).unwrap();
