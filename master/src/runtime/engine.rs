@@ -732,6 +732,7 @@ impl<B: CycleBus> Engine<B> {
                     statusword: inputs.statusword.0,
                     error_code: inputs.error_code,
                     bus_fault: self.bus.fault(self.cycle.drive_of(i)).copied(),
+                    can_node: self.bus.can_node(self.cycle.drive_of(i)),
                 };
             }
         }
