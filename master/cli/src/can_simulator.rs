@@ -256,8 +256,15 @@ fn sleep_until(at_ns: u64) {
 }
 
 impl CanLink for MemLink {
+    /// Queues `frame`; on the wall clock it goes on the bus now (arbitrated against
+    /// what the nodes have queued by now), as a controller's transmit buffer would send
+    /// it, whatever the sending thread does next.
     fn send(&mut self, frame: &CanFrame) -> io::Result<()> {
-        lock(&self.0).bus.send(*frame);
+        let mut s = lock(&self.0);
+        s.bus.send(*frame);
+        if let Some(wall) = s.wall {
+            s.run(now_ns().saturating_sub(wall.origin_ns));
+        }
         Ok(())
     }
 

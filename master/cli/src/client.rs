@@ -311,7 +311,7 @@ fn can_nodes(s: &Value, out: &mut impl Write) -> Result<(), ClientError> {
             out,
             "{:<6} {:<5} {:<16} {:<22} {} ({} in a row)",
             d["axis"].as_str().unwrap_or("?"),
-            n["node"],
+            n["node"].as_u64().map_or("?".into(), |v| v.to_string()),
             n["nmt"].as_str().unwrap_or("none heard"),
             heard,
             n["lost_tpdos"],

@@ -299,7 +299,8 @@ impl CanopenBus {
                 fresh: false,
                 left: None,
                 heard_ns: now,
-                nmt: None,
+                // The bring-up started it once its heartbeat reported Operational.
+                nmt: Some(NmtState::Operational),
                 lost_in_a_row: 0,
                 lost_total: 0,
                 fault: None,

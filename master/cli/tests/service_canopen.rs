@@ -1,0 +1,246 @@
+//! `gantry run` on CANopen end to end, through the binary: the shipped example
+//! `deploy/examples/sim-canopen-4-axes.toml` — four CiA-402 servos simulated as CANopen
+//! nodes on the in-memory CAN bus at 1 Mbit/s in the process, on the wall clock
+//! (`--no-rt`: no root, no CAN hardware) — driven by the client commands a user types:
+//! status (the nodes, their NMT state and heartbeat), enable, set-position, move, `gantry
+//! sdo` upload and download (expedited, segmented, an abort) while an axis moves; SIGTERM
+//! shuts it down with the nodes pre-operational, and what the drives recorded holds the
+//! drive invariant.
+
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use gantry::config::Config;
+use gantry_cli::drive_records::{judge, AxisBound, Conditions};
+use gantry_sim::plant::record::read_records;
+
+fn gantry() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gantry"))
+}
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../deploy/examples")
+        .join(name)
+}
+
+struct Service {
+    child: Child,
+    socket: PathBuf,
+    dir: PathBuf,
+}
+
+impl Service {
+    /// The CANopen example as shipped, with `bus.simulator_record` on, from a folder of
+    /// its own.
+    fn start() -> Self {
+        let dir = std::env::temp_dir().join(format!("gantry-canopen-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = std::fs::read_to_string(example("sim-canopen-4-axes.toml")).unwrap();
+        let off = "# simulator_record = \"drive-records.json\"";
+        assert!(text.contains(off), "the example documents simulator_record");
+        std::fs::write(
+            dir.join("gantry.toml"),
+            text.replace(off, "simulator_record = \"drive-records.json\""),
+        )
+        .unwrap();
+        let chain = "sim-canopen-4-servos.toml";
+        std::fs::copy(example(chain), dir.join(chain)).unwrap();
+        let socket = dir.join("gantry.sock");
+        let child = gantry()
+            .args(["run", "--no-rt", "--config"])
+            .arg(dir.join("gantry.toml"))
+            .arg("--socket")
+            .arg(&socket)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let end = Instant::now() + Duration::from_secs(30);
+        while UnixStream::connect(&socket).is_err() {
+            assert!(Instant::now() < end, "the service did not open its socket");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Self { child, socket, dir }
+    }
+
+    fn cli(&self, args: &[&str]) -> Output {
+        gantry()
+            .args(args)
+            .arg("--socket")
+            .arg(&self.socket)
+            .output()
+            .unwrap()
+    }
+
+    /// A client command that must succeed; its stdout.
+    fn ok(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    /// A client command that must fail; its stderr.
+    fn fails(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(!out.status.success(), "{args:?} should fail");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    fn status(&self) -> serde_json::Value {
+        serde_json::from_str(&self.ok(&["status", "--json"])).unwrap()
+    }
+}
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+#[test]
+fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
+    let mut svc = Service::start();
+    // The status names each axis' node, the NMT state its heartbeat reports and how long
+    // ago it came against the consumer time.
+    // The socket opens before the cycle's first snapshot: wait for a few cycles.
+    let end = Instant::now() + Duration::from_secs(10);
+    let s = loop {
+        let s = svc.status();
+        if s["cycles"].as_u64().unwrap_or(0) >= 20 {
+            break s;
+        }
+        assert!(Instant::now() < end, "no cycles: {s}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let drives = s["drives"].as_array().unwrap();
+    assert_eq!(drives.len(), 4);
+    for (i, d) in drives.iter().enumerate() {
+        let n = &d["canopen"];
+        assert_eq!(n["node"], i as u64 + 1, "{d}");
+        assert_eq!(n["nmt"], "Operational", "{d}");
+        assert_eq!(n["heartbeat_limit_ms"], 300, "{d}");
+        assert!(n["heartbeat_ms_ago"].as_u64().unwrap() < 300, "{d}");
+        assert_eq!(n["lost_tpdos"], 0, "{d}");
+    }
+    let text = svc.ok(&["status"]);
+    assert!(text.contains("NMT (heartbeat)"), "{text}");
+    for (axis, node) in [("x", 1), ("y", 2), ("z", 3), ("c", 4)] {
+        let row = text
+            .lines()
+            .find(|l| l.starts_with(&format!("{axis:<6} {node:<5} Operational")))
+            .unwrap_or_else(|| panic!("no node row for {axis} in\n{text}"));
+        assert!(row.contains("(limit 300)"), "{row}");
+    }
+
+    // Enable, home, move: the drive follows over RPDOs and SYNC.
+    assert!(svc.ok(&["enable", "x"]).contains("x: enabled at"));
+    let out = svc.ok(&["set-position", "x", "--position", "0"]);
+    assert!(out.contains("x: position set to 0.000"), "{out}");
+    let out = svc.ok(&["move", "x", "--to", "20", "--speed", "100"]);
+    assert!(out.contains("x: done at 20.0"), "{out}");
+    for (axis, to) in [("y", "10"), ("z", "5"), ("c", "90")] {
+        assert!(svc.ok(&["enable", axis]).contains("enabled at"));
+        svc.ok(&["set-position", axis, "--position", "0"]);
+        let out = svc.ok(&["move", axis, "--to", to]);
+        assert!(out.contains(&format!("{axis}: done at {to}.0")), "{out}");
+    }
+
+    // SDO beside the PDOs: the statusword (expedited, 2 bytes) says Operation enabled;
+    // the position actual value is the drive's count for 20 mm (2^17 counts per 5 mm).
+    let sw = svc.ok(&["sdo", "upload", "--axis", "x", "0x6041:0", "--type", "u16"]);
+    let sw: u16 = sw.trim().parse().unwrap_or_else(|e| panic!("{sw:?}: {e}"));
+    assert_eq!(
+        sw & 0x006F,
+        0x0027,
+        "statusword 0x{sw:04X}: Operation enabled"
+    );
+    let counts = svc.ok(&["sdo", "upload", "--axis", "x", "0x6064:0", "--type", "i32"]);
+    let counts: i64 = counts.trim().parse().unwrap();
+    assert!((counts - 524_288).abs() <= 20, "{counts} counts at 20 mm");
+    // While x moves: a download and an upload of another drive, and a segmented upload
+    // (the device name, 24 bytes) of the moving one.
+    svc.ok(&["move", "x", "--to", "120", "--speed", "100", "--no-wait"]);
+    std::thread::sleep(Duration::from_millis(100));
+    svc.ok(&[
+        "sdo", "download", "--axis", "c", "0x6065:0", "5000", "--type", "u32",
+    ]);
+    let window = svc.ok(&["sdo", "upload", "--axis", "c", "0x6065:0", "--type", "u32"]);
+    assert_eq!(window.trim(), "5000");
+    let name = svc.ok(&[
+        "sdo", "upload", "--axis", "x", "0x1008:0", "--type", "string",
+    ]);
+    assert_eq!(name.trim(), "gantry-sim CiA 402 servo");
+    let moving = svc.status();
+    assert_eq!(moving["axes"][0]["state"], "DiscreteMotion", "{moving}");
+    // An object the drive does not have: its abort code and the CiA 301 text.
+    let e = svc.fails(&["sdo", "upload", "--axis", "y", "0x2FFF:0"]);
+    assert!(
+        e.contains("0x06020000 Object does not exist in the object dictionary"),
+        "{e}"
+    );
+    let end = Instant::now() + Duration::from_secs(30);
+    while svc.status()["axes"][0]["state"] != "Standstill" {
+        assert!(Instant::now() < end, "x did not arrive: {}", svc.status());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let s = svc.status();
+    assert!(
+        (s["axes"][0]["position"].as_f64().unwrap() - 120.0).abs() < 0.05,
+        "{s}"
+    );
+    for d in s["drives"].as_array().unwrap() {
+        assert_eq!(d["canopen"]["lost_tpdos"], 0, "{d}");
+        assert!(d["bus_fault"].is_null(), "{d}");
+    }
+
+    // SIGTERM: quick stop, disable, the nodes pre-operational, exit 0, the drives'
+    // records written and judged.
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(svc.child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .unwrap();
+    let end = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(s) = svc.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(Instant::now() < end, "the service did not stop");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut out = String::new();
+    std::io::Read::read_to_string(svc.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    assert!(status.success(), "{out}");
+    assert!(out.contains("CANopen: 4 nodes operational"), "{out}");
+    assert!(out.contains("CANopen: nodes pre-operational"), "{out}");
+    assert!(out.contains("gantry: drive records written to "), "{out}");
+    let config = Config::load(&svc.dir.join("gantry.toml").display().to_string()).unwrap();
+    let records = read_records(&svc.dir.join("drive-records.json")).unwrap();
+    assert_eq!(records.len(), 4, "one record per axis");
+    assert!(
+        records[0].as_ref().is_some_and(|r| r.targets > 100),
+        "{records:?}"
+    );
+    // Not real time (--no-rt): missed and doubled setpoints are the host's, not judged.
+    let verdict = judge(
+        &records,
+        &AxisBound::of_config(&config).unwrap(),
+        Conditions::default(),
+    );
+    assert!(
+        verdict.holds(),
+        "{:#?}\n{:#?}",
+        verdict.broken,
+        verdict.summary
+    );
+}
