@@ -184,7 +184,7 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     );
     let _ = writeln!(
         out,
-        ">> on the bus: {frames} frames in {:.2} s of bus time ({:.1} per cycle); the master's \
+        ">> on the bus: {frames} frames in {:.2} s of bus time, {:.1} per cycle; the master's \
          work per cycle p50 {:.1} µs, p99 {:.1} µs (host time)",
         bus_ns as f64 * 1e-9,
         frames as f64 / (bus_ns / cycle_ns).max(1) as f64,
