@@ -114,6 +114,71 @@ fn the_encoder_node_counts_its_shaft_and_sends_the_position_value_at_sync() {
     );
 }
 
+#[test]
+fn the_encoder_node_obeys_nmt() {
+    let node = CanNode::new(CanNodeConfig::encoder(id(6), 1000, 1.0)).unwrap();
+    let mut m = Master::with_nodes(vec![node]);
+    m.step(0);
+    m.nmt(NmtCommand::Start, Some(6));
+    for _ in 0..500 {
+        cycle(&mut m, &[]);
+    }
+    m.write(6, 0x6003, 0, &7u32.to_le_bytes()).unwrap();
+    // Stopped: no TPDO at SYNC, no SDO answer (CiA 301 Table 41).
+    m.nmt(NmtCommand::Stop, Some(6));
+    m.take_inbox();
+    assert!(cycle(&mut m, &[]).iter().all(|(id, _)| *id != 0x186));
+    assert!(m.read(6, 0x6004, 0).is_err(), "no SDO in Stopped");
+    // Reset node: boot-up, pre-operational; the counter restarts at 0 and the preset
+    // object reads its power-on 0; the shaft (1 rev/s, 1000 counts/rev) turned on.
+    m.take_inbox();
+    let at_reset = m.now;
+    m.nmt(NmtCommand::ResetNode, Some(6));
+    let boot = heartbeats(&m.take_inbox(), 6);
+    assert_eq!(boot.len(), 1, "{boot:?}");
+    assert_eq!(u32_of(&m.read(6, 0x6003, 0).unwrap()), 0);
+    let since = (m.now - at_reset) as f64 * 1e-6;
+    let v = i64::from(u32_of(&m.read(6, 0x6004, 0).unwrap()));
+    assert!(
+        (v - since as i64).abs() <= 2,
+        "{v} counts {since} ms after the reset"
+    );
+    m.nmt(NmtCommand::Start, Some(6));
+    m.take_inbox();
+    assert!(cycle(&mut m, &[]).iter().any(|(id, _)| *id == 0x186));
+}
+
+/// Enables servo node 1 (CiA 402 transitions 2, 3, 4) holding 0, moves it to 6000 counts
+/// at 4 counts/ms and back to 1500, one 1 ms cycle (RPDO1, SYNC) at a time; `each` gets
+/// the position the servo's TPDO1 reported at each SYNC and every frame of that cycle.
+/// Returns the last statusword and position.
+fn move_servo(m: &mut Master, mut each: impl FnMut(i32, &[(u16, Vec<u8>)])) -> (u16, i32) {
+    let mut sw = 0u16;
+    let mut pos = 0i32;
+    let plan = (0..40)
+        .map(|_| 0)
+        .chain((0..=1500).map(|k| 4 * k))
+        .chain((0..1125).map(|k| 6000 - 4 * k))
+        .chain((0..50).map(|_| 1500));
+    for step in plan {
+        let cw: u16 = match sw & 0x6F {
+            0x21 => 0x07,
+            0x23 | 0x27 => 0x0F,
+            _ => 0x06,
+        };
+        let target = if sw & 0x6F == 0x27 { step } else { pos };
+        let mut d = [0u8; 6];
+        d[..2].copy_from_slice(&cw.to_le_bytes());
+        d[2..].copy_from_slice(&target.to_le_bytes());
+        let got = cycle(m, &[frame(0x201, &d)]);
+        let servo_tpdo = got.iter().find(|(id, _)| *id == 0x181).expect("servo TPDO");
+        sw = u16::from_le_bytes([servo_tpdo.1[0], servo_tpdo.1[1]]);
+        pos = i32::from_le_bytes(servo_tpdo.1[2..6].try_into().unwrap());
+        each(pos, &got);
+    }
+    (sw, pos)
+}
+
 /// Expected input byte at `position` with the two cams.
 fn levels(position: i64) -> u8 {
     u8::from(REFERENCE.level(position)) | (u8::from(POSITIVE_LIMIT.level(position)) << 1)
@@ -135,43 +200,19 @@ fn the_input_module_follows_the_servo_on_the_same_bus_to_the_count() {
     assert_eq!(u32_of(&m.read(2, 0x1A00, 1).unwrap()), 0x6000_0108);
     m.nmt(NmtCommand::Start, None);
     m.take_inbox();
-    // Enable the servo (CiA 402 transitions 2, 3, 4) holding 0, then move it to 6000
-    // counts at 4 counts/ms, and back to 1500.
-    let mut sw = 0u16;
-    let mut pos = 0i32;
     let mut checked = 0;
     let mut seen_levels = std::collections::BTreeSet::new();
-    let plan: Vec<i32> = (0..40)
-        .map(|_| 0)
-        .chain((0..=1500).map(|k| 4 * k))
-        .chain((0..1125).map(|k| 6000 - 4 * k))
-        .chain((0..50).map(|_| 1500))
-        .collect();
-    for step in plan {
-        let cw: u16 = match sw & 0x6F {
-            0x21 => 0x07,
-            0x23 => 0x0F,
-            0x27 => 0x0F,
-            _ => 0x06,
-        };
-        let target = if sw & 0x6F == 0x27 { step } else { pos };
-        let mut d = [0u8; 6];
-        d[..2].copy_from_slice(&cw.to_le_bytes());
-        d[2..].copy_from_slice(&target.to_le_bytes());
-        let got = cycle(&mut m, &[frame(0x201, &d)]);
-        let servo_tpdo = got.iter().find(|(id, _)| *id == 0x181).expect("servo TPDO");
+    let (sw, pos) = move_servo(&mut m, |pos, got| {
         let input_tpdo = got
             .iter()
             .find(|(id, _)| *id == 0x182)
             .expect("inputs TPDO");
-        sw = u16::from_le_bytes([servo_tpdo.1[0], servo_tpdo.1[1]]);
-        pos = i32::from_le_bytes(servo_tpdo.1[2..6].try_into().unwrap());
         // The inputs sampled at this SYNC are the cams at the position the servo
         // reported at this SYNC.
         assert_eq!(input_tpdo.1, [levels(i64::from(pos))], "at {pos}");
         seen_levels.insert(input_tpdo.1[0]);
         checked += 1;
-    }
+    });
     assert_eq!(sw & 0x6F, 0x27, "operation enabled");
     assert!((pos - 1500).abs() <= 2, "{pos}");
     assert!(checked > 2600);
@@ -186,6 +227,47 @@ fn the_input_module_follows_the_servo_on_the_same_bus_to_the_count() {
     let got = cycle(&mut m, &[]);
     let input = got.iter().find(|(id, _)| *id == 0x182).unwrap();
     assert_eq!(input.1, [levels(1500) ^ 0x01]);
+}
+
+#[test]
+fn event_driven_inputs_are_sent_when_a_cam_switches() {
+    let servo = CanNode::new(CanNodeConfig::servo(id(1))).unwrap();
+    let inputs =
+        CanNode::new(CanNodeConfig::switches(id(2), id(1), &[REFERENCE, POSITIVE_LIMIT]).unwrap())
+            .unwrap();
+    let mut m = Master::with_nodes(vec![servo, inputs]);
+    m.step(0);
+    // TPDO1 event-driven (transmission type 255, CiA 401's default for inputs): sent when
+    // the input byte changes, not at SYNC.
+    m.write(2, 0x1800, 2, &[255]).unwrap();
+    m.nmt(NmtCommand::Start, None);
+    m.step(MS);
+    let first: Vec<_> = on(&m.take_inbox(), 0x182);
+    assert_eq!(
+        first.len(),
+        1,
+        "the first event: the first run in Operational"
+    );
+    assert_eq!(first[0].data(), [levels(0)]);
+    let mut sent = Vec::new();
+    let mut last_level = levels(0);
+    let mut changes = 0;
+    let (sw, _) = move_servo(&mut m, |pos, got| {
+        let level = levels(i64::from(pos));
+        if level != last_level {
+            changes += 1;
+            last_level = level;
+        }
+        for (_, d) in got.iter().filter(|(id, _)| *id == 0x182) {
+            // Sent in the cycle the servo reached the position that switched it.
+            assert_eq!(d, &[level], "at {pos}");
+            sent.push(d[0]);
+        }
+    });
+    assert_eq!(sw & 0x6F, 0x27);
+    // 0 -> 6000 -> 1500: reference on, off, limit on, off, reference on.
+    assert_eq!(changes, 5);
+    assert_eq!(sent, [0b11, 0b10, 0b00, 0b10, 0b11]);
 }
 
 #[test]

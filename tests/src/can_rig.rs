@@ -8,10 +8,12 @@
 //! its own clock; once the engine runs ([`MemBus::stepped`]) the step clock moves it, and
 //! an exchange receives what the bus delivered by the cycle's reply window.
 
-use std::sync::MutexGuard;
+use std::collections::VecDeque;
+use std::io;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use gantry::canopen::bring_up::StartError;
-use gantry::canopen::CanopenBus;
+use gantry::canopen::{CanLink, CanopenBus, Received};
 use gantry::config::Config;
 use gantry::runtime::bus::CycleBus;
 use gantry::runtime::clock::StepClock;
@@ -19,7 +21,7 @@ use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::Engine;
 use gantry::runtime::protocol::Snapshot;
-use gantry_drives::canopen::NodeId;
+use gantry_drives::canopen::{CanFrame, NodeId};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
@@ -83,7 +85,17 @@ impl CanRig {
 
     /// [`CanRig::new`], or why the bus did not come up.
     pub fn try_new(config: &Config, nodes: Vec<CanNode>) -> Result<Self, StartError> {
-        let (link, bus) = MemLink::new(nodes, config.bus.bitrate);
+        Self::on_bitrate(config, nodes, config.bus.bitrate)
+    }
+
+    /// [`CanRig::try_new`] on a bus that really runs at `bitrate` (whatever the
+    /// configuration says; None: frames take no time).
+    pub fn on_bitrate(
+        config: &Config,
+        nodes: Vec<CanNode>,
+        bitrate: Option<u32>,
+    ) -> Result<Self, StartError> {
+        let (link, bus) = MemLink::new(nodes, bitrate);
         let mut log = Vec::new();
         let canopen = CanopenBus::bring_up_on(config, Box::new(link), &mut log)?;
         let cycle = Cycle::from_config(config, &canopen)
@@ -186,5 +198,104 @@ impl CanRig {
     /// The simulated bus, locked.
     pub fn sim(&self) -> MutexGuard<'_, MemBus> {
         lock(&self.bus)
+    }
+}
+
+/// Frames [`Nodes`] holds for the master at most.
+pub const QUEUE: usize = 4096;
+
+/// Nodes behind a fixed queue, a lockstep bus that allocates nothing (no arbitration, no
+/// bit timing: [`MemBus`] has those): a frame the master sends reaches every node at
+/// once, what they answer waits in the queue for the master.
+pub struct Nodes {
+    /// The nodes.
+    pub nodes: Vec<CanNode>,
+    /// What they sent, for the master.
+    pub queue: VecDeque<CanFrame>,
+    /// The bus' clock (ns).
+    pub clock_ns: u64,
+    /// Moved by the engine's clock ([`Nodes::tick`]); before, by the link's waits.
+    pub stepped: bool,
+    /// Frames with this identifier do not reach the master.
+    pub drop: Option<u16>,
+    /// Frames lost to a full queue.
+    pub overflow: u64,
+}
+
+impl Nodes {
+    fn push(queue: &mut VecDeque<CanFrame>, overflow: &mut u64, drop: Option<u16>, f: &[CanFrame]) {
+        for frame in f {
+            if Some(frame.id()) == drop {
+                continue;
+            }
+            if queue.len() < QUEUE {
+                queue.push_back(*frame);
+            } else {
+                *overflow += 1;
+            }
+        }
+    }
+
+    /// `nodes` at time 0, the link's waits moving the time (bring-up).
+    pub fn new(nodes: Vec<CanNode>) -> Self {
+        Self {
+            nodes,
+            queue: VecDeque::with_capacity(QUEUE),
+            clock_ns: 0,
+            stepped: false,
+            drop: None,
+            overflow: 0,
+        }
+    }
+
+    /// Lets the nodes' time pass to `to_ns`.
+    pub fn tick(&mut self, to_ns: u64) {
+        self.clock_ns = self.clock_ns.max(to_ns);
+        for n in &mut self.nodes {
+            let out = n.tick(self.clock_ns);
+            Self::push(&mut self.queue, &mut self.overflow, self.drop, out);
+        }
+    }
+
+    /// `frame` reaches every node now.
+    pub fn deliver(&mut self, frame: &CanFrame) {
+        for n in &mut self.nodes {
+            let out = n.receive(frame, self.clock_ns);
+            Self::push(&mut self.queue, &mut self.overflow, self.drop, out);
+        }
+    }
+}
+
+/// The master's link to [`Nodes`].
+pub struct NodesLink(pub Arc<Mutex<Nodes>>);
+
+impl CanLink for NodesLink {
+    fn send(&mut self, frame: &CanFrame) -> io::Result<()> {
+        self.0
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .deliver(frame);
+        Ok(())
+    }
+
+    fn receive(&mut self, deadline_ns: u64) -> io::Result<Option<Received>> {
+        let mut s = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(frame) = s.queue.pop_front() {
+                return Ok(Some(Received {
+                    frame,
+                    at_ns: Some(s.clock_ns),
+                }));
+            }
+            if s.stepped || s.clock_ns >= deadline_ns {
+                return Ok(None);
+            }
+            let next = deadline_ns.min(s.clock_ns + 100_000);
+            s.tick(next);
+        }
+    }
+
+    fn now_ns(&self) -> u64 {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).clock_ns
     }
 }

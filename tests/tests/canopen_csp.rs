@@ -95,3 +95,32 @@ fn four_drives_move_ptp_on_sync_with_no_setpoint_missed() {
         panic!("{e}");
     }
 }
+
+/// What the bus-load check guards against: the same four drives on a bus that really
+/// runs at 500 kbit/s (the configuration says 1 Mbit/s): a cycle's 1601 bits take 3.2 ms
+/// of each 2 ms, the frames queue up behind one another, and every drive's TPDOs come
+/// later each cycle, past the 1.95 ms the cycle waits — lost frames, not stale inputs
+/// taken for fresh — until every drive is faulted, named.
+#[test]
+fn tpdos_that_miss_the_reply_window_are_lost_frames() {
+    let config = can_config(&NODES, 2000, "csp");
+    let mut rig = CanRig::on_bitrate(&config, servos(&NODES), Some(500_000))
+        .unwrap_or_else(|e| panic!("{e}"));
+    rig.run(20);
+    let bus = &rig.engine.bus;
+    assert!(bus.counters().lost >= 10, "{:?}", bus.counters());
+    let faulted: Vec<String> = (0..NODES.len()).filter_map(|a| rig.bus_fault(a)).collect();
+    assert_eq!(faulted.len(), NODES.len(), "{faulted:?}");
+    assert!(
+        faulted
+            .iter()
+            .all(|f| f.starts_with("CANopen node ") && f.ends_with(" cycles in a row")),
+        "{faulted:?}"
+    );
+    for drive in 0..NODES.len() {
+        assert!(
+            !rig.engine.bus.inputs_fresh(drive),
+            "drive {drive}: late TPDOs are no fresh inputs"
+        );
+    }
+}

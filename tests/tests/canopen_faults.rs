@@ -223,3 +223,87 @@ fn tpdos_lost_past_the_limit_stop_their_axis_naming_the_node() {
     rig.sim().drop_frames(0x184, false);
     reset_enable_move(&mut rig, 3, 10.0);
 }
+
+#[test]
+fn a_reset_fails_naming_the_node_when_it_does_not_come_back() {
+    let (mut rig, _) = moving();
+    // Node 3 silent for gantry (its heartbeats and boot-ups, 0x703, lost) through the
+    // reset: no boot-up after NMT reset communication, the reset fails with the reason.
+    rig.sim().drop_frames(0x703, true);
+    while rig.bus_fault(2).is_none() {
+        rig.cycle();
+    }
+    let h = rig.ctl.reset(2).unwrap();
+    let status = rig.finish(&h, 5000);
+    let CommandStatus::Error(e) = status else {
+        panic!("{status:?}");
+    };
+    assert_eq!(
+        e.to_string(),
+        "Reset: bus slave 0x0003 is not back in operation: CANopen: no boot-up after NMT \
+         reset communication (power, cable?)"
+    );
+    let restore = rig.engine.last_restore().unwrap();
+    // 5 s of 2 ms cycles.
+    assert!((2500..=2502).contains(&restore.cycles), "{restore:?}");
+    assert_eq!(rig.state(2), AxisState::ErrorStop);
+    assert!(rig.bus_fault(2).is_some());
+}
+
+/// An expedited SDO download request from another client on the bus (CiA 301 §7.2.4.3.3:
+/// 0x23 four bytes, 0x2F one byte).
+fn sdo_write(
+    node: u8,
+    index: u16,
+    sub: u8,
+    value: u32,
+    len: usize,
+) -> gantry_drives::canopen::CanFrame {
+    let cs = if len == 4 { 0x23 } else { 0x2F };
+    let [i0, i1] = index.to_le_bytes();
+    let v = value.to_le_bytes();
+    gantry_drives::canopen::CanFrame::new(
+        0x600 + u32::from(node),
+        &[cs, i0, i1, sub, v[0], v[1], v[2], v[3]],
+    )
+    .unwrap()
+}
+
+#[test]
+fn a_tpdo_shorter_than_its_mapping_is_never_decoded_and_stops_its_axis() {
+    let (mut rig, _) = moving();
+    // Another tool remaps node 1's TPDO1 to the statusword alone (2 bytes where gantry
+    // mapped 8), by the CiA 301 procedure.
+    for f in [
+        sdo_write(1, 0x1800, 1, 0x8000_0181, 4),
+        sdo_write(1, 0x1A00, 0, 0, 1),
+        sdo_write(1, 0x1A00, 1, 0x6041_0010, 4),
+        sdo_write(1, 0x1A00, 0, 1, 1),
+        sdo_write(1, 0x1800, 1, 0x181, 4),
+    ] {
+        rig.sim().inject(f);
+    }
+    let before = rig.engine.bus.malformed();
+    // The cycle decodes at its start what the last exchange brought (still whole).
+    rig.cycle();
+    let position = rig.engine.cycle.inputs(0).unwrap().position;
+    rig.run(2);
+    assert_eq!(
+        rig.engine.bus.malformed() - before,
+        3,
+        "one short TPDO1 a cycle"
+    );
+    assert_eq!(
+        rig.bus_fault(0).as_deref(),
+        Some("CANopen node 1: no TPDO for 3 cycles in a row")
+    );
+    rig.run(2);
+    assert_eq!(
+        rig.engine.cycle.inputs(0).unwrap().position,
+        position,
+        "nothing of the short TPDOs decoded"
+    );
+    assert_eq!(rig.state(0), AxisState::ErrorStop);
+    // A reset maps it again.
+    reset_enable_move(&mut rig, 0, 5.0);
+}

@@ -388,6 +388,9 @@ enum SdoOp {
         /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
         #[arg(long = "type", default_value = "hex")]
         ty: SdoType,
+        /// Seconds the drive may take to answer (default 2).
+        #[arg(long, value_parser = finite)]
+        timeout: Option<f64>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -403,6 +406,9 @@ enum SdoOp {
         /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
         #[arg(long = "type", default_value = "hex")]
         ty: SdoType,
+        /// Seconds the drive may take to answer (default 2).
+        #[arg(long, value_parser = finite)]
+        timeout: Option<f64>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -503,21 +509,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Axis(command) => AxisCommand::of(command).send()?,
         Cmd::Sdo { op } => {
-            let (target, object, value, ty, opts) = match op {
+            let (target, object, value, ty, timeout, opts) = match op {
                 SdoOp::Upload {
                     target,
                     object,
                     ty,
+                    timeout,
                     client,
-                } => (target, object, None, ty, client),
+                } => (target, object, None, ty, timeout, client),
                 SdoOp::Download {
                     target,
                     object,
                     value,
                     ty,
+                    timeout,
                     client,
-                } => (target, object, Some(value), ty, client),
+                } => (target, object, Some(value), ty, timeout, client),
             };
+            anyhow::ensure!(
+                timeout.is_none_or(|t| (0.001..=60.0).contains(&t)),
+                "--timeout must be 0.001 to 60 s"
+            );
             // What was typed is checked before the service is asked.
             let (_, _) = sdo_cli::parse_address(&object)?;
             if let Some(v) = &value {
@@ -526,10 +538,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut c = opts.connect()?;
             sdo_cli::run(
                 &mut c,
-                target.target(),
-                &object,
-                value.as_deref(),
-                ty,
+                &sdo_cli::Transfer {
+                    target: target.target(),
+                    address: &object,
+                    value: value.as_deref(),
+                    ty,
+                    timeout_s: timeout,
+                },
                 opts.json,
                 &mut std::io::stdout(),
             )?;

@@ -243,22 +243,35 @@ pub enum Target {
     Drive(usize),
 }
 
-/// Runs `gantry sdo upload` (no `value`) or `download`: prints the value read (as `ty`),
-/// or nothing for a write; with `json`, one object.
+/// A transfer as typed on the command line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transfer<'a> {
+    /// Which drive.
+    pub target: Target,
+    /// `INDEX:SUB`.
+    pub address: &'a str,
+    /// The value to write; `None` reads.
+    pub value: Option<&'a str>,
+    /// How the value is typed.
+    pub ty: SdoType,
+    /// Seconds the drive may take (`None`: the service's default).
+    pub timeout_s: Option<f64>,
+}
+
+/// Runs `gantry sdo upload` (no value) or `download`: prints the value read (as its
+/// type), or nothing for a write; with `json_out`, one object.
 pub fn run(
     client: &mut Client,
-    target: Target,
-    address: &str,
-    value: Option<&str>,
-    ty: SdoType,
+    transfer: &Transfer<'_>,
     json_out: bool,
     out: &mut dyn Write,
 ) -> Result<(), SdoCliError> {
-    let (index, sub) = parse_address(address)?;
-    let data = value.map(|v| encode(ty, v)).transpose()?;
-    let (axis, drive) = match target {
-        Target::Axis(a) => (Some(a), None),
-        Target::Drive(d) => (None, Some(d)),
+    let ty = transfer.ty;
+    let (index, sub) = parse_address(transfer.address)?;
+    let data = transfer.value.map(|v| encode(ty, v)).transpose()?;
+    let (axis, drive) = match &transfer.target {
+        Target::Axis(a) => (Some(a.clone()), None),
+        Target::Drive(d) => (None, Some(*d)),
     };
     let direction = if data.is_some() {
         SdoDirection::Download
@@ -272,7 +285,7 @@ pub fn run(
         index,
         sub,
         data: data.as_deref().map(gantry::service::server::to_hex),
-        timeout_s: None,
+        timeout_s: transfer.timeout_s,
     };
     let reply = client.request(&request)?;
     let hex = reply["data"].as_str().unwrap_or_default();

@@ -612,8 +612,9 @@ impl CanopenBus {
             self.fail_restore("CANopen: no such drive");
             return;
         };
+        // A frame the link did not take leaves the step where it is: it is tried again
+        // next exchange, until the restore's deadline.
         let mut step = r.step;
-        let mut sent_ok = true;
         match r.step {
             Step::Reset => {
                 // The application's transfer with this node ends with the reset.
@@ -634,18 +635,16 @@ impl CanopenBus {
                     });
                 }
                 let f = bring_up::nmt(NmtCommand::ResetCommunication, NmtTarget::Node(d.node));
-                sent_ok = self.link.send(&f).is_ok();
-                // A transfer cut short by the reset is gone with it.
-                let _ = d
-                    .sdo
-                    .abort(gantry_drives::canopen::sdo::AbortCode::GENERAL_ERROR);
-                while d.sdo.transmit().is_some() {}
-                step = Step::BootUp;
+                if self.link.send(&f).is_ok() {
+                    // A transfer cut short by the reset is gone with it.
+                    let _ = d.sdo.abort(AbortCode::GENERAL_ERROR);
+                    while d.sdo.transmit().is_some() {}
+                    step = Step::BootUp;
+                }
             }
             Step::BootUp | Step::FirstTpdos => {}
             Step::Configure { k, started } => {
-                if let Some(o) = d.sdo.poll(now) {
-                    let _ = o;
+                if d.sdo.poll(now).is_some() {
                     self.fail_restore("CANopen: the node did not answer an SDO request in time");
                     return;
                 }
@@ -662,8 +661,9 @@ impl CanopenBus {
                         None => step = Step::Start,
                     }
                 }
+                // A request the link did not take times out in the SDO client.
                 while let Some(f) = d.sdo.transmit() {
-                    sent_ok &= self.link.send(&f).is_ok();
+                    let _ = self.link.send(&f);
                 }
             }
             Step::Start => {}
@@ -676,11 +676,8 @@ impl CanopenBus {
                 d.lost_in_a_row = 0;
                 d.got = 0;
                 step = Step::FirstTpdos;
-            } else {
-                sent_ok = false;
             }
         }
-        let _ = sent_ok;
         if let Some(r) = self.restore.as_mut() {
             r.step = step;
         }

@@ -727,12 +727,16 @@ impl<B: CycleBus> Engine<B> {
             }
             if let Some(d) = snap.drives.get_mut(i) {
                 let inputs = self.cycle.inputs(i).copied().unwrap_or_default();
+                let drive = self.cycle.drive_of(i);
                 *d = DriveStatus {
                     state: inputs.statusword.state(),
                     statusword: inputs.statusword.0,
-                    error_code: inputs.error_code,
-                    bus_fault: self.bus.fault(self.cycle.drive_of(i)).copied(),
-                    can_node: self.bus.can_node(self.cycle.drive_of(i)),
+                    // A layout without 0x603F: the code the drive reported by EMCY.
+                    error_code: inputs
+                        .error_code
+                        .or(self.bus.drive_error(drive).map(|e| e.code)),
+                    bus_fault: self.bus.fault(drive).copied(),
+                    can_node: self.bus.can_node(drive),
                 };
             }
         }

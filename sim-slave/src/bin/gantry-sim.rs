@@ -9,8 +9,9 @@
 //! gantry-sim eds --config sim.toml --node N --out node.eds
 //! ```
 //!
-//! On CAN every slave needs a node id (`node = N`); each servo becomes a CiA 402 node
-//! (`gantry_sim::canopen::CanNetwork`): it boots (boot-up message) when the process
+//! On CAN every slave needs a node id (`node = N`); each servo becomes a CiA 402 node,
+//! the encoder a CiA 406 one, the switch-cam module a CiA 401 one following its servo
+//! (`gantry_sim::canopen::CanNetwork`): each boots (boot-up message) when the process
 //! starts, answers SDO, NMT, SYNC and RPDOs as they come and runs its timers (heartbeat,
 //! event TPDOs, the drive's loops without SYNC) every `cycle_us` of the chain.
 //!

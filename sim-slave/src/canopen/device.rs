@@ -409,11 +409,15 @@ impl CanDevice {
     }
 
     /// Reset application (NMT reset node): the application's power-on state; the
-    /// physical things (a shaft, a load) stay where they are.
+    /// physical things (a shaft, a load) stay where they are. The encoder's counter is
+    /// electronic: it restarts at 0, as at power-on, and counts the shaft from there.
     pub fn power_on_reset(&mut self) {
         match self {
             Self::Servo(s) => s.power_on_reset(),
-            Self::Encoder(e) => e.preset = None,
+            Self::Encoder(e) => {
+                e.preset = Some(0);
+                e.run(0.0);
+            }
             Self::Switches(s) => s.polarity = 0,
         }
     }

@@ -317,7 +317,7 @@ impl NodeDictionary {
     }
 
     /// The device's profile objects (0x6000…): index, sub-index, in the order installed.
-    pub fn servo_objects(&self) -> impl Iterator<Item = (u16, u8)> + '_ {
+    pub fn device_objects(&self) -> impl Iterator<Item = (u16, u8)> + '_ {
         self.od.entries().iter().map(|e| (e.index, e.sub))
     }
 

@@ -172,7 +172,7 @@ fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
     // The device's profile objects: typed by the CiA 402 table (the servo's) or the
     // device's own (CiA 406, CiA 401); an index with sub-indices above 0 is an ARRAY.
     let kind = node.dictionary().kind();
-    let mut entries: Vec<(u16, u8)> = node.dictionary().servo_objects().collect();
+    let mut entries: Vec<(u16, u8)> = node.dictionary().device_objects().collect();
     entries.sort_unstable();
     entries.dedup();
     let mut by_index: BTreeMap<u16, Vec<Spec>> = BTreeMap::new();

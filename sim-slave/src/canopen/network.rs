@@ -8,9 +8,11 @@
 //! lets the simulated nodes hear each other.
 //!
 //! Which slaves become nodes: every slave of the chain needs a CANopen node id
-//! (`node = N` in its `[[slave]]`); a `servo` becomes a CiA 402 [`CanNode`]. The encoder
-//! and the switch-cam module have no CANopen node yet: a chain with one is refused (their
-//! place is the match in [`CanNetwork::from_config`]).
+//! (`node = N` in its `[[slave]]`); a `servo` becomes a CiA 402 [`CanNode`], an `encoder`
+//! a CiA 406 one, a `switches` module a CiA 401 one that follows its servo's node
+//! ([`CanNodeConfig::from_slave`]). Frames and ticks reach the nodes in the bus's
+//! [`delivery_order`], each switch-cam module handed its servo's position first
+//! ([`follow_axis`]), as on the in-memory bus.
 
 use std::collections::VecDeque;
 
@@ -18,7 +20,8 @@ use gantry_drives::canopen::cob_id::NodeId;
 use gantry_drives::canopen::CanFrame;
 use thiserror::Error;
 
-use super::node::{CanNode, CanNodeConfig, CanNodeError};
+use super::bus::{delivery_order, follow_axis, follows_axis};
+use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use crate::config::{SimConfig, SlaveConfig};
 
 /// Frames one delivery round may queue (a block upload's 127 segments and the other
@@ -41,20 +44,13 @@ pub enum CanNetworkError {
         /// Its kind.
         kind: &'static str,
     },
-    /// A kind of slave that has no CANopen node in the simulator.
-    #[error(
-        "{path}: slave[{slave}] ({kind}, node {node}): the simulator has no CANopen {kind} \
-         node yet; only servos can be simulated on a CAN bus"
-    )]
-    Unsupported {
+    /// A slave that cannot be a CANopen node (e.g. its cams).
+    #[error("{path}: {source}")]
+    Slave {
         /// The configuration file.
         path: String,
-        /// Its position in the chain.
-        slave: usize,
-        /// Its kind.
-        kind: &'static str,
-        /// Its node id.
-        node: u8,
+        /// Why.
+        source: SlaveNodeError,
     },
     /// A node id out of 1..=127 (the configuration checks it; here for a hand-made one).
     #[error("{path}: slave[{slave}].node = {node}: a CANopen node id must be 1 to 127")]
@@ -121,33 +117,23 @@ impl CanNetwork {
                     kind,
                 });
             };
-            let node = NodeId::new(id).map_err(|_| CanNetworkError::BadNodeId {
+            NodeId::new(id).map_err(|_| CanNetworkError::BadNodeId {
                 path: path.into(),
                 slave,
                 node: id,
             })?;
-            match s {
-                SlaveConfig::Servo(servo) => {
-                    let n =
-                        CanNode::new(CanNodeConfig::from_servo(node, servo)).map_err(|source| {
-                            CanNetworkError::Node {
-                                path: path.into(),
-                                slave,
-                                source,
-                            }
-                        })?;
-                    nodes.push(n);
+            let node_config = CanNodeConfig::from_slave(config, slave).map_err(|source| {
+                CanNetworkError::Slave {
+                    path: path.into(),
+                    source,
                 }
-                // The place for the encoder's and the switch-cam module's CANopen nodes.
-                SlaveConfig::Encoder { .. } | SlaveConfig::Switches { .. } => {
-                    return Err(CanNetworkError::Unsupported {
-                        path: path.into(),
-                        slave,
-                        kind,
-                        node: id,
-                    })
-                }
-            }
+            })?;
+            let n = CanNode::new(node_config).map_err(|source| CanNetworkError::Node {
+                path: path.into(),
+                slave,
+                source,
+            })?;
+            nodes.push(n);
         }
         Ok(Self::new(nodes))
     }
@@ -185,8 +171,10 @@ impl CanNetwork {
     /// nodes send in answer, in order (and the other nodes hear those too).
     pub fn receive(&mut self, frame: &CanFrame, now_ns: u64, send: &mut impl FnMut(&CanFrame)) {
         self.counters.received += 1;
-        for i in 0..self.nodes.len() {
-            self.collect(i, now_ns, Some(frame), send);
+        for (pass, i) in delivery_order(self.nodes.len()) {
+            if follows_axis(&self.nodes, i) == pass {
+                self.collect(i, now_ns, Some(frame), send);
+            }
         }
         self.deliver(now_ns, send);
     }
@@ -194,8 +182,10 @@ impl CanNetwork {
     /// Time passes to `now_ns` (boot-up, heartbeats, timeouts, the drives' loops):
     /// `send` gets what the nodes send.
     pub fn tick(&mut self, now_ns: u64, send: &mut impl FnMut(&CanFrame)) {
-        for i in 0..self.nodes.len() {
-            self.collect(i, now_ns, None, send);
+        for (pass, i) in delivery_order(self.nodes.len()) {
+            if follows_axis(&self.nodes, i) == pass {
+                self.collect(i, now_ns, None, send);
+            }
         }
         self.deliver(now_ns, send);
     }
@@ -209,6 +199,7 @@ impl CanNetwork {
         frame: Option<&CanFrame>,
         send: &mut impl FnMut(&CanFrame),
     ) {
+        follow_axis(&mut self.nodes, i);
         let Some(node) = self.nodes.get_mut(i) else {
             return;
         };
@@ -238,8 +229,8 @@ impl CanNetwork {
                 self.work.clear();
                 return;
             }
-            for i in 0..self.nodes.len() {
-                if i != from {
+            for (pass, i) in delivery_order(self.nodes.len()) {
+                if i != from && follows_axis(&self.nodes, i) == pass {
                     self.collect(i, now_ns, Some(&frame), send);
                 }
             }
@@ -361,6 +352,34 @@ mod tests {
     }
 
     #[test]
+    fn the_encoder_and_a_switch_cam_module_following_its_servo_are_nodes() {
+        let mut net = network(
+            "[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 1\n[[slave.cam]]\ninput = 3\n\
+             from = 1000\nto = 2000\n[[slave]]\nkind = \"servo\"\nnode = 3\n\
+             start_position = 1500\n[[slave]]\nkind = \"encoder\"\nnode = 5\n",
+        )
+        .unwrap();
+        let _ = collect(|send| net.tick(0, &mut |f| send(f)));
+        let start = CanFrame::new(0, &[0x01, 0]).unwrap();
+        let _ = collect(|send| net.receive(&start, 1_000_000, &mut |f| send(f)));
+        let sync = CanFrame::new(0x80, &[]).unwrap();
+        let out = collect(|send| net.receive(&sync, 2_000_000, &mut |f| send(f)));
+        // TPDO1 of each: the servo at 1500, the cam on input 3 actuated there (the module
+        // first in the chain samples after the servo), the encoder's counter at 0.
+        let tpdo = |cob: u16| {
+            out.iter()
+                .find(|f| f.id() == cob)
+                .map(|f| f.data().to_vec())
+        };
+        assert_eq!(
+            tpdo(0x183).map(|d| d[2..6].to_vec()),
+            Some(1500i32.to_le_bytes().to_vec())
+        );
+        assert_eq!(tpdo(0x184), Some(vec![0b1000]));
+        assert_eq!(tpdo(0x185), Some(vec![0, 0, 0, 0]));
+    }
+
+    #[test]
     fn slaves_without_node_ids_or_canopen_nodes_are_refused_by_position() {
         let e = network("[[slave]]\nkind = \"servo\"\nnode = 3\n[[slave]]\nkind = \"servo\"\n")
             .unwrap_err()
@@ -369,12 +388,26 @@ mod tests {
             e.contains("sim.toml: slave[1] (servo) has no CANopen node id"),
             "{e}"
         );
-        let e = network("[[slave]]\nkind = \"encoder\"\nnode = 4\n")
+        let mut bad_cams = SimConfig::parse(
+            "[[slave]]\nkind = \"servo\"\nnode = 3\n[[slave]]\nkind = \"switches\"\nnode = 4\naxis = 0\n",
+            "sim.toml",
+        )
+        .unwrap();
+        if let Some(SlaveConfig::Switches { cams, .. }) = bad_cams.slaves.get_mut(1) {
+            let cam = crate::config::CamConfig {
+                input: 9,
+                from: 0,
+                to: 1,
+                normally_closed: false,
+            };
+            cams.push(cam);
+        }
+        let e = CanNetwork::from_config(&bad_cams, "sim.toml")
             .unwrap_err()
             .to_string();
-        assert!(
-            e.contains("slave[0] (encoder, node 4): the simulator has no CANopen encoder node"),
-            "{e}"
+        assert_eq!(
+            e,
+            "sim.toml: slave[1]: cam 0: input 9 does not exist (0 to 7)"
         );
         let e = CanNetwork::from_config(
             &SimConfig {

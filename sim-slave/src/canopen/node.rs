@@ -1,7 +1,10 @@
-//! A CANopen CiA 402 servo node (CiA 301 slave): the NMT slave ([`super::nmt`]) with its
-//! boot-up message, heartbeat producer (0x1017) and consumer (0x1016), EMCY producer, SYNC
-//! consumer, SDO server on [`NodeDictionary`], PDOs ([`super::pdo`]) and the servo plant
-//! of `plant::servo` behind them — the same drive as on EtherCAT.
+//! A CANopen node (CiA 301 slave): the NMT slave ([`super::nmt`]) with its boot-up
+//! message, heartbeat producer (0x1017) and consumer (0x1016), EMCY producer, SYNC
+//! consumer, SDO server on [`NodeDictionary`], PDOs ([`super::pdo`]) and a device behind
+//! them ([`super::device`]): the servo plant of `plant::servo` (the same drive as on
+//! EtherCAT), the encoder module or the switch-cam input module. What follows about
+//! setpoints concerns the servo; the modules have none (their TPDOs carry inputs sampled
+//! at the SYNC, and they never fault).
 //!
 //! Sans-I/O and lockstep: [`CanNode::receive`] takes a frame and the time, [`CanNode::tick`]
 //! the time alone; both return the frames the node sends in answer, in order. Nothing

@@ -42,6 +42,13 @@ impl MappingEntry {
     }
 }
 
+impl From<crate::cia402::objects::ObjectId> for MappingEntry {
+    /// The entry that maps a drive-layer object whole (the PDO layouts' objects).
+    fn from(o: crate::cia402::objects::ObjectId) -> Self {
+        Self::from_u32(crate::cia402::pdo::mapping_entry(&o))
+    }
+}
+
 impl core::fmt::Display for MappingEntry {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(f, "0x{:04X}:{:02X}", self.index, self.sub)
@@ -101,6 +108,14 @@ pub enum MappingError {
         /// The EDS.
         file: String,
     },
+    /// `Granularity=0`: the device's mapping is fixed (CiA 306-1 §4.4).
+    #[error("{entry}: {file} has Granularity=0: its PDO mapping cannot be changed")]
+    FixedMapping {
+        /// The entry.
+        entry: MappingEntry,
+        /// The EDS.
+        file: String,
+    },
     /// The device maps at a coarser granularity.
     #[error("{entry}: {bits} bits is not a multiple of the granularity {granularity} of {file}")]
     Granularity {
@@ -108,7 +123,7 @@ pub enum MappingError {
         entry: MappingEntry,
         /// Bits mapped.
         bits: u8,
-        /// `Granularity=` (0: the mapping cannot be changed).
+        /// `Granularity=`.
         granularity: u8,
         /// The EDS.
         file: String,
@@ -162,7 +177,13 @@ impl Eds {
     ) -> Result<(), MappingError> {
         let file = || self.file.clone();
         let granularity = self.device_info.granularity;
-        if granularity == 0 || entry.bits % granularity != 0 {
+        if granularity == 0 {
+            return Err(MappingError::FixedMapping {
+                entry,
+                file: file(),
+            });
+        }
+        if entry.bits % granularity != 0 {
             return Err(MappingError::Granularity {
                 entry,
                 bits: entry.bits,
@@ -245,10 +266,19 @@ impl Eds {
                 file: self.file.clone(),
             });
         }
-        let index = match direction {
+        let base: u16 = match direction {
             PdoDirection::Receive => 0x1600,
             PdoDirection::Transmit => 0x1A00,
-        } + (pdo - 1);
+        };
+        // CiA 301 numbers at most 512 PDOs each way (a model built by hand may claim more).
+        let Some(index) = base.checked_add(pdo - 1).filter(|_| pdo <= 512) else {
+            return Err(MappingError::NoPdo {
+                direction,
+                pdo,
+                max,
+                file: self.file.clone(),
+            });
+        };
         // The mapping object's entries: its sub-indices above 0.
         let room = self
             .object(index)

@@ -1,0 +1,173 @@
+//! The CANopen bus allocates nothing in the cycle: a counting allocator watches every
+//! engine cycle (the bus' exchange — RPDOs, SYNC, TPDOs, heartbeats, EMCYs — the kernel,
+//! the drive layer, and the restore's NMT and SDO steps) while four simulated drives are
+//! enabled and moved, a node's heartbeat stays away until its axis stops, the node is
+//! reset by another master, and gantry's reset brings it back by SDO. The link is a
+//! lockstep one that does not allocate either (a fixed queue in front of the nodes,
+//! which allocate nothing after they are built), so any allocation counted is the
+//! cycle's.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
+use gantry::canopen::CanopenBus;
+use gantry::runtime::bus::CycleBus;
+use gantry::runtime::clock::StepClock;
+use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::cycle::Cycle;
+use gantry::runtime::engine::Engine;
+use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
+use gantry_drives::canopen::NodeId;
+use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
+use gantry_tests::can_rig::{can_config, servos, Nodes, NodesLink, QUEUE};
+
+mod counting {
+    include!("../../kernel/tests/common/counting_alloc.rs");
+}
+
+#[global_allocator]
+static ALLOC: counting::Counting = counting::Counting;
+
+#[test]
+fn the_canopen_cycle_does_not_allocate() {
+    let ids = [1u8, 2, 3, 4];
+    let config = can_config(&ids, 2000, "csp");
+    let shared = Arc::new(Mutex::new(Nodes {
+        nodes: servos(&ids),
+        queue: VecDeque::with_capacity(QUEUE),
+        clock_ns: 0,
+        stepped: false,
+        drop: None,
+        overflow: 0,
+    }));
+    let bus = CanopenBus::bring_up_on(
+        &config,
+        Box::new(NodesLink(shared.clone())),
+        &mut std::io::sink(),
+    )
+    .unwrap_or_else(|e| panic!("{}", gantry::error_chain::Chain(&e)));
+    let cycle = Cycle::from_config(&config, &bus).unwrap();
+    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
+    let ctl = Controller::new(ends, (0..4).map(|i| format!("a{i}")).collect());
+    let start = {
+        let mut s = shared.lock().unwrap();
+        s.stepped = true;
+        s.clock_ns
+    };
+    let stepped = shared.clone();
+    let mut clock = StepClock::new(2_000_000, start, move |to| stepped.lock().unwrap().tick(to));
+    let mut watched = 0u64;
+    let mut cycle = |engine: &mut Engine<CanopenBus>, n: usize| {
+        for _ in 0..n {
+            counting::watch(true);
+            let running = engine.cycle(&mut clock);
+            counting::watch(false);
+            assert!(running);
+            watched += 1;
+        }
+    };
+    let until_final = |engine: &mut Engine<CanopenBus>,
+                       cycle: &mut dyn FnMut(&mut Engine<CanopenBus>, usize),
+                       h: &CommandHandle| {
+        for _ in 0..10_000 {
+            cycle(engine, 1);
+            if let Some(s) = engine
+                .command_status(h.id())
+                .filter(CommandStatus::is_final)
+            {
+                return s;
+            }
+        }
+        panic!("not final");
+    };
+    // The counter counts.
+    counting::watch(true);
+    std::hint::black_box(vec![1u8; 16]);
+    counting::watch(false);
+    assert_eq!(counting::take_count(), 1, "the counting allocator works");
+    for axis in 0..4 {
+        let h = ctl
+            .command(axis, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+        let home = Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        };
+        let h = ctl.command(axis, home).unwrap();
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+    }
+    let moves = |to: f64| -> Vec<CommandHandle> {
+        (0..4)
+            .map(|a| {
+                let m = MovePtp::new(PositioningMode::AbsNormal, to);
+                ctl.command(a, Command::MovePtp(m)).unwrap()
+            })
+            .collect()
+    };
+    for h in moves(50.0) {
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+    }
+    // Node 2's heartbeat stays away: its axis stops with the reason.
+    shared.lock().unwrap().drop = Some(0x702);
+    let hs = moves(0.0);
+    cycle(&mut engine, 250);
+    assert!(engine.bus.fault(1).is_some(), "heartbeat fault");
+    assert_eq!(
+        engine.cycle.kernel.axis_status(1).unwrap().state,
+        AxisState::ErrorStop
+    );
+    shared.lock().unwrap().drop = None;
+    for (a, h) in hs.iter().enumerate() {
+        if a != 1 {
+            assert_eq!(until_final(&mut engine, &mut cycle, h), CommandStatus::Done);
+        }
+    }
+    // Node 4 reset by another master (boot-up): its axis stops too.
+    let reset = NmtFrame {
+        command: NmtCommand::ResetNode,
+        target: NmtTarget::Node(NodeId::new(4).unwrap()),
+    };
+    shared.lock().unwrap().deliver(&reset.emit());
+    cycle(&mut engine, 5);
+    assert!(engine.bus.fault(3).is_some(), "boot-up fault");
+    // Resets bring both back: NMT reset communication and the SDO writes, inside the
+    // watched cycles.
+    for axis in [1, 3] {
+        let h = ctl.reset(axis).unwrap();
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+        let h = ctl
+            .command(axis, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+    }
+    assert!(!engine.bus.any_fault());
+    for h in moves(25.0) {
+        assert_eq!(
+            until_final(&mut engine, &mut cycle, &h),
+            CommandStatus::Done
+        );
+    }
+    let allocations = counting::take_count();
+    assert_eq!(shared.lock().unwrap().overflow, 0);
+    eprintln!("{allocations} allocations in {watched} watched cycles");
+    assert!(watched > 500, "{watched} cycles");
+    assert_eq!(allocations, 0);
+}
