@@ -337,3 +337,89 @@ pub fn open(config: &Config, wall_clock: bool) -> Result<Option<(MemLink, Shared
         MemLink::new(nodes, config.bus.bitrate)
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gantry_drives::canopen::cob_id::NodeId;
+    use gantry_sim::canopen::CanNodeConfig;
+
+    fn servo(n: u8) -> CanNode {
+        CanNode::new(CanNodeConfig::servo(NodeId::new(n).unwrap())).unwrap()
+    }
+
+    /// On the wall clock the link's clock is CLOCK_MONOTONIC; a frame is received no
+    /// earlier than its last bit is on the bus; with nothing coming a receive really
+    /// waits for its deadline.
+    #[test]
+    fn the_wall_clock_link_receives_on_time_and_waits_for_its_deadline() {
+        let (mut link, bus) = MemLink::wall_clock(vec![servo(5)], Some(1_000_000), 2_000_000);
+        let t0 = now_ns();
+        assert!(link.now_ns() >= t0 && link.now_ns() < t0 + 1_000_000_000);
+        // The node boots on its first run: its boot-up message (0x705, 1 byte).
+        let r = link.receive(t0 + 100_000_000).unwrap().expect("a boot-up");
+        assert_eq!((r.frame.id(), r.frame.data()), (0x705, &[0u8][..]));
+        let at = r.at_ns.unwrap();
+        assert!(
+            at >= t0 && at <= now_ns(),
+            "received at {at}, before its end?"
+        );
+        // An SDO upload of 0x1000: request and answer are 8-byte frames, each at least
+        // 111 bits (without stuff bits) at 1 Mbit/s, one after the other on the bus.
+        let sent = now_ns();
+        let request = CanFrame::new(0x605, &[0x40, 0x00, 0x10, 0, 0, 0, 0, 0]).unwrap();
+        link.send(&request).unwrap();
+        let r = link
+            .receive(sent + 100_000_000)
+            .unwrap()
+            .expect("an answer");
+        assert_eq!(r.frame.id(), 0x585);
+        assert_eq!(
+            r.frame.data().get(4..8),
+            Some(&0x0002_0192u32.to_le_bytes()[..])
+        );
+        let came = now_ns();
+        assert!(
+            came >= sent + 2 * 111_000,
+            "answered {} ns after the request",
+            came - sent
+        );
+        assert!(r.at_ns.unwrap() <= came);
+        // Nothing else is due within 5 ms (its heartbeat comes every 100 ms): the receive
+        // returns at its deadline, not before.
+        let from = now_ns();
+        let deadline = from + 5_000_000;
+        let got = link.receive(deadline).unwrap();
+        assert!(now_ns() >= deadline, "returned early");
+        assert!(got.is_none_or(|r| r.frame.id() == 0x705), "{got:?}");
+        // A wall-clock bus keeps no log (it runs as long as the service).
+        assert!(lock(&bus).bus.log().is_empty());
+    }
+
+    #[test]
+    fn a_chain_without_node_ids_or_a_missing_file_is_refused_with_the_reason() {
+        let e = load_nodes("/nonexistent/sim.toml").unwrap_err().to_string();
+        assert!(
+            e.starts_with("CANopen: the simulator's configuration"),
+            "{e}"
+        );
+        let dir = std::env::temp_dir().join(format!("gantry-can-sim-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("sim.toml");
+        std::fs::write(&path, "cycle_us = 2000\n[[slave]]\nkind = \"servo\"\n").unwrap();
+        let e = load_nodes(&path.display().to_string()).unwrap_err();
+        let chain = gantry::error_chain::Chain(&e).to_string();
+        assert!(chain.contains("has no CANopen node id"), "{chain}");
+        std::fs::write(
+            &path,
+            "cycle_us = 2000\n[[slave]]\nkind = \"servo\"\nnode = 3\n",
+        )
+        .unwrap();
+        let (nodes, tick) = load_nodes(&path.display().to_string()).unwrap();
+        assert_eq!(
+            (nodes.len(), nodes[0].node().get(), tick),
+            (1, 3, 2_000_000)
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

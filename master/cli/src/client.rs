@@ -258,6 +258,21 @@ pub fn status(
             c["overruns"]
         )
     };
+    if s["drives"]
+        .as_array()
+        .is_some_and(|d| d.iter().any(|d| d["canopen"].is_object()))
+    {
+        // CANopen: what is lost is a drive's TPDOs in a cycle; there is no working
+        // counter and no distributed clock.
+        writeln!(
+            out,
+            "bus: CANopen, TPDO sets lost {} (a drive's TPDOs missing in a cycle; {} of \
+             them in part)\n{figures}",
+            s["bus"]["lost_frames"], s["bus"]["working_counter_errors"],
+        )
+        .map_err(io)?;
+        return Ok(());
+    }
     writeln!(
         out,
         "bus: lost frames {}, wrong working counters {}, {}\n{figures}",
