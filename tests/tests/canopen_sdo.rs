@@ -189,3 +189,44 @@ fn a_node_whose_answers_are_lost_times_out_and_the_next_transfer_works() {
     assert_eq!(rig.engine.bus.counters().lost, 0);
     assert!(!rig.engine.bus.any_fault());
 }
+
+#[test]
+fn a_reset_of_the_node_ends_its_transfer_and_a_node_being_restored_refuses_one() {
+    let config = can_config(&NODES, 2000, "csp");
+    let mut rig = CanRig::new(&config, servos(&NODES));
+    let ctl = rig.ctl.clone();
+    // Node 2 falls silent to the master (heartbeats and SDO answers lost): its axis
+    // stops with the heartbeat fault.
+    rig.sim().drop_frames(0x702, true);
+    rig.sim().drop_frames(0x582, true);
+    rig.run(200);
+    assert!(rig.bus_fault(1).is_some_and(|f| f.contains("no heartbeat")));
+    // A transfer with it waits for an answer that does not come; the reset's NMT reset
+    // communication ends it with the reason.
+    let h = ctl.sdo(SdoRequest::upload(1, 0x1008, 0)).expect("queued");
+    rig.run(5);
+    assert!(h.outcome().is_none(), "still waiting");
+    rig.sim().drop_frames(0x702, false);
+    rig.sim().drop_frames(0x582, false);
+    let reset = ctl.reset(1).expect("queued");
+    rig.run(2);
+    assert_eq!(
+        h.outcome(),
+        Some(Err(SdoError::Protocol {
+            drive: 1,
+            index: 0x1008,
+            sub: 0,
+            what: "the node was reset (NMT reset communication) during the transfer"
+        }))
+    );
+    // While the node is being configured again, its SDO channel is the restore's.
+    assert_eq!(
+        rig.engine
+            .bus
+            .start_sdo(&SdoRequest::upload(1, 0x1000, 0), 0),
+        Err(SdoError::Busy)
+    );
+    assert_eq!(rig.finish(&reset, 5000), CommandStatus::Done);
+    let (r, _) = transfer(&mut rig, &ctl, SdoRequest::upload(1, 0x1008, 0));
+    assert_eq!(r.unwrap().as_slice(), b"gantry-sim CiA 402 servo");
+}
