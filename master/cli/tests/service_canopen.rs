@@ -7,109 +7,21 @@
 //! shuts it down with the nodes pre-operational, and what the drives recorded holds the
 //! drive invariant.
 
-use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use gantry::config::Config;
-use gantry_cli::drive_records::{judge, AxisBound, Conditions};
 use gantry_sim::plant::record::read_records;
 
-fn gantry() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_gantry"))
-}
-
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../deploy/examples")
-        .join(name)
-}
-
-struct Service {
-    child: Child,
-    socket: PathBuf,
-    dir: PathBuf,
-}
-
-impl Service {
-    /// The CANopen example as shipped, with `bus.simulator_record` on, from a folder of
-    /// its own.
-    fn start() -> Self {
-        let dir = std::env::temp_dir().join(format!("gantry-canopen-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let text = std::fs::read_to_string(example("sim-canopen-4-axes.toml")).unwrap();
-        let off = "# simulator_record = \"drive-records.json\"";
-        assert!(text.contains(off), "the example documents simulator_record");
-        std::fs::write(
-            dir.join("gantry.toml"),
-            text.replace(off, "simulator_record = \"drive-records.json\""),
-        )
-        .unwrap();
-        let chain = "sim-canopen-4-servos.toml";
-        std::fs::copy(example(chain), dir.join(chain)).unwrap();
-        let socket = dir.join("gantry.sock");
-        let child = gantry()
-            .args(["run", "--no-rt", "--config"])
-            .arg(dir.join("gantry.toml"))
-            .arg("--socket")
-            .arg(&socket)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let end = Instant::now() + Duration::from_secs(30);
-        while UnixStream::connect(&socket).is_err() {
-            assert!(Instant::now() < end, "the service did not open its socket");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Self { child, socket, dir }
-    }
-
-    fn cli(&self, args: &[&str]) -> Output {
-        gantry()
-            .args(args)
-            .arg("--socket")
-            .arg(&self.socket)
-            .output()
-            .unwrap()
-    }
-
-    /// A client command that must succeed; its stdout.
-    fn ok(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    }
-
-    /// A client command that must fail; its stderr.
-    fn fails(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(!out.status.success(), "{args:?} should fail");
-        String::from_utf8_lossy(&out.stderr).into_owned()
-    }
-
-    fn status(&self) -> serde_json::Value {
-        serde_json::from_str(&self.ok(&["status", "--json"])).unwrap()
-    }
-}
-
-impl Drop for Service {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
+mod support;
+use support::Service;
 
 #[test]
 fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
-    let mut svc = Service::start();
+    let mut svc = Service::start_example(
+        "canopen",
+        "sim-canopen-4-axes.toml",
+        "sim-canopen-4-servos.toml",
+        |chain| chain,
+    );
     // The status names each axis' node, the NMT state its heartbeat reports and how long
     // ago it came against the consumer time.
     // The socket opens before the cycle's first snapshot: wait for a few cycles.
@@ -212,42 +124,17 @@ fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
 
     // SIGTERM: quick stop, disable, the nodes pre-operational, exit 0, the drives'
     // records written and judged.
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(svc.child.id() as i32),
-        nix::sys::signal::Signal::SIGTERM,
-    )
-    .unwrap();
-    let end = Instant::now() + Duration::from_secs(20);
-    let status = loop {
-        if let Some(s) = svc.child.try_wait().unwrap() {
-            break s;
-        }
-        assert!(Instant::now() < end, "the service did not stop");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut out = String::new();
-    std::io::Read::read_to_string(svc.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let (status, out) = svc.terminate();
     assert!(status.success(), "{out}");
     assert!(out.contains("CANopen: 4 nodes operational"), "{out}");
     assert!(out.contains("CANopen: nodes pre-operational"), "{out}");
     assert!(out.contains("gantry: drive records written to "), "{out}");
-    let config = Config::load(&svc.dir.join("gantry.toml").display().to_string()).unwrap();
     let records = read_records(&svc.dir.join("drive-records.json")).unwrap();
-    assert_eq!(records.len(), 4, "one record per axis");
     assert!(
-        records[0].as_ref().is_some_and(|r| r.targets > 100),
-        "{records:?}"
+        records.iter().flatten().all(|r| r.targets > 100),
+        "every drive took setpoints: {records:?}"
     );
-    // Not real time (--no-rt): missed and doubled setpoints are the host's, not judged.
-    let verdict = judge(
-        &records,
-        &AxisBound::of_config(&config).unwrap(),
-        Conditions::default(),
-    );
-    assert!(
-        verdict.holds(),
-        "{:#?}\n{:#?}",
-        verdict.broken,
-        verdict.summary
-    );
+    // The drive invariant; not real time (--no-rt): missed and doubled setpoints are the
+    // host's, not judged.
+    svc.assert_drive_invariant();
 }
