@@ -14,8 +14,8 @@
 //!   and `simulator = "sim.toml"`): the link's clock is CLOCK_MONOTONIC; the bus' time is
 //!   the time since the link opened; a receive lets the nodes run (at least every tick of
 //!   the chain's cycle) and, when no frame has reached the master yet, sleeps — really —
-//!   until the next frame's last bit, the next tick or its deadline. A frame is received
-//!   when its last bit is on the bus, never before: 4 drives' PDOs and the SYNC take the
+//!   until the last bit of the frames on their way, the next tick or its deadline. A
+//!   frame is received when its last bit is on the bus, never before: 4 drives' PDOs and the SYNC take the
 //!   same ~2 ms of a 1 Mbit/s cycle they take on a wire.
 //!
 //! The simulation runs in the thread that calls the link (the cycle thread under `gantry
@@ -211,8 +211,8 @@ impl MemLink {
     }
 
     /// The wall-clock receive: the bus runs to now; a frame whose last bit is on the bus
-    /// by now is received; otherwise the thread sleeps until the next frame ends, the next
-    /// tick or `deadline_ns`, whichever is first.
+    /// by now is received; otherwise the thread sleeps until the frames on their way have
+    /// ended, the next tick or `deadline_ns`, whichever is first.
     fn receive_wall(&mut self, wall: Wall, deadline_ns: u64) -> Option<Received> {
         loop {
             let next = {
@@ -230,9 +230,12 @@ impl MemLink {
                 if now >= deadline_ns {
                     return None;
                 }
+                // One wake-up for what is on its way (the TPDOs a SYNC asked for end
+                // one after another): until the last of it has ended, not one per frame
+                // — a host without real time is late for each wake-up.
                 let mut next = deadline_ns.min(now + wall.tick_ns);
-                if let Some(at) = due {
-                    next = next.min(at);
+                if let Some(last) = s.pending.back() {
+                    next = next.min(last.at_ns + wall.origin_ns);
                 }
                 next
             };
