@@ -353,7 +353,7 @@ enum AxisCmd {
     },
 }
 
-/// Which drive an SDO transfer goes to: by axis or by bus position.
+/// Which drive an SDO transfer goes to: by axis, by bus position or by CANopen node id.
 #[derive(clap::Args, Debug)]
 #[group(required = true, multiple = false)]
 struct SdoTarget {
@@ -363,15 +363,19 @@ struct SdoTarget {
     /// The drive's position on the bus (0 is the first slave).
     #[arg(long)]
     drive: Option<usize>,
+    /// On CANopen: the drive's node id (1..=127).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
+    node: Option<u8>,
 }
 
 impl SdoTarget {
     fn target(self) -> Target {
-        match (self.axis, self.drive) {
-            (Some(a), _) => Target::Axis(a),
-            (None, Some(d)) => Target::Drive(d),
+        match (self.axis, self.drive, self.node) {
+            (Some(a), _, _) => Target::Axis(a),
+            (None, Some(d), _) => Target::Drive(d),
+            (None, None, Some(n)) => Target::Node(n),
             // clap's group requires one of them.
-            (None, None) => Target::Drive(usize::MAX),
+            (None, None, None) => Target::Drive(usize::MAX),
         }
     }
 }

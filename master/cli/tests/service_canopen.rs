@@ -93,6 +93,14 @@ fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
         "sdo", "upload", "--axis", "x", "0x1008:0", "--type", "string",
     ]);
     assert_eq!(name.trim(), "gantry-sim CiA 402 servo");
+    // By node id: node 4 is c's drive, its serial number (0x1018:04) is its node id.
+    let serial = svc.ok(&["sdo", "upload", "--node", "4", "0x1018:4", "--type", "u32"]);
+    assert_eq!(serial.trim(), "4");
+    let e = svc.fails(&["sdo", "upload", "--node", "9", "0x1018:4"]);
+    assert!(
+        e.contains("--node 9: no such CANopen node on this bus (its nodes: 1, 2, 3, 4)"),
+        "{e}"
+    );
     let moving = svc.status();
     assert_eq!(moving["axes"][0]["state"], "DiscreteMotion", "{moving}");
     // An object the drive does not have: its abort code and the CiA 301 text.
