@@ -227,6 +227,7 @@ fn axis(
         name: name.into(),
         drive,
         node: None,
+        eds: None,
         kind: "linear".into(),
         units: "mm".into(),
         modulo: None,
@@ -322,6 +323,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             heartbeat_timeout_ms: None,
         },
         rt: RtSection::default(),
+        eds: vec![None; axes.len()],
         axes,
         kernel_axes,
     })
