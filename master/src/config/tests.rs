@@ -488,7 +488,8 @@ fn canopen_cycles_may_be_longer_than_ethercat_ones() {
     let ok = canopen(&["node = 1"], "bitrate = 125000\ncycle_us = 20000");
     // `canopen` writes cycle_us = 1000 first; TOML refuses a key twice, so build by hand.
     assert!(ok.is_err());
-    let text = "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 125000\ncycle_us = 20000\n\
+    let text =
+        "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 125000\ncycle_us = 20000\n\
                 [[axis]]\nname = \"a\"\nnode = 1\npdo = \"csp-minimal\"\n\
                 scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
                 max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n";
@@ -496,7 +497,13 @@ fn canopen_cycles_may_be_longer_than_ethercat_ones() {
     let e = Config::parse(&text.replace("20000", "60000"), "c.toml")
         .unwrap_err()
         .to_string();
-    assert!(e.ends_with("bus.cycle_us: 60000 µs is outside 250 to 50000 µs"), "{e}");
+    assert!(
+        e.ends_with("bus.cycle_us: 60000 µs is outside 250 to 50000 µs"),
+        "{e}"
+    );
     let e = mistake("cycle_us = 1000", "cycle_us = 20000");
-    assert!(e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"), "{e}");
+    assert!(
+        e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"),
+        "{e}"
+    );
 }

@@ -651,6 +651,14 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "statusword": format!("{:#06x}", d.statusword),
                 "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),
                 "bus_fault": d.bus_fault.map(|f| f.to_string()),
+                "canopen": d.can_node.map(|n| json!({
+                    "node": n.node,
+                    "nmt": n.nmt,
+                    "heartbeat_ms_ago": n.heard_ms_ago,
+                    "heartbeat_limit_ms": n.heartbeat_limit_ms,
+                    "lost_tpdos": n.lost_tpdos,
+                    "lost_in_a_row": n.lost_in_a_row,
+                })),
             })
         })
         .collect();
