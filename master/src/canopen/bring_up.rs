@@ -3,8 +3,9 @@
 //! to be a CiA 402 drive (0x1000) and named (0x1018), its PDOs configured by SDO in
 //! pre-operational by the procedure of CiA 301 §7.5.2.35–.38 (COB-ID invalid, mapping
 //! count 0, the entries, the count, transmission type 1 = synchronous at every SYNC, COB-ID
-//! valid), its heartbeat producer time (0x1017) and communication cycle period (0x1006)
-//! set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
+//! valid), its heartbeat producer time (0x1017), its consumer of gantry's own heartbeat
+//! (0x1016), the SYNC counter's overflow value (0x1019, when the SYNC carries one) and the
+//! communication cycle period (0x1006) set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
 //! each SDO transfer [`SDO_TIMEOUT_NS`]). The same configuration writes
 //! ([`config_steps`]) bring a node back in a restore, one per exchange.
 
@@ -39,6 +40,11 @@ pub const DEVICE_TYPE: u16 = 0x1000;
 pub const COMMUNICATION_CYCLE_PERIOD: u16 = 0x1006;
 /// 0x1017 producer heartbeat time (ms).
 pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
+/// 0x1016 consumer heartbeat time: sub 1 = node id << 16 | time in ms (CiA 301
+/// §7.5.2.16).
+pub const CONSUMER_HEARTBEAT_TIME: u16 = 0x1016;
+/// 0x1019 synchronous counter overflow value (CiA 301 §7.5.2.22).
+pub const SYNC_COUNTER_OVERFLOW: u16 = 0x1019;
 /// 0x1018 identity object.
 pub const IDENTITY: u16 = 0x1018;
 /// Device profile number of CiA 402 drives (0x1000 bits 0–15).
@@ -143,6 +149,12 @@ pub enum StartError {
         /// How long gantry waited.
         waited_ms: u64,
     },
+    /// `[bus] master_node` is no node id (the configuration's check refuses it first).
+    #[error("CANopen: master_node {id} is outside 1..=127")]
+    MasterNode {
+        /// What was given.
+        id: u8,
+    },
     /// The SDO client's configuration.
     #[error("CANopen: SDO client: {0}")]
     SdoConfig(gantry_drives::canopen::sdo::SdoConfigError),
@@ -158,6 +170,40 @@ pub enum StartError {
         /// Why it failed.
         failure: SdoFailure,
     },
+}
+
+/// What every node's communication is set to besides its PDOs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CommSettings {
+    /// 0x1017: its heartbeat producer time (ms).
+    pub heartbeat_ms: u16,
+    /// 0x1006: the communication cycle period (µs).
+    pub cycle_us: u32,
+    /// gantry's node id, whose heartbeat the node consumes (0x1016:01).
+    pub master: NodeId,
+    /// The consumer time for gantry's heartbeat (ms).
+    pub master_consumer_ms: u16,
+    /// 0x1019 (0: SYNC without counter, left as the node has it).
+    pub sync_overflow: u8,
+}
+
+impl CommSettings {
+    /// The settings of `config`'s `[bus]`.
+    pub fn of(config: &Config) -> Result<Self, StartError> {
+        Ok(Self {
+            heartbeat_ms: config.bus.heartbeat_producer_ms(),
+            cycle_us: config.bus.cycle_us,
+            master: master_node(config)?,
+            master_consumer_ms: config.bus.master_consumer_ms(),
+            sync_overflow: config.bus.sync_counter.unwrap_or(0),
+        })
+    }
+}
+
+/// gantry's node id on the bus of `config`.
+pub fn master_node(config: &Config) -> Result<NodeId, StartError> {
+    let id = config.bus.master_node();
+    NodeId::new(id).map_err(|_| StartError::MasterNode { id })
 }
 
 fn list(ids: &[u8]) -> String {
@@ -201,15 +247,23 @@ impl SdoStep {
 /// each direction, the procedure of CiA 301 §7.5.2.37 for those `plan` uses (COB-ID
 /// invalid, transmission type 1, mapping count 0, the entries, the count, COB-ID valid on
 /// its predefined identifier) and COB-ID invalid for the others (a vendor's defaults may
-/// have them valid); then 0x1017 heartbeat producer time, 0x1006 communication cycle
-/// period, and 0x6060 = CSP when the layout does not carry the mode.
+/// have them valid); then 0x1017 heartbeat producer time, 0x1016:01 the consumer of
+/// gantry's heartbeat, with a SYNC counter 0x1006 = 0 and 0x1019 (CiA 301 §7.5.2.22: the
+/// overflow value may only change while the communication cycle period is 0), 0x1006
+/// communication cycle period, and 0x6060 = CSP when the layout does not carry the mode.
 pub fn config_steps(
     node: NodeId,
     plan: &DrivePlan,
     layout: &PdoLayout,
-    heartbeat_ms: u16,
-    cycle_us: u32,
+    comm: &CommSettings,
 ) -> Vec<SdoStep> {
+    let CommSettings {
+        heartbeat_ms,
+        cycle_us,
+        master,
+        master_consumer_ms,
+        sync_overflow,
+    } = *comm;
     let mut steps = Vec::new();
     for (comm, mapping, base, pdos, what) in [
         (
@@ -277,6 +331,27 @@ pub fn config_steps(
         &heartbeat_ms.to_le_bytes(),
         "heartbeat producer time",
     ));
+    let consumer = u32::from(master.get()) << 16 | u32::from(master_consumer_ms);
+    steps.push(SdoStep::new(
+        CONSUMER_HEARTBEAT_TIME,
+        1,
+        &consumer.to_le_bytes(),
+        "consumer of gantry's heartbeat",
+    ));
+    if sync_overflow != 0 {
+        steps.push(SdoStep::new(
+            COMMUNICATION_CYCLE_PERIOD,
+            0,
+            &0u32.to_le_bytes(),
+            "communication cycle period 0 (before 0x1019)",
+        ));
+        steps.push(SdoStep::new(
+            SYNC_COUNTER_OVERFLOW,
+            0,
+            &[sync_overflow],
+            "synchronous counter overflow value",
+        ));
+    }
     steps.push(SdoStep::new(
         COMMUNICATION_CYCLE_PERIOD,
         0,
@@ -325,7 +400,7 @@ pub struct DriveSetup {
 /// check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    let heartbeat_ms = config.bus.heartbeat_producer_ms();
+    let comm = CommSettings::of(config)?;
     config
         .axes
         .iter()
@@ -345,7 +420,7 @@ pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
                 pdo: a.pdo.clone(),
                 source,
             })?;
-            let steps = config_steps(node, &plan, &layout, heartbeat_ms, config.bus.cycle_us);
+            let steps = config_steps(node, &plan, &layout, &comm);
             Ok(DriveSetup {
                 axis: a.name.clone(),
                 node,
