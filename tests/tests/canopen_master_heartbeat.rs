@@ -8,8 +8,10 @@
 
 use gantry_drives::canopen::cob_id::SYNC_COB_ID;
 use gantry_drives::canopen::emcy::Emergency;
-use gantry_drives::canopen::CanFrame;
+use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
+use gantry_drives::canopen::{CanFrame, NodeId};
 use gantry_drives::cia402::state::State;
+use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_sim::canopen::bus::Sender;
 use gantry_tests::can_rig::{can_config, can_config_with, servos, CanRig};
@@ -200,6 +202,40 @@ fn with_sync_counter_the_sync_counts_and_every_node_has_0x1019() {
             .filter_map(|d| Emergency::parse(&d.frame).ok())
             .any(|e| e.error_code == 0x8240);
         assert!(!wrong_length, "node {n}");
+    }
+    // Node 2 reset by another master (0x1019 back to 0, its power-on value): gantry's
+    // reset brings it back with 0x1019 = 4 again (0x1006 = 0 first), and it moves.
+    let reset = NmtFrame {
+        command: NmtCommand::ResetNode,
+        target: NmtTarget::Node(NodeId::new(2).unwrap()),
+    };
+    rig.sim().inject(reset.emit());
+    assert_eq!(object_u32(&rig, 2, 0x1019, 0) & 0xFF, 0);
+    while rig.bus_fault(1).is_none() {
+        rig.cycle();
+    }
+    let h = rig.ctl.reset(1).unwrap();
+    assert_eq!(rig.finish(&h, 5000), CommandStatus::Done);
+    assert_eq!(object_u32(&rig, 2, 0x1019, 0) & 0xFF, 4);
+    assert_eq!(object_u32(&rig, 2, 0x1006, 0), 2000);
+    let restored_at = rig.sim().bus.log().len();
+    assert_eq!(
+        rig.command(1, Command::Power(PowerCommand::Enable)),
+        CommandStatus::Done
+    );
+    let h = rig.start_move(1, 0.0);
+    assert_eq!(rig.finish(&h, 5000), CommandStatus::Done);
+    assert!(rig.sim().node(2).counters().last_sync_counter.is_some());
+    // Its SYNCs have the length 0x1019 says again (no EMCY 0x8240 since the restore).
+    let wrong_length = rig.sim().bus.log()[restored_at..]
+        .iter()
+        .filter(|d| d.frame.id() == 0x082)
+        .filter_map(|d| Emergency::parse(&d.frame).ok())
+        .any(|e| e.error_code == 0x8240);
+    assert!(!wrong_length);
+    let syncs = sent_by_master(&rig, SYNC_COB_ID);
+    for (k, (_, data)) in syncs.iter().enumerate() {
+        assert_eq!(data, &[(k % 4) as u8 + 1], "SYNC {k}");
     }
     // Without the key, a SYNC has no data byte and 0x1019 stays 0.
     let mut plain = CanRig::new(&can_config(&[5], 2000, "csp-minimal"), servos(&[5]));

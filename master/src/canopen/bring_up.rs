@@ -709,3 +709,56 @@ pub fn run(
     let _ = writeln!(out, "CANopen: {} nodes operational", drives.len());
     Ok(infos)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn steps(sync_overflow: u8) -> Vec<SdoStep> {
+        let layout = PdoLayout::csp_minimal();
+        let plan = DrivePlan::of(&layout).unwrap();
+        let comm = CommSettings {
+            heartbeat_ms: 100,
+            cycle_us: 2000,
+            master: NodeId::new(127).unwrap(),
+            master_consumer_ms: 300,
+            sync_overflow,
+        };
+        config_steps(NodeId::new(3).unwrap(), &plan, &layout, &comm)
+    }
+
+    fn at(steps: &[SdoStep], index: u16, sub: u8, value: &[u8]) -> Option<usize> {
+        steps
+            .iter()
+            .position(|s| s.mux == Multiplexer::new(index, sub) && s.value() == value)
+    }
+
+    #[test]
+    fn every_node_consumes_gantrys_heartbeat() {
+        let s = steps(0);
+        // 0x1016:01 = node 127 << 16 | 300 ms.
+        let consumer = (127u32 << 16 | 300).to_le_bytes();
+        assert!(at(&s, CONSUMER_HEARTBEAT_TIME, 1, &consumer).is_some());
+        // No SYNC counter: 0x1019 is left alone (an optional object).
+        assert!(s.iter().all(|x| x.mux.index != SYNC_COUNTER_OVERFLOW));
+        assert_eq!(
+            s.iter()
+                .filter(|x| x.mux.index == COMMUNICATION_CYCLE_PERIOD)
+                .count(),
+            1
+        );
+    }
+
+    #[test]
+    fn the_sync_counter_is_written_while_the_cycle_period_is_0() {
+        let s = steps(16);
+        // CiA 301 §7.5.2.22: 0x1019 only changes while 0x1006 is 0.
+        let zero = at(&s, COMMUNICATION_CYCLE_PERIOD, 0, &0u32.to_le_bytes()).unwrap();
+        let counter = at(&s, SYNC_COUNTER_OVERFLOW, 0, &[16]).unwrap();
+        let period = at(&s, COMMUNICATION_CYCLE_PERIOD, 0, &2000u32.to_le_bytes()).unwrap();
+        assert!(
+            zero < counter && counter < period,
+            "{zero} {counter} {period}"
+        );
+    }
+}

@@ -223,10 +223,11 @@ fn canopen() {
     use gantry::runtime::cycle::Cycle;
     use gantry::runtime::engine::Engine;
     use gantry_tests::can_lockfree::LockFreeLink;
-    use gantry_tests::can_rig::{can_config, servos};
+    use gantry_tests::can_rig::{can_config_with, servos};
 
     const NODES: [u8; 4] = [1, 2, 3, 4];
-    let config = can_config(&NODES, 2000, "csp");
+    // With a SYNC counter: its count and the restore's 0x1019 write run filtered too.
+    let config = can_config_with(&NODES, 2000, "csp", "sync_counter = 16");
     let (link, control) = LockFreeLink::new(servos(&NODES));
     let (tx, rx) = mpsc::channel();
     let steer = control.clone();
