@@ -44,6 +44,14 @@ fn gantry_produces_its_heartbeat_at_the_period_and_every_node_consumes_it() {
     let nodes = [1u8, 2];
     let config = can_config(&nodes, 2000, "csp");
     let mut rig = CanRig::new(&config, servos(&nodes));
+    assert!(
+        rig.log.contains(
+            "CANopen: gantry is node 127: its heartbeat every 100 ms, the nodes stop 300 ms \
+             without it; SYNC without counter"
+        ),
+        "{}",
+        rig.log
+    );
     let start = rig.sim().now_ns();
     rig.run(1000); // 2 s of 2 ms cycles.
     let beats = sent_by_master(&rig, 0x700 + 127);
@@ -175,6 +183,7 @@ fn with_sync_counter_the_sync_counts_and_every_node_has_0x1019() {
     let nodes = [1u8, 2, 3];
     let config = can_config_with(&nodes, 2000, "csp-minimal", "sync_counter = 4");
     let mut rig = CanRig::new(&config, servos(&nodes));
+    assert!(rig.log.contains("SYNC with counter 1..=4"), "{}", rig.log);
     for n in nodes {
         assert_eq!(object_u32(&rig, n, 0x1019, 0) & 0xFF, 4, "node {n}");
         assert_eq!(object_u32(&rig, n, 0x1006, 0), 2000, "node {n}");

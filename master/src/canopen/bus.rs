@@ -252,6 +252,18 @@ impl CanopenBus {
             });
         }
         let master = bring_up::master_node(config)?;
+        let _ = writeln!(
+            out,
+            "CANopen: gantry is node {}: its heartbeat every {} ms, the nodes stop {} ms \
+             without it; SYNC {}",
+            master.get(),
+            config.bus.heartbeat_producer_ms(),
+            config.bus.master_consumer_ms(),
+            match config.bus.sync_counter {
+                Some(n) => format!("with counter 1..={n}"),
+                None => "without counter".into(),
+            }
+        );
         Ok(Self {
             link,
             drives,
