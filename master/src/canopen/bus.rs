@@ -1,9 +1,13 @@
 //! The CANopen bus in the cycle ([`CanopenBus`], a [`CycleBus`]): each exchange sends
 //! every operational drive's RPDOs, then the SYNC (CiA 301 §7.2.5: the drives take the
-//! RPDOs' data and sample their inputs at the SYNC), and reads until the deadline the
-//! TPDOs they answer with. It watches the nodes from what they send: a TPDO set missing
-//! at the deadline is a lost exchange for its drive (`[bus.faults] lost_frames_limit` in
-//! a row faults it), a heartbeat silent for the consumer time, a boot-up (the node reset)
+//! RPDOs' data and sample their inputs at the SYNC; with `[bus] sync_counter` the SYNC
+//! counts 1..=N, §7.2.5.2.1), and reads until the deadline the TPDOs they answer with.
+//! gantry is a heartbeat producer too (§7.2.8.3.2.2: `[bus] master_node`, every
+//! `heartbeat_ms`, sent by the cycle after the SYNC), which every node consumes (0x1016,
+//! set at bring-up): a drive stops by its 0x6007 reaction when the cycle stops.
+//!
+//! It watches the nodes from what they send: a TPDO set missing at the deadline is a lost
+//! exchange for its drive (`[bus.faults] lost_frames_limit` in a row faults it), a heartbeat silent for the consumer time, a boot-up (the node reset)
 //! or a heartbeat reporting another NMT state fault it; an EMCY hands the drive's error
 //! code to its axis ([`CycleBus::drive_error`]). A reset brings a faulted node back one
 //! step per exchange: NMT reset communication, its boot-up, its configuration by SDO,
