@@ -37,6 +37,8 @@ need_packages() {
   command -v setpriv >/dev/null 2>&1 || missing+=(util-linux)
   # systemd-analyze: the test that systemd accepts deploy/gantry.service.
   command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
+  # cansend: the vcan tests send a 29-bit frame with it (in the VM it is the host's too).
+  command -v cansend >/dev/null 2>&1 || missing+=(can-utils)
   # python3 with venv (ensurepip) runs the SOEM test peer (tests/peers/).
   command -v python3 >/dev/null 2>&1 || missing+=(python3)
   python3 -c "import ensurepip" >/dev/null 2>&1 || missing+=(python3-venv)
@@ -96,6 +98,7 @@ for line in sys.stdin:
   [ -n "$bins" ] || { echo "no vcan test binaries built" >&2; return 1; }
   local cmd="failed=0; for t in $(echo $bins); do GANTRY_PEER_PYTHON=$GANTRY_PEER_PYTHON \$t || failed=1; done; exit \$failed"
   if host_has_vcan; then
+    ip netns del gantry-vcan >/dev/null 2>&1 || true
     ip netns add gantry-vcan
     local i
     for i in 0 1; do

@@ -146,6 +146,12 @@ impl SlaveChain {
         self.faults.drop_frames = n;
     }
 
+    /// Loses the replies of the next `n` frames after the slaves served them (see
+    /// [`Faults::drop_replies`]).
+    pub fn drop_replies(&mut self, n: u32) {
+        self.faults.drop_replies = n;
+    }
+
     /// Pulls the cable in front of slave `k`: it and the slaves after it stop answering;
     /// slave `k - 1` closes its port 1. `None` plugs it back in (the slaves kept their
     /// configuration, as they kept their power).
@@ -340,6 +346,9 @@ impl SlaveChain {
         })?;
         if reachable > 0 {
             f.mark_forwarded();
+        }
+        if self.faults.lose_reply() {
+            return Err(ChainError::Lost);
         }
         Ok(())
     }
@@ -737,6 +746,19 @@ mod tests {
         assert_eq!(f, before);
         let mut junk = vec![0u8; 5];
         assert!(matches!(c.process(&mut junk), Err(ChainError::Frame(_))));
+    }
+
+    #[test]
+    fn a_lost_reply_did_its_work_on_the_way_out() {
+        let mut c = chain(2);
+        c.drop_replies(1);
+        // APWR of a station address to the first slave: taken, but no reply.
+        let mut f = frame(Command::Apwr, 0, 0x0010, &[0x34, 0x12]);
+        assert_eq!(c.process(&mut f), Err(ChainError::Lost));
+        let mut f = frame(Command::Aprd, 0, 0x0010, &[0, 0]);
+        c.process(&mut f).unwrap();
+        let (data, wkc) = reply(&f);
+        assert_eq!((data, wkc), (vec![0x34, 0x12], 1), "the write happened");
     }
 
     #[test]

@@ -403,6 +403,8 @@ pub struct AlConfig {
     pub sync_error_limit: Option<u16>,
     /// SafeOp → Op waits for valid outputs (default: a servo does, an I/O module not).
     pub op_needs_outputs: Option<bool>,
+    /// How long the firmware takes to answer a mailbox request (ms; default 0: at once).
+    pub mailbox_ms: Option<f64>,
 }
 
 /// Longest AL transition time accepted (ms): beyond, a master's state-transition timeout
@@ -426,6 +428,7 @@ impl AlConfig {
             ("al.init_to_preop_ms", self.init_to_preop_ms),
             ("al.preop_to_safeop_ms", self.preop_to_safeop_ms),
             ("al.safeop_to_op_ms", self.safeop_to_op_ms),
+            ("al.mailbox_ms", self.mailbox_ms),
         ]
         .into_iter()
         .find(|(_, v)| {
@@ -440,6 +443,9 @@ impl AlConfig {
             times: self.times(base.times),
             sync_error_limit: self.sync_error_limit.unwrap_or(base.sync_error_limit),
             op_needs_outputs: self.op_needs_outputs.unwrap_or(base.op_needs_outputs),
+            mailbox_response_ns: self
+                .mailbox_ms
+                .map_or(base.mailbox_response_ns, |ms| (ms * 1e6).round() as u64),
             ..base
         }
     }

@@ -18,6 +18,11 @@ pub struct Faults {
     /// still work: the slave answers, in OP, and only the process data's working counter
     /// says something is wrong.
     pub no_process_data: Option<usize>,
+    /// Replies still to lose after the slaves served their frame (each decrements it): a
+    /// frame that did its work on the way out and was lost on the way back (a CRC error
+    /// on the return path). The master sees no reply to accesses that happened — a
+    /// mailbox write taken, a mailbox read that emptied it.
+    pub drop_replies: u32,
 }
 
 impl Faults {
@@ -25,6 +30,16 @@ impl Faults {
     pub fn lose_frame(&mut self) -> bool {
         if self.drop_frames > 0 {
             self.drop_frames -= 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Whether the reply of a frame the slaves served is lost (and counts it).
+    pub fn lose_reply(&mut self) -> bool {
+        if self.drop_replies > 0 {
+            self.drop_replies -= 1;
             true
         } else {
             false

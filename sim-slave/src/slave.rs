@@ -79,6 +79,9 @@ pub struct Slave {
     /// The counter of the last mailbox request served (ETG.1000.6 Table 29): a request
     /// with the same non-zero counter is a repeat of it and is discarded.
     mailbox_counter: u8,
+    /// An answer the firmware is still working on: when it is due (chain time) and the
+    /// SM1 area it will write ([`Firmware::mailbox_response_ns`]).
+    answer_due: Option<(u64, Vec<u8>)>,
     /// Whether the ESC loaded its EEPROM's configuration area (DL status bit 0).
     eeprom_loaded: bool,
     /// The ports wired (DL status), as the chain last set them.
@@ -142,6 +145,7 @@ impl Slave {
             answered: false,
             sdo: coe::SdoServer::default(),
             mailbox_counter: 0,
+            answer_due: None,
             eeprom_loaded,
             wired: [false; 4],
             firmware: Firmware::SIMPLE,
@@ -252,6 +256,7 @@ impl Slave {
             self.set_ports(self.wired);
         }
         self.run_transition(t);
+        self.post_answer();
         let in_op = AlState::from_bits(self.al_status()) == AlState::Op;
         if !in_op {
             self.watchdog.disarm(&mut self.memory, t);
@@ -570,10 +575,11 @@ impl Slave {
                 }
             }
             // A request that waited for the answer before it to be read is served now.
-            let waiting = self
-                .mailbox(Kind::MailboxWrite)
+            let waiting = emptied
+                .then(|| self.mailbox(Kind::MailboxWrite))
+                .flatten()
                 .filter(|(_, s)| s.status & status::MAILBOX_FULL != 0);
-            if let (true, Some((n, s))) = (emptied, waiting) {
+            if let Some((n, s)) = waiting {
                 self.on_mailbox_write(n, s);
             }
         }
@@ -717,6 +723,7 @@ impl Slave {
                 sm::set_status(&mut self.memory, n, reset);
                 if s.kind() == Kind::MailboxRead {
                     self.answered = false;
+                    self.answer_due = None;
                 }
                 // A mailbox set up anew starts its counting anew.
                 if s.kind() == Kind::MailboxWrite {
@@ -738,6 +745,26 @@ impl Slave {
         }
         let ack = (pdi & !sm::activate::REPEAT) | (request & sm::activate::REPEAT);
         self.memory.pdi_write(base + 7, &[ack]);
+    }
+
+    /// Writes the answer the firmware worked on to SM1 and marks it full, once it is due.
+    fn post_answer(&mut self) {
+        if self
+            .answer_due
+            .as_ref()
+            .is_none_or(|(due, _)| *due > self.now)
+        {
+            return;
+        }
+        let Some((_, area)) = self.answer_due.take() else {
+            return;
+        };
+        let Some((k, o)) = self.mailbox(Kind::MailboxRead) else {
+            return;
+        };
+        self.memory.pdi_write(o.start, &area);
+        sm::set_status(&mut self.memory, k, o.status | status::MAILBOX_FULL);
+        self.answered = true;
     }
 
     /// Keeps one application copy per enabled buffered output SyncManager, as configured.
@@ -795,7 +822,8 @@ impl Slave {
         let out = (0..sm::COUNT)
             .map(|k| (k, SyncManager::read_from(&self.memory, k)))
             .find(|(_, o)| o.enabled() && o.kind() == Kind::MailboxRead);
-        if out.is_some_and(|(_, o)| o.status & status::MAILBOX_FULL != 0) {
+        let busy = self.answer_due.is_some();
+        if busy || out.is_some_and(|(_, o)| o.status & status::MAILBOX_FULL != 0) {
             return;
         }
         let mut request = vec![0u8; usize::from(s.length)];
@@ -814,17 +842,16 @@ impl Slave {
         let Some(response) = response else {
             return;
         };
-        let Some((k, o)) = out else { return };
-        if response.len() > out_len {
+        if out.is_none() || response.len() > out_len {
             return;
         }
         let mut area = vec![0u8; out_len];
         if let Some(dst) = area.get_mut(..response.len()) {
             dst.copy_from_slice(&response);
         }
-        self.memory.pdi_write(o.start, &area);
-        sm::set_status(&mut self.memory, k, o.status | status::MAILBOX_FULL);
-        self.answered = true;
+        let due = self.now.saturating_add(self.firmware.mailbox_response_ns);
+        self.answer_due = Some((due, area));
+        self.post_answer();
         // The master may have written the sync error counter limit.
         if let Some(limit) = self
             .od
@@ -1270,6 +1297,36 @@ mod tests {
         });
         assert!(!full(&s));
         assert_eq!(s.byte(sm_base(1) + 7) & REPEAT, REPEAT);
+    }
+
+    #[test]
+    fn a_slow_firmware_answers_when_its_time_has_come() {
+        let mut s = servo_with_mailbox();
+        s.firmware.mailbox_response_ns = 2_000_000;
+        let sm0_full = |s: &Slave| s.byte(sm_base(0) + 5) & MAILBOX_FULL != 0;
+        s.advance_to(1_000_000);
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(1)).0,
+            1
+        );
+        assert!(!full(&s), "no answer yet");
+        assert_eq!(fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]).0, 0);
+        // A second request while the firmware works waits in SM0.
+        assert_eq!(
+            fp(&mut s, Command::Fpwr, MAILBOX_OUT_AT, &upload_1018_01(2)).0,
+            1
+        );
+        assert!(sm0_full(&s));
+        s.advance_to(2_999_999);
+        assert!(!full(&s));
+        s.advance_to(3_000_000);
+        assert!(full(&s), "answered 2 ms later");
+        let (wkc, answer) = fp(&mut s, Command::Fprd, MAILBOX_IN_AT, &[0; 128]);
+        assert_eq!((wkc, &answer[8..12]), (1, &[0x43, 0x18, 0x10, 0x01][..]));
+        // Read: the firmware takes the waiting request, and answers it 2 ms on.
+        assert!(!sm0_full(&s) && !full(&s));
+        s.advance_to(5_000_000);
+        assert!(full(&s));
     }
 
     #[test]

@@ -141,7 +141,22 @@ impl CanMaster {
         sub: u8,
         mode: UploadMode,
     ) -> Result<Vec<u8>, Outcome> {
-        let mut client = Self::client(node);
+        self.upload_with(SdoConfig::default(), node, index, sub, mode)
+    }
+
+    /// [`CanMaster::upload`] with a client of this configuration.
+    pub fn upload_with(
+        &mut self,
+        config: SdoConfig,
+        node: NodeId,
+        index: u16,
+        sub: u8,
+        mode: UploadMode,
+    ) -> Result<Vec<u8>, Outcome> {
+        let mut client = match SdoClient::new(node, config, vec![0u8; SDO_BUFFER]) {
+            Ok(c) => c,
+            Err(e) => panic!("SDO client: {e}"),
+        };
         let mux = Multiplexer::new(index, sub);
         let outcome = self.transfer(&mut client, |c, now| {
             if let Err(e) = c.upload(mux, mode, now) {

@@ -5,7 +5,9 @@
 //! clocks switch on, the shutdown at the end. A counting allocator watches the cycle
 //! thread from its first cycle to its last while the application moves the axes, the bus
 //! loses frames, a cable is pulled long enough for a slave to drop out of OP, and a reset
-//! brings it back (the recovery's register accesses run inside the watched cycles). That
+//! brings it back (the recovery's register accesses run inside the watched cycles), and
+//! SDO transfers (expedited and segmented, both ways, an abort) go through the drives'
+//! mailboxes beside the process data. That
 //! it takes no lock is `runtime_no_lock.rs`. Needs root (real time), as `deploy/test.sh`
 //! runs it.
 
@@ -14,6 +16,7 @@ use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
 use gantry::runtime::controller::Controller;
+use gantry::runtime::sdo::{SdoData, SdoRequest};
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
 use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -67,8 +70,35 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
         })
         .unwrap();
     let (ends, chain) = rx.recv().unwrap();
+    // An object longer than a drive's mailbox carries in one message: segmented both ways.
+    let long: Vec<u8> = (0..200u32).map(|i| i as u8).collect();
+    for i in 0..AXES {
+        let mut c = chain.lock().unwrap();
+        let od = c.slave_mut(i).and_then(|s| s.object_dictionary_mut());
+        od.expect("a servo with CoE").insert(0x2100, 0, &long, true);
+    }
     let names = (0..AXES).map(|i| format!("a{i}")).collect();
     let ctl = Controller::new(ends, names);
+    // SDO transfers during a move, each waited for.
+    let transfers = |round: usize| {
+        let drive = round % AXES;
+        let new: Vec<u8> = long.iter().map(|b| b ^ round as u8).collect();
+        let requests = [
+            SdoRequest::upload(drive, 0x1018, 1),
+            SdoRequest::download(drive, 0x6060, 0, SdoData::new(&[8]).unwrap()),
+            SdoRequest::download(drive, 0x2100, 0, SdoData::new(&new).unwrap()),
+            SdoRequest::upload(drive, 0x2100, 0),
+            SdoRequest::upload(drive, 0x2000, 0),
+        ];
+        let mut outcomes = Vec::new();
+        for r in requests {
+            let h = ctl.sdo(r).unwrap();
+            outcomes.push(h.wait(Duration::from_secs(5)).expect("an outcome"));
+        }
+        assert!(outcomes[..3].iter().all(Result::is_ok), "{outcomes:?}");
+        assert_eq!(outcomes[3].unwrap().as_slice(), &new[..]);
+        assert!(outcomes[4].is_err(), "0x2000 does not exist: aborted");
+    };
     for i in 0..AXES {
         ctl.command(i, Command::Power(PowerCommand::Enable))
             .unwrap();
@@ -105,6 +135,7 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
             // Two frames lost mid-move (fewer in a row than the limit: ridden through).
             chain.lock().unwrap().drop_frames(2);
         }
+        transfers(round);
         for (i, h) in handles.into_iter().enumerate() {
             match h.wait(Duration::from_secs(2)) {
                 Ok(CommandStatus::Done) => done += 1,

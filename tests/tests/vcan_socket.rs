@@ -34,11 +34,33 @@ fn ip(args: &[&str]) {
     assert!(status.success(), "ip {args:?}: {status}");
 }
 
+/// Linux turns its receive stamping on lazily: the first socket that asks for stamps
+/// schedules a work item that enables it, and until it ran a frame is stamped when it is
+/// read, not when it came. Waits (1 s at most) until a frame read 20 ms after it was sent
+/// carries its arrival time.
+fn wait_for_arrival_stamps(a: &CanSocket, b: &CanSocket) {
+    let probe = CanFrame::new(0x7E5, &[0]).unwrap();
+    for _ in 0..50 {
+        a.send(&probe).unwrap();
+        let sent = monotonic_ns();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        let got = b
+            .recv_until(monotonic_ns() + 1_000_000_000)
+            .unwrap()
+            .expect("probe");
+        if got.stamp_ns.is_some_and(|s| s <= sent + 1_000_000) {
+            return;
+        }
+    }
+    panic!("frames are still stamped when read, not when they came, after 1 s");
+}
+
 #[test]
 fn vcan_socket_frames_cross_with_monotonic_stamps_and_not_back_to_the_sender() {
     let _bus = BUS.lock().unwrap_or_else(|e| e.into_inner());
     let (a, b) = (open(IFACE), open(IFACE));
     assert_eq!(a.interface().as_str(), IFACE);
+    wait_for_arrival_stamps(&a, &b);
     let frames = [
         CanFrame::new(0x605, &[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]).unwrap(),
         CanFrame::new(0x080, &[]).unwrap(),
@@ -49,6 +71,8 @@ fn vcan_socket_frames_cross_with_monotonic_stamps_and_not_back_to_the_sender() {
         a.send(f).unwrap();
     }
     let after = monotonic_ns();
+    // Read 50 ms later: the stamps still say when the frames came.
+    std::thread::sleep(std::time::Duration::from_millis(50));
     for f in &frames {
         let got = b
             .recv_until(monotonic_ns() + 2_000_000_000)

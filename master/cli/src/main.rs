@@ -202,6 +202,20 @@ enum Cmd {
         #[command(subcommand)]
         op: SdoOp,
     },
+    /// Write the DCF (CiA 306) of what the bring-up configures on an axis' CANopen node:
+    /// its EDS (the axis' eds, or the simulated node's) with the node id, bit rate and
+    /// every object the bring-up writes. Offline: no bus needed.
+    Dcf {
+        /// Configuration file (TOML).
+        #[arg(long)]
+        config: String,
+        /// The axis whose node it is.
+        #[arg(long)]
+        axis: String,
+        /// Where to write the DCF.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Check this machine for real-time use and measure the cycle's wake-up latency
     /// (beside cyclictest when rt-tests is installed).
     RtCheck {
@@ -384,9 +398,13 @@ enum SdoOp {
         target: SdoTarget,
         /// The object: INDEX:SUB in hex (e.g. 0x6061:0).
         object: String,
-        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
-        #[arg(long = "type", default_value = "hex")]
-        ty: SdoType,
+        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex (default: the object's type in
+        /// the drive's EDS, `[[axis]] eds`; hex bytes for a drive without one).
+        #[arg(long = "type")]
+        ty: Option<SdoType>,
+        /// Seconds the drive may take to answer (default 2).
+        #[arg(long, value_parser = finite)]
+        timeout: Option<f64>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -399,9 +417,13 @@ enum SdoOp {
         /// The value (decimal or 0x… for integers; hex digits for --type hex).
         #[arg(allow_hyphen_values = true)]
         value: String,
-        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex.
-        #[arg(long = "type", default_value = "hex")]
-        ty: SdoType,
+        /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex (default: the object's type in
+        /// the drive's EDS, `[[axis]] eds`; hex bytes for a drive without one).
+        #[arg(long = "type")]
+        ty: Option<SdoType>,
+        /// Seconds the drive may take to answer (default 2).
+        #[arg(long, value_parser = finite)]
+        timeout: Option<f64>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -502,36 +524,48 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Axis(command) => AxisCommand::of(command).send()?,
         Cmd::Sdo { op } => {
-            let (target, object, value, ty, opts) = match op {
+            let (target, object, value, ty, timeout, opts) = match op {
                 SdoOp::Upload {
                     target,
                     object,
                     ty,
+                    timeout,
                     client,
-                } => (target, object, None, ty, client),
+                } => (target, object, None, ty, timeout, client),
                 SdoOp::Download {
                     target,
                     object,
                     value,
                     ty,
+                    timeout,
                     client,
-                } => (target, object, Some(value), ty, client),
+                } => (target, object, Some(value), ty, timeout, client),
             };
+            anyhow::ensure!(
+                timeout.is_none_or(|t| (0.001..=60.0).contains(&t)),
+                "--timeout must be 0.001 to 60 s"
+            );
             // What was typed is checked before the service is asked.
             let (_, _) = sdo_cli::parse_address(&object)?;
-            if let Some(v) = &value {
-                sdo_cli::encode(ty, v)?;
+            if let (Some(t), Some(v)) = (ty, &value) {
+                sdo_cli::encode(t, v)?;
             }
             let mut c = opts.connect()?;
             sdo_cli::run(
                 &mut c,
-                target.target(),
-                &object,
-                value.as_deref(),
-                ty,
+                &sdo_cli::Transfer {
+                    target: target.target(),
+                    address: &object,
+                    value: value.as_deref(),
+                    ty,
+                    timeout_s: timeout,
+                },
                 opts.json,
                 &mut std::io::stdout(),
             )?;
+        }
+        Cmd::Dcf { config, axis, out } => {
+            println!("{}", gantry_cli::dcf::run(&config, &axis, &out)?);
         }
         Cmd::Trace {
             axes,

@@ -2,13 +2,18 @@
 //! types them, turned into the bytes of the transfer and back. Numbers are little-endian
 //! on the wire (CiA 301 §7.1.2, ETG.1000.6 §5.6: the object dictionary's encoding), so a
 //! value is written with exactly its type's width; a value that does not fit the type is
-//! refused here, before anything reaches the drive.
+//! refused here, before anything reaches the drive. Without `--type`, a drive whose axis
+//! names its EDS (`[[axis]] eds`) has each object read and written as the EDS' data type
+//! says (the service answers an `object` request from the configuration, and refuses an
+//! object the EDS does not have: "0x2001:00 is not in drive.eds"); a drive without an
+//! EDS is read and written as raw hex bytes, as before.
 
 use std::fmt;
 use std::io::Write;
 use std::str::FromStr;
 
 use gantry::service::protocol::{Request, SdoDirection};
+use gantry_drives::canopen::eds::{DataType, Value};
 use serde_json::json;
 use thiserror::Error;
 
@@ -100,6 +105,31 @@ pub enum SdoInputError {
         /// More about it.
         why: &'static str,
     },
+    /// The value does not fit the EDS' type.
+    #[error("value {value:?} is not a {ty}, the object's type in its EDS ({why})")]
+    EdsValue {
+        /// What was typed.
+        value: String,
+        /// The type.
+        ty: &'static str,
+        /// Why.
+        why: String,
+    },
+    /// The bytes read are not as long as the EDS' type.
+    #[error(
+        "the drive sent {got} bytes ({hex}), a {ty} (the object's type in its EDS) has \
+         {want}; --type hex shows them raw"
+    )]
+    EdsWidth {
+        /// The type.
+        ty: &'static str,
+        /// Its width.
+        want: usize,
+        /// Bytes received.
+        got: usize,
+        /// The bytes.
+        hex: String,
+    },
     /// The bytes read are not as long as the type.
     #[error("the drive sent {got} bytes ({hex}), a {ty} has {want}; --type hex shows them raw")]
     Width {
@@ -112,6 +142,92 @@ pub enum SdoInputError {
         /// The bytes.
         hex: String,
     },
+}
+
+/// How a transfer's value is read and written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Typing {
+    /// As the user's `--type`.
+    Given(SdoType),
+    /// As the entry's data type in the drive's EDS, on node `node` (for `$NODEID`).
+    Eds {
+        /// The CiA 301 type.
+        ty: DataType,
+        /// The drive's node id.
+        node: u8,
+    },
+}
+
+impl fmt::Display for Typing {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Given(t) => t.fmt(f),
+            Self::Eds { ty, .. } => f.write_str(ty.name()),
+        }
+    }
+}
+
+impl Typing {
+    /// The bytes of `value`.
+    pub fn encode(self, value: &str) -> Result<Vec<u8>, SdoInputError> {
+        match self {
+            Self::Given(t) => encode(t, value),
+            Self::Eds { ty, node } => encode_eds(ty, node, value),
+        }
+    }
+
+    /// `bytes` for people.
+    pub fn decode(self, bytes: &[u8]) -> Result<String, SdoInputError> {
+        match self {
+            Self::Given(t) => decode(t, bytes),
+            Self::Eds { ty, .. } => decode_eds(ty, bytes),
+        }
+    }
+}
+
+/// The bytes of `value` as an entry of CiA 301 type `ty` on node `node` (integers as
+/// `--type` takes them: decimal or 0x… hex, within the type's range; other types as
+/// an EDS writes them: reals, strings, octets as hex digits).
+pub fn encode_eds(ty: DataType, node: u8, value: &str) -> Result<Vec<u8>, SdoInputError> {
+    let bad = |why: String| SdoInputError::EdsValue {
+        value: value.to_string(),
+        ty: ty.name(),
+        why,
+    };
+    let parsed = if ty.is_integer() {
+        integer(value.trim())
+            .map(Value::Integer)
+            .ok_or_else(|| bad("a whole number, or 0x… hex".into()))?
+    } else {
+        Value::parse(value, ty)
+            .map_err(|e| bad(e.to_string()))?
+            .ok_or_else(|| bad("no value given".into()))?
+    };
+    if let Value::Real(f) = parsed {
+        if !f.is_finite() {
+            return Err(bad("a finite number".into()));
+        }
+    }
+    parsed.to_le_bytes(ty, node).map_err(|e| bad(e.to_string()))
+}
+
+/// `bytes` read as an entry of CiA 301 type `ty`, for people (integers in decimal).
+pub fn decode_eds(ty: DataType, bytes: &[u8]) -> Result<String, SdoInputError> {
+    let value = Value::from_le_bytes(bytes, ty).map_err(|_| SdoInputError::EdsWidth {
+        ty: ty.name(),
+        want: ty.bytes().unwrap_or(0),
+        got: bytes.len(),
+        hex: gantry::service::server::to_hex(bytes),
+    })?;
+    Ok(match value {
+        Value::Integer(n) => n.to_string(),
+        Value::Real(f) if ty == DataType::Real32 => (f as f32).to_string(),
+        Value::Real(f) => f.to_string(),
+        // A VISIBLE_STRING may end in NULs (CiA 301 §7.1.6.3 pads with them).
+        Value::Text(t) => t.trim_end_matches('\0').to_string(),
+        Value::Octets(b) => gantry::service::server::to_hex(&b),
+        other => other.to_eds(ty),
+    })
 }
 
 /// Reads `INDEX:SUB`: both hexadecimal, with or without `0x`.
@@ -243,23 +359,69 @@ pub enum Target {
     Drive(usize),
 }
 
-/// Runs `gantry sdo upload` (no `value`) or `download`: prints the value read (as `ty`),
-/// or nothing for a write; with `json`, one object.
+/// How to read and write `index`:`sub` of the drive: `ty` when given, else the type
+/// the drive's EDS gives it (the service refuses an object the EDS does not have), else
+/// raw hex.
+pub fn typing(
+    client: &mut Client,
+    axis: Option<String>,
+    drive: Option<usize>,
+    index: u16,
+    sub: u8,
+    ty: Option<SdoType>,
+) -> Result<Typing, SdoCliError> {
+    if let Some(t) = ty {
+        return Ok(Typing::Given(t));
+    }
+    let reply = client.request(&Request::Object {
+        axis,
+        drive,
+        index,
+        sub,
+    })?;
+    Ok(match reply["type"].as_str().and_then(DataType::from_name) {
+        Some(ty) => Typing::Eds {
+            ty,
+            node: reply["node"]
+                .as_u64()
+                .and_then(|n| u8::try_from(n).ok())
+                .unwrap_or(0),
+        },
+        None => Typing::Given(SdoType::Hex),
+    })
+}
+
+/// A transfer as typed on the command line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transfer<'a> {
+    /// Which drive.
+    pub target: Target,
+    /// `INDEX:SUB`.
+    pub address: &'a str,
+    /// The value to write; `None` reads.
+    pub value: Option<&'a str>,
+    /// How the value is typed (`None`: as the drive's EDS types the object, raw hex
+    /// for a drive without an EDS).
+    pub ty: Option<SdoType>,
+    /// Seconds the drive may take (`None`: the service's default).
+    pub timeout_s: Option<f64>,
+}
+
+/// Runs `gantry sdo upload` (no value) or `download`: prints the value read (as its
+/// type), or nothing for a write; with `json_out`, one object.
 pub fn run(
     client: &mut Client,
-    target: Target,
-    address: &str,
-    value: Option<&str>,
-    ty: SdoType,
+    transfer: &Transfer<'_>,
     json_out: bool,
     out: &mut dyn Write,
 ) -> Result<(), SdoCliError> {
-    let (index, sub) = parse_address(address)?;
-    let data = value.map(|v| encode(ty, v)).transpose()?;
-    let (axis, drive) = match target {
-        Target::Axis(a) => (Some(a), None),
-        Target::Drive(d) => (None, Some(d)),
+    let (index, sub) = parse_address(transfer.address)?;
+    let (axis, drive) = match &transfer.target {
+        Target::Axis(a) => (Some(a.clone()), None),
+        Target::Drive(d) => (None, Some(*d)),
     };
+    let ty = typing(client, axis.clone(), drive, index, sub, transfer.ty)?;
+    let data = transfer.value.map(|v| ty.encode(v)).transpose()?;
     let direction = if data.is_some() {
         SdoDirection::Download
     } else {
@@ -272,7 +434,7 @@ pub fn run(
         index,
         sub,
         data: data.as_deref().map(gantry::service::server::to_hex),
-        timeout_s: None,
+        timeout_s: transfer.timeout_s,
     };
     let reply = client.request(&request)?;
     let hex = reply["data"].as_str().unwrap_or_default();
@@ -281,9 +443,9 @@ pub fn run(
         writeln!(out, "{text}").map_err(|e| SdoCliError::Client(ClientError::Output(e)))
     };
     match (direction, json_out) {
-        (SdoDirection::Upload, false) => print(out, decode(ty, &bytes)?),
+        (SdoDirection::Upload, false) => print(out, ty.decode(&bytes)?),
         (SdoDirection::Upload, true) => {
-            let value = decode(ty, &bytes).ok();
+            let value = ty.decode(&bytes).ok();
             print(
                 out,
                 json!({"index": index, "sub": sub, "data": hex, "type": ty.to_string(), "value": value})
@@ -383,6 +545,51 @@ mod tests {
             let e = encode(ty, value).unwrap_err().to_string();
             assert!(e.contains(says), "{ty} {value}: {e}");
         }
+    }
+
+    #[test]
+    fn values_take_the_eds_type_of_their_object() {
+        use DataType::*;
+        let eds = |ty, v: &str| Typing::Eds { ty, node: 5 }.encode(v);
+        assert_eq!(eds(Integer32, "-2"), Ok(vec![0xFE, 0xFF, 0xFF, 0xFF]));
+        assert_eq!(eds(Unsigned16, "0x1234"), Ok(vec![0x34, 0x12]));
+        assert_eq!(eds(Unsigned24, "0x010203"), Ok(vec![3, 2, 1]));
+        assert_eq!(eds(Real32, "1.5"), Ok(1.5f32.to_le_bytes().to_vec()));
+        assert_eq!(eds(VisibleString, "SX400"), Ok(b"SX400".to_vec()));
+        assert_eq!(eds(OctetString, "0a1B"), Ok(vec![0x0A, 0x1B]));
+        for (ty, v, says) in [
+            (
+                Unsigned8,
+                "256",
+                "value \"256\" is not a UNSIGNED8, the object's type in its EDS",
+            ),
+            (Integer8, "12.5", "(a whole number, or 0x… hex)"),
+            (Real32, "nan", "(a finite number)"),
+            (OctetString, "abc", "is not a OCTET_STRING"),
+        ] {
+            let e = eds(ty, v).unwrap_err().to_string();
+            assert!(e.contains(says), "{ty:?} {v}: {e}");
+        }
+        let read = |ty, b: &[u8]| Typing::Eds { ty, node: 5 }.decode(b);
+        assert_eq!(read(Integer16, &[0xFE, 0xFF]).unwrap(), "-2");
+        assert_eq!(read(Unsigned32, &[0x92, 0x01, 2, 0]).unwrap(), "131474");
+        assert_eq!(read(Real32, &1.5f32.to_le_bytes()).unwrap(), "1.5");
+        assert_eq!(read(VisibleString, b"SX400\0").unwrap(), "SX400");
+        assert_eq!(
+            read(Integer32, &[1, 2]).unwrap_err().to_string(),
+            "the drive sent 2 bytes (0102), a INTEGER32 (the object's type in its EDS) has 4; \
+             --type hex shows them raw"
+        );
+        // A given --type wins over the EDS.
+        assert_eq!(Typing::Given(SdoType::U8).encode("8"), Ok(vec![8]));
+        assert_eq!(
+            Typing::Eds {
+                ty: Integer32,
+                node: 5
+            }
+            .to_string(),
+            "INTEGER32"
+        );
     }
 
     #[test]

@@ -435,3 +435,77 @@ fn an_error_prints_what_failed_and_its_cause_once() {
     );
     assert_eq!(e.matches("No such file").count(), 1, "{e}");
 }
+
+/// `gantry dcf` on a vendor's EDS (the ACME SX400 fixture of the EDS reader's tests).
+#[test]
+fn dcf_writes_the_vendor_eds_with_what_the_bring_up_configures() {
+    let dir = std::env::temp_dir().join(format!("gantry-cli-dcf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let acme = include_str!("../../../drives/tests/eds/acme_sx400.eds");
+    std::fs::write(dir.join("sx400.eds"), acme).unwrap();
+    let config = dir.join("c.toml");
+    let text = "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 1000000\n\
+                cycle_us = 1000\n[[axis]]\nname = \"x\"\nnode = 9\neds = \"sx400.eds\"\n\
+                scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+                max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n";
+    std::fs::write(&config, text).unwrap();
+    let out = dir.join("x.dcf");
+    let run = gantry()
+        .args(["dcf", "--config"])
+        .arg(&config)
+        .args(["--axis", "x", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{run:?}");
+    assert_eq!(
+        String::from_utf8_lossy(&run.stdout).trim(),
+        format!("gantry: DCF of axis \"x\" written to {}", out.display())
+    );
+    let dcf = gantry_drives::canopen::eds::load(&out).unwrap_or_else(|e| panic!("{e}"));
+    let c = dcf.commissioning.as_ref().unwrap();
+    assert_eq!(
+        (c.node_id, c.baudrate_kbit, c.node_name.as_str()),
+        (9, 1000, "x")
+    );
+    let value = |index: u16, sub: u8| {
+        dcf.entry(index, sub)
+            .and_then(|e| e.parameter_value.as_ref())
+            .and_then(|v| v.integer_on(9))
+    };
+    assert_eq!(
+        value(0x1600, 1),
+        Some(0x607A_0020),
+        "RPDO1: the target first"
+    );
+    assert_eq!(value(0x1400, 1), Some(0x209));
+    assert_eq!(value(0x1017, 0), Some(100));
+    // The consumer of gantry's heartbeat: node 127, 300 ms.
+    assert_eq!(value(0x1016, 1), Some(127 << 16 | 300));
+    assert_eq!(value(0x1006, 0), None, "the SX400 has no 0x1006");
+    assert_eq!(dcf.device_info.product_name, "SX400");
+    // A layout the drive cannot take: the configuration's error, a failing exit.
+    std::fs::write(
+        dir.join("sx400.eds"),
+        acme.replacen("NrOfTXPDO=4", "NrOfTXPDO=1", 1),
+    )
+    .unwrap();
+    let run = gantry()
+        .args(["dcf", "--config"])
+        .arg(&config)
+        .args(["--axis", "x", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let e = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(
+        e.trim(),
+        format!(
+            "gantry: {}:9: axis[0].eds: TPDO2 of pdo = \"csp\": TPDO 2 does not exist: {} has 1",
+            config.display(),
+            dir.join("sx400.eds").display()
+        )
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

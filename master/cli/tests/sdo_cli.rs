@@ -11,142 +11,79 @@
 //! simulated drives' own clock sees the host's stalls, which a move would turn into
 //! faults that are not the transfers'.
 
-use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
+mod support;
 
-fn gantry() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_gantry"))
+use support::{gantry, Service};
+
+/// A client command that must succeed: its stdout, trimmed.
+fn value(svc: &Service, args: &[&str]) -> String {
+    svc.ok(args).trim().to_string()
 }
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../deploy/examples")
-        .join(name)
+/// One raw line on the socket, its reply.
+fn raw_request(socket: &std::path::Path, line: &str) -> serde_json::Value {
+    use std::io::{BufRead, Write};
+    let mut s = std::os::unix::net::UnixStream::connect(socket).unwrap();
+    writeln!(s, "{line}").unwrap();
+    let mut reply = String::new();
+    std::io::BufReader::new(s).read_line(&mut reply).unwrap();
+    serde_json::from_str(&reply).unwrap()
 }
 
-struct Service {
-    child: Child,
-    socket: PathBuf,
-    dir: PathBuf,
-}
-
-impl Service {
-    /// The example configuration as shipped, from a folder of its own.
-    fn start() -> Self {
-        let dir = std::env::temp_dir().join(format!("gantry-sdo-cli-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        std::fs::copy(example("sim-4-axes.toml"), dir.join("gantry.toml")).unwrap();
-        std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
-        let socket = dir.join("gantry.sock");
-        let child = gantry()
-            .args(["run", "--no-rt", "--config"])
-            .arg(dir.join("gantry.toml"))
-            .arg("--socket")
-            .arg(&socket)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let end = Instant::now() + Duration::from_secs(20);
-        while UnixStream::connect(&socket).is_err() {
-            assert!(Instant::now() < end, "the service did not open its socket");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Self { child, socket, dir }
-    }
-
-    fn cli(&self, args: &[&str]) -> Output {
-        gantry()
-            .args(args)
-            .arg("--socket")
-            .arg(&self.socket)
-            .output()
-            .unwrap()
-    }
-
-    /// A command that must succeed: its stdout, trimmed.
-    fn ok(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).trim().to_string()
-    }
-
-    /// A command that must fail: its stderr.
-    fn fails(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(!out.status.success(), "{args:?} should fail");
-        let e = String::from_utf8_lossy(&out.stderr).into_owned();
-        assert!(!e.contains("panicked"), "{args:?}: {e}");
-        e
-    }
-
-    /// SIGTERM: the service ends as usual after the transfers (bus to PreOp, exit 0).
-    fn stop(mut self) {
-        nix::sys::signal::kill(
-            nix::unistd::Pid::from_raw(self.child.id() as i32),
-            nix::sys::signal::Signal::SIGTERM,
-        )
-        .unwrap();
-        let end = Instant::now() + Duration::from_secs(20);
-        let status = loop {
-            if let Some(s) = self.child.try_wait().unwrap() {
-                break s;
-            }
-            assert!(Instant::now() < end, "the service did not stop");
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let mut out = String::new();
-        std::io::Read::read_to_string(self.child.stdout.as_mut().unwrap(), &mut out).unwrap();
-        assert!(status.success(), "{out}");
-        assert!(out.contains("bus: slaves in PreOp"), "{out}");
-    }
-}
-
-impl Drop for Service {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
+/// SIGTERM: the service ends as usual after the transfers (bus to PreOp, exit 0).
+fn stop(mut svc: Service) {
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+    assert!(out.contains("bus: slaves in PreOp"), "{out}");
 }
 
 #[test]
 fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
-    let svc = Service::start();
+    // The last drive's firmware answers its mailbox in 40 ms (its `[slave.al]` table is
+    // the file's last).
+    let svc = Service::start_with("sdo-cli", |servos| servos + "mailbox_ms = 40\n");
     // The simulated servo: CiA 402, device type 0x00020192 (0x1000), CSP (0x6060 = 8).
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--axis", "x", "0x1000:0", "--type", "u32"]),
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "x", "0x1000:0", "--type", "u32"]
+        ),
         0x0002_0192u32.to_string()
     );
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--axis", "x", "1000:00"]),
+        value(&svc, &["sdo", "upload", "--axis", "x", "1000:00"]),
         "92010200",
         "hex by default, as on the wire"
     );
     // Its drive's mode of operation, written and read back; the same drive by its bus
     // position.
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--axis", "x", "0x6060:0", "--type", "i8"]),
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "x", "0x6060:0", "--type", "i8"]
+        ),
         "8"
     );
     assert_eq!(
-        svc.ok(&["sdo", "download", "--axis", "x", "0x6060:0", "8", "--type", "i8"]),
+        value(
+            &svc,
+            &["sdo", "download", "--axis", "x", "0x6060:0", "8", "--type", "i8"]
+        ),
         ""
     );
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--drive", "0", "0x6060:0", "--type", "u8"]),
+        value(
+            &svc,
+            &["sdo", "upload", "--drive", "0", "0x6060:0", "--type", "u8"]
+        ),
         "8"
     );
-    let j: serde_json::Value = serde_json::from_str(&svc.ok(&[
-        "sdo", "upload", "--axis", "y", "0x1018:0", "--type", "u8", "--json",
-    ]))
+    let j: serde_json::Value = serde_json::from_str(&value(
+        &svc,
+        &[
+            "sdo", "upload", "--axis", "y", "0x1018:0", "--type", "u8", "--json",
+        ],
+    ))
     .unwrap();
     assert_eq!(
         (j["index"].as_u64(), j["sub"].as_u64()),
@@ -158,15 +95,24 @@ fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
     );
     // A value of every width, written and read back: 0x6065 following error window
     // (UNSIGNED32), 0x6060 as the string of its one byte.
-    svc.ok(&[
-        "sdo", "download", "--axis", "z", "0x6065:0", "0x1234", "--type", "u32",
-    ]);
+    value(
+        &svc,
+        &[
+            "sdo", "download", "--axis", "z", "0x6065:0", "0x1234", "--type", "u32",
+        ],
+    );
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--axis", "z", "0x6065:0", "--type", "u32"]),
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "z", "0x6065:0", "--type", "u32"]
+        ),
         "4660"
     );
     assert_eq!(
-        svc.ok(&["sdo", "upload", "--axis", "z", "0x6065:0", "--type", "hex"]),
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "z", "0x6065:0", "--type", "hex"]
+        ),
         "34120000"
     );
     let e = svc.fails(&["sdo", "upload", "--axis", "z", "0x6065:0", "--type", "u16"]);
@@ -212,7 +158,56 @@ fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
     assert!(e.contains("cannot be used with"), "{e}");
     let e = svc.fails(&["sdo", "upload", "0x1000:0"]);
     assert!(e.contains("--axis") && e.contains("--drive"), "{e}");
-    svc.stop();
+    // A drive slower than the time given it (its firmware answers in 40 ms): the
+    // transfer times out and says so; its late answer is passed over by the next one.
+    let e = svc.fails(&[
+        "sdo",
+        "upload",
+        "--axis",
+        "c",
+        "0x1018:1",
+        "--timeout",
+        "0.01",
+    ]);
+    assert!(
+        e.contains("drive 3: SDO 0x1018:01: no answer within 1"),
+        "{e}"
+    );
+    assert_eq!(
+        value(
+            &svc,
+            &["sdo", "upload", "--axis", "c", "0x6060:0", "--type", "u8"]
+        ),
+        "8"
+    );
+    let e = svc.fails(&["sdo", "upload", "--axis", "c", "0x6060:0", "--timeout", "0"]);
+    assert!(e.contains("--timeout must be 0.001 to 60 s"), "{e}");
+
+    // What a script may send on the socket, checked there too.
+    for (line, says) in [
+        (
+            r#"{"v":1,"cmd":"sdo","axis":"x","direction":"download","index":24672,"sub":0,"data":"zz"}"#,
+            r#"sdo: data "zz" is not hex bytes"#,
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","axis":"x","drive":0,"direction":"upload","index":4096,"sub":0}"#,
+            "sdo: name the drive by its axis or by its bus position, one of the two",
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","drive":0,"direction":"download","index":24672,"sub":0}"#,
+            "sdo: a download needs data",
+        ),
+        (
+            r#"{"v":1,"cmd":"sdo","drive":0,"direction":"upload","index":65536,"sub":0}"#,
+            "invalid request",
+        ),
+    ] {
+        let reply = raw_request(&svc.socket, line);
+        assert_eq!(reply["ok"], false, "{line}");
+        let e = reply["error"].as_str().unwrap();
+        assert!(e.contains(says), "{line}: {e}");
+    }
+    stop(svc);
 }
 
 #[test]

@@ -6,138 +6,13 @@
 
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
-use gantry::config::Config;
-use gantry_cli::drive_records::{judge, AxisBound, Conditions};
-use gantry_sim::plant::record::read_records;
+mod support;
 
-fn gantry() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_gantry"))
-}
-
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../deploy/examples")
-        .join(name)
-}
-
-struct Service {
-    child: Child,
-    socket: PathBuf,
-    /// The folder of its configuration (the example, recording its drives).
-    dir: PathBuf,
-}
-
-impl Service {
-    /// The example configuration as shipped, with `bus.simulator_record` on, from a
-    /// folder of its own.
-    fn start(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
-        let off = "# simulator_record = \"drive-records.json\"";
-        assert!(text.contains(off), "the example documents simulator_record");
-        std::fs::write(
-            dir.join("gantry.toml"),
-            text.replace(off, "simulator_record = \"drive-records.json\""),
-        )
-        .unwrap();
-        std::fs::copy(example("sim-4-servos.toml"), dir.join("sim-4-servos.toml")).unwrap();
-        let socket = dir.join("gantry.sock");
-        let child = gantry()
-            .args(["run", "--no-rt", "--config"])
-            .arg(dir.join("gantry.toml"))
-            .arg("--socket")
-            .arg(&socket)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let end = Instant::now() + Duration::from_secs(20);
-        while UnixStream::connect(&socket).is_err() {
-            assert!(Instant::now() < end, "the service did not open its socket");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Self { child, socket, dir }
-    }
-
-    /// Judges what the simulated drives recorded (written when the service exited)
-    /// against the configuration's axes: the drive invariant (issue 10 §6). Not real
-    /// time (`--no-rt`): missed and doubled setpoints are the host's, not judged.
-    fn assert_drive_invariant(&self) {
-        let config = Config::load(&self.dir.join("gantry.toml").display().to_string()).unwrap();
-        let path = self.dir.join("drive-records.json");
-        let records = read_records(&path).unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(records.len(), 4, "one record per chain position");
-        let verdict = judge(
-            &records,
-            &AxisBound::of_config(&config).unwrap(),
-            Conditions::default(),
-        );
-        assert!(
-            verdict.holds(),
-            "{:#?}\n{:#?}",
-            verdict.broken,
-            verdict.summary
-        );
-        eprintln!("drive records: {:#?}", verdict.summary);
-    }
-
-    /// A client command on this service's socket (arguments may follow).
-    fn command(&self, args: &[&str]) -> Command {
-        let mut c = gantry();
-        c.args(args).arg("--socket").arg(&self.socket);
-        c
-    }
-
-    fn cli(&self, args: &[&str]) -> Output {
-        self.command(args).output().unwrap()
-    }
-
-    /// Runs a client command that must succeed; its stdout.
-    fn ok(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(
-            out.status.success(),
-            "{args:?}: {}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    }
-
-    /// Runs a client command that must fail; its stderr.
-    fn fails(&self, args: &[&str]) -> String {
-        let out = self.cli(args);
-        assert!(!out.status.success(), "{args:?} should fail");
-        String::from_utf8_lossy(&out.stderr).into_owned()
-    }
-
-    fn status(&self) -> serde_json::Value {
-        serde_json::from_str(&self.ok(&["status", "--json"])).unwrap()
-    }
-
-    fn axis(&self, name: &str) -> serde_json::Value {
-        self.status()["axes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|a| a["name"] == name)
-            .unwrap()
-            .clone()
-    }
-}
-
-impl Drop for Service {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
+use support::{example, gantry, Service};
 
 fn raw_request(socket: &Path, line: &[u8]) -> serde_json::Value {
     let mut s = UnixStream::connect(socket).unwrap();
@@ -302,21 +177,7 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(400));
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(svc.child.id() as i32),
-        nix::sys::signal::Signal::SIGTERM,
-    )
-    .unwrap();
-    let end = Instant::now() + Duration::from_secs(20);
-    let status = loop {
-        if let Some(s) = svc.child.try_wait().unwrap() {
-            break s;
-        }
-        assert!(Instant::now() < end, "the service did not stop");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut out = String::new();
-    std::io::Read::read_to_string(svc.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+    let (status, out) = svc.terminate();
     assert!(status.success(), "{out}");
     assert!(out.contains("bus: slaves in PreOp"), "{out}");
     assert!(out.contains("stopped after"), "{out}");

@@ -8,7 +8,9 @@
 //! until a `CLOCK_MONOTONIC` deadline, so the cycle thread reads TPDOs until just before its
 //! next deadline. Frames carry the kernel's receive time stamp (`SO_TIMESTAMPNS`) moved to
 //! `CLOCK_MONOTONIC`, so a thread that was not scheduled for a while still knows when each
-//! frame came.
+//! frame came. (Linux switches that stamping on lazily, by a work item scheduled when the
+//! first socket asks: frames read in the first moments after the first such socket opened
+//! may carry the time they were read instead.)
 //!
 //! Nothing allocates after [`CanSocket::open`]: frames are `Copy` values, errors carry the
 //! interface name in a fixed array ([`InterfaceName`]) and OS error codes.
@@ -44,15 +46,17 @@ pub struct InterfaceName {
 }
 
 impl InterfaceName {
-    /// The name, or None if it is empty, longer than 15 bytes or holds a NUL or a `/`
-    /// (Linux refuses such names: `dev_valid_name`).
+    /// The name, or None if Linux could not have made it (`dev_valid_name`): empty, `.`
+    /// or `..`, longer than 15 bytes, or holding a NUL, `/`, `:` or white space.
     pub fn new(name: &str) -> Option<Self> {
         let raw = name.as_bytes();
         if raw.is_empty()
+            || name == "."
+            || name == ".."
             || raw.len() > MAX_INTERFACE_NAME
             || raw
                 .iter()
-                .any(|&b| b == 0 || b == b'/' || b.is_ascii_whitespace())
+                .any(|&b| b == 0 || b == b'/' || b == b':' || b.is_ascii_whitespace())
         {
             return None;
         }
@@ -158,6 +162,27 @@ pub enum CanSocketError {
         /// Why.
         source: io::Error,
     },
+}
+
+/// As an `io::Error` (for a link trait that speaks `io::Result`). The errors of the cycle
+/// path — transmit queue full (`ENOBUFS`), interface down (`ENETDOWN`), gone (`ENODEV`),
+/// any other OS error — convert without allocating, as their OS error codes (the interface
+/// name stays with the socket: [`CanSocket::interface`]); the errors of
+/// [`CanSocket::open`] keep their whole message.
+impl From<CanSocketError> for io::Error {
+    fn from(e: CanSocketError) -> Self {
+        match e {
+            CanSocketError::BufferFull { .. } => io::Error::from_raw_os_error(libc::ENOBUFS),
+            CanSocketError::Down { .. } => io::Error::from_raw_os_error(libc::ENETDOWN),
+            CanSocketError::NoInterface { .. } => io::Error::from_raw_os_error(libc::ENODEV),
+            CanSocketError::Io { source, .. } => source,
+            e @ (CanSocketError::BadName { .. }
+            | CanSocketError::NotCan { .. }
+            | CanSocketError::NoCanSupport { .. }) => {
+                io::Error::new(io::ErrorKind::InvalidInput, e.to_string())
+            }
+        }
+    }
 }
 
 /// A frame received, with when it came.
@@ -391,15 +416,32 @@ fn from_socketcan(frame: &socketcan::CanFrame) -> Option<CanFrame> {
     }
 }
 
-/// A `CLOCK_REALTIME` kernel stamp moved to `CLOCK_MONOTONIC`: now on the monotonic clock
-/// less how long ago the stamp was on the real-time clock (never in the future).
+/// Tries at reading both clocks together (see [`to_monotonic`]).
+const CLOCK_PAIR_TRIES: usize = 4;
+
+/// A `CLOCK_REALTIME` kernel stamp moved to `CLOCK_MONOTONIC`: the offset between the
+/// clocks is read as a real-time reading bracketed by two monotonic ones, the narrowest
+/// bracket of a few tries (a thread preempted between two readings would otherwise shift
+/// the result by the time it lost); never later than now.
 fn to_monotonic(stamp: std::time::SystemTime) -> u64 {
-    let real_now = clock_ns(libc::CLOCK_REALTIME);
-    let mono_now = monotonic_ns();
     let stamp_ns = stamp
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
-    mono_now.saturating_sub(real_now.saturating_sub(stamp_ns))
+    let mut best: Option<(u64, u64, u64)> = None;
+    for _ in 0..CLOCK_PAIR_TRIES {
+        let before = monotonic_ns();
+        let real = clock_ns(libc::CLOCK_REALTIME);
+        let after = monotonic_ns();
+        let width = after.saturating_sub(before);
+        if best.is_none_or(|(w, _, _)| width < w) {
+            best = Some((width, before + width / 2, real));
+        }
+        if width < 20_000 {
+            break;
+        }
+    }
+    let (_, mono, real) = best.unwrap_or((0, monotonic_ns(), clock_ns(libc::CLOCK_REALTIME)));
+    mono.saturating_sub(real.saturating_sub(stamp_ns))
 }
 
 fn interface_index(name: &InterfaceName) -> Result<u32, CanSocketError> {
@@ -463,7 +505,16 @@ mod tests {
             InterfaceName::new("fifteen-bytes-x").unwrap().to_string(),
             "fifteen-bytes-x"
         );
-        for bad in ["", "sixteen-bytes-xx", "a/b", "a b", "a\0b"] {
+        for bad in [
+            "",
+            ".",
+            "..",
+            "sixteen-bytes-xx",
+            "a/b",
+            "a:1",
+            "a b",
+            "a\0b",
+        ] {
             assert!(InterfaceName::new(bad).is_none(), "{bad:?}");
         }
         let e = CanSocket::open("a/b").unwrap_err().to_string();
@@ -496,6 +547,29 @@ mod tests {
             "{e:?}"
         );
         assert!(e.to_string().contains("lo is not a CAN interface"), "{e}");
+    }
+
+    #[test]
+    fn cycle_errors_become_os_errors_and_open_errors_keep_their_text() {
+        let vcan0 = InterfaceName::new("vcan0").unwrap();
+        let full: io::Error = CanSocketError::BufferFull {
+            interface: vcan0,
+            id: 0x80,
+        }
+        .into();
+        assert_eq!(full.raw_os_error(), Some(libc::ENOBUFS));
+        let down: io::Error = CanSocketError::Down { interface: vcan0 }.into();
+        assert_eq!(down.raw_os_error(), Some(libc::ENETDOWN));
+        let not_can: io::Error = CanSocketError::NotCan {
+            interface: InterfaceName::new("lo").unwrap(),
+            hardware_type: 772,
+        }
+        .into();
+        assert_eq!(not_can.kind(), io::ErrorKind::InvalidInput);
+        assert!(
+            not_can.to_string().contains("lo is not a CAN interface"),
+            "{not_can}"
+        );
     }
 
     #[test]

@@ -155,6 +155,31 @@ pub enum StartError {
         /// What was given.
         id: u8,
     },
+    /// A node is not the device its axis' EDS describes (CiA 306-1 §4.4 `VendorNumber`,
+    /// `ProductNumber` against 0x1018:01/02): the checks made against the EDS would be
+    /// of another device's objects.
+    #[error(
+        "CANopen node {node} (axis {axis:?}): its identity 0x1018:{sub:02X} says {what} \
+         0x{read:08X}, {file} describes {what} 0x{want:08X} ({key}): not the device of that EDS"
+    )]
+    WrongDevice {
+        /// The node.
+        node: u8,
+        /// Its axis.
+        axis: String,
+        /// "vendor" or "product".
+        what: &'static str,
+        /// 0x1018's sub-index.
+        sub: u8,
+        /// What the node said.
+        read: u32,
+        /// What the EDS says.
+        want: u32,
+        /// The EDS' key.
+        key: &'static str,
+        /// The EDS.
+        file: String,
+    },
     /// The SDO client's configuration.
     #[error("CANopen: SDO client: {0}")]
     SdoConfig(gantry_drives::canopen::sdo::SdoConfigError),
@@ -257,6 +282,19 @@ pub fn config_steps(
     layout: &PdoLayout,
     comm: &CommSettings,
 ) -> Vec<SdoStep> {
+    config_steps_for(node, plan, layout, comm, [4, 4])
+}
+
+/// [`config_steps`] for a node with `pdos[0]` RPDOs and `pdos[1]` TPDOs (its EDS'
+/// `NrOfRXPDO` / `NrOfTXPDO`, at most 4 each are touched): the PDOs a node does not have
+/// are left alone (a write to their objects would be aborted: 0x06020000, no object).
+pub fn config_steps_for(
+    node: NodeId,
+    plan: &DrivePlan,
+    layout: &PdoLayout,
+    comm: &CommSettings,
+    pdos: [u16; 2],
+) -> Vec<SdoStep> {
     let CommSettings {
         heartbeat_ms,
         cycle_us,
@@ -265,7 +303,7 @@ pub fn config_steps(
         sync_overflow,
     } = *comm;
     let mut steps = Vec::new();
-    for (comm, mapping, base, pdos, what) in [
+    for ((comm, mapping, base, pdos, what), have) in [
         (
             RPDO_COMMUNICATION,
             RPDO_MAPPING,
@@ -280,8 +318,11 @@ pub fn config_steps(
             &plan.tpdos,
             "TPDO",
         ),
-    ] {
-        for n in 0..4u8 {
+    ]
+    .into_iter()
+    .zip(pdos)
+    {
+        for n in 0..have.min(4) as u8 {
             let comm = comm + u16::from(n);
             let mapping = mapping + u16::from(n);
             let cob = u32::from(base + 0x100 * u16::from(n) + u16::from(node.get()));
@@ -394,42 +435,113 @@ pub struct DriveSetup {
     pub plan: DrivePlan,
     /// The SDO writes that configure it.
     pub steps: Vec<SdoStep>,
+    /// What the axis' EDS says the node is, when it names one.
+    pub expect: Option<ExpectedIdentity>,
+}
+
+/// The identity an axis' EDS gives its node (`[DeviceInfo]`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExpectedIdentity {
+    /// The EDS.
+    pub file: String,
+    /// `VendorNumber=` (0x1018:01).
+    pub vendor: Option<u32>,
+    /// `ProductNumber=` (0x1018:02).
+    pub product: Option<u32>,
+}
+
+impl ExpectedIdentity {
+    /// The first of vendor and product in which the node's `identity` (0x1018:01–04 as
+    /// read) differs from the EDS. A sub-index the node does not have is not compared
+    /// (only the vendor id is mandatory, CiA 301 §7.5.2.23).
+    pub fn mismatch(&self, setup: &DriveSetup, identity: &[Option<u32>; 4]) -> Option<StartError> {
+        [
+            ("vendor", 1u8, "VendorNumber", self.vendor, identity[0]),
+            ("product", 2, "ProductNumber", self.product, identity[1]),
+        ]
+        .into_iter()
+        .find_map(|(what, sub, key, want, read)| match (want, read) {
+            (Some(want), Some(read)) if want != read => Some(StartError::WrongDevice {
+                node: setup.node.get(),
+                axis: setup.axis.clone(),
+                what,
+                sub,
+                read,
+                want,
+                key,
+                file: self.file.clone(),
+            }),
+            _ => None,
+        })
+    }
 }
 
 /// The drives of `config`, in axis order (bus position `i` = axis `i`), after the load
 /// check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    let comm = CommSettings::of(config)?;
-    config
-        .axes
-        .iter()
-        .map(|a| {
-            let node =
-                a.node
-                    .and_then(|n| NodeId::new(n).ok())
-                    .ok_or_else(|| StartError::NoNode {
-                        axis: a.name.clone(),
-                    })?;
-            let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
-                axis: a.name.clone(),
-                reason,
-            })?;
-            let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
-                axis: a.name.clone(),
-                pdo: a.pdo.clone(),
-                source,
-            })?;
-            let steps = config_steps(node, &plan, &layout, &comm);
-            Ok(DriveSetup {
-                axis: a.name.clone(),
-                node,
-                layout,
-                plan,
-                steps,
-            })
-        })
+    (0..config.axes.len())
+        .map(|i| drive_setup(config, i))
         .collect()
+}
+
+/// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
+/// configure it (only the PDOs its EDS says it has, when the axis names one).
+pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartError> {
+    let a = config.axes.get(axis).ok_or_else(|| StartError::NoNode {
+        axis: format!("#{axis}"),
+    })?;
+    let node = a
+        .node
+        .and_then(|n| NodeId::new(n).ok())
+        .ok_or_else(|| StartError::NoNode {
+            axis: a.name.clone(),
+        })?;
+    let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
+        axis: a.name.clone(),
+        reason,
+    })?;
+    let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
+        axis: a.name.clone(),
+        pdo: a.pdo.clone(),
+        source,
+    })?;
+    let pdos = config.eds_of(axis).map_or([4, 4], |e| {
+        use gantry_drives::canopen::eds::PdoDirection;
+        [
+            e.max_pdos(PdoDirection::Receive),
+            e.max_pdos(PdoDirection::Transmit),
+        ]
+    });
+    let comm = CommSettings::of(config)?;
+    let mut steps = config_steps_for(node, &plan, &layout, &comm, pdos);
+    // 0x1006 and 0x1016 are optional (CiA 301 §7.5.2.6, §7.5.2.16): a device whose EDS
+    // has no communication cycle period is not told one, one with no heartbeat consumer
+    // does not watch gantry's heartbeat (the writes would be aborted, no object); every
+    // other write (0x1019 with a SYNC counter among them) is one the drive must take,
+    // and its EDS is checked for it.
+    if let Some(eds) = config.eds_of(axis) {
+        for (index, sub) in [
+            (COMMUNICATION_CYCLE_PERIOD, 0),
+            (CONSUMER_HEARTBEAT_TIME, 1),
+        ] {
+            if eds.entry(index, sub).is_none() {
+                steps.retain(|s| s.mux.index != index);
+            }
+        }
+    }
+    Ok(DriveSetup {
+        axis: a.name.clone(),
+        node,
+        layout,
+        plan,
+        steps,
+        expect: config.eds_of(axis).map(|e| ExpectedIdentity {
+            file: e.file.clone(),
+            vendor: e.device_info.vendor_number,
+            product: e.device_info.product_number,
+        }),
+    })
 }
 
 /// The SDO client gantry uses for `node` ([`SDO_TIMEOUT_NS`]).
@@ -628,6 +740,9 @@ pub fn run(
                 }) if sub > 1 => {}
                 Err(e) => return Err(e),
             }
+        }
+        if let Some(e) = d.expect.as_ref().and_then(|x| x.mismatch(d, &identity)) {
+            return Err(e);
         }
         let _ = writeln!(
             out,

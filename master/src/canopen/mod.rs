@@ -4,7 +4,8 @@
 //! starts it; the cycle ([`bus::CanopenBus`]) sends each drive's RPDOs then the SYNC from
 //! the cycle thread and reads the TPDOs the drives answer with until the deadline, and
 //! watches the nodes: EMCY, heartbeat, boot-up. [`load`] refuses a configuration whose
-//! frames do not fit the bit rate; [`pdo`] packs an axis' layout into PDOs. The bus
+//! frames do not fit the bit rate, [`eds`] one that the drives' EDS say they would
+//! refuse; [`pdo`] packs an axis' layout into PDOs. The bus
 //! talks through a [`link::CanLink`] (SocketCAN, or an in-memory bus in lockstep tests).
 //!
 //! Drive positions: axis `i` of the configuration is on bus position `i`, the node its
@@ -15,6 +16,7 @@
 
 pub mod bring_up;
 pub mod bus;
+pub mod eds;
 pub mod link;
 pub mod load;
 pub mod pdo;

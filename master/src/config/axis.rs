@@ -22,6 +22,15 @@ pub struct AxisSection {
     /// CANopen: the node id of the axis' drive (1..=127, one node per axis).
     #[serde(default)]
     pub node: Option<u8>,
+    /// CANopen: the drive's electronic data sheet (CiA 306-1 EDS, as its vendor ships it),
+    /// relative to the configuration file. At load the axis' PDO mapping and every SDO
+    /// write of the bring-up are checked against it, so that what the drive would refuse
+    /// with an SDO abort in the middle of the bring-up is refused at start in the EDS'
+    /// words; `gantry sdo` takes each object's type from it; `gantry dcf` writes the DCF
+    /// of what the bring-up configures. Refused on EtherCAT (a slave describes itself in
+    /// its SII; an ESI is not read). Without it the drive's own aborts are the check.
+    #[serde(default)]
+    pub eds: Option<String>,
     /// `"linear"` or `"rotary"`.
     #[serde(default = "linear")]
     pub kind: String,

@@ -17,6 +17,10 @@ pub use bus::{
 pub use error::ConfigError;
 pub use switches::{SwitchSource, SwitchesSection};
 
+use std::path::Path;
+use std::sync::Arc;
+
+use gantry_drives::canopen::eds::Eds;
 use gantry_kernel::AxisConfig;
 use serde::Deserialize;
 use toml::Spanned;
@@ -45,9 +49,16 @@ pub struct Config {
     pub axes: Vec<AxisSection>,
     /// The kernel's view of each axis.
     pub kernel_axes: Vec<AxisConfig>,
+    /// Each axis' EDS as read from its `eds` file (CANopen), in axis order.
+    pub eds: Vec<Option<Arc<Eds>>>,
 }
 
 impl Config {
+    /// The EDS of axis `axis`, when it names one.
+    pub fn eds_of(&self, axis: usize) -> Option<&Eds> {
+        self.eds.get(axis).and_then(|e| e.as_deref())
+    }
+
     /// Reads and checks `path`.
     pub fn load(path: &str) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
@@ -93,6 +104,8 @@ impl Config {
         }
         let mut axes = Vec::with_capacity(file.axes.len());
         let mut kernel_axes = Vec::with_capacity(file.axes.len());
+        let mut eds = Vec::with_capacity(file.axes.len());
+        let mut spans = Vec::with_capacity(file.axes.len());
         let kind = bus.bus_kind();
         for (i, spanned) in file.axes.into_iter().enumerate() {
             let span = spanned.span();
@@ -184,6 +197,28 @@ impl Config {
             let k = a
                 .kernel_config()
                 .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+            let sheet = match (&a.eds, kind) {
+                (None, _) => None,
+                (Some(_), BusKind::Ethercat) => {
+                    return Err(at(
+                        span,
+                        key("eds"),
+                        "is a CANopen device's EDS (CiA 306, kind = \"canopen\"); an \
+                         EtherCAT slave describes itself in its SII and gantry reads no ESI"
+                            .into(),
+                    ))
+                }
+                (Some(file), BusKind::Canopen) => {
+                    // Relative to the configuration file, as its other files are.
+                    let resolved = relative_to(path, file);
+                    let sheet = gantry_drives::canopen::eds::load(Path::new(&resolved))
+                        .map_err(|e| at(span.clone(), key("eds"), e.to_string()))?;
+                    a.eds = Some(resolved);
+                    Some(Arc::new(sheet))
+                }
+            };
+            eds.push(sheet);
+            spans.push(span);
             kernel_axes.push(k);
             axes.push(a);
         }
@@ -193,14 +228,30 @@ impl Config {
             rt: file.rt,
             axes,
             kernel_axes,
+            eds,
         };
         if kind == BusKind::Canopen {
             // The cycle's frames must fit the bit rate (issue 12 §2: refused with the figure).
             crate::canopen::load::BusLoad::of_config(&config)
                 .and_then(|load| load.check())
                 .map_err(|e| at(bus_span.clone(), "bus.bitrate".into(), e.to_string()))?;
+            // What each drive would refuse, refused now in its EDS' words.
+            for (i, span) in spans.into_iter().enumerate() {
+                crate::canopen::eds::check(&config, i)
+                    .map_err(|e| at(span, format!("axis[{i}].eds"), e.to_string()))?;
+            }
         }
         Ok(config)
+    }
+}
+
+/// `file` as named in the configuration at `config_path`: relative to its directory.
+fn relative_to(config_path: &str, file: &str) -> String {
+    if Path::new(file).is_relative() {
+        let dir = Path::new(config_path).parent().unwrap_or(Path::new(""));
+        dir.join(file).display().to_string()
+    } else {
+        file.to_string()
     }
 }
 

@@ -253,7 +253,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .next()
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
-         `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
+         `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
          `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
@@ -366,4 +366,208 @@ fn canopen_master_heartbeat_and_sync_counter_keys() {
         ethercat.contains("bus.sync_counter: is a CANopen setting"),
         "{ethercat}"
     );
+}
+
+const ACME: &str = include_str!("../../../drives/tests/eds/acme_sx400.eds");
+
+/// A directory of its own for a test's files.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("gantry-config-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `c.toml` in `dir`: one CANopen axis on node 5 with the full CSP layout and `eds`,
+/// `bus` lines added; loaded.
+fn with_eds(dir: &std::path::Path, eds: &str, bus: &str) -> Result<Config, ConfigError> {
+    let text = format!(
+        "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\ncycle_us = 1000\n{bus}\n\
+         [[axis]]\nname = \"x\"\nnode = 5\neds = \"{eds}\"\n\
+         scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+         max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n"
+    );
+    let path = dir.join("c.toml");
+    std::fs::write(&path, text).unwrap();
+    Config::load(&path.display().to_string())
+}
+
+/// The vendor EDS with `old` replaced by `new` (in the section `section`), written to
+/// `dir/acme.eds`; its path.
+fn acme(dir: &std::path::Path, section: &str, old: &str, new: &str) -> String {
+    let at = ACME.find(section).unwrap();
+    let rel = ACME[at..]
+        .find(old)
+        .unwrap_or_else(|| panic!("{old} in {section}"));
+    let text = format!(
+        "{}{new}{}",
+        &ACME[..at + rel],
+        &ACME[at + rel + old.len()..]
+    );
+    let path = dir.join("acme.eds");
+    std::fs::write(&path, text).unwrap();
+    path.display().to_string()
+}
+
+#[test]
+fn an_axis_eds_is_read_relative_to_the_configuration_and_its_pdos_checked() {
+    let dir = scratch("eds-ok");
+    std::fs::write(dir.join("acme_sx400.eds"), ACME).unwrap();
+    let c = with_eds(&dir, "acme_sx400.eds", "bitrate = 1000000").unwrap();
+    let eds = c.eds_of(0).expect("the axis' EDS");
+    assert_eq!(eds.device_info.vendor_name, "ACME Motion GmbH");
+    assert_eq!(
+        c.axes[0].eds.as_deref(),
+        Some(dir.join("acme_sx400.eds").display().to_string().as_str())
+    );
+    // The bring-up writes only what the EDS has: ACME's drive has no 0x1006 (optional,
+    // CiA 301 §7.5.2.6), so it is not told a cycle period; 0x1017 it is.
+    let setup = crate::canopen::bring_up::drive_setup(&c, 0).unwrap();
+    assert!(setup.steps.iter().all(|s| s.mux.index != 0x1006));
+    assert!(setup.steps.iter().any(|s| s.mux.index == 0x1017));
+    // Without an EDS the bring-up is as before: 0x1006 is written.
+    let plain = canopen(&["node = 5"], "bitrate = 1000000").unwrap();
+    assert!(plain.eds_of(0).is_none());
+    let setup = crate::canopen::bring_up::drive_setup(&plain, 0).unwrap();
+    assert!(setup.steps.iter().any(|s| s.mux.index == 0x1006));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_pdo_the_eds_does_not_allow_is_refused_at_load_naming_object_and_file() {
+    let dir = scratch("eds-pdo");
+    let eds = acme(&dir, "[6064]", "PDOMapping=1", "PDOMapping=0");
+    let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    let c = dir.join("c.toml").display().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{c}:9: axis[0].eds: TPDO1 of pdo = \"csp\": 0x6064:00 is not PDO-mappable in {eds}"
+        )
+    );
+    // A drive with one TPDO cannot take the CSP layout's two.
+    let eds = acme(&dir, "[DeviceInfo]", "NrOfTXPDO=4", "NrOfTXPDO=1");
+    let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(&format!(
+            "axis[0].eds: TPDO2 of pdo = \"csp\": TPDO 2 does not exist: {eds} has 1"
+        )),
+        "{e}"
+    );
+    // A statusword mapped into an RPDO: its access (ro) says the other way.
+    let eds = acme(&dir, "[6040]", "AccessType=rww", "AccessType=ro");
+    let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(&format!(
+            "axis[0].eds: RPDO1 of pdo = \"csp\": 0x6040:00 is ro in {eds}: not mappable into an RPDO"
+        )),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_write_of_the_bring_up_the_eds_does_not_allow_is_refused_at_load() {
+    let dir = scratch("eds-write");
+    let eds = acme(&dir, "[1017]", "AccessType=rw", "AccessType=ro");
+    let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(&format!(
+            "axis[0].eds: the bring-up writes 0x0064 to 0x1017:00 (heartbeat producer time): \
+             0x1017:00 is ro in {eds}: it cannot be configured"
+        )),
+        "{e}"
+    );
+    // The bit rate must be one the drive declares (BaudRate_800=0).
+    std::fs::write(dir.join("acme.eds"), ACME).unwrap();
+    let e = with_eds(&dir, "acme.eds", "bitrate = 800000")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with(&format!(
+            "axis[0].eds: bus.bitrate 800 kbit/s is not one {} declares (BaudRate_800=1; it \
+             has 10, 20, 50, 125, 250, 500, 1000)",
+            dir.join("acme.eds").display()
+        )),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn an_eds_that_cannot_be_read_is_named_with_its_line_and_section() {
+    let dir = scratch("eds-bad");
+    let eds = acme(&dir, "[6064]", "DataType=0x0004", "DataType=0x0099");
+    let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    let line = ACME.lines().position(|l| l == "[6064]").unwrap() + 1;
+    assert!(
+        e.ends_with(&format!(
+            "axis[0].eds: {eds}:{line}: [6064]: DataType 0x0099 is not a CiA 301 type"
+        )),
+        "{e}"
+    );
+    let e = with_eds(&dir, "missing.eds", "bitrate = 1000000")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!(
+            "axis[0].eds: {}: cannot read:",
+            dir.join("missing.eds").display()
+        )),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn an_eds_is_refused_on_ethercat() {
+    let e = mistake("drive = 0", "drive = 0\neds = \"drive.eds\"");
+    assert!(
+        e.ends_with(
+            "axis[0].eds: is a CANopen device's EDS (CiA 306, kind = \"canopen\"); an \
+             EtherCAT slave describes itself in its SII and gantry reads no ESI"
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn gantrys_heartbeat_and_sync_counter_against_an_eds() {
+    let dir = scratch("eds-master");
+    std::fs::write(dir.join("acme_sx400.eds"), ACME).unwrap();
+    // ACME's drive has 0x1016: it is given a consumer of gantry's heartbeat.
+    let c = with_eds(&dir, "acme_sx400.eds", "bitrate = 1000000").unwrap();
+    let setup = crate::canopen::bring_up::drive_setup(&c, 0).unwrap();
+    let consumer = (127u32 << 16 | 300).to_le_bytes();
+    assert!(setup
+        .steps
+        .iter()
+        .any(|s| s.mux.index == 0x1016 && s.mux.sub == 1 && s.value() == consumer));
+    // A drive without 0x1016 (optional, CiA 301 §7.5.2.16) is not told one.
+    let text = ACME
+        .replacen("[1016]", "[2F16]", 1)
+        .replacen("8=0x1016", "8=0x2F16", 1);
+    std::fs::write(dir.join("no1016.eds"), text).unwrap();
+    let c = with_eds(&dir, "no1016.eds", "bitrate = 1000000").unwrap();
+    let setup = crate::canopen::bring_up::drive_setup(&c, 0).unwrap();
+    assert!(setup.steps.iter().all(|s| s.mux.index != 0x1016));
+    // A SYNC counter needs 0x1019, which ACME's drive does not have: refused at load.
+    let e = with_eds(
+        &dir,
+        "acme_sx400.eds",
+        "bitrate = 1000000\nsync_counter = 8",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("0x1019:00"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -204,6 +204,9 @@ pub struct EthercatBus {
     mailboxes: Vec<Option<Mailbox>>,
     /// Per slave: the counter of the last mailbox message the cycle sent it.
     mailbox_counters: Vec<Option<u8>>,
+    /// Per slave: its last transfer timed out with its request out (a late answer may
+    /// still come).
+    mailbox_unanswered: Vec<bool>,
     /// The SDO transfer in progress: the slave's position, its station address, the
     /// machine.
     sdo: Option<(usize, u16, CoeSdo)>,
@@ -322,6 +325,7 @@ impl EthercatBus {
             recovered: None,
             op_request: OpRequest::Waiting,
             mailbox_counters: vec![None; mailboxes.len()],
+            mailbox_unanswered: vec![false; mailboxes.len()],
             mailboxes,
             sdo: None,
             sdo_done: None,
@@ -446,7 +450,13 @@ impl EthercatBus {
         if let Some(slot) = self.mailbox_counters.get_mut(*drive) {
             *slot = Some(sdo.counter());
         }
+        if let Some(Some(mailbox)) = self.mailboxes.get_mut(*drive) {
+            *mailbox = sdo.mailbox();
+        }
         if let Some(outcome) = sdo.outcome() {
+            if let Some(slot) = self.mailbox_unanswered.get_mut(*drive) {
+                *slot = sdo.left_unanswered();
+            }
             self.sdo_done = Some(outcome);
             self.sdo = None;
         }
@@ -1063,7 +1073,9 @@ impl CycleBus for EthercatBus {
             .flatten()
             .ok_or(SdoError::NoChannel { drive })?;
         let last = self.mailbox_counters.get(drive).copied().flatten();
-        self.sdo = Some((drive, address, CoeSdo::new(mailbox, *request, last, now_ns)));
+        let late = self.mailbox_unanswered.get(drive).copied().unwrap_or(false);
+        let sdo = CoeSdo::new(mailbox, *request, last, now_ns).after_unanswered(late);
+        self.sdo = Some((drive, address, sdo));
         Ok(())
     }
 

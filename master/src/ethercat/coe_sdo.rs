@@ -38,8 +38,14 @@ const SM_MODE_MAILBOX: u8 = 0x02;
 /// Control bits 3:2: direction; 01 the master writes (ECAT write), 00 the master reads.
 const SM_DIRECTION_MASK: u8 = 0x0C;
 const SM_DIRECTION_WRITE: u8 = 0x04;
+/// Offset of the activate register in a SyncManager's registers.
+pub const SM_ACTIVATE: u16 = 6;
 /// Activate register bit 0: the SyncManager is enabled.
 const SM_ENABLE: u8 = 0x01;
+/// Activate register bit 1 of a read mailbox: repeat request. Toggled by the master when
+/// the frame that read an answer was lost after the ESC emptied the mailbox; the slave
+/// puts its last answer back (ESC datasheet section I §8.6, ETG.1000.4 §6.7.2).
+pub const SM_REPEAT: u8 = 0x02;
 
 /// Mailbox header length (ETG.1000.6 Table 29: length, address, channel/priority,
 /// type/counter).
@@ -86,6 +92,9 @@ pub struct Mailbox {
     pub read_at: u16,
     /// SM1's length.
     pub read_len: u16,
+    /// SM1's activate register as the master last wrote it (its repeat request bit
+    /// toggles with each repeat).
+    pub read_activate: u8,
 }
 
 impl Mailbox {
@@ -102,14 +111,18 @@ impl Mailbox {
             let (control, activate) = (r[4], r[6]);
             let fits = (MIN_MAILBOX..=MAX_MAILBOX).contains(&usize::from(len));
             let mailbox = control & 0x03 == SM_MODE_MAILBOX && activate & SM_ENABLE != 0;
-            (fits && mailbox).then_some((start, len, control & SM_DIRECTION_MASK))
+            (fits && mailbox).then_some((start, len, control & SM_DIRECTION_MASK, activate))
         };
         match (sm(0)?, sm(1)?) {
-            ((write_at, write_len, SM_DIRECTION_WRITE), (read_at, read_len, 0)) => Some(Self {
+            (
+                (write_at, write_len, SM_DIRECTION_WRITE, _),
+                (read_at, read_len, 0, read_activate),
+            ) => Some(Self {
                 write_at,
                 write_len,
                 read_at,
                 read_len,
+                read_activate,
             }),
             _ => None,
         }
@@ -118,6 +131,11 @@ impl Mailbox {
     /// SM1's status register.
     const fn read_status(&self) -> u16 {
         SM0 + SM_REGISTERS as u16 + SM_STATUS
+    }
+
+    /// SM1's activate register.
+    const fn read_activate_register(&self) -> u16 {
+        SM0 + SM_REGISTERS as u16 + SM_ACTIVATE
     }
 }
 
@@ -135,6 +153,14 @@ pub enum MailboxAccess {
     ReadStatus {
         /// The register.
         at: u16,
+    },
+    /// FPWR of SM1's activate register with the repeat request toggled: the slave puts
+    /// the answer whose read was lost back.
+    Repeat {
+        /// The register.
+        at: u16,
+        /// Its new value.
+        value: u8,
     },
     /// FPRD of `len` bytes at `at` (all of SM1), kept in the bus' answer buffer.
     Read {
@@ -184,6 +210,10 @@ pub async fn mailbox_access(
                 .await
                 .map_or_else(judged, |_| MailboxAnswer::Written)
         }
+        MailboxAccess::Repeat { at, value } => Command::fpwr(address, at)
+            .send_receive_slice(md, &[value][..])
+            .await
+            .map_or_else(judged, |_| MailboxAnswer::Written),
         MailboxAccess::ReadStatus { at } => Command::fprd(address, at)
             .receive::<u8>(md)
             .await
@@ -236,6 +266,8 @@ enum Step {
     Await(Message),
     /// Read SM1: the answer to this message is there.
     Read(Message),
+    /// The read of the answer to this message was lost: ask the slave to put it back.
+    Repeat(Message),
     /// Finished.
     Done(SdoResult),
 }
@@ -254,6 +286,11 @@ pub struct CoeSdo {
     data: SdoData,
     size: u32,
     sent: usize,
+    /// The transfer before this one timed out with its request out: its answer may
+    /// still come, so an initiate answer that is not this transfer's is passed over.
+    late_answer_possible: bool,
+    /// This transfer timed out with a request out (see `late_answer_possible`).
+    left_unanswered: bool,
 }
 
 impl CoeSdo {
@@ -276,12 +313,33 @@ impl CoeSdo {
             data: SdoData::EMPTY,
             size: 0,
             sent: 0,
+            late_answer_possible: false,
+            left_unanswered: false,
         }
+    }
+
+    /// The same transfer, told that the one before it timed out with its request out
+    /// ([`CoeSdo::left_unanswered`]): an initiate answer that is not for this request (another
+    /// object, another command) is that late answer and passed over, instead of a
+    /// protocol error.
+    pub fn after_unanswered(mut self, late_answer_possible: bool) -> Self {
+        self.late_answer_possible = late_answer_possible;
+        self
+    }
+
+    /// Whether it timed out with a request out, whose answer may still come.
+    pub fn left_unanswered(&self) -> bool {
+        self.left_unanswered
     }
 
     /// The counter of the last message sent (the next transfer starts after it).
     pub fn counter(&self) -> u8 {
         self.counter
+    }
+
+    /// The mailbox as this transfer leaves it (the repeat request bit it toggled).
+    pub fn mailbox(&self) -> Mailbox {
+        self.mailbox
     }
 
     /// The outcome, once finished.
@@ -311,6 +369,10 @@ impl CoeSdo {
                 at: m.read_at,
                 len: m.read_len,
             }),
+            Step::Repeat(_) => Some(MailboxAccess::Repeat {
+                at: m.read_activate_register(),
+                value: m.read_activate,
+            }),
             Step::Done(_) => None,
         }
     }
@@ -328,6 +390,14 @@ impl CoeSdo {
             (Step::Read(msg), MailboxAnswer::Read) => self.on_message(msg, answer),
             // An empty SM1 after all (another reader?): wait again.
             (Step::Read(msg), MailboxAnswer::Refused) => Step::Await(msg),
+            // The frame that read it was lost: the ESC may have emptied SM1 on the way
+            // out. Ask for the answer again (the request toggled once; written again
+            // unchanged while refused or lost, a no-op if it had arrived).
+            (Step::Read(msg), MailboxAnswer::None) => {
+                self.mailbox.read_activate ^= SM_REPEAT;
+                Step::Repeat(msg)
+            }
+            (Step::Repeat(msg), MailboxAnswer::Written) => Step::Await(msg),
             // Refused, lost, not there yet: the same again.
             (step, _) => step,
         };
@@ -344,6 +414,9 @@ impl CoeSdo {
         if matches!(self.step, Step::Done(_)) || waited_ns < self.request.timeout_ns {
             return;
         }
+        self.left_unanswered =
+            matches!(self.step, Step::Await(_) | Step::Read(_) | Step::Repeat(_))
+                || self.late_answer_possible;
         let r = &self.request;
         self.step = Step::Done(Err(SdoError::TimedOut {
             drive: r.drive,
@@ -411,7 +484,7 @@ impl CoeSdo {
         };
         match (msg, r.kind) {
             (Message::Initiate, SdoKind::Upload) => {
-                if !names_object {
+                if !names_object || (scs != 2 && self.late_answer_possible) {
                     // A late answer to an earlier transfer (one that timed out): not ours.
                     return Step::Await(msg);
                 }
@@ -480,7 +553,7 @@ impl CoeSdo {
                 }
             }
             (Message::Initiate, SdoKind::Download(data)) => {
-                if !names_object {
+                if !names_object || (scs != 3 && self.late_answer_possible) {
                     // A late answer to an earlier transfer (one that timed out): not ours.
                     return Step::Await(msg);
                 }
@@ -607,6 +680,7 @@ mod tests {
         write_len: 128,
         read_at: 0x1080,
         read_len: 128,
+        read_activate: 0x01,
     };
 
     /// The bytes of the next write, and its access.
@@ -629,6 +703,11 @@ mod tests {
     /// Takes the write, finds SM1 full, reads `reply`.
     fn exchange(t: &mut CoeSdo, reply: &[u8], now: u64) {
         t.on_answer(MailboxAnswer::Written, &[], now);
+        exchange_read(t, reply, now);
+    }
+
+    /// Finds SM1 full, reads `reply`.
+    fn exchange_read(t: &mut CoeSdo, reply: &[u8], now: u64) {
         assert_eq!(
             t.next_access(&mut [0; MAX_MAILBOX]),
             Some(MailboxAccess::ReadStatus { at: 0x080D })
@@ -709,6 +788,42 @@ mod tests {
         assert_eq!(
             t.outcome(),
             Some(Ok(SdoData::new(&[0xAA, 0, 0, 0]).unwrap()))
+        );
+    }
+
+    #[test]
+    fn a_lost_read_asks_for_the_answer_again_with_the_repeat_request() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1018, 1), None, 0);
+        t.on_answer(MailboxAnswer::Written, &[], 1);
+        t.on_answer(MailboxAnswer::Status(SM_STATUS_MAILBOX_FULL), &[], 2);
+        t.on_answer(MailboxAnswer::None, &[], 3);
+        let repeat = MailboxAccess::Repeat {
+            at: 0x080E,
+            value: 0x03,
+        };
+        assert_eq!(t.next_access(&mut [0; MAX_MAILBOX]), Some(repeat));
+        // Lost again: the same value, not toggled back.
+        t.on_answer(MailboxAnswer::None, &[], 4);
+        assert_eq!(t.next_access(&mut [0; MAX_MAILBOX]), Some(repeat));
+        t.on_answer(MailboxAnswer::Written, &[], 5);
+        exchange_read(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x4F, 0x18, 0x10, 1, 7, 0, 0, 0]),
+            6,
+        );
+        assert_eq!(t.outcome(), Some(Ok(SdoData::new(&[7]).unwrap())));
+        assert_eq!(t.mailbox().read_activate, 0x03, "the bit stays toggled");
+        // The next repeat toggles it back.
+        let mut t = CoeSdo::new(t.mailbox(), SdoRequest::upload(0, 0x1018, 1), Some(1), 0);
+        t.on_answer(MailboxAnswer::Written, &[], 1);
+        t.on_answer(MailboxAnswer::Status(SM_STATUS_MAILBOX_FULL), &[], 2);
+        t.on_answer(MailboxAnswer::None, &[], 3);
+        assert_eq!(
+            t.next_access(&mut [0; MAX_MAILBOX]),
+            Some(MailboxAccess::Repeat {
+                at: 0x080E,
+                value: 0x01
+            })
         );
     }
 
@@ -841,6 +956,35 @@ mod tests {
             "{:?}",
             t.outcome()
         );
+    }
+
+    #[test]
+    fn a_late_answer_to_a_transfer_that_timed_out_is_passed_over() {
+        let mut up = SdoRequest::upload(0, 0x6060, 0);
+        up.timeout_ns = 10;
+        let mut t = CoeSdo::new(MAILBOX, up, None, 0);
+        t.on_answer(MailboxAnswer::Written, &[], 20);
+        assert!(matches!(t.outcome(), Some(Err(SdoError::TimedOut { .. }))));
+        assert!(t.left_unanswered(), "its request was out");
+        // The next transfer, a download to the same object, first meets the late upload
+        // answer: passed over, then its own answer.
+        let data = SdoData::new(&[9]).unwrap();
+        let req = SdoRequest::download(0, 0x6060, 0, data);
+        let mut t = CoeSdo::new(MAILBOX, req, Some(t.counter()), 0).after_unanswered(true);
+        let late = answer(COE_SDO_RESPONSE, &[0x4F, 0x60, 0x60, 0x00, 8, 0, 0, 0]);
+        exchange(&mut t, &late, 1);
+        assert_eq!(t.outcome(), None, "not ours: waiting on");
+        exchange_read(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x60, 0x60, 0x60, 0, 0, 0, 0, 0]),
+            2,
+        );
+        assert_eq!(t.outcome(), Some(Ok(SdoData::EMPTY)));
+        assert!(!t.left_unanswered());
+        // Without a transfer left unanswered, the same answer is a protocol error.
+        let mut t = CoeSdo::new(MAILBOX, req, Some(3), 0);
+        exchange(&mut t, &late, 1);
+        assert!(matches!(t.outcome(), Some(Err(SdoError::Protocol { .. }))));
     }
 
     #[test]

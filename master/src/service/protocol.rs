@@ -348,6 +348,21 @@ pub enum Request {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         timeout_s: Option<f64>,
     },
+    /// What the configuration knows of an object of a drive: its EDS' data type, access
+    /// and name (CANopen axes with `eds`), so that a client reads and writes it as its
+    /// type; the drive named as for `sdo`. Nothing is sent to the drive.
+    Object {
+        /// The axis whose drive it is.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axis: Option<String>,
+        /// Or the drive's position on the bus.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        drive: Option<usize>,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+    },
     /// Quick-stop, disable, take the bus down and end the service.
     Shutdown,
 }
@@ -370,6 +385,7 @@ impl Request {
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
             Self::Sdo { .. } => "sdo",
+            Self::Object { .. } => "object",
             Self::Shutdown => "shutdown",
         }
     }
@@ -386,7 +402,7 @@ impl Request {
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
             | Self::Reset { axis } => Some(axis),
-            Self::Sdo { axis, .. } => axis.as_deref(),
+            Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
             | Self::Command { .. }
             | Self::Wait { .. }
@@ -518,6 +534,12 @@ mod tests {
                 data: Some("08".into()),
                 timeout_s: Some(1.5),
             },
+            Request::Object {
+                axis: None,
+                drive: Some(2),
+                index: 0x607A,
+                sub: 0,
+            },
             Request::Shutdown,
         ]
     }
@@ -543,11 +565,12 @@ mod tests {
             Request::Trace { .. } => 12,
             Request::Shutdown => 13,
             Request::Sdo { .. } => 14,
+            Request::Object { .. } => 15,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..15).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..16).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 15, "{words:?}");
+        assert_eq!(words.len(), 16, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

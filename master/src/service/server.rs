@@ -221,6 +221,12 @@ pub enum Refused {
     /// The transfer failed.
     #[error(transparent)]
     Sdo(#[from] SdoError),
+    /// The drive's EDS says the drive would refuse it (nothing was sent).
+    #[error("sdo")]
+    Eds(#[from] crate::canopen::eds::SdoEdsError),
+    /// An `object` request for an object the drive's EDS does not have.
+    #[error(transparent)]
+    Object(crate::canopen::eds::SdoEdsError),
     /// An axis beyond those the trace records.
     #[error(
         "only the first {} axes are traced",
@@ -242,19 +248,7 @@ async fn sdo(
     timeout_s: Option<f64>,
 ) -> Result<Value, Refused> {
     let ctl = &state.controller;
-    let drive = match (axis, drive) {
-        (Some(a), None) => {
-            let i = ctl.axis(&a)?;
-            state
-                .config
-                .axes
-                .get(i)
-                .map(|c| c.drive)
-                .ok_or(Refused::NoConfig(a))?
-        }
-        (None, Some(d)) => d,
-        _ => return Err(Refused::SdoTarget),
-    };
+    let (drive, axis) = sdo_drive(state, axis, drive)?;
     let mut request = match (direction, data) {
         (SdoDirection::Upload, _) => SdoRequest::upload(drive, index, sub),
         (SdoDirection::Download, None) => return Err(Refused::SdoNoData),
@@ -264,6 +258,14 @@ async fn sdo(
             SdoRequest::download(drive, index, sub, data)
         }
     };
+    // What the drive's EDS says it would refuse is refused here, before anything is sent.
+    if let Some(eds) = axis.and_then(|i| state.config.eds_of(i)) {
+        let len = match &request.kind {
+            crate::runtime::sdo::SdoKind::Upload => None,
+            crate::runtime::sdo::SdoKind::Download(d) => Some(d.len()),
+        };
+        crate::canopen::eds::check_sdo(eds, index, sub, len)?;
+    }
     if let Some(t) = timeout_s {
         request.timeout_ns = (number("timeout_s", t)?.clamp(0.001, 60.0) * 1e9) as u64;
     }
@@ -277,6 +279,61 @@ async fn sdo(
         .map_err(|_| Refused::Control(ControlError::Ended))??;
     let data = outcome?;
     Ok(json!({ "drive": drive, "data": to_hex(data.as_slice()) }))
+}
+
+/// The bus position of the drive an SDO request names, and the axis it drives (none
+/// when a drive position is no axis').
+fn sdo_drive(
+    state: &ServerState,
+    axis: Option<String>,
+    drive: Option<usize>,
+) -> Result<(usize, Option<usize>), Refused> {
+    match (axis, drive) {
+        (Some(a), None) => {
+            let i = state.controller.axis(&a)?;
+            let d = state
+                .config
+                .axes
+                .get(i)
+                .map(|c| c.drive)
+                .ok_or(Refused::NoConfig(a))?;
+            Ok((d, Some(i)))
+        }
+        (None, Some(d)) => Ok((d, state.config.axes.iter().position(|c| c.drive == d))),
+        _ => Err(Refused::SdoTarget),
+    }
+}
+
+/// What the drive's EDS says of an object (`object` request): its type, access and
+/// name, for `gantry sdo` to read and write it as its type; `eds: null` when the drive
+/// has no EDS in the configuration.
+fn object(
+    state: &ServerState,
+    axis: Option<String>,
+    drive: Option<usize>,
+    index: u16,
+    sub: u8,
+) -> Result<Value, Refused> {
+    let (drive, axis) = sdo_drive(state, axis, drive)?;
+    let Some((i, eds)) = axis.and_then(|i| Some((i, state.config.eds_of(i)?))) else {
+        return Ok(json!({ "drive": drive, "eds": null }));
+    };
+    let e = eds.entry(index, sub).ok_or_else(|| {
+        Refused::Object(crate::canopen::eds::SdoEdsError::NotInEds {
+            index,
+            sub,
+            file: eds.file.clone(),
+        })
+    })?;
+    Ok(json!({
+        "drive": drive,
+        "node": state.config.axes.get(i).and_then(|a| a.node),
+        "eds": eds.file,
+        "name": e.name,
+        "type": e.data_type.name(),
+        "access": e.access.as_str(),
+        "pdo_mapping": e.pdo_mapping,
+    }))
 }
 
 /// Bytes as hex, two lower-case digits each.
@@ -407,6 +464,12 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             data,
             timeout_s,
         } => sdo(state, a, drive, direction, index, sub, data, timeout_s).await,
+        Request::Object {
+            axis: a,
+            drive,
+            index,
+            sub,
+        } => object(state, a, drive, index, sub),
         Request::Command { handle } => {
             let h = find(state, handle)?;
             Ok(h.status().map_or(json!({"status": "Pending"}), status_name))

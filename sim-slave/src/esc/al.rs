@@ -206,6 +206,11 @@ pub struct Firmware {
     /// the limit the device leaves Op with 0x001A (ETG.1020; the slave stack code's
     /// default 4: two SYNC0 periods in a row without outputs).
     pub sync_error_limit: u16,
+    /// How long the firmware takes to answer a mailbox request (ns): a real slave's
+    /// application picks the request up in its own loop and answers milliseconds later,
+    /// so a master must poll SM1 until its answer is there, not read it at once. 0: in
+    /// the frame that brought the request.
+    pub mailbox_response_ns: u64,
 }
 
 /// The slave stack code's default 0x10F1:02.
@@ -218,6 +223,7 @@ impl Firmware {
         op_needs_outputs: true,
         requires_dc: false,
         sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
+        mailbox_response_ns: 0,
     };
     /// An I/O module without checks of its own beyond the standard's.
     pub const SIMPLE: Self = Self {
@@ -225,6 +231,7 @@ impl Firmware {
         op_needs_outputs: false,
         requires_dc: false,
         sync_error_limit: DEFAULT_SYNC_ERROR_LIMIT,
+        mailbox_response_ns: 0,
     };
 }
 

@@ -27,6 +27,7 @@ use std::task::{Poll, Waker};
 use std::time::Duration;
 
 use gantry::runtime::controller::Controller;
+use gantry::runtime::sdo::{SdoData, SdoRequest};
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
 use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -139,6 +140,8 @@ fn engine() {
     wait_for(&FILTERED, "the filter");
     let (mut handles, mut resets, mut snapshots) = (Vec::new(), Vec::new(), 0u64);
     let mut trace = Vec::new();
+    // SDO transfers beside the process data: started each round, their outcomes taken.
+    let (mut transfers, mut sdo_started, mut sdo_ended, mut sdo_ok) = (Vec::new(), 0, 0, 0);
     for round in 1..=ROUNDS {
         for i in 0..AXES {
             let to = if round % 2 == 0 { 5.0 } else { 0.0 };
@@ -175,6 +178,17 @@ fn engine() {
             }
             _ => {}
         }
+        let drive = round as usize % AXES;
+        let value = SdoData::new(&[8]).unwrap_or_default();
+        for request in [
+            SdoRequest::upload(drive, 0x1018, 1),
+            SdoRequest::download(drive, 0x6060, 0, value),
+        ] {
+            if let Ok(h) = ctl.sdo(request) {
+                transfers.push(h);
+                sdo_started += 1;
+            }
+        }
         // Read the status and the trace as fast as an eager client would.
         let until = std::time::Instant::now() + Duration::from_millis(60);
         while std::time::Instant::now() < until {
@@ -182,6 +196,14 @@ fn engine() {
             snapshots += 1;
             ctl.drain_trace(&mut trace);
             trace.clear();
+            transfers.retain(|h| match h.outcome() {
+                Some(r) => {
+                    sdo_ended += 1;
+                    sdo_ok += u32::from(r.is_ok());
+                    false
+                }
+                None => true,
+            });
         }
     }
     STOP.store(true, Ordering::Relaxed);
@@ -202,7 +224,8 @@ fn engine() {
     let reactor = threads.iter().any(|t| t.name == "async-io");
     println!(
         "cycles {}; moves {} done {}; resets {} done {}; snapshots {snapshots}; \
-         lost frames {}; dc {dc}; real-time threads [{}]; async-io reactor {reactor}",
+         lost frames {}; dc {dc}; real-time threads [{}]; async-io reactor {reactor}; \
+         sdo {sdo_started} ended {sdo_ended} ok {sdo_ok}",
         CYCLES.load(Ordering::Relaxed),
         handles.len(),
         done(&handles),

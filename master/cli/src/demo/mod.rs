@@ -222,6 +222,7 @@ fn axis(
         name: name.into(),
         drive,
         node: None,
+        eds: None,
         kind: "linear".into(),
         units: "mm".into(),
         modulo: None,
@@ -320,6 +321,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             sync_counter: None,
         },
         rt: RtSection::default(),
+        eds: vec![None; axes.len()],
         axes,
         kernel_axes,
     })

@@ -1,0 +1,175 @@
+//! What the end-to-end tests of the binary share: `gantry run --no-rt` on the example
+//! configuration (simulated drives in the process, recording what they saw) in a folder
+//! of its own, and the client commands on its socket.
+#![allow(dead_code)] // each test binary uses its part
+
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use gantry::config::Config;
+use gantry_cli::drive_records::{judge, AxisBound, Conditions};
+use gantry_sim::plant::record::read_records;
+
+/// The `gantry` binary under test.
+pub fn gantry() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gantry"))
+}
+
+/// A file of `deploy/examples`.
+pub fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../deploy/examples")
+        .join(name)
+}
+
+/// `gantry run --no-rt` on the example configuration, killed when dropped.
+pub struct Service {
+    /// The service's process.
+    pub child: Child,
+    /// Its control socket.
+    pub socket: PathBuf,
+    /// The folder of its configuration (the example, recording its drives).
+    pub dir: PathBuf,
+}
+
+impl Service {
+    /// The example configuration as shipped, with `bus.simulator_record` on, from a
+    /// folder of its own.
+    pub fn start(tag: &str) -> Self {
+        Self::start_with(tag, |servos| servos)
+    }
+
+    /// [`Service::start`] with the simulated chain's file (`sim-4-servos.toml`) as
+    /// `servos` changes it.
+    pub fn start_with(tag: &str, servos: impl FnOnce(String) -> String) -> Self {
+        let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
+        let off = "# simulator_record = \"drive-records.json\"";
+        assert!(text.contains(off), "the example documents simulator_record");
+        std::fs::write(
+            dir.join("gantry.toml"),
+            text.replace(off, "simulator_record = \"drive-records.json\""),
+        )
+        .unwrap();
+        let chain = std::fs::read_to_string(example("sim-4-servos.toml")).unwrap();
+        std::fs::write(dir.join("sim-4-servos.toml"), servos(chain)).unwrap();
+        let socket = dir.join("gantry.sock");
+        let child = gantry()
+            .args(["run", "--no-rt", "--config"])
+            .arg(dir.join("gantry.toml"))
+            .arg("--socket")
+            .arg(&socket)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let end = Instant::now() + Duration::from_secs(20);
+        while UnixStream::connect(&socket).is_err() {
+            assert!(Instant::now() < end, "the service did not open its socket");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Self { child, socket, dir }
+    }
+
+    /// Judges what the simulated drives recorded (written when the service exited)
+    /// against the configuration's axes: the drive invariant (issue 10 §6). Not real
+    /// time (`--no-rt`): missed and doubled setpoints are the host's, not judged.
+    pub fn assert_drive_invariant(&self) {
+        let config = Config::load(&self.dir.join("gantry.toml").display().to_string()).unwrap();
+        let path = self.dir.join("drive-records.json");
+        let records = read_records(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(records.len(), 4, "one record per chain position");
+        let verdict = judge(
+            &records,
+            &AxisBound::of_config(&config).unwrap(),
+            Conditions::default(),
+        );
+        assert!(
+            verdict.holds(),
+            "{:#?}\n{:#?}",
+            verdict.broken,
+            verdict.summary
+        );
+        eprintln!("drive records: {:#?}", verdict.summary);
+    }
+
+    /// A client command on this service's socket (arguments may follow).
+    pub fn command(&self, args: &[&str]) -> Command {
+        let mut c = gantry();
+        c.args(args).arg("--socket").arg(&self.socket);
+        c
+    }
+
+    /// A client command's output.
+    pub fn cli(&self, args: &[&str]) -> Output {
+        self.command(args).output().unwrap()
+    }
+
+    /// Runs a client command that must succeed; its stdout.
+    pub fn ok(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    /// Runs a client command that must fail; its stderr.
+    pub fn fails(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(!out.status.success(), "{args:?} should fail");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    /// `gantry status --json`.
+    pub fn status(&self) -> serde_json::Value {
+        serde_json::from_str(&self.ok(&["status", "--json"])).unwrap()
+    }
+
+    /// Axis `name` of `gantry status --json`.
+    pub fn axis(&self, name: &str) -> serde_json::Value {
+        self.status()["axes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|a| a["name"] == name)
+            .unwrap()
+            .clone()
+    }
+}
+
+impl Service {
+    /// SIGTERM; waits for the exit (20 s at most): its status and stdout.
+    pub fn terminate(&mut self) -> (std::process::ExitStatus, String) {
+        nix::sys::signal::kill(
+            nix::unistd::Pid::from_raw(self.child.id() as i32),
+            nix::sys::signal::Signal::SIGTERM,
+        )
+        .unwrap();
+        let end = Instant::now() + Duration::from_secs(20);
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break s;
+            }
+            assert!(Instant::now() < end, "the service did not stop");
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let mut out = String::new();
+        std::io::Read::read_to_string(self.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+        (status, out)
+    }
+}
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}

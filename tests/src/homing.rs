@@ -1,0 +1,204 @@
+//! Switches and homing end to end on either bus, in lockstep: the simulated servo's switch
+//! cams reach the axis through its 0x60FD, its touch probes latch the home switch's edges
+//! and the index pulse, and the kernel's MoveHome takes the reference from those latches —
+//! exact to the count whatever the speed; a hardware limit switch stops the axis into
+//! ErrorStop, after which it may only move away. `tests/tests/homing_ethercat.rs` and
+//! `homing_canopen.rs` run [`scenario`] on each bus' rig.
+
+use gantry_kernel::axis::command::{Command, MoveDirection, MovePtp, PositioningMode};
+use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
+use gantry_kernel::axis::status::{AxisFault, AxisStatus};
+use gantry_kernel::homing::{HomingMode, LimitSide, MoveHome, MoveHomeCall, SwitchConfig};
+
+/// What the scenario needs of a rig with one axis (axis 0) on a simulated servo.
+pub trait HomingRig {
+    /// Sends `command` to the axis and cycles until it is final (at most `max` cycles).
+    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus;
+    /// `n` cycles.
+    fn cycles(&mut self, n: usize);
+    /// The axis' status now.
+    fn status(&self) -> AxisStatus;
+    /// The simulated drive's load position (counts, not wrapped).
+    fn drive_counts(&self) -> i64;
+    /// Faults the simulated drive recorded.
+    fn drive_faults(&self) -> u32;
+}
+
+/// The simulated servo's switches (`[slave.switches]`, counts): limit switches beyond
+/// ±50 mm, the home cam from 10 mm to just under 12 mm.
+pub fn servo_switches_toml() -> String {
+    format!(
+        "[slave.switches]\n\
+         negative_limit = [-9000000000, {NEGATIVE_LIMIT_AT}]\n\
+         positive_limit = [{POSITIVE_LIMIT_AT}, 9000000000]\n\
+         home = [{}, {}]\n",
+        CAM.0, CAM.1
+    )
+}
+
+/// The axis' switches (`[axis.switches]`): all three from the drive.
+pub const AXIS_SWITCHES_TOML: &str =
+    "[axis.switches]\nnegative_limit = \"drive\"\npositive_limit = \"drive\"\nreference = \"drive\"\n";
+
+/// Counts per mm: 2¹⁷ counts per motor revolution, 5 mm per revolution.
+pub const COUNTS_PER_MM: f64 = 131_072.0 / 5.0;
+/// The home cam: 10 mm to just under 12 mm (counts, both included).
+const CAM: (i64, i64) = (262_144, 314_572);
+/// The limit switches: beyond ±50 mm.
+const NEGATIVE_LIMIT_AT: i64 = -1_310_720;
+const POSITIVE_LIMIT_AT: i64 = 1_310_720;
+
+/// Sends `command` and cycles until it is final (homing at 1 mm/s takes seconds).
+fn run(rig: &mut impl HomingRig, command: Command) -> CommandStatus {
+    rig.run_command(command, 60_000)
+}
+
+/// Where drive position `mm` (drive frame) is in the axis' frame now.
+fn axis_frame(rig: &impl HomingRig, mm: f64) -> f64 {
+    let actual = rig.status().actual_position;
+    mm + actual - drive_counts(rig) as f64 / COUNTS_PER_MM
+}
+
+fn drive_counts(rig: &impl HomingRig) -> i64 {
+    rig.drive_counts()
+}
+
+fn move_home(direction: MoveDirection, mode: HomingMode, fast: f64, slow: f64) -> Command {
+    Command::MoveHome(MoveHomeCall::all(MoveHome {
+        direction,
+        switch_config: SwitchConfig::RefAndLimitSwitch,
+        mode,
+        acceleration: 500.0,
+        jerk: 20_000.0,
+        speed_switch_search: fast,
+        max_distance_switch_search: 200.0,
+        speed_reference_search: slow,
+        max_distance_reference_search: 50.0,
+        reference_offset: 0.0,
+        normal_position: 0.0,
+    }))
+}
+
+/// The switches as the axis sees them, through the drive's process data.
+/// The whole scenario on `rig` (enabled, not homed, the drive at 0): the switches seen,
+/// a limit switch stop and the move-away rule, MoveHome on the home switch's rising edge
+/// at three speeds, MoveHome on the index pulse; no drive fault anywhere.
+pub fn scenario(rig: &mut impl HomingRig) {
+    the_drive_s_switches_reach_the_axis(rig);
+    a_limit_switch_stops_the_axis_and_lets_it_only_move_away(rig);
+    move_home_takes_the_edge_from_the_touch_probe_to_the_count(rig);
+    move_home_on_the_index_pulse(rig);
+    assert_eq!(rig.drive_faults(), 0);
+}
+
+fn the_drive_s_switches_reach_the_axis<R: HomingRig>(rig: &mut R) {
+    let sw = |rig: &R| rig.status().switches;
+    assert!(!sw(rig).reference);
+    run(
+        rig,
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+    );
+    // Onto the cam (11 mm) and off it again.
+    let to = |p| Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, p).speed(50.0));
+    assert_eq!(run(rig, to(11.0)), CommandStatus::Done);
+    rig.cycles(5);
+    assert!(sw(rig).reference, "on the cam at {}", drive_counts(rig));
+    assert!(!sw(rig).positive_limit && !sw(rig).negative_limit);
+    assert_eq!(run(rig, to(20.0)), CommandStatus::Done);
+    rig.cycles(5);
+    assert!(!sw(rig).reference);
+}
+
+/// MoveHome on the home switch's rising edge, from below the cam: the reference is the
+/// first count on the cam, exact at a slow and at a fast search speed (the cycle-sampled
+/// position would be off by the distance of a cycle: 26 counts at 1 mm/s, 1300 at 50).
+fn move_home_takes_the_edge_from_the_touch_probe_to_the_count(rig: &mut impl HomingRig) {
+    for (mode, fast, slow) in [
+        (HomingMode::SwitchingEdge1Phase, 1.0, 1.0),
+        (HomingMode::SwitchingEdge1Phase, 50.0, 50.0),
+        (HomingMode::SwitchingEdge2Phase, 50.0, 2.0),
+    ] {
+        // From 2 mm below the cam.
+        let below = axis_frame(rig, CAM.0 as f64 / COUNTS_PER_MM - 2.0);
+        let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, below).speed(50.0));
+        assert_eq!(run(rig, to), CommandStatus::Done);
+        let status = run(rig, move_home(MoveDirection::Positive, mode, fast, slow));
+        let st = rig.status();
+        assert_eq!(
+            status,
+            CommandStatus::Done,
+            "{mode:?} at {fast}/{slow} mm/s: {:?}",
+            st.error
+        );
+        assert!(st.homing.reference_set, "{mode:?}: {:?}", st.homing);
+        rig.cycles(200);
+        // NormalPosition 0 = ReferenceOffset 0: the axis stands on the edge.
+        let at = drive_counts(rig);
+        assert!(
+            (at - CAM.0).abs() <= 1,
+            "{mode:?} at {fast}/{slow} mm/s: stands at {at} counts, the edge is at {}",
+            CAM.0
+        );
+        let actual = rig.status().actual_position;
+        assert!(
+            actual.abs() <= 1.0 / COUNTS_PER_MM,
+            "{mode:?}: actual {actual}"
+        );
+    }
+}
+
+/// MoveHome on the index pulse after the switch: the reference is an index position.
+fn move_home_on_the_index_pulse(rig: &mut impl HomingRig) {
+    let below = axis_frame(rig, -20.0);
+    let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, below).speed(50.0));
+    assert_eq!(run(rig, to), CommandStatus::Done);
+    let status = run(
+        rig,
+        move_home(
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse2Phase,
+            50.0,
+            2.0,
+        ),
+    );
+    let st = rig.status();
+    assert_eq!(status, CommandStatus::Done, "{:?}", st.error);
+    rig.cycles(200);
+    let at = drive_counts(rig);
+    // The simulated encoder's index is at 1000 counts in every revolution.
+    let index = 1000 + (at - 1000 + 65_536).div_euclid(131_072) * 131_072;
+    assert!(
+        (at - index).abs() <= 1,
+        "stands at {at}, nearest index {index}"
+    );
+}
+
+/// A move into the positive limit switch: quick stop into ErrorStop naming the switch;
+/// after Reset, a move further on is refused and one away from it runs.
+fn a_limit_switch_stops_the_axis_and_lets_it_only_move_away(rig: &mut impl HomingRig) {
+    let to = |p| Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, p).speed(50.0));
+    let status = run(rig, to(70.0));
+    assert_ne!(status, CommandStatus::Done, "ran through the limit switch");
+    rig.cycles(500);
+    let st = rig.status();
+    assert_eq!(st.state, AxisState::ErrorStop);
+    assert_eq!(
+        st.error,
+        Some(AxisFault::LimitSwitch {
+            side: LimitSide::Positive
+        })
+    );
+    let at = drive_counts(rig);
+    assert!(at >= POSITIVE_LIMIT_AT, "stopped on the switch: {at}");
+    assert!(
+        (at as f64) < 70.0 * COUNTS_PER_MM,
+        "stopped well before the target: {at}"
+    );
+    assert_eq!(run(rig, Command::Reset), CommandStatus::Done);
+    assert_ne!(run(rig, to(80.0)), CommandStatus::Done, "further on");
+    assert_eq!(run(rig, to(0.0)), CommandStatus::Done, "away from it");
+}
