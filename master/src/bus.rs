@@ -11,7 +11,9 @@ use crate::canopen::{self, CanopenBus, SocketLink};
 use crate::config::Config;
 use crate::ethercat::bus::{self as ethercat, EthercatBus};
 use crate::ethercat::link::LinkFactory;
-use crate::runtime::bus::{BusCounters, CycleBus, DriveError, Reply, Restored, Unreachable};
+use crate::runtime::bus::{
+    BusCounters, CanNodeStatus, CycleBus, DriveError, Reply, Restored, Unreachable,
+};
 use crate::runtime::sdo::{SdoError, SdoRequest, SdoResult};
 use gantry_kernel::axis::command::CommandError;
 
@@ -160,5 +162,8 @@ impl CycleBus for AnyBus {
     }
     fn take_sdo(&mut self) -> Option<SdoResult> {
         with_bus!(self, b => b.take_sdo())
+    }
+    fn can_node(&self, drive: usize) -> Option<CanNodeStatus> {
+        with_bus!(self, b => b.can_node(drive))
     }
 }

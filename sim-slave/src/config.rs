@@ -194,6 +194,11 @@ pub struct ServoConfig {
     pub node: Option<u8>,
     /// Absolute encoder value at power-up (counts).
     pub start_position: i32,
+    /// On a CAN bus: the SYNC watchdog's margin, in communication cycle periods (0x1006):
+    /// no SYNC for longer is a communication error (EMCY 0x8100 and the 0x6007
+    /// reaction). CiA 301 §7.5.2.6 leaves it to the device; 1.5 (CANopenNode's) by
+    /// default. A larger one tolerates a master on a host without real time.
+    pub sync_timeout_periods: f64,
     /// How fast its distributed clock's oscillator runs against true time (ppm;
     /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
     /// the network's reference, which the master's cycle has to follow.
@@ -315,6 +320,7 @@ impl Default for ServoConfig {
         Self {
             node: None,
             start_position: 0,
+            sync_timeout_periods: crate::canopen::node::SYNC_TIMEOUT_PERIODS,
             dc_drift_ppm: 0.0,
             commutation_offset: p.commutation_offset,
             bandwidth_hz: p.velocity_loop_hz,

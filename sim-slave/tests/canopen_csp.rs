@@ -44,10 +44,15 @@ fn entry(o: ObjectId) -> [u8; 4] {
 impl Rig {
     /// Nodes `ids` on a 1 Mbit/s bus, booted, PDOs mapped by SDO, operational.
     fn new(ids: &[u8]) -> Self {
-        let nodes = ids
-            .iter()
-            .map(|&n| CanNode::new(CanNodeConfig::servo(id(n))).unwrap())
-            .collect();
+        let configs: Vec<_> = ids.iter().map(|&n| CanNodeConfig::servo(id(n))).collect();
+        Self::with_configs(&configs)
+    }
+
+    /// [`Rig::new`] with nodes of these configurations.
+    fn with_configs(configs: &[CanNodeConfig]) -> Self {
+        let ids: Vec<u8> = configs.iter().map(|c| c.node.get()).collect();
+        let ids = &ids[..];
+        let nodes = configs.iter().map(|c| CanNode::new(*c).unwrap()).collect();
         let mut m = Master::with_nodes(vec![]);
         m.bus = CanBus::new(nodes).with_bitrate(1_000_000);
         m.sync_overflow = 16;
@@ -463,6 +468,66 @@ fn sync_watchdog_0x1006_faults_the_drive_when_sync_stays_away() {
     }
     assert!(r.emcy.is_empty());
     assert_eq!(r.servo(0).state(), State::OperationEnabled);
+}
+
+#[test]
+fn the_sync_watchdog_margin_is_the_nodes_setting_and_at_least_one_period() {
+    // 10 periods of 1 ms: silence of 5 ms is tolerated, more than 10 ms is not.
+    let config = CanNodeConfig {
+        sync_timeout_periods: 10.0,
+        ..CanNodeConfig::servo(id(8))
+    };
+    let mut r = Rig::with_configs(&[config]);
+    r.m.write(8, 0x1006, 0, &1000u32.to_le_bytes()).unwrap();
+    r.enable();
+    let p = r.axes[0].pos;
+    for _ in 0..20 {
+        r.cycle(&[Some((0x0F, p))]);
+    }
+    for _ in 0..50 {
+        r.m.step(100_000);
+        r.read_inbox_pub();
+    }
+    assert!(r.emcy.is_empty(), "5 ms without SYNC: {:?}", r.emcy);
+    for _ in 0..20 {
+        r.cycle(&[Some((0x0F, p))]);
+    }
+    assert_eq!(r.servo(0).state(), State::OperationEnabled);
+    for _ in 0..120 {
+        r.m.step(100_000);
+        r.read_inbox_pub();
+    }
+    assert_eq!(r.emcy.len(), 1, "{:?}", r.emcy);
+    let (at, e) = r.emcy[0];
+    assert_eq!(e.error_code, 0x8100);
+    let sync =
+        r.m.bus
+            .log()
+            .iter()
+            .rev()
+            .find(|d| d.frame.id() == 0x080)
+            .unwrap()
+            .at_ns;
+    assert!(
+        at > sync + 10_000_000 && at <= sync + 10_100_000 + 135_000,
+        "EMCY {} ns after the last SYNC",
+        at - sync
+    );
+    // Below one period, or not a number: refused, naming the node and the key.
+    for bad in [0.5, f64::NAN] {
+        let e = CanNode::new(CanNodeConfig {
+            sync_timeout_periods: bad,
+            ..CanNodeConfig::servo(id(8))
+        })
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "CANopen node 8: sync_timeout_periods = {bad}: the SYNC watchdog's margin \
+                 must be at least 1 communication cycle period"
+            )
+        );
+    }
 }
 
 #[test]

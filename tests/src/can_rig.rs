@@ -1,15 +1,12 @@
 //! gantry's CANopen bus over simulated nodes in this process, driven from one test
 //! thread, in lockstep: the in-memory CAN bus ([`gantry_sim::canopen::CanBus`]: arbitration
-//! and the bit rate's frame timing) behind the master's [`CanLink`] ([`MemLink`]), and the
+//! and the bit rate's frame timing) behind the master's [`gantry::canopen::CanLink`] ([`MemLink`]), and the
 //! engine, the controller and a [`StepClock`] that moves the bus' time one cycle per cycle,
 //! as [`crate::rig::Rig`] does for EtherCAT.
 //!
-//! Time: during the bring-up the link runs its own clock (a wait for a frame lets the bus'
-//! time pass up to the deadline, so the nodes' SDO answers, boot-ups and timeouts come as
-//! they would); once the engine runs ([`MemBus::stepped`]) the step clock moves it, and an
-//! exchange receives what the bus delivered by the cycle's reply window (what would arrive
-//! later is late for this cycle, as on a wire). Its deadline, on the host's clock, is not
-//! used: a lockstep bus has answered before the exchange looks.
+//! Time: see [`gantry_cli::can_simulator`] (lockstep): during the bring-up the link runs
+//! its own clock; once the engine runs ([`MemBus::stepped`]) the step clock moves it, and
+//! an exchange receives what the bus delivered by the cycle's reply window.
 
 use std::collections::VecDeque;
 use std::io;
@@ -19,7 +16,7 @@ use gantry::canopen::bring_up::StartError;
 use gantry::canopen::{CanLink, CanopenBus, Received};
 use gantry::config::Config;
 use gantry::runtime::bus::CycleBus;
-use gantry::runtime::clock::{reply_window_ns, StepClock};
+use gantry::runtime::clock::StepClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::Engine;
@@ -28,164 +25,10 @@ use gantry_drives::canopen::{CanFrame, NodeId};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_sim::canopen::bus::Delivered;
-use gantry_sim::canopen::{CanBus, CanNode, CanNodeConfig};
+use gantry_sim::canopen::{CanNode, CanNodeConfig};
 
-/// Longest the link lets its own clock run in one step while waiting (bring-up).
-const IDLE_STEP_NS: u64 = 100_000;
-
-/// The simulated bus as the link and the test share it.
-pub struct MemBus {
-    /// The in-memory CAN bus and its nodes.
-    pub bus: CanBus,
-    /// Frames the nodes sent that the master has not taken yet, in bus order.
-    pending: VecDeque<Delivered>,
-    /// The link's clock (ns).
-    clock_ns: u64,
-    /// Stepped by the engine's clock: (cycle start, reply window).
-    stepped: Option<(u64, u64)>,
-    /// Frames the master does not receive (a test's fault: a node's heartbeat lost).
-    drop: Vec<u16>,
-    /// Frames dropped so far.
-    pub dropped: u64,
-}
-
-impl MemBus {
-    /// Moves the bus to `to_ns` and collects what the nodes sent.
-    fn run(&mut self, to_ns: u64) {
-        self.clock_ns = self.clock_ns.max(to_ns);
-        self.bus.run(self.clock_ns);
-        for d in self.bus.take_received() {
-            if self.drop.contains(&d.frame.id()) {
-                self.dropped += 1;
-            } else {
-                self.pending.push_back(d);
-            }
-        }
-    }
-
-    /// From now on the engine's clock moves the bus, one cycle of `period_ns` at a time.
-    pub fn stepped(&mut self, period_ns: u64) {
-        self.stepped = Some((self.clock_ns, reply_window_ns(period_ns)));
-    }
-
-    /// A new cycle starts at `to_ns` (the step clock's advance).
-    pub fn cycle_at(&mut self, to_ns: u64) {
-        if let Some((start, _)) = self.stepped.as_mut() {
-            *start = to_ns;
-        }
-        self.run(to_ns);
-    }
-
-    /// The master no longer receives frames with this identifier (or does again).
-    pub fn drop_frames(&mut self, id: u16, drop: bool) {
-        self.drop.retain(|d| *d != id);
-        if drop {
-            self.drop.push(id);
-        }
-    }
-
-    /// Sends `frame` as another master would (the test's own NMT command, say).
-    pub fn inject(&mut self, frame: CanFrame) {
-        self.bus.send(frame);
-        let now = self.clock_ns;
-        self.run(now);
-    }
-
-    /// The node with id `node`.
-    pub fn node(&self, node: u8) -> &CanNode {
-        self.bus
-            .nodes()
-            .iter()
-            .find(|n| n.node().get() == node)
-            .unwrap_or_else(|| panic!("no node {node}"))
-    }
-
-    /// The node with id `node`, mutable.
-    pub fn node_mut(&mut self, node: u8) -> &mut CanNode {
-        let i = self
-            .bus
-            .nodes()
-            .iter()
-            .position(|n| n.node().get() == node)
-            .unwrap_or_else(|| panic!("no node {node}"));
-        self.bus.node_mut(i).expect("node")
-    }
-
-    /// The link's clock (ns).
-    pub fn now_ns(&self) -> u64 {
-        self.clock_ns
-    }
-}
-
-/// The shared bus.
-pub type SharedBus = Arc<Mutex<MemBus>>;
-
-/// Locks the shared bus.
-pub fn lock(bus: &SharedBus) -> MutexGuard<'_, MemBus> {
-    bus.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// The master's link onto the in-memory bus.
-pub struct MemLink(SharedBus);
-
-impl MemLink {
-    /// A bus of `nodes`, at `bitrate` bit/s (None: frames take no time), and its link.
-    pub fn new(nodes: Vec<CanNode>, bitrate: Option<u32>) -> (Self, SharedBus) {
-        let mut bus = CanBus::new(nodes);
-        if let Some(b) = bitrate {
-            bus = bus.with_bitrate(b);
-        }
-        let shared = Arc::new(Mutex::new(MemBus {
-            bus,
-            pending: VecDeque::with_capacity(4096),
-            clock_ns: 0,
-            stepped: None,
-            drop: Vec::new(),
-            dropped: 0,
-        }));
-        (Self(shared.clone()), shared)
-    }
-}
-
-impl CanLink for MemLink {
-    fn send(&mut self, frame: &CanFrame) -> io::Result<()> {
-        lock(&self.0).bus.send(*frame);
-        Ok(())
-    }
-
-    fn receive(&mut self, deadline_ns: u64) -> io::Result<Option<Received>> {
-        let mut s = lock(&self.0);
-        loop {
-            let now = s.clock_ns;
-            s.run(now);
-            let limit = match s.stepped {
-                Some((start, window)) => start + window,
-                None => deadline_ns,
-            };
-            if s.pending.front().is_some_and(|d| d.at_ns <= limit) {
-                let Some(d) = s.pending.pop_front() else {
-                    return Ok(None);
-                };
-                if s.stepped.is_none() {
-                    s.clock_ns = s.clock_ns.max(d.at_ns);
-                }
-                return Ok(Some(Received {
-                    frame: d.frame,
-                    at_ns: Some(d.at_ns),
-                }));
-            }
-            if s.stepped.is_some() || now >= deadline_ns {
-                return Ok(None);
-            }
-            s.clock_ns = deadline_ns.min(now + IDLE_STEP_NS);
-        }
-    }
-
-    fn now_ns(&self) -> u64 {
-        lock(&self.0).clock_ns
-    }
-}
+/// The in-memory bus and its link: the binary's in-process CANopen simulator, in lockstep.
+pub use gantry_cli::can_simulator::{lock, MemBus, MemLink, SharedBus};
 
 /// A CANopen configuration: one axis per node in `nodes` (5 mm ball screws on 2^17-count
 /// motors, 200 mm/s), `pdo` layout, cycle `cycle_us`, 1 Mbit/s, on the in-memory bus.

@@ -2,7 +2,8 @@
 //! engine cycle (the bus' exchange — RPDOs, SYNC, TPDOs, heartbeats, EMCYs — the kernel,
 //! the drive layer, and the restore's NMT and SDO steps) while four simulated drives are
 //! enabled and moved, a node's heartbeat stays away until its axis stops, the node is
-//! reset by another master, and gantry's reset brings it back by SDO. The link is a
+//! reset by another master, gantry's reset brings it back by SDO, and the application's
+//! SDO transfers (segmented, expedited, aborted) go beside the moves. The link is a
 //! lockstep one that does not allocate either (a fixed queue in front of the nodes,
 //! which allocate nothing after they are built), so any allocation counted is the
 //! cycle's.
@@ -16,6 +17,7 @@ use gantry::runtime::clock::StepClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::Engine;
+use gantry::runtime::sdo::{SdoData, SdoError, SdoRequest};
 use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
 use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -160,7 +162,35 @@ fn the_canopen_cycle_does_not_allocate() {
         );
     }
     assert!(!engine.bus.any_fault());
-    for h in moves(25.0) {
+    // SDO transfers beside the PDOs while the axes move, inside the watched cycles: a
+    // segmented upload, an expedited download, an abort.
+    let hs = moves(25.0);
+    let window = SdoData::new(&50_000u32.to_le_bytes()).unwrap();
+    let transfers = [
+        SdoRequest::upload(0, 0x1008, 0),
+        SdoRequest::download(2, 0x6065, 0, window),
+        SdoRequest::upload(3, 0x2FFF, 0),
+    ];
+    let mut outcomes = Vec::with_capacity(transfers.len());
+    for request in transfers {
+        let h = ctl.sdo(request).unwrap();
+        let outcome = (0..100).find_map(|_| {
+            cycle(&mut engine, 1);
+            h.outcome()
+        });
+        outcomes.push(outcome.expect("the transfer ended"));
+    }
+    assert_eq!(
+        outcomes[0].as_ref().map(SdoData::as_slice),
+        Ok(&b"gantry-sim CiA 402 servo"[..])
+    );
+    assert_eq!(outcomes[1], Ok(SdoData::EMPTY));
+    assert!(
+        matches!(outcomes[2], Err(SdoError::Aborted { code, .. }) if code.0 == 0x0602_0000),
+        "{:?}",
+        outcomes[2]
+    );
+    for h in hs {
         assert_eq!(
             until_final(&mut engine, &mut cycle, &h),
             CommandStatus::Done

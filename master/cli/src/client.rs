@@ -228,6 +228,7 @@ pub fn status(
         )
         .map_err(io)?;
     }
+    can_nodes(&s, out)?;
     if s["overrun_stop"] == json!(true) {
         writeln!(
             out,
@@ -257,6 +258,21 @@ pub fn status(
             c["overruns"]
         )
     };
+    if s["drives"]
+        .as_array()
+        .is_some_and(|d| d.iter().any(|d| d["canopen"].is_object()))
+    {
+        // CANopen: what is lost is a drive's TPDOs in a cycle; there is no working
+        // counter and no distributed clock.
+        writeln!(
+            out,
+            "bus: CANopen, TPDO sets lost {} (a drive's TPDOs missing in a cycle; {} of \
+             them in part)\n{figures}",
+            s["bus"]["lost_frames"], s["bus"]["working_counter_errors"],
+        )
+        .map_err(io)?;
+        return Ok(());
+    }
     writeln!(
         out,
         "bus: lost frames {}, wrong working counters {}, {}\n{figures}",
@@ -277,6 +293,50 @@ pub fn status(
     Ok(())
 }
 
+/// On CANopen, the nodes as the bus sees them: node id, the NMT state of its last
+/// heartbeat and how long ago it came (against the consumer time that stops its axes),
+/// the exchanges whose TPDOs it missed.
+fn can_nodes(s: &Value, out: &mut impl Write) -> Result<(), ClientError> {
+    let io = ClientError::Output;
+    let nodes: Vec<&Value> = s["drives"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|d| d["canopen"].is_object())
+        .collect();
+    if nodes.is_empty() {
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "{:<6} {:<5} {:<16} {:<22} lost TPDOs",
+        "axis", "node", "NMT (heartbeat)", "last heartbeat"
+    )
+    .map_err(io)?;
+    for d in nodes {
+        let n = &d["canopen"];
+        let limit = n["heartbeat_limit_ms"].as_u64().unwrap_or(0);
+        let heard = n["heartbeat_ms_ago"]
+            .as_u64()
+            .map_or("-".into(), |ms| match limit {
+                0 => format!("{ms} ms ago"),
+                l => format!("{ms} ms ago (limit {l})"),
+            });
+        writeln!(
+            out,
+            "{:<6} {:<5} {:<16} {:<22} {} ({} in a row)",
+            d["axis"].as_str().unwrap_or("?"),
+            n["node"].as_u64().map_or("?".into(), |v| v.to_string()),
+            n["nmt"].as_str().unwrap_or("none heard"),
+            heard,
+            n["lost_tpdos"],
+            n["lost_in_a_row"]
+        )
+        .map_err(io)?;
+    }
+    Ok(())
+}
+
 /// Sends `request` for `axis` and, unless `no_wait`, waits for it with a progress line.
 pub fn command(
     client: &mut Client,
@@ -292,7 +352,7 @@ pub fn command(
         _ => (None, false),
     };
     let cmd = request.cmd();
-    let request_is_move = matches!(request, Request::Move { .. });
+    let request_is_move = matches!(request, Request::Move { .. } | Request::Home { .. });
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
     if no_wait {
@@ -326,6 +386,10 @@ pub fn command(
         let p = a["position"].as_f64()?;
         let units = a["units"].as_str().unwrap_or("");
         Some(match goal {
+            _ if cmd == "home" => format!(
+                "{axis} {p:10.3} {units} homing: {}",
+                homing_phase(&a["homing"])
+            ),
             Some((from, to)) if (to - from).abs() > 1e-9 => {
                 let frac = ((p - from) / (to - from)).clamp(0.0, 1.0);
                 let bar: String = (0..20)
@@ -410,6 +474,23 @@ fn after_reset(axis: &str, state: &str) -> String {
 }
 
 /// What a finished command did, in words, before the position it left the axis at.
+/// The phase a homing run is in, from its status bits (Jetter MoveHome: started, switch
+/// found, reference found, reference set).
+fn homing_phase(h: &Value) -> &'static str {
+    let bit = |k: &str| h[k] == json!(true);
+    if bit("reference_set") {
+        "reference set"
+    } else if bit("reference_found") {
+        "reference found, going to the normal position"
+    } else if bit("switch_found") {
+        "switch found, searching the reference"
+    } else if bit("started") {
+        "searching the switch"
+    } else {
+        "starting"
+    }
+}
+
 fn outcome(cmd: &str) -> &'static str {
     match cmd {
         "enable" => "enabled at",
@@ -419,6 +500,7 @@ fn outcome(cmd: &str) -> &'static str {
         "release" => "released at",
         "set_position" => "position set to",
         "reset" => "reset at",
+        "home" => "homed; stands at",
         _ => "done at",
     }
 }

@@ -6,7 +6,9 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use gantry::service::protocol::{BufferMode, JogDirection, MoveMode, Request as Line};
+use gantry::service::protocol::{
+    BufferMode, HomeMode, HomeSwitches, JogDirection, MoveMode, Request as Line,
+};
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
 use gantry_cli::demo::{self, DemoArgs};
@@ -74,6 +76,39 @@ impl AxisCommand {
                 no_wait,
                 client,
             ),
+            AxisCmd::Home {
+                axis,
+                direction,
+                switches,
+                mode,
+                speed_switch,
+                max_distance_switch,
+                speed_reference,
+                max_distance_reference,
+                acceleration,
+                jerk,
+                reference_offset,
+                normal_position,
+                no_wait,
+                client,
+            } => (
+                Line::Home {
+                    axis,
+                    direction,
+                    switches,
+                    mode,
+                    speed_switch,
+                    max_distance_switch,
+                    speed_reference,
+                    max_distance_reference,
+                    acceleration,
+                    jerk,
+                    reference_offset,
+                    normal_position,
+                },
+                no_wait,
+                client,
+            ),
             // A jog runs until halted: nothing to wait for.
             AxisCmd::Jog {
                 axis,
@@ -131,9 +166,9 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
-    /// Run the scripted demo: simulated CiA-402 drives on an in-process EtherCAT network,
-    /// brought up and driven by gantry's engine; prints the bus, writes a trace (CSV) and
-    /// a plot (SVG).
+    /// Run the scripted demo: simulated CiA-402 drives on an in-process EtherCAT network
+    /// (or CANopen with --bus canopen), brought up and driven by gantry's engine; prints
+    /// the bus, writes a trace (CSV) and a plot (SVG).
     Demo {
         /// Folder for the demo's configuration, trace.csv, plot.svg and the drives' records.
         #[arg(long, default_value = "out/demo")]
@@ -142,9 +177,10 @@ enum Cmd {
         #[arg(long, default_value_t = 4.0)]
         speed: f64,
         /// `ethercat`: simulated CiA-402 drives on an in-process EtherCAT network, brought
-        /// up and driven by the master; `none`: the same engine on simulated axes (actual =
-        /// set), no bus hardware.
-        #[arg(long, default_value = "ethercat", value_parser = ["ethercat", "none"])]
+        /// up and driven by the master; `canopen`: four simulated CiA-402 drives as CANopen
+        /// nodes on an in-memory CAN bus at 1 Mbit/s (2 ms cycle); `none`: the same engine
+        /// on simulated axes (actual = set), no bus hardware.
+        #[arg(long, default_value = "ethercat", value_parser = ["ethercat", "canopen", "none"])]
         bus: String,
         /// Write every EtherCAT frame sent and received to this pcap file.
         #[arg(long)]
@@ -313,6 +349,50 @@ enum AxisCmd {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
+    /// the phases; what is left out keeps the axis' last-used parameters.
+    Home {
+        /// Axis name.
+        axis: String,
+        /// Search direction: + or - (or positive, negative).
+        #[arg(long, allow_hyphen_values = true)]
+        direction: Option<JogDirection>,
+        /// ref-and-limit, ref, limit or none (the index pulse only).
+        #[arg(long)]
+        switches: Option<HomeSwitches>,
+        /// edge, edge-2 (switch fast, edge slowly), zero-pulse, zero-pulse-2.
+        #[arg(long)]
+        mode: Option<HomeMode>,
+        /// Speed of the switch search (units/s).
+        #[arg(long, value_parser = finite)]
+        speed_switch: Option<f64>,
+        /// Longest switch search (units).
+        #[arg(long, value_parser = finite)]
+        max_distance_switch: Option<f64>,
+        /// Speed of the reference search (units/s).
+        #[arg(long, value_parser = finite)]
+        speed_reference: Option<f64>,
+        /// Longest reference search (units).
+        #[arg(long, value_parser = finite)]
+        max_distance_reference: Option<f64>,
+        /// Acceleration (units/s²).
+        #[arg(long, value_parser = finite)]
+        acceleration: Option<f64>,
+        /// Jerk (units/s³).
+        #[arg(long, value_parser = finite)]
+        jerk: Option<f64>,
+        /// The position the reference gets (units).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        reference_offset: Option<f64>,
+        /// Where the axis goes after homing (units).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        normal_position: Option<f64>,
+        /// Return at once with the command's handle.
+        #[arg(long)]
+        no_wait: bool,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
     /// Jog an axis until halted.
     Jog {
         /// Axis name.
@@ -366,7 +446,7 @@ enum AxisCmd {
     },
 }
 
-/// Which drive an SDO transfer goes to: by axis or by bus position.
+/// Which drive an SDO transfer goes to: by axis, by bus position or by CANopen node id.
 #[derive(clap::Args, Debug)]
 #[group(required = true, multiple = false)]
 struct SdoTarget {
@@ -376,15 +456,19 @@ struct SdoTarget {
     /// The drive's position on the bus (0 is the first slave).
     #[arg(long)]
     drive: Option<usize>,
+    /// On CANopen: the drive's node id (1..=127).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=127))]
+    node: Option<u8>,
 }
 
 impl SdoTarget {
     fn target(self) -> Target {
-        match (self.axis, self.drive) {
-            (Some(a), _) => Target::Axis(a),
-            (None, Some(d)) => Target::Drive(d),
+        match (self.axis, self.drive, self.node) {
+            (Some(a), _, _) => Target::Axis(a),
+            (None, Some(d), _) => Target::Drive(d),
+            (None, None, Some(n)) => Target::Node(n),
             // clap's group requires one of them.
-            (None, None) => Target::Drive(usize::MAX),
+            (None, None, None) => Target::Drive(usize::MAX),
         }
     }
 }
@@ -476,7 +560,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             anyhow::ensure!(
                 pcap.is_none() || bus == "ethercat",
-                "--pcap needs the EtherCAT demo (--bus none has no bus)"
+                "--pcap needs the EtherCAT demo (--bus {bus} writes no EtherCAT frames)"
             );
             anyhow::ensure!(
                 speed.is_finite() && speed >= 0.0,
@@ -489,10 +573,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 ..DemoArgs::default()
             };
             let mut stdout = std::io::stdout();
-            let report = if bus == "ethercat" {
-                demo::ethercat::run(&args, &mut stdout)?
-            } else {
-                demo::run(&args, &mut stdout)?
+            let report = match bus.as_str() {
+                "ethercat" => demo::ethercat::run(&args, &mut stdout)?,
+                "canopen" => demo::canopen::run(&args, &mut stdout)?,
+                _ => demo::run(&args, &mut stdout)?,
             };
             writeln!(
                 stdout,

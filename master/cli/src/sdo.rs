@@ -357,6 +357,8 @@ pub enum Target {
     Axis(String),
     /// The drive at this position on the bus.
     Drive(usize),
+    /// The CANopen drive with this node id (resolved through the service's status).
+    Node(u8),
 }
 
 /// How to read and write `index`:`sub` of the drive: `ty` when given, else the type
@@ -419,6 +421,7 @@ pub fn run(
     let (axis, drive) = match &transfer.target {
         Target::Axis(a) => (Some(a.clone()), None),
         Target::Drive(d) => (None, Some(*d)),
+        Target::Node(n) => (None, Some(drive_of_node(client, *n)?)),
     };
     let ty = typing(client, axis.clone(), drive, index, sub, transfer.ty)?;
     let data = transfer.value.map(|v| ty.encode(v)).transpose()?;
@@ -475,6 +478,35 @@ pub enum SdoCliError {
     /// The service, the bus or the drive.
     #[error(transparent)]
     Client(#[from] ClientError),
+    /// `--node N` names no CANopen node of the running bus.
+    #[error("--node {node}: no such CANopen node on this bus ({nodes})")]
+    NoNode {
+        /// The node asked for.
+        node: u8,
+        /// The bus' nodes, or why there are none.
+        nodes: String,
+    },
+}
+
+/// The bus position of the CANopen drive with node id `node`, from the service's status.
+fn drive_of_node(client: &mut Client, node: u8) -> Result<usize, SdoCliError> {
+    let status = client.request(&Request::Status)?;
+    let drives: Vec<(u64, u64)> = status["drives"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|d| Some((d["canopen"]["node"].as_u64()?, d["drive"].as_u64()?)))
+        .collect();
+    if let Some((_, drive)) = drives.iter().find(|(n, _)| *n == u64::from(node)) {
+        return Ok(*drive as usize);
+    }
+    let nodes = if drives.is_empty() {
+        "it is not a CANopen bus: use --axis or --drive".to_string()
+    } else {
+        let ids: Vec<String> = drives.iter().map(|(n, _)| n.to_string()).collect();
+        format!("its nodes: {}", ids.join(", "))
+    };
+    Err(SdoCliError::NoNode { node, nodes })
 }
 
 #[cfg(test)]

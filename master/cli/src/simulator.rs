@@ -15,6 +15,10 @@ use gantry::ethercat::link::{Link, LinkFactory};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::config::SimConfig;
 
+use gantry::canopen::bring_up::StartError as CanStartError;
+use gantry::canopen::CanLink;
+
+use crate::can_simulator::{self, SharedBus};
 use crate::drive_records;
 use crate::embedded::{ChainLink, HostTime, SimWire};
 
@@ -86,10 +90,13 @@ pub fn open(sim: &str, how: SimLink) -> Result<(Box<dyn Link>, Simulated), Start
 
 /// The links of `[bus] simulator`, reached by one [`SimLink`]: what the binary hands the
 /// library's bus and service. Keeps the chain it opened last, for its holder and for the
-/// drives' records when the bus is closed.
+/// drives' records when the bus is closed. A CANopen configuration's simulator is the
+/// in-memory CAN bus ([`can_simulator`]): on the wall clock with [`SimLink::Thread`]
+/// (`gantry run`), in lockstep with [`SimLink::Lockstep`].
 pub struct Simulator {
     how: SimLink,
     opened: Mutex<Option<Simulated>>,
+    can: Mutex<Option<SharedBus>>,
 }
 
 impl Simulator {
@@ -98,6 +105,7 @@ impl Simulator {
         Self {
             how,
             opened: Mutex::new(None),
+            can: Mutex::new(None),
         }
     }
 
@@ -112,6 +120,14 @@ impl Simulator {
     /// The chain last opened, if any (lock it to inspect or change slaves).
     pub fn chain(&self) -> Option<Arc<Mutex<SlaveChain>>> {
         self.simulated().map(|s| s.chain)
+    }
+
+    /// The simulated CAN bus last opened (a CANopen configuration), if any.
+    pub fn can_bus(&self) -> Option<SharedBus> {
+        self.can
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
     }
 
     /// See [`Simulated::step_by_hand`]; false when no chain was opened.
@@ -134,14 +150,32 @@ impl LinkFactory for Simulator {
         let Some(sim) = &config.bus.simulator else {
             return Ok(None);
         };
+        if config.bus.kind == "canopen" {
+            return Ok(None);
+        }
         let (link, simulated) = open(sim, self.how)?;
         *self.opened.lock().unwrap_or_else(PoisonError::into_inner) = Some(simulated);
         Ok(Some(link))
     }
 
+    /// The simulated CANopen nodes of `[bus] simulator` on the in-memory CAN bus at the
+    /// configuration's bit rate: on the wall clock ([`SimLink::Thread`]) or in lockstep.
+    fn open_can(&self, config: &Config) -> Result<Option<Box<dyn CanLink>>, CanStartError> {
+        let Some((link, bus)) = can_simulator::open(config, self.how == SimLink::Thread)? else {
+            return Ok(None);
+        };
+        *self.can.lock().unwrap_or_else(PoisonError::into_inner) = Some(bus);
+        Ok(Some(Box::new(link)))
+    }
+
     /// Writes what the simulated drives saw, the shutdown included, to
     /// `[bus] simulator_record` and judges it (`drive_records::report_at_exit`).
     fn closed(&self, config: &Config, out: &mut (dyn Write + Send)) {
+        if let (Some(path), Some(bus)) = (&config.bus.simulator_record, self.can_bus()) {
+            let records = can_simulator::lock(&bus).records(config);
+            drive_records::report_at_exit(config, &records, path, out);
+            return;
+        }
         let (Some(path), Some(chain)) = (&config.bus.simulator_record, self.chain()) else {
             return;
         };

@@ -124,6 +124,11 @@ fn gantry_sdo_reads_and_writes_a_drive_of_a_running_service() {
     // The mistakes, each said plainly.
     let e = svc.fails(&["sdo", "upload", "--axis", "w", "0x6060:0"]);
     assert!(e.contains("no axis named \"w\""), "{e}");
+    let e = svc.fails(&["sdo", "upload", "--node", "1", "0x6060:0"]);
+    assert!(
+        e.contains("--node 1: no such CANopen node on this bus (it is not a CANopen bus: use --axis or --drive)"),
+        "{e}"
+    );
     let e = svc.fails(&["sdo", "upload", "--axis", "x", "6060"]);
     assert!(e.contains("object \"6060\" is not INDEX:SUB"), "{e}");
     let e = svc.fails(&[

@@ -11,8 +11,11 @@
 //! or a heartbeat reporting another NMT state fault it; an EMCY hands the drive's error
 //! code to its axis ([`CycleBus::drive_error`]). A reset brings a faulted node back one
 //! step per exchange: NMT reset communication, its boot-up, its configuration by SDO,
-//! NMT start, its first TPDOs. Nothing in [`CycleBus`]'s methods allocates, locks or
-//! panics; all state is made at bring-up.
+//! NMT start, its first TPDOs. An application's SDO transfer ([`CycleBus::start_sdo`])
+//! goes beside the PDOs: expedited or segmented (CiA 301 §7.2.4.3), one request frame per
+//! exchange, sent after the TPDOs so that it never delays them, its answer taken in the
+//! next exchange. Nothing in [`CycleBus`]'s methods allocates, locks or panics; all
+//! state is made at bring-up (a transfer's client and its 256-byte buffer live inline).
 
 use std::fmt;
 use std::io::Write;
@@ -21,7 +24,10 @@ use gantry_drives::canopen::cob_id::{CobId, NodeId};
 use gantry_drives::canopen::emcy::Emergency;
 use gantry_drives::canopen::heartbeat::{Heartbeat, NmtState};
 use gantry_drives::canopen::nmt::{NmtCommand, NmtTarget};
-use gantry_drives::canopen::sdo::{AbortCode, DownloadMode, Outcome};
+use gantry_drives::canopen::sdo::{
+    AbortCode, DownloadMode, Initiate, Multiplexer, Outcome, SdoClient, SdoConfig, ServerCommand,
+    Side, UploadMode,
+};
 use gantry_drives::canopen::sync::Sync;
 use gantry_drives::canopen::CanFrame;
 use gantry_kernel::axis::command::CommandError;
@@ -30,8 +36,11 @@ use super::bring_up::{self, Client, DriveSetup, NodeInfo, SdoStep, StartError};
 use super::link::{CanLink, Received};
 use super::pdo::DrivePlan;
 use crate::config::Config;
-use crate::runtime::bus::{BusCounters, CycleBus, DriveError, Reply, Restored, Unreachable};
+use crate::runtime::bus::{
+    BusCounters, CanNodeStatus, CycleBus, DriveError, Reply, Restored, Unreachable,
+};
 use crate::runtime::clock::now_ns;
+use crate::runtime::sdo::{SdoData, SdoError, SdoKind, SdoRequest, SdoResult, SDO_MAX_DATA};
 
 /// Bytes of a drive's process data each way at most (4 PDOs of 8 bytes).
 pub const MAX_IMAGE: usize = 32;
@@ -138,6 +147,63 @@ enum Step {
     FirstTpdos,
 }
 
+/// An application's SDO transfer in progress ([`CycleBus::start_sdo`]).
+struct Transfer {
+    request: SdoRequest,
+    client: SdoClient<[u8; SDO_MAX_DATA]>,
+    /// When it started and by when it must end (link clock).
+    started_ns: u64,
+    deadline_ns: u64,
+    /// The size a segmented upload announced, when more than a transfer carries.
+    too_large: Option<u32>,
+}
+
+impl Transfer {
+    /// The application's result of the client's `outcome`.
+    fn result(&self, outcome: Outcome, now: u64) -> SdoResult {
+        let (drive, index, sub) = (self.request.drive, self.request.index, self.request.sub);
+        match outcome {
+            Outcome::Uploaded { .. } => {
+                SdoData::new(self.client.data()).ok_or(SdoError::Protocol {
+                    drive,
+                    index,
+                    sub,
+                    what: "the upload is larger than a transfer carries",
+                })
+            }
+            Outcome::Downloaded { .. } => Ok(SdoData::EMPTY),
+            Outcome::Aborted {
+                code,
+                by: Side::Client,
+                ..
+            } if code == AbortCode::TIMED_OUT => Err(SdoError::TimedOut {
+                drive,
+                index,
+                sub,
+                waited_ms: now.saturating_sub(self.started_ns) / 1_000_000,
+            }),
+            Outcome::Aborted {
+                code,
+                by: Side::Client,
+                ..
+            } if code == AbortCode::OUT_OF_MEMORY && self.too_large.is_some() => {
+                Err(SdoError::TooLarge {
+                    drive,
+                    index,
+                    sub,
+                    size: self.too_large.unwrap_or_default(),
+                })
+            }
+            Outcome::Aborted { code, .. } => Err(SdoError::Aborted {
+                drive,
+                index,
+                sub,
+                code,
+            }),
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Restore {
     drive: usize,
@@ -161,7 +227,11 @@ struct Drive {
     left: Option<CanFault>,
     /// When its last heartbeat came (link clock).
     heard_ns: u64,
+    /// The NMT state its last heartbeat reported.
+    nmt: Option<NmtState>,
     lost_in_a_row: u32,
+    /// Exchanges its TPDOs missed, since start.
+    lost_total: u64,
     fault: Option<(CanFault, Unreachable)>,
     /// The error of its last EMCY while in force (0x0000 ends it), and whether it came
     /// with the last exchange.
@@ -202,6 +272,11 @@ pub struct CanopenBus {
     restored: Option<Result<Restored, CommandError>>,
     exchanges: u64,
     malformed: u64,
+    /// The link's clock at the last exchange.
+    last_exchange_ns: u64,
+    /// The application's SDO transfer in progress, and how the last one ended.
+    sdo: Option<Transfer>,
+    sdo_done: Option<SdoResult>,
 }
 
 impl CanopenBus {
@@ -247,7 +322,10 @@ impl CanopenBus {
                 fresh: false,
                 left: None,
                 heard_ns: now,
+                // The bring-up started it once its heartbeat reported Operational.
+                nmt: Some(NmtState::Operational),
                 lost_in_a_row: 0,
+                lost_total: 0,
                 fault: None,
                 emcy: None,
                 emcy_fresh: false,
@@ -288,6 +366,9 @@ impl CanopenBus {
             restored: None,
             exchanges: 0,
             malformed: 0,
+            last_exchange_ns: now,
+            sdo: None,
+            sdo_done: None,
         })
     }
 
@@ -461,6 +542,7 @@ impl CanopenBus {
             },
             CobId::SdoTx(_) => {
                 if !self.restoring(i) {
+                    self.on_transfer_frame(i, frame, now);
                     return;
                 }
                 let outcome = match self.drives.get_mut(i) {
@@ -481,6 +563,7 @@ impl CanopenBus {
             return;
         };
         d.heard_ns = d.heard_ns.max(at);
+        d.nmt = Some(hb.state);
         let node = d.node.get();
         if restoring {
             if let Some(r) = self.restore.as_mut() {
@@ -501,6 +584,55 @@ impl CanopenBus {
             NmtState::BootUp => Some(CanFault::BootUp { node }),
             state => Some(CanFault::Left { node, state }),
         };
+    }
+
+    /// An SDO answer for the application's transfer, if it is with that drive.
+    fn on_transfer_frame(&mut self, drive: usize, frame: &CanFrame, now: u64) {
+        let Some(t) = self.sdo.as_mut().filter(|t| t.request.drive == drive) else {
+            return;
+        };
+        // A segmented upload larger than the buffer: the client aborts it (0x05040005);
+        // the application is told the size the drive announced.
+        if let Ok(ServerCommand::InitiateUpload {
+            payload: Initiate::Segmented { size: Some(size) },
+            ..
+        }) = ServerCommand::parse(frame.data())
+        {
+            if size as usize > SDO_MAX_DATA {
+                t.too_large = Some(size);
+            }
+        }
+        if let Some(outcome) = t.client.receive(frame, now) {
+            self.sdo_done = Some(t.result(outcome, now));
+        }
+    }
+
+    /// The application's transfer after the TPDOs: its timeouts, then its next request
+    /// (one frame per exchange); once it has ended, what the client still has to say (an
+    /// abort) goes and the transfer is gone.
+    fn step_transfer(&mut self, now: u64) {
+        let Some(t) = self.sdo.as_mut() else {
+            return;
+        };
+        if self.sdo_done.is_none() {
+            let outcome = if now >= t.deadline_ns {
+                t.client.abort(AbortCode::TIMED_OUT)
+            } else {
+                t.client.poll(now)
+            };
+            if let Some(o) = outcome {
+                self.sdo_done = Some(t.result(o, now));
+            }
+        }
+        if self.sdo_done.is_some() {
+            while let Some(f) = t.client.transmit() {
+                let _ = self.link.send(&f);
+            }
+            self.sdo = None;
+        } else if let Some(f) = t.client.transmit() {
+            // Not taken by the link: the transfer times out, as a lost frame would.
+            let _ = self.link.send(&f);
+        }
     }
 
     fn fail_restore(&mut self, problem: &'static str) {
@@ -557,6 +689,23 @@ impl CanopenBus {
         let mut step = r.step;
         match r.step {
             Step::Reset => {
+                // The application's transfer with this node ends with the reset.
+                if self
+                    .sdo
+                    .as_ref()
+                    .is_some_and(|t| t.request.drive == r.drive)
+                    && self.sdo_done.is_none()
+                {
+                    self.sdo_done = self.sdo.take().map(|t| {
+                        Err(SdoError::Protocol {
+                            drive: t.request.drive,
+                            index: t.request.index,
+                            sub: t.request.sub,
+                            what:
+                                "the node was reset (NMT reset communication) during the transfer",
+                        })
+                    });
+                }
                 let f = bring_up::nmt(NmtCommand::ResetCommunication, NmtTarget::Node(d.node));
                 if self.link.send(&f).is_ok() {
                     // A transfer cut short by the reset is gone with it.
@@ -668,6 +817,7 @@ impl CanopenBus {
                     d.lost_in_a_row = 0;
                 } else {
                     d.lost_in_a_row = d.lost_in_a_row.saturating_add(1);
+                    d.lost_total += 1;
                     self.counters.lost += 1;
                     if d.got != 0 {
                         self.counters.incomplete += 1;
@@ -730,6 +880,7 @@ impl CycleBus for CanopenBus {
     fn exchange(&mut self, deadline_ns: u64) -> Reply {
         self.exchanges += 1;
         let now = self.link.now_ns();
+        self.last_exchange_ns = now;
         // The engine's deadline is CLOCK_MONOTONIC; the wait left, on the link's clock.
         let deadline = now.saturating_add(deadline_ns.saturating_sub(now_ns()));
         for d in &mut self.drives {
@@ -784,6 +935,7 @@ impl CycleBus for CanopenBus {
             }
         }
         self.finish_restore();
+        self.step_transfer(now);
         let answered = self.judge(now);
         if sent && answered {
             Reply::Answered
@@ -858,5 +1010,70 @@ impl CycleBus for CanopenBus {
 
     fn restore_timeout_ns(&self) -> u64 {
         RESTORE_TIMEOUT_NS
+    }
+
+    /// An SDO transfer with the drive's node on its default SDO channel (0x600/0x580 +
+    /// node): expedited or segmented as the size asks (CiA 301 §7.2.4.3), one request per
+    /// exchange after the TPDOs, timed on the link's clock. Refused while the node is
+    /// being brought back by a reset (its channel carries the restore's configuration).
+    fn start_sdo(&mut self, request: &SdoRequest, _now_ns: u64) -> Result<(), SdoError> {
+        if self.sdo.is_some() || self.sdo_done.is_some() {
+            return Err(SdoError::Busy);
+        }
+        let drive = request.drive;
+        let node = self
+            .drives
+            .get(drive)
+            .map(|d| d.node)
+            .ok_or(SdoError::NoDrive { drive })?;
+        if self.restoring(drive) {
+            return Err(SdoError::Busy);
+        }
+        let protocol = |what| SdoError::Protocol {
+            drive,
+            index: request.index,
+            sub: request.sub,
+            what,
+        };
+        let now = self.link.now_ns();
+        let config = SdoConfig {
+            timeout_ns: request.timeout_ns.max(1),
+            ..SdoConfig::default()
+        };
+        let mut client = SdoClient::new(node, config, [0u8; SDO_MAX_DATA])
+            .map_err(|_| protocol("the SDO client refused its timeout"))?;
+        let mux = Multiplexer::new(request.index, request.sub);
+        let started = match &request.kind {
+            SdoKind::Upload => client.upload(mux, UploadMode::Normal, now),
+            SdoKind::Download(data) => {
+                client.download(mux, data.as_slice(), DownloadMode::Auto, now)
+            }
+        };
+        started.map_err(|_| protocol("the SDO client refused the request"))?;
+        let transfer = Transfer {
+            request: *request,
+            client,
+            started_ns: now,
+            deadline_ns: now.saturating_add(request.timeout_ns),
+            too_large: None,
+        };
+        self.sdo = Some(transfer);
+        Ok(())
+    }
+
+    fn take_sdo(&mut self) -> Option<SdoResult> {
+        self.sdo_done.take()
+    }
+
+    fn can_node(&self, drive: usize) -> Option<CanNodeStatus> {
+        let d = self.drives.get(drive)?;
+        Some(CanNodeStatus {
+            node: d.node.get(),
+            nmt: d.nmt.map(state_name),
+            heard_ms_ago: self.last_exchange_ns.saturating_sub(d.heard_ns) / 1_000_000,
+            heartbeat_limit_ms: self.consumer_ns / 1_000_000,
+            lost_tpdos: d.lost_total,
+            lost_in_a_row: d.lost_in_a_row,
+        })
     }
 }

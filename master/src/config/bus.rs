@@ -17,7 +17,7 @@ pub struct BusSection {
     /// link, see `ethercat::link::LinkFactory`).
     #[serde(default)]
     pub simulator: Option<String>,
-    /// Cycle time (µs), 250 to 4000.
+    /// Cycle time (µs): 250 to 4000 on EtherCAT, 250 to 50000 on CANopen.
     pub cycle_us: u32,
     /// With `simulator`: when gantry exits, write what each simulated drive saw of the
     /// setpoints it took here (JSON, as `gantry-sim --record` writes it), so that a run on
@@ -184,10 +184,16 @@ impl BusSection {
                     .into(),
             ));
         }
-        if !(250..=4000).contains(&self.cycle_us) {
+        // CANopen machines cycle slower than EtherCAT ones: a SYNC every 1 to 10 ms is
+        // common, and a bit rate below 1 Mbit/s needs the time for its frames.
+        let (low, high) = match kind {
+            BusKind::Ethercat => (250, 4000),
+            BusKind::Canopen => (250, 50_000),
+        };
+        if !(low..=high).contains(&self.cycle_us) {
             return Err((
                 "cycle_us".into(),
-                format!("{} µs is outside 250 to 4000 µs", self.cycle_us),
+                format!("{} µs is outside {low} to {high} µs", self.cycle_us),
             ));
         }
         if self.faults.lost_frames_limit == 0 || self.faults.working_counter_limit == 0 {
@@ -268,14 +274,19 @@ impl BusSection {
                 ),
             ));
         }
-        if u32::from(self.master_consumer_ms()) <= producer {
+        // gantry's heartbeat goes with the first cycle at or after it is due: up to its
+        // time plus a cycle apart.
+        if u64::from(self.master_consumer_ms()) * 1000
+            <= u64::from(producer) * 1000 + u64::from(self.cycle_us)
+        {
             return Err((
                 "master_timeout_ms".into(),
                 format!(
-                    "{} ms is not longer than gantry's heartbeat time {producer} ms: every \
-                     node would time gantry out between two of its heartbeats (CiA 301 \
-                     §7.2.8.3.2.3)",
-                    self.master_consumer_ms()
+                    "{} ms is not longer than gantry's heartbeat time {producer} ms plus a \
+                     cycle ({} µs; the cycle sends it): every node would time gantry out \
+                     between two of its heartbeats (CiA 301 §7.2.8.3.2.3)",
+                    self.master_consumer_ms(),
+                    self.cycle_us
                 ),
             ));
         }

@@ -341,6 +341,14 @@ fn canopen_master_heartbeat_and_sync_counter_keys() {
             "bus.master_timeout_ms: 100 ms is not longer than gantry's heartbeat time 100 ms"
         )
     );
+    // 101 ms: longer than the heartbeat, but not than the heartbeat and a 1 ms cycle.
+    assert!(
+        e(&["node = 1"], "bitrate = 1000000\nmaster_timeout_ms = 101").contains(
+            "bus.master_timeout_ms: 101 ms is not longer than gantry's heartbeat time 100 ms \
+             plus a cycle (1000 µs; the cycle sends it)"
+        )
+    );
+    assert!(canopen(&["node = 1"], "bitrate = 1000000\nmaster_timeout_ms = 102").is_ok());
     for bad in [0, 1, 241] {
         assert!(
             e(
@@ -570,4 +578,29 @@ fn gantrys_heartbeat_and_sync_counter_against_an_eds() {
     .to_string();
     assert!(e.contains("0x1019:00"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn canopen_cycles_may_be_longer_than_ethercat_ones() {
+    let ok = canopen(&["node = 1"], "bitrate = 125000\ncycle_us = 20000");
+    // `canopen` writes cycle_us = 1000 first; TOML refuses a key twice, so build by hand.
+    assert!(ok.is_err());
+    let text =
+        "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 125000\ncycle_us = 20000\n\
+                [[axis]]\nname = \"a\"\nnode = 1\npdo = \"csp-minimal\"\n\
+                scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+                max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n";
+    assert_eq!(Config::parse(text, "c.toml").unwrap().bus.cycle_us, 20_000);
+    let e = Config::parse(&text.replace("20000", "60000"), "c.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.ends_with("bus.cycle_us: 60000 µs is outside 250 to 50000 µs"),
+        "{e}"
+    );
+    let e = mistake("cycle_us = 1000", "cycle_us = 20000");
+    assert!(
+        e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"),
+        "{e}"
+    );
 }

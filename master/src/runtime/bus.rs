@@ -93,6 +93,31 @@ pub trait CycleBus {
     fn take_sdo(&mut self) -> Option<SdoResult> {
         None
     }
+    /// On CANopen: what the bus knows of drive `drive`'s node (its id, the NMT state its
+    /// heartbeat reports, lost TPDOs), for the status. `None` on other buses.
+    fn can_node(&self, drive: usize) -> Option<CanNodeStatus> {
+        let _ = drive;
+        None
+    }
+}
+
+/// A CANopen drive's node as the bus sees it (`gantry status`). `Copy`: it crosses the
+/// cycle thread in the snapshot without allocating.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CanNodeStatus {
+    /// Node id.
+    pub node: u8,
+    /// The NMT state its last heartbeat reported (CiA 301 §7.2.8.3.2); `None` before the
+    /// first one.
+    pub nmt: Option<&'static str>,
+    /// Time since its last heartbeat (or since the bus came up), at the last exchange (ms).
+    pub heard_ms_ago: u64,
+    /// Heartbeat consumer time: silence this long stops its axes (ms; 0: not watched).
+    pub heartbeat_limit_ms: u64,
+    /// Exchanges whose TPDOs from it were missing (lost or late), since start.
+    pub lost_tpdos: u64,
+    /// Of which in a row, up to the last exchange.
+    pub lost_in_a_row: u32,
 }
 
 /// An error a drive reported outside its process data ([`CycleBus::drive_error`]).

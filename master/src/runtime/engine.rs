@@ -736,6 +736,7 @@ impl<B: CycleBus> Engine<B> {
                         .error_code
                         .or(self.bus.drive_error(drive).map(|e| e.code)),
                     bus_fault: self.bus.fault(drive).copied(),
+                    can_node: self.bus.can_node(drive),
                 };
             }
         }

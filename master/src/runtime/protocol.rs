@@ -8,7 +8,7 @@ use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::status::AxisStatus;
 
-use super::bus::Unreachable;
+use super::bus::{CanNodeStatus, Unreachable};
 use super::sdo::{SdoRequest, SdoResult};
 use super::stats::CycleFigures;
 
@@ -78,6 +78,8 @@ pub struct DriveStatus {
     pub error_code: Option<u16>,
     /// The bus cannot reach it: why.
     pub bus_fault: Option<Unreachable>,
+    /// On CANopen: its node as the bus sees it.
+    pub can_node: Option<CanNodeStatus>,
 }
 
 /// Everything the application can see, replaced as a whole every few cycles.

@@ -142,6 +142,55 @@ pub enum MoveMode {
     Negative,
 }
 
+/// What a homing run searches with (Jetter MoveHome `SwitchConfiguration`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HomeSwitches {
+    /// The index pulse only.
+    None,
+    /// The reference switch; a limit switch reached reverses the search.
+    RefAndLimit,
+    /// The reference switch only: a limit switch is an error.
+    Ref,
+    /// The limit switch in the search direction is the reference.
+    Limit,
+}
+
+impl Word for HomeSwitches {
+    const FIELD: &'static str = "switches";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("none", Self::None),
+        ("ref-and-limit", Self::RefAndLimit),
+        ("ref", Self::Ref),
+        ("limit", Self::Limit),
+    ];
+}
+word_impls!(HomeSwitches);
+
+/// What a homing run takes as the reference, in how many phases (Jetter MoveHome
+/// `ReferencingMode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HomeMode {
+    /// The switch edge, searched slowly.
+    Edge,
+    /// The switch fast, then its edge slowly.
+    Edge2,
+    /// The index pulse, searched slowly.
+    ZeroPulse,
+    /// The switch fast, then the index pulse slowly.
+    ZeroPulse2,
+}
+
+impl Word for HomeMode {
+    const FIELD: &'static str = "mode";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("edge", Self::Edge),
+        ("edge-2", Self::Edge2),
+        ("zero-pulse", Self::ZeroPulse),
+        ("zero-pulse-2", Self::ZeroPulse2),
+    ];
+}
+word_impls!(HomeMode);
+
 impl Word for MoveMode {
     const FIELD: &'static str = "mode";
     const NAMES: &'static [(&'static str, Self)] = &[
@@ -302,6 +351,45 @@ pub enum Request {
         /// The position the axis is at now.
         position: f64,
     },
+    /// A homing run (Jetter MoveHome) on the axis' switches and its drive's touch probe;
+    /// every parameter left out keeps the axis' last-used one.
+    Home {
+        /// Axis name.
+        axis: String,
+        /// Search direction.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        direction: Option<JogDirection>,
+        /// What the search uses.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        switches: Option<HomeSwitches>,
+        /// What the reference is.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mode: Option<HomeMode>,
+        /// Speed of the switch search (units/s).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        speed_switch: Option<f64>,
+        /// Longest switch search (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max_distance_switch: Option<f64>,
+        /// Speed of the reference search (units/s).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        speed_reference: Option<f64>,
+        /// Longest reference search (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max_distance_reference: Option<f64>,
+        /// Acceleration (units/s²).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64>,
+        /// Jerk (units/s³).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        jerk: Option<f64>,
+        /// The position the reference gets (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        reference_offset: Option<f64>,
+        /// Where the axis goes after homing (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_position: Option<f64>,
+    },
     /// Leave ErrorStop: the slave back to OP if needed, the drive's fault reset.
     Reset {
         /// Axis name.
@@ -381,6 +469,7 @@ impl Request {
             Self::Release { .. } => "release",
             Self::SetPosition { .. } => "set_position",
             Self::Reset { .. } => "reset",
+            Self::Home { .. } => "home",
             Self::Command { .. } => "command",
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
@@ -401,6 +490,7 @@ impl Request {
             | Self::Stop { axis }
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
+            | Self::Home { axis, .. }
             | Self::Reset { axis } => Some(axis),
             Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
@@ -540,6 +630,20 @@ mod tests {
                 index: 0x607A,
                 sub: 0,
             },
+            Request::Home {
+                axis: axis(),
+                direction: Some(JogDirection::Negative),
+                switches: Some(HomeSwitches::RefAndLimit),
+                mode: Some(HomeMode::Edge2),
+                speed_switch: Some(20.0),
+                max_distance_switch: Some(500.0),
+                speed_reference: Some(2.0),
+                max_distance_reference: Some(10.0),
+                acceleration: Some(200.0),
+                jerk: Some(4000.0),
+                reference_offset: Some(-3.0),
+                normal_position: Some(5.0),
+            },
             Request::Shutdown,
         ]
     }
@@ -566,11 +670,12 @@ mod tests {
             Request::Shutdown => 13,
             Request::Sdo { .. } => 14,
             Request::Object { .. } => 15,
+            Request::Home { .. } => 16,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..16).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..17).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 16, "{words:?}");
+        assert_eq!(words.len(), 17, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

@@ -21,12 +21,15 @@ use thiserror::Error;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
-use super::protocol::{self, JogDirection, MoveMode, Request, SdoDirection, MAX_LINE};
+use super::protocol::{
+    self, HomeMode, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection, MAX_LINE,
+};
 use crate::config::Config;
 use crate::error_chain::Chain;
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::protocol::{Snapshot, TraceSample};
 use crate::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_DATA, SDO_TIMEOUT_NS};
+use gantry_kernel::homing::{HomingMode, MoveHomeCall, SwitchConfig};
 
 /// Trace samples kept for `trace` requests (60 s at 1 kHz).
 const TRACE_KEEP: usize = 60_000;
@@ -455,6 +458,49 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             },
         )),
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
+        Request::Home {
+            axis: a,
+            direction,
+            switches,
+            mode,
+            speed_switch,
+            max_distance_switch,
+            speed_reference,
+            max_distance_reference,
+            acceleration,
+            jerk,
+            reference_offset,
+            normal_position,
+        } => {
+            let call = MoveHomeCall {
+                direction: direction.map(|d| match d {
+                    JogDirection::Positive => MoveDirection::Positive,
+                    JogDirection::Negative => MoveDirection::Negative,
+                }),
+                switch_config: switches.map(|s| match s {
+                    HomeSwitches::None => SwitchConfig::NoSwitch,
+                    HomeSwitches::RefAndLimit => SwitchConfig::RefAndLimitSwitch,
+                    HomeSwitches::Ref => SwitchConfig::RefSwitch,
+                    HomeSwitches::Limit => SwitchConfig::LimitSwitch,
+                }),
+                mode: mode.map(|m| match m {
+                    HomeMode::Edge => HomingMode::SwitchingEdge1Phase,
+                    HomeMode::Edge2 => HomingMode::SwitchingEdge2Phase,
+                    HomeMode::ZeroPulse => HomingMode::ZeroPulse1Phase,
+                    HomeMode::ZeroPulse2 => HomingMode::ZeroPulse2Phase,
+                }),
+                acceleration,
+                jerk,
+                speed_switch_search: speed_switch,
+                max_distance_switch_search: max_distance_switch,
+                speed_reference_search: speed_reference,
+                max_distance_reference_search: max_distance_reference,
+                reference_offset,
+                normal_position,
+            };
+            // The kernel checks every operand (finite, > 0 where it must be) and says which.
+            sent(ctl.command(axis(&a)?, Command::MoveHome(call)))
+        }
         Request::Sdo {
             axis: a,
             drive,
@@ -577,6 +623,17 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "velocity": s.set.v,
                 "homed": s.bits.homed,
                 "moving": s.bits.moving,
+                "homing": {
+                    "started": s.homing.started,
+                    "switch_found": s.homing.switch_found,
+                    "reference_found": s.homing.reference_found,
+                    "reference_set": s.homing.reference_set,
+                },
+                "switches": {
+                    "negative_limit": s.switches.negative_limit,
+                    "positive_limit": s.switches.positive_limit,
+                    "reference": s.switches.reference,
+                },
                 "error": s.error.as_ref().map(describe_fault),
             })
         })
@@ -594,6 +651,14 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "statusword": format!("{:#06x}", d.statusword),
                 "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),
                 "bus_fault": d.bus_fault.map(|f| f.to_string()),
+                "canopen": d.can_node.map(|n| json!({
+                    "node": n.node,
+                    "nmt": n.nmt,
+                    "heartbeat_ms_ago": n.heard_ms_ago,
+                    "heartbeat_limit_ms": n.heartbeat_limit_ms,
+                    "lost_tpdos": n.lost_tpdos,
+                    "lost_in_a_row": n.lost_in_a_row,
+                })),
             })
         })
         .collect();

@@ -50,6 +50,8 @@ pub struct CanBus {
     now_ns: u64,
     received: Vec<Delivered>,
     log: Vec<Delivered>,
+    /// Whether [`CanBus::log`] keeps every frame (a bus that runs for hours does not).
+    keep_log: bool,
 }
 
 impl CanBus {
@@ -66,7 +68,15 @@ impl CanBus {
             now_ns: 0,
             received: Vec::with_capacity(4096),
             log: Vec::new(),
+            keep_log: true,
         }
+    }
+
+    /// Whether the bus keeps every frame it carried for [`CanBus::log`] (the default); a
+    /// bus that runs for as long as a service does keeps none.
+    pub fn with_log(mut self, keep: bool) -> Self {
+        self.keep_log = keep;
+        self
     }
 
     /// Models a bit rate (bit/s): frames take their worst-case time on the bus.
@@ -140,7 +150,9 @@ impl CanBus {
                 from,
                 frame,
             };
-            self.log.push(d);
+            if self.keep_log {
+                self.log.push(d);
+            }
             if from != Sender::Master {
                 self.received.push(d);
             }
@@ -176,7 +188,7 @@ impl CanBus {
         std::mem::take(&mut self.received)
     }
 
-    /// Every frame the bus carried, in order.
+    /// Every frame the bus carried, in order (none without [`CanBus::with_log`]).
     pub fn log(&self) -> &[Delivered] {
         &self.log
     }

@@ -152,6 +152,11 @@ impl CanNetwork {
         &self.nodes
     }
 
+    /// The nodes, for another bus to carry (the in-process in-memory bus).
+    pub fn into_nodes(self) -> Vec<CanNode> {
+        self.nodes
+    }
+
     /// The nodes, mutable (a test injects what the wire cannot).
     pub fn nodes_mut(&mut self) -> &mut [CanNode] {
         &mut self.nodes

@@ -46,6 +46,8 @@ use crate::plant::switches::{self, check_cams, CamError, SwitchCam};
 pub const OUTBOX_FRAMES: usize = 192;
 /// Without a SYNC for this long the drive's loops run from `tick` (10 ms).
 pub const IDLE_RUN_NS: u64 = 10_000_000;
+/// The SYNC watchdog's margin by default (communication cycle periods): CANopenNode's.
+pub const SYNC_TIMEOUT_PERIODS: f64 = 1.5;
 /// EMCYs the inhibit time may hold back.
 pub const EMCY_QUEUE: usize = 8;
 /// Longest single run of the loops (the plant allows 100 ms).
@@ -92,6 +94,8 @@ pub struct CanNodeConfig {
     pub sdo: SdoConfig,
     /// Largest object served segmented or by block (bytes).
     pub sdo_buffer: usize,
+    /// The SYNC watchdog's margin (periods of 0x1006; at least 1).
+    pub sync_timeout_periods: f64,
 }
 
 impl CanNodeConfig {
@@ -112,6 +116,7 @@ impl CanNodeConfig {
             start_counts: 0,
             sdo: SdoConfig::default(),
             sdo_buffer: 1024,
+            sync_timeout_periods: SYNC_TIMEOUT_PERIODS,
         }
     }
 }
@@ -123,6 +128,7 @@ impl CanNodeConfig {
         Self {
             params: servo.params(),
             start_counts: servo.start_position,
+            sync_timeout_periods: servo.sync_timeout_periods,
             ..Self::servo(node)
         }
     }
@@ -250,6 +256,17 @@ pub enum CanNodeError {
         /// Why.
         source: CamError,
     },
+    /// A SYNC watchdog margin below one period (or not a number).
+    #[error(
+        "CANopen {node}: sync_timeout_periods = {periods}: the SYNC watchdog's margin \
+         must be at least 1 communication cycle period"
+    )]
+    SyncTimeout {
+        /// The node.
+        node: NodeId,
+        /// The margin given.
+        periods: f64,
+    },
     /// The servo's parameters.
     #[error("CANopen node {node}: servo parameters: {source}")]
     Params {
@@ -352,6 +369,8 @@ pub struct CanNode {
     /// and whether it has fired.
     last_sync_ns: Option<u64>,
     sync_lost: bool,
+    /// The SYNC watchdog's margin (periods).
+    sync_timeout_periods: f64,
     /// When the loops last ran (None: not since power-on).
     last_run_ns: Option<u64>,
     /// The error code the last EMCY reported as active (0: none, or reset sent).
@@ -370,6 +389,12 @@ impl CanNode {
     /// boots it (boot-up message, Pre-operational).
     pub fn new(config: CanNodeConfig) -> Result<Self, CanNodeError> {
         let node = config.node;
+        if !(config.sync_timeout_periods >= 1.0 && config.sync_timeout_periods.is_finite()) {
+            return Err(CanNodeError::SyncTimeout {
+                node,
+                periods: config.sync_timeout_periods,
+            });
+        }
         config
             .params
             .check()
@@ -412,6 +437,7 @@ impl CanNode {
             consumer_lost: false,
             last_sync_ns: None,
             sync_lost: false,
+            sync_timeout_periods: config.sync_timeout_periods,
             sync_length_error: false,
             last_run_ns: None,
             emcy_active: 0,
@@ -556,13 +582,14 @@ impl CanNode {
         }
         // SYNC watchdog (0x1006, CiA 301 §7.5.2.6 lets a SYNC consumer detect the loss
         // of SYNC): armed by the first SYNC; no SYNC for 1.5 periods (the margin
-        // CANopenNode uses; CiA 301 leaves it open) is a communication error: EMCY
+        // CANopenNode uses; CiA 301 leaves it open; `sync_timeout_periods`) is a
+        // communication error: EMCY
         // 0x8100 and, the drive's setpoints being paced by SYNC, the 0x6007 reaction.
         let period = u64::from(self.dict.comm.cycle_period_us) * 1_000;
         if let (true, Some(last)) = (period > 0, self.last_sync_ns) {
             if !self.sync_lost
                 && self.nmt.sync_emcy_allowed()
-                && now.saturating_sub(last) * 2 > period * 3
+                && now.saturating_sub(last) as f64 > period as f64 * self.sync_timeout_periods
             {
                 self.sync_lost = true;
                 self.communication_error(emcy_code::COMMUNICATION);

@@ -238,12 +238,27 @@ pub fn script() -> Vec<Step> {
 /// Writes the demo's configuration and the simulated chain `servos` to `dir` and loads
 /// the configuration from there, as `gantry run --config` would; with a capture to `pcap`.
 fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config, DemoError> {
+    write_files_and_load(
+        dir,
+        [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, servos)],
+        pcap,
+    )
+}
+
+/// Writes a demo's configuration and its simulated chain (`files`: the configuration
+/// first) to `dir` and loads the configuration from there, as `gantry run --config`
+/// would; with a capture to `pcap`.
+pub(super) fn write_files_and_load(
+    dir: &Path,
+    files: [(&str, &str); 2],
+    pcap: Option<&Path>,
+) -> Result<Config, DemoError> {
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-    for (name, text) in [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, servos)] {
+    for (name, text) in files {
         let path = dir.join(name);
         std::fs::write(&path, text).map_err(io_error(&path))?;
     }
-    let mut config = Config::load(&dir.join(CONFIG_FILE).display().to_string())?;
+    let mut config = Config::load(&dir.join(files[0].0).display().to_string())?;
     if let Some(path) = pcap {
         // Said here with the file's name, before anything else is done.
         std::fs::File::create(path).map_err(io_error(path))?;
@@ -252,7 +267,7 @@ fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config,
     Ok(config)
 }
 
-fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
+pub(super) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> DemoError + '_ {
     move |source| DemoError::Io {
         path: path.display().to_string(),
         source,
@@ -283,7 +298,7 @@ pub fn run_on(
     let _ = writeln!(out, ">> EtherCAT bring-up");
     let (mut net, chain) = start(&config, out)?;
     let mut runner = Runner::new(&config, args.speed, FRAME_CYCLES, true);
-    let mut run = Run::new(&config);
+    let mut run = Run::new(&config, "EtherCAT");
     let result = run
         .wait_for_op(&mut runner, &mut net, &chain, out)
         .and_then(|()| {
@@ -348,7 +363,10 @@ pub fn run_on(
 /// step beyond the axis' `vmax · T` plus one count, no following-error fault, and — the
 /// demo runs lockstep, one frame per SYNC0 period — no missed or doubled setpoint; and no
 /// drive fault of any kind.
-fn judge_records(records: &[Option<DriveRecord>], config: &Config) -> Result<Verdict, DemoError> {
+pub(super) fn judge_records(
+    records: &[Option<DriveRecord>],
+    config: &Config,
+) -> Result<Verdict, DemoError> {
     let bounds = AxisBound::of_config(config).map_err(DemoError::Invariant)?;
     let verdict = judge(
         records,
@@ -393,9 +411,9 @@ fn check_verdict(
     }
 }
 
-/// What the EtherCAT demo records while it runs: the engine's trace, the modulo axes'
-/// wraps, where the frames land in the SYNC0 period.
-struct Run {
+/// What the demos on a bus record while they run: the engine's trace, the modulo axes'
+/// wraps, where the frames land in the SYNC0 period (EtherCAT with DC).
+pub(super) struct Run {
     names: Vec<String>,
     /// Per axis, its modulo period.
     periods: Vec<Option<f64>>,
@@ -406,11 +424,13 @@ struct Run {
     dc_offsets: Option<(u64, u64)>,
     in_op: bool,
     cycle_us: u32,
+    /// The bus, as the plot's title names it.
+    bus: &'static str,
 }
 
-impl Watch<EthercatBus> for Run {
+impl<B: CycleBus> Watch<B> for Run {
     /// The trace, and where the frames land in the SYNC0 period.
-    fn cycled(&mut self, net: &Lockstep<EthercatBus>) -> Result<(), DemoError> {
+    fn cycled(&mut self, net: &Lockstep<B>) -> Result<(), DemoError> {
         let n = net.cycles();
         if let (true, Some(offset)) = (self.in_op, net.engine.bus.dc_offset_ns()) {
             let (lo, hi) = self.dc_offsets.get_or_insert((offset, offset));
@@ -422,15 +442,11 @@ impl Watch<EthercatBus> for Run {
         Ok(())
     }
 
-    fn settled(&mut self, net: &Lockstep<EthercatBus>) {
+    fn settled(&mut self, net: &Lockstep<B>) {
         self.drain(&net.ctl);
     }
 
-    fn shutdown_cycled(
-        &mut self,
-        net: &Lockstep<EthercatBus>,
-        ended: bool,
-    ) -> Result<(), DemoError> {
+    fn shutdown_cycled(&mut self, net: &Lockstep<B>, ended: bool) -> Result<(), DemoError> {
         if ended {
             self.drain(&net.ctl);
         }
@@ -439,8 +455,10 @@ impl Watch<EthercatBus> for Run {
 }
 
 impl Run {
-    fn new(config: &Config) -> Self {
+    /// For the axes of `config` on the bus named `bus` (in the plot's title).
+    pub(super) fn new(config: &Config, bus: &'static str) -> Self {
         Self {
+            bus,
             names: config.axes.iter().map(|a| a.name.clone()).collect(),
             periods: config.axes.iter().map(|a| a.modulo).collect(),
             samples: Vec::new(),
@@ -566,8 +584,14 @@ impl Run {
         }
     }
 
+    /// The axes are in operation from now on (the trace counts their wraps; on EtherCAT
+    /// the frames' place in the SYNC0 period is watched).
+    pub(super) fn in_operation(&mut self) {
+        self.in_op = true;
+    }
+
     /// After the run: the modulo axes' wraps and what their drives' targets did meanwhile.
-    fn wraps_said(
+    pub(super) fn wraps_said(
         &self,
         verdict: &Verdict,
         records: &[Option<DriveRecord>],
@@ -613,7 +637,11 @@ impl Run {
     }
 
     /// The trace (CSV) and the plot (SVG).
-    fn write_files(&self, dir: &Path, config: &Config) -> Result<(PathBuf, PathBuf), DemoError> {
+    pub(super) fn write_files(
+        &self,
+        dir: &Path,
+        config: &Config,
+    ) -> Result<(PathBuf, PathBuf), DemoError> {
         let mut channels = Vec::new();
         for n in &self.names {
             channels.extend([format!("{n}.set"), format!("{n}.actual"), format!("{n}.v")]);
@@ -671,7 +699,7 @@ impl Run {
             &trace,
             &[
                 Panel {
-                    title: format!("set and actual position ({}) over EtherCAT", units(0)),
+                    title: format!("set and actual position ({}) over {}", units(0), self.bus),
                     channels: linear,
                 },
                 Panel {

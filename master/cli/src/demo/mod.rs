@@ -14,7 +14,8 @@
 //! exchange.
 //!
 //! `gantry demo` itself, the newcomer's first look, runs the product over simulated drives
-//! on the in-process EtherCAT network ([`ethercat`]).
+//! on the in-process EtherCAT network ([`ethercat`]); `gantry demo --bus canopen` over
+//! simulated CANopen nodes on the in-memory CAN bus ([`canopen`]).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -25,6 +26,7 @@ use gantry_kernel::axis::command::{
 };
 use thiserror::Error;
 
+pub mod canopen;
 pub mod ethercat;
 pub mod lockstep;
 pub mod runner;
@@ -126,6 +128,9 @@ pub enum DemoError {
     /// The EtherCAT network did not come up.
     #[error(transparent)]
     Start(#[from] gantry::ethercat::bus::StartError),
+    /// The CANopen bus did not come up.
+    #[error(transparent)]
+    CanStart(#[from] gantry::canopen::bring_up::StartError),
     /// The cycle does not fit the configuration or its bus.
     #[error(transparent)]
     Cycle(#[from] gantry::runtime::cycle::SetupError),

@@ -44,18 +44,51 @@ impl Service {
     /// [`Service::start`] with the simulated chain's file (`sim-4-servos.toml`) as
     /// `servos` changes it.
     pub fn start_with(tag: &str, servos: impl FnOnce(String) -> String) -> Self {
+        Self::start_example(tag, "sim-4-axes.toml", "sim-4-servos.toml", servos)
+    }
+
+    /// [`Service::start_with`], with the configuration (`sim-4-axes.toml`) as `config`
+    /// changes it too.
+    pub fn start_edited(
+        tag: &str,
+        config: impl FnOnce(String) -> String,
+        servos: impl FnOnce(String) -> String,
+    ) -> Self {
+        Self::start_full(tag, "sim-4-axes.toml", "sim-4-servos.toml", config, servos)
+    }
+
+    /// The example configuration `config` (of `deploy/examples`) and its simulated chain
+    /// `chain` (as `servos` changes it), with `bus.simulator_record` on, from a folder of
+    /// its own.
+    pub fn start_example(
+        tag: &str,
+        config: &str,
+        chain: &str,
+        servos: impl FnOnce(String) -> String,
+    ) -> Self {
+        Self::start_full(tag, config, chain, |c| c, servos)
+    }
+
+    /// [`Service::start_example`] with the configuration as `edit` changes it.
+    pub fn start_full(
+        tag: &str,
+        config: &str,
+        chain: &str,
+        edit: impl FnOnce(String) -> String,
+        servos: impl FnOnce(String) -> String,
+    ) -> Self {
         let dir = std::env::temp_dir().join(format!("gantry-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let text = std::fs::read_to_string(example("sim-4-axes.toml")).unwrap();
+        let text = std::fs::read_to_string(example(config)).unwrap();
         let off = "# simulator_record = \"drive-records.json\"";
         assert!(text.contains(off), "the example documents simulator_record");
         std::fs::write(
             dir.join("gantry.toml"),
-            text.replace(off, "simulator_record = \"drive-records.json\""),
+            edit(text.replace(off, "simulator_record = \"drive-records.json\"")),
         )
         .unwrap();
-        let chain = std::fs::read_to_string(example("sim-4-servos.toml")).unwrap();
-        std::fs::write(dir.join("sim-4-servos.toml"), servos(chain)).unwrap();
+        let text = std::fs::read_to_string(example(chain)).unwrap();
+        std::fs::write(dir.join(chain), servos(text)).unwrap();
         let socket = dir.join("gantry.sock");
         let child = gantry()
             .args(["run", "--no-rt", "--config"])
