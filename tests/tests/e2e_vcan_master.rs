@@ -22,11 +22,10 @@
 //! 23 ms max, with gaps of up to 6 ms between two TPDOs one gantry-sim sends back to back
 //! (TPDO1 then TPDO2 of one node); the master's compute is 0.1 ms (median). The
 //! simulators' sends under emulation (each frame delivered to every CAN socket, each
-//! delivery a wake-up) are the bound, not the master's cycle; the master's reply deadline
+//! delivery a wake-up) are the likely bound, not the master's cycle; the master's reply deadline
 //! is half a period, so at 20 ms one set in ten misses it. Three lost sets in a row stop
-//! the axes
-//! (`lost_frames_limit`, the example's 3), before the first `enable`. Without vcan0 it
-//! fails.
+//! the axes (`lost_frames_limit`, the example's 3), before the first `enable`. Without
+//! vcan0 it fails.
 //!
 //! The cycle: 20 ms (CANopen allows up to 50 ms). The simulated drives keep the strict
 //! default SYNC watchdog margin (1.5 periods): no SYNC timeout was seen.
