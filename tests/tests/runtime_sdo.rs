@@ -52,16 +52,24 @@ fn rig(axes: usize) -> (Rig, gantry::config::Config) {
 }
 
 /// Runs `request` through the controller, cycling until it ends; its outcome and the
-/// cycles it took.
+/// cycles it took. Bounded by the host's clock, not by a number of cycles: the bus times
+/// a transfer out on CLOCK_MONOTONIC (see the timeout case), and a release build runs
+/// thousands of lockstep cycles in less than a timeout.
 fn transfer(rig: &mut Rig, ctl: &Controller, request: SdoRequest) -> (SdoResult, u32) {
     let h = ctl.sdo(request).expect("queued");
-    for cycles in 1..=5000 {
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let mut cycles = 0;
+    while std::time::Instant::now() < end {
         rig.cycle();
+        cycles += 1;
         if let Some(r) = h.outcome() {
             return (r, cycles);
         }
     }
-    panic!("the transfer never ended");
+    panic!(
+        "the transfer never ended in 30 s ({cycles} cycles; lost frames {})",
+        rig.engine.bus().health().lost_total
+    );
 }
 
 fn data(bytes: &[u8]) -> SdoData {
