@@ -279,6 +279,12 @@ pub fn run_can(
     writeln!(out, "  SYNC sent − deadline     {}", j.lateness)?;
     writeln!(
         out,
+        "  less the simulator's time in the RPDO sends before the SYNC (the thread's own):"
+    )?;
+    writeln!(out, "  SYNC |interval − period|  {}", j.deviation_own)?;
+    writeln!(out, "  SYNC sent − deadline     {}", j.lateness_own)?;
+    writeln!(
+        out,
         "  {} SYNCs in {} cycles, {} TPDOs lost",
         j.syncs, j.cycles, j.lost
     )?;
@@ -288,6 +294,8 @@ pub fn run_can(
             for (what, g) in [
                 ("|interval − period|", j.deviation),
                 ("sent − deadline", j.lateness),
+                ("|interval − period| own", j.deviation_own),
+                ("sent − deadline own", j.lateness_own),
             ] {
                 writeln!(
                     out,

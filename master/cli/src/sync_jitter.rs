@@ -46,8 +46,11 @@ const HISTOGRAM_US: usize = 20_000;
 #[derive(Debug)]
 pub struct SyncLog {
     deadline_ns: AtomicU64,
+    /// Time spent inside the simulator's `send` since this cycle's deadline.
+    in_link_ns: AtomicU64,
     sent_ns: Box<[AtomicU64]>,
     deadline_of: Box<[AtomicU64]>,
+    in_link_of: Box<[AtomicU64]>,
     len: AtomicUsize,
     dropped: AtomicU64,
     recording: std::sync::atomic::AtomicBool,
@@ -59,8 +62,10 @@ impl SyncLog {
         let zeros = || (0..capacity).map(|_| AtomicU64::new(0)).collect();
         Self {
             deadline_ns: AtomicU64::new(0),
+            in_link_ns: AtomicU64::new(0),
             sent_ns: zeros(),
             deadline_of: zeros(),
+            in_link_of: zeros(),
             len: AtomicUsize::new(0),
             dropped: AtomicU64::new(0),
             recording: std::sync::atomic::AtomicBool::new(false),
@@ -75,6 +80,7 @@ impl SyncLog {
     /// The cycle that just woke has this deadline.
     fn deadline(&self, ns: u64) {
         self.deadline_ns.store(ns, Ordering::Relaxed);
+        self.in_link_ns.store(0, Ordering::Relaxed);
     }
 
     /// A SYNC handed to the link at `at_ns` (beyond the capacity: counted, not stored).
@@ -83,10 +89,15 @@ impl SyncLog {
             return;
         }
         let i = self.len.load(Ordering::Relaxed);
-        match (self.sent_ns.get(i), self.deadline_of.get(i)) {
-            (Some(s), Some(d)) => {
+        match (
+            self.sent_ns.get(i),
+            self.deadline_of.get(i),
+            self.in_link_of.get(i),
+        ) {
+            (Some(s), Some(d), Some(l)) => {
                 s.store(at_ns, Ordering::Relaxed);
                 d.store(self.deadline_ns.load(Ordering::Relaxed), Ordering::Relaxed);
+                l.store(self.in_link_ns.load(Ordering::Relaxed), Ordering::Relaxed);
                 self.len.store(i + 1, Ordering::Release);
             }
             _ => {
@@ -95,13 +106,21 @@ impl SyncLog {
         }
     }
 
-    /// (send time, deadline of its cycle) of every SYNC recorded, in order.
-    pub fn entries(&self) -> Vec<(u64, u64)> {
+    /// (send time, deadline of its cycle) of every SYNC recorded, in order; with
+    /// `without_link`, each send time less the time the simulator spent in the frames
+    /// sent before it in its cycle (the RPDOs: on a real link a `write` of a few µs, here
+    /// the simulated nodes' reaction, which is not the cycle thread's own).
+    pub fn entries(&self, without_link: bool) -> Vec<(u64, u64)> {
         let n = self.len.load(Ordering::Acquire);
         (0..n)
             .map(|i| {
+                let link = if without_link {
+                    self.in_link_of[i].load(Ordering::Relaxed)
+                } else {
+                    0
+                };
                 (
-                    self.sent_ns[i].load(Ordering::Relaxed),
+                    self.sent_ns[i].load(Ordering::Relaxed).saturating_sub(link),
                     self.deadline_of[i].load(Ordering::Relaxed),
                 )
             })
@@ -125,10 +144,16 @@ impl<L: CanLink> SyncStampLink<L> {
 
 impl<L: CanLink> CanLink for SyncStampLink<L> {
     fn send(&mut self, frame: &CanFrame) -> io::Result<()> {
+        let at = now_ns();
         if frame.id() == SYNC_COB_ID {
-            self.log.record(now_ns());
+            self.log.record(at);
+            return self.inner.send(frame);
         }
-        self.inner.send(frame)
+        let sent = self.inner.send(frame);
+        self.log
+            .in_link_ns
+            .fetch_add(now_ns().saturating_sub(at), Ordering::Relaxed);
+        sent
     }
 
     fn receive(&mut self, deadline_ns: u64) -> io::Result<Option<Received>> {
@@ -165,6 +190,11 @@ pub struct SyncJitter {
     pub deviation: Summary,
     /// SYNC handed to the link minus the cycle's deadline.
     pub lateness: Summary,
+    /// [`SyncJitter::deviation`] less the simulator's time in the RPDO sends before
+    /// each SYNC (the cycle thread's own part).
+    pub deviation_own: Summary,
+    /// [`SyncJitter::lateness`] less the same.
+    pub lateness_own: Summary,
     /// Cycles run while recording.
     pub cycles: u64,
     /// SYNCs recorded.
@@ -238,11 +268,14 @@ pub fn measure(
     let (real_time, lost) = handle
         .join()
         .map_err(|_| "the cycle thread panicked".to_string())??;
-    let entries = log.entries();
+    let entries = log.entries(false);
     let (deviation, lateness) = figures(&entries, period_ns);
+    let (deviation_own, lateness_own) = figures(&log.entries(true), period_ns);
     Ok(SyncJitter {
         deviation,
         lateness,
+        deviation_own,
+        lateness_own,
         cycles: cycles as u64,
         syncs: entries.len() as u64,
         span_ns: match (entries.first(), entries.last()) {
@@ -348,7 +381,17 @@ mod tests {
         log.record(10);
         log.record(20);
         log.record(30);
-        assert_eq!(log.entries(), vec![(10, 7), (20, 7)]);
+        assert_eq!(log.entries(false), vec![(10, 7), (20, 7)]);
+        let log2 = SyncLog::new(1);
+        log2.start();
+        log2.deadline(100);
+        log2.in_link_ns.fetch_add(3, Ordering::Relaxed);
+        log2.record(110);
+        assert_eq!(log2.entries(false), vec![(110, 100)]);
+        assert_eq!(log2.entries(true), vec![(107, 100)]);
+        // A new cycle starts its link time from zero.
+        log2.deadline(200);
+        assert_eq!(log2.in_link_ns.load(Ordering::Relaxed), 0);
         assert_eq!(log.dropped.load(Ordering::Relaxed), 1);
     }
 
@@ -370,6 +413,8 @@ mod tests {
         assert_eq!(j.syncs, 200, "{j:?}");
         assert_eq!(j.deviation.count, 199);
         assert_eq!(j.lateness.count, 200);
+        assert_eq!(j.lateness_own.count, 200);
+        assert!(j.lateness_own.p50_us <= j.lateness.p50_us, "{j:?}");
         assert_eq!(j.early, 0, "{j:?}");
         assert!(j.span_ns >= 198 * 2_000_000, "{j:?}");
     }
