@@ -687,6 +687,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 (50..=100_000).contains(&cycle),
                 "--cycle-us {cycle} must be 50 to 100000"
             );
+            if let Some(drives) = can {
+                anyhow::ensure!(
+                    (1..=127).contains(&drives),
+                    "--can {drives}: a CANopen network has nodes 1 to 127"
+                );
+            }
             let mut stdout = std::io::stdout();
             match can {
                 Some(drives) => {

@@ -253,7 +253,9 @@ pub fn measure(
     seconds: f64,
 ) -> Result<SyncJitter, String> {
     if drives == 0 || drives > 127 {
-        return Err(format!("--can-drives {drives}: 1 to 127 nodes"));
+        return Err(format!(
+            "--can {drives}: a CANopen network has nodes 1 to 127"
+        ));
     }
     let config = config(drives, cycle_us, &rt)?;
     let period_ns = u64::from(cycle_us) * 1000;
