@@ -9,6 +9,11 @@
 //! run: the mirror alone on one cycle's frames (its share of the master line, to
 //! subtract), the kernel step alone for the 8 moving axes (the baseline, as the EtherCAT
 //! bench's), and the same cycle on the simulated nodes (master + 8 simulated drives).
+//!
+//! Measured (2026-11-25, this 2-core shared VM under other builds, release, medians, two
+//! runs): master cycle 4.46 / 4.33 µs, mirror alone 0.58 / 0.56 µs, so ≈ 3.8–3.9 µs of
+//! master CPU per cycle (target ≤ 20 µs); kernel step alone 0.70 / 0.45 µs (the master's
+//! cycle ≈ 5.6–8.4× its kernel step); master + 8 simulated nodes 36 / 30 µs.
 
 use std::collections::VecDeque;
 use std::io;
