@@ -3,6 +3,7 @@
 //! in-process simulator (`gantry_cli::simulator`, `gantry_cli::embedded`).
 
 pub mod can;
+pub mod can_lockfree;
 pub mod can_rig;
 pub mod cyclic_frame;
 pub mod dc_phase;

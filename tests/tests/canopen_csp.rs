@@ -1,7 +1,7 @@
 //! Four CiA 402 drives on CANopen, moved through the engine and the controller as `gantry
 //! run` moves them, in lockstep on the in-memory bus at 1 Mbit/s with its frame timing:
 //! every 2 ms the cycle sends the RPDOs, then the SYNC, and reads the TPDOs the drives
-//! sample at the SYNC (the full CSP layout: 1 RPDO and 2 TPDOs per drive, 1601 bits of the
+//! sample at the SYNC (the full CSP layout: 1 RPDO and 2 TPDOs per drive, 1602 bits of the
 //! 1950 µs the cycle waits). Judged by what the simulated drives recorded: no setpoint
 //! missed or doubled, no target step beyond vmax·T, no fault, and each drive standing
 //! exactly on its target's count at the end.
@@ -97,7 +97,7 @@ fn four_drives_move_ptp_on_sync_with_no_setpoint_missed() {
 }
 
 /// What the bus-load check guards against: the same four drives on a bus that really
-/// runs at 500 kbit/s (the configuration says 1 Mbit/s): a cycle's 1601 bits take 3.2 ms
+/// runs at 500 kbit/s (the configuration says 1 Mbit/s): a cycle's 1602 bits take 3.2 ms
 /// of each 2 ms, the frames queue up behind one another, and every drive's TPDOs come
 /// later each cycle, past the 1.95 ms the cycle waits — lost frames, not stale inputs
 /// taken for fresh — until every drive is faulted, named.

@@ -240,8 +240,8 @@ fn a_reset_fails_naming_the_node_when_it_does_not_come_back() {
     };
     assert_eq!(
         e.to_string(),
-        "Reset: bus slave 0x0003 is not back in operation: CANopen: no boot-up after NMT \
-         reset communication (power, cable?)"
+        "Reset: the drive at bus position 2 (CANopen node 3) is not back in operation: no \
+         boot-up after NMT reset communication (power, cable?)"
     );
     let restore = rig.engine.last_restore().unwrap();
     // 5 s of 2 ms cycles.

@@ -23,7 +23,7 @@ use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_tests::can_rig::{can_config, servos, Nodes, NodesLink, QUEUE};
+use gantry_tests::can_rig::{can_config_with, servos, Nodes, NodesLink, QUEUE};
 
 mod counting {
     include!("../../kernel/tests/common/counting_alloc.rs");
@@ -35,7 +35,8 @@ static ALLOC: counting::Counting = counting::Counting;
 #[test]
 fn the_canopen_cycle_does_not_allocate() {
     let ids = [1u8, 2, 3, 4];
-    let config = can_config(&ids, 2000, "csp");
+    // With a SYNC counter and gantry's heartbeat: their paths run in the watched cycles.
+    let config = can_config_with(&ids, 2000, "csp", "sync_counter = 8");
     let shared = Arc::new(Mutex::new(Nodes {
         nodes: servos(&ids),
         queue: VecDeque::with_capacity(QUEUE),

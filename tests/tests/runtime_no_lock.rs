@@ -7,7 +7,8 @@
 //! through the drives' mailboxes beside the process data. Needs root (real time). Two controls show
 //! the filter catches a contended `Mutex` and a parking executor (`futures_lite::block_on`,
 //! what the cycle used before the doorbell). The runs are child processes
-//! (`cycle-under-seccomp`), since the filter ends the process it catches.
+//! (`cycle-under-seccomp`), since the filter ends the process it catches. The CANopen
+//! cycle is run the same way, in lockstep on a link that takes no lock.
 
 use std::os::unix::process::ExitStatusExt;
 use std::process::{Command, Output};
@@ -76,6 +77,42 @@ fn the_cycle_thread_never_enters_a_futex() {
         "{report}"
     );
     assert!(report.contains("async-io reactor false"), "{report}");
+}
+
+/// The CANopen cycle, on a lockstep link that takes no lock either (the nodes inside it,
+/// the time and the faults handed over by atomics): needs no root.
+#[test]
+fn the_canopen_cycle_never_enters_a_futex() {
+    let out = probe("canopen");
+    assert_eq!(
+        out.status.signal(),
+        None,
+        "the CANopen cycle called futex (waited on or woke a lock): {}",
+        text(&out)
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    let report = String::from_utf8_lossy(&out.stdout).into_owned();
+    eprintln!("{report}");
+    let cycles = figure(&report, "cycles");
+    assert!(cycles >= 2000, "{report}");
+    assert_eq!(figure(&report, "exchanges"), cycles, "{report}");
+    assert!(
+        figure(&report, "done") >= 40,
+        "moves ran to the end: {report}"
+    );
+    // 5 rounds of resets of 4 axes, the two faulted nodes' restores (NMT reset
+    // communication, boot-up, the SDO writes, NMT start) among them: every one done.
+    assert_eq!(figure(&report, "resets"), 20, "{report}");
+    assert_eq!(figure(&report, "resets 20 done"), 20, "{report}");
+    // Boot-ups once cycling: per 10 rounds node 4's, reset by another master, and its
+    // restore's (NMT reset communication): 10 in all. (Node 2, whose heartbeat gantry
+    // missed, stayed Operational: the first reset forgets the bus faults and its
+    // heartbeat is back, so it needs no restore.)
+    assert_eq!(figure(&report, "boot-ups"), 10, "{report}");
+    // gantry's heartbeat every 100 ms of the 2 ms cycles.
+    let beats = figure(&report, "gantry heartbeats");
+    assert!(beats >= cycles / 50 && beats <= cycles / 50 + 1, "{report}");
+    assert_eq!(figure(&report, "queue overflow"), 0, "{report}");
 }
 
 #[test]

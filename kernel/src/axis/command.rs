@@ -723,6 +723,20 @@ pub enum CommandError {
         /// The code's text.
         code_text: &'static str,
     },
+    /// Reset: the drive did not return to operation, in the words of its bus (a CANopen
+    /// node, say, that sent no boot-up after NMT reset communication). Filled by the
+    /// master, which knows the bus; the kernel only carries it.
+    #[error("Reset: the drive at bus position {position} ({unit} {id}) is not back in operation: {problem}")]
+    DriveNotOperational {
+        /// Its position on the bus (the configuration's drive index).
+        position: u16,
+        /// What the bus calls its devices ("CANopen node").
+        unit: &'static str,
+        /// Its address on the bus (a CANopen node id).
+        id: u16,
+        /// What went wrong, in the bus' terms.
+        problem: &'static str,
+    },
 }
 
 /// The AL registers a slave last answered with, or nothing if it never did (both 0).
@@ -763,9 +777,9 @@ impl CommandError {
             | CommandError::TowardsLimitSwitch { command, .. }
             | CommandError::AxisFault { command } => command,
             CommandError::Homing(e) => e.command(),
-            CommandError::DriveResetFailed { .. } | CommandError::SlaveNotOperational { .. } => {
-                "Reset"
-            }
+            CommandError::DriveResetFailed { .. }
+            | CommandError::SlaveNotOperational { .. }
+            | CommandError::DriveNotOperational { .. } => "Reset",
             CommandError::NoSuchAxis { .. } => "a command",
         }
     }

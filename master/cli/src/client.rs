@@ -184,14 +184,14 @@ pub fn status(
     .map_err(io)?;
     writeln!(
         out,
-        "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} error",
-        "axis", "state", "position", "set", "velocity", "homed"
+        "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} error",
+        "axis", "state", "position", "set", "velocity", "homed", "switches"
     )
     .map_err(io)?;
     for a in s["axes"].as_array().into_iter().flatten() {
         writeln!(
             out,
-            "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {}",
+            "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} {}",
             a["name"].as_str().unwrap_or("?"),
             a["state"].as_str().unwrap_or("?"),
             f(&a["position"]),
@@ -202,6 +202,7 @@ pub fn status(
             } else {
                 "no"
             },
+            switches(&a["switches"]),
             a["error"].as_str().unwrap_or("")
         )
         .map_err(io)?;
@@ -474,6 +475,24 @@ fn after_reset(axis: &str, state: &str) -> String {
 }
 
 /// What a finished command did, in words, before the position it left the axis at.
+/// The active switches of an axis, in words ("-" when none is).
+fn switches(sw: &Value) -> String {
+    let active: Vec<&str> = [
+        ("negative_limit", "neg"),
+        ("positive_limit", "pos"),
+        ("reference", "ref"),
+    ]
+    .into_iter()
+    .filter(|(k, _)| sw[*k] == json!(true))
+    .map(|(_, word)| word)
+    .collect();
+    if active.is_empty() {
+        "-".into()
+    } else {
+        active.join(",")
+    }
+}
+
 /// The phase a homing run is in, from its status bits (Jetter MoveHome: started, switch
 /// found, reference found, reference set).
 fn homing_phase(h: &Value) -> &'static str {

@@ -601,6 +601,8 @@ fn dcf_writes_the_vendor_eds_with_what_the_bring_up_configures() {
     );
     assert_eq!(value(0x1400, 1), Some(0x209));
     assert_eq!(value(0x1017, 0), Some(100));
+    // The consumer of gantry's heartbeat: node 127, 300 ms.
+    assert_eq!(value(0x1016, 1), Some(127 << 16 | 300));
     assert_eq!(value(0x1006, 0), None, "the SX400 has no 0x1006");
     assert_eq!(dcf.device_info.product_name, "SX400");
     // A layout the drive cannot take: the configuration's error, a failing exit.

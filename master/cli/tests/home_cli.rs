@@ -31,6 +31,10 @@ fn gantry_home_homes_an_axis_on_its_switch_edge_from_the_shell() {
         |chain| {
             let first = "[[slave]]\nkind = \"servo\"\n";
             assert!(chain.contains(first));
+            // Homing is this test's claim, not the host's timing: without real time
+            // (`--no-rt`) a loaded host stalls the cycle for milliseconds now and then,
+            // so the drives ride through far more missed periods than the example's ten.
+            let chain = chain.replace("sync_error_limit = 32", "sync_error_limit = 1000");
             chain.replacen(
                 first,
                 &format!(
@@ -75,13 +79,24 @@ fn gantry_home_homes_an_axis_on_its_switch_edge_from_the_shell() {
     let x = svc.axis("x");
     assert_eq!(x["homed"], true, "{x}");
     assert_eq!(x["homing"]["reference_set"], true, "{x}");
-    // The axis stands on the edge, to the count.
+    // The set position is the reference; the actual, sampled whenever `status` asks,
+    // stands on the edge within the drive's standstill hold (its position loop holds
+    // the load within a few counts against friction; the lockstep tests, which sample
+    // it settled, see the edge to ±1 count).
+    assert_eq!(x["set_position"], 0.0, "{x}");
     let p = x["position"].as_f64().unwrap();
-    assert!(p.abs() <= 1.0 / COUNTS_PER_MM, "{x}");
+    assert!(p.abs() <= 4.0 / COUNTS_PER_MM, "{x}");
     // The reference switch as status shows it: on the cam 1 mm past the edge, off 5 mm
     // before it.
     svc.ok(&["move", "x", "--to", "1", "--speed", "20"]);
     assert_eq!(svc.axis("x")["switches"]["reference"], true);
+    let table = svc.ok(&["status"]);
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("x ") && l.contains(" ref ")),
+        "{table}"
+    );
     svc.ok(&["move", "x", "--to=-5", "--speed", "20"]);
     assert_eq!(svc.axis("x")["switches"]["reference"], false);
     // Left-out parameters keep the last ones: the same run again.

@@ -3,8 +3,9 @@
 //! to be a CiA 402 drive (0x1000) and named (0x1018), its PDOs configured by SDO in
 //! pre-operational by the procedure of CiA 301 §7.5.2.35–.38 (COB-ID invalid, mapping
 //! count 0, the entries, the count, transmission type 1 = synchronous at every SYNC, COB-ID
-//! valid), its heartbeat producer time (0x1017) and communication cycle period (0x1006)
-//! set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
+//! valid), its heartbeat producer time (0x1017), its consumer of gantry's own heartbeat
+//! (0x1016), the SYNC counter's overflow value (0x1019, when the SYNC carries one) and the
+//! communication cycle period (0x1006) set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
 //! each SDO transfer [`SDO_TIMEOUT_NS`]). The same configuration writes
 //! ([`config_steps`]) bring a node back in a restore, one per exchange.
 
@@ -39,6 +40,11 @@ pub const DEVICE_TYPE: u16 = 0x1000;
 pub const COMMUNICATION_CYCLE_PERIOD: u16 = 0x1006;
 /// 0x1017 producer heartbeat time (ms).
 pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
+/// 0x1016 consumer heartbeat time: sub 1 = node id << 16 | time in ms (CiA 301
+/// §7.5.2.16).
+pub const CONSUMER_HEARTBEAT_TIME: u16 = 0x1016;
+/// 0x1019 synchronous counter overflow value (CiA 301 §7.5.2.22).
+pub const SYNC_COUNTER_OVERFLOW: u16 = 0x1019;
 /// 0x1018 identity object.
 pub const IDENTITY: u16 = 0x1018;
 /// Device profile number of CiA 402 drives (0x1000 bits 0–15).
@@ -143,6 +149,12 @@ pub enum StartError {
         /// How long gantry waited.
         waited_ms: u64,
     },
+    /// `[bus] master_node` is no node id (the configuration's check refuses it first).
+    #[error("CANopen: master_node {id} is outside 1..=127")]
+    MasterNode {
+        /// What was given.
+        id: u8,
+    },
     /// A node is not the device its axis' EDS describes (CiA 306-1 §4.4 `VendorNumber`,
     /// `ProductNumber` against 0x1018:01/02): the checks made against the EDS would be
     /// of another device's objects.
@@ -183,6 +195,40 @@ pub enum StartError {
         /// Why it failed.
         failure: SdoFailure,
     },
+}
+
+/// What every node's communication is set to besides its PDOs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CommSettings {
+    /// 0x1017: its heartbeat producer time (ms).
+    pub heartbeat_ms: u16,
+    /// 0x1006: the communication cycle period (µs).
+    pub cycle_us: u32,
+    /// gantry's node id, whose heartbeat the node consumes (0x1016:01).
+    pub master: NodeId,
+    /// The consumer time for gantry's heartbeat (ms).
+    pub master_consumer_ms: u16,
+    /// 0x1019 (0: SYNC without counter, left as the node has it).
+    pub sync_overflow: u8,
+}
+
+impl CommSettings {
+    /// The settings of `config`'s `[bus]`.
+    pub fn of(config: &Config) -> Result<Self, StartError> {
+        Ok(Self {
+            heartbeat_ms: config.bus.heartbeat_producer_ms(),
+            cycle_us: config.bus.cycle_us,
+            master: master_node(config)?,
+            master_consumer_ms: config.bus.master_consumer_ms(),
+            sync_overflow: config.bus.sync_counter.unwrap_or(0),
+        })
+    }
+}
+
+/// gantry's node id on the bus of `config`.
+pub fn master_node(config: &Config) -> Result<NodeId, StartError> {
+    let id = config.bus.master_node();
+    NodeId::new(id).map_err(|_| StartError::MasterNode { id })
 }
 
 fn list(ids: &[u8]) -> String {
@@ -226,16 +272,17 @@ impl SdoStep {
 /// each direction, the procedure of CiA 301 §7.5.2.37 for those `plan` uses (COB-ID
 /// invalid, transmission type 1, mapping count 0, the entries, the count, COB-ID valid on
 /// its predefined identifier) and COB-ID invalid for the others (a vendor's defaults may
-/// have them valid); then 0x1017 heartbeat producer time, 0x1006 communication cycle
-/// period, and 0x6060 = CSP when the layout does not carry the mode.
+/// have them valid); then 0x1017 heartbeat producer time, 0x1016:01 the consumer of
+/// gantry's heartbeat, with a SYNC counter 0x1006 = 0 and 0x1019 (CiA 301 §7.5.2.22: the
+/// overflow value may only change while the communication cycle period is 0), 0x1006
+/// communication cycle period, and 0x6060 = CSP when the layout does not carry the mode.
 pub fn config_steps(
     node: NodeId,
     plan: &DrivePlan,
     layout: &PdoLayout,
-    heartbeat_ms: u16,
-    cycle_us: u32,
+    comm: &CommSettings,
 ) -> Vec<SdoStep> {
-    config_steps_for(node, plan, layout, heartbeat_ms, cycle_us, [4, 4])
+    config_steps_for(node, plan, layout, comm, [4, 4])
 }
 
 /// [`config_steps`] for a node with `pdos[0]` RPDOs and `pdos[1]` TPDOs (its EDS'
@@ -245,10 +292,16 @@ pub fn config_steps_for(
     node: NodeId,
     plan: &DrivePlan,
     layout: &PdoLayout,
-    heartbeat_ms: u16,
-    cycle_us: u32,
+    comm: &CommSettings,
     pdos: [u16; 2],
 ) -> Vec<SdoStep> {
+    let CommSettings {
+        heartbeat_ms,
+        cycle_us,
+        master,
+        master_consumer_ms,
+        sync_overflow,
+    } = *comm;
     let mut steps = Vec::new();
     for ((comm, mapping, base, pdos, what), have) in [
         (
@@ -319,6 +372,27 @@ pub fn config_steps_for(
         &heartbeat_ms.to_le_bytes(),
         "heartbeat producer time",
     ));
+    let consumer = u32::from(master.get()) << 16 | u32::from(master_consumer_ms);
+    steps.push(SdoStep::new(
+        CONSUMER_HEARTBEAT_TIME,
+        1,
+        &consumer.to_le_bytes(),
+        "consumer of gantry's heartbeat",
+    ));
+    if sync_overflow != 0 {
+        steps.push(SdoStep::new(
+            COMMUNICATION_CYCLE_PERIOD,
+            0,
+            &0u32.to_le_bytes(),
+            "communication cycle period 0 (before 0x1019)",
+        ));
+        steps.push(SdoStep::new(
+            SYNC_COUNTER_OVERFLOW,
+            0,
+            &[sync_overflow],
+            "synchronous counter overflow value",
+        ));
+    }
     steps.push(SdoStep::new(
         COMMUNICATION_CYCLE_PERIOD,
         0,
@@ -439,20 +513,21 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
             e.max_pdos(PdoDirection::Transmit),
         ]
     });
-    let mut steps = config_steps_for(
-        node,
-        &plan,
-        &layout,
-        config.bus.heartbeat_producer_ms(),
-        config.bus.cycle_us,
-        pdos,
-    );
-    // 0x1006 is optional (CiA 301 §7.5.2.6): a device whose EDS has no communication
-    // cycle period is not told one (the write would be aborted, no object); every
-    // other write is one the drive must take, and its EDS is checked for it.
+    let comm = CommSettings::of(config)?;
+    let mut steps = config_steps_for(node, &plan, &layout, &comm, pdos);
+    // 0x1006 and 0x1016 are optional (CiA 301 §7.5.2.6, §7.5.2.16): a device whose EDS
+    // has no communication cycle period is not told one, one with no heartbeat consumer
+    // does not watch gantry's heartbeat (the writes would be aborted, no object); every
+    // other write (0x1019 with a SYNC counter among them) is one the drive must take,
+    // and its EDS is checked for it.
     if let Some(eds) = config.eds_of(axis) {
-        if eds.entry(COMMUNICATION_CYCLE_PERIOD, 0).is_none() {
-            steps.retain(|s| s.mux.index != COMMUNICATION_CYCLE_PERIOD);
+        for (index, sub) in [
+            (COMMUNICATION_CYCLE_PERIOD, 0),
+            (CONSUMER_HEARTBEAT_TIME, 1),
+        ] {
+            if eds.entry(index, sub).is_none() {
+                steps.retain(|s| s.mux.index != index);
+            }
         }
     }
     Ok(DriveSetup {
@@ -748,4 +823,57 @@ pub fn run(
     }
     let _ = writeln!(out, "CANopen: {} nodes operational", drives.len());
     Ok(infos)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn steps(sync_overflow: u8) -> Vec<SdoStep> {
+        let layout = PdoLayout::csp_minimal();
+        let plan = DrivePlan::of(&layout).unwrap();
+        let comm = CommSettings {
+            heartbeat_ms: 100,
+            cycle_us: 2000,
+            master: NodeId::new(127).unwrap(),
+            master_consumer_ms: 300,
+            sync_overflow,
+        };
+        config_steps(NodeId::new(3).unwrap(), &plan, &layout, &comm)
+    }
+
+    fn at(steps: &[SdoStep], index: u16, sub: u8, value: &[u8]) -> Option<usize> {
+        steps
+            .iter()
+            .position(|s| s.mux == Multiplexer::new(index, sub) && s.value() == value)
+    }
+
+    #[test]
+    fn every_node_consumes_gantrys_heartbeat() {
+        let s = steps(0);
+        // 0x1016:01 = node 127 << 16 | 300 ms.
+        let consumer = (127u32 << 16 | 300).to_le_bytes();
+        assert!(at(&s, CONSUMER_HEARTBEAT_TIME, 1, &consumer).is_some());
+        // No SYNC counter: 0x1019 is left alone (an optional object).
+        assert!(s.iter().all(|x| x.mux.index != SYNC_COUNTER_OVERFLOW));
+        assert_eq!(
+            s.iter()
+                .filter(|x| x.mux.index == COMMUNICATION_CYCLE_PERIOD)
+                .count(),
+            1
+        );
+    }
+
+    #[test]
+    fn the_sync_counter_is_written_while_the_cycle_period_is_0() {
+        let s = steps(16);
+        // CiA 301 §7.5.2.22: 0x1019 only changes while 0x1006 is 0.
+        let zero = at(&s, COMMUNICATION_CYCLE_PERIOD, 0, &0u32.to_le_bytes()).unwrap();
+        let counter = at(&s, SYNC_COUNTER_OVERFLOW, 0, &[16]).unwrap();
+        let period = at(&s, COMMUNICATION_CYCLE_PERIOD, 0, &2000u32.to_le_bytes()).unwrap();
+        assert!(
+            zero < counter && counter < period,
+            "{zero} {counter} {period}"
+        );
+    }
 }

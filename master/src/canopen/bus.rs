@@ -1,9 +1,13 @@
 //! The CANopen bus in the cycle ([`CanopenBus`], a [`CycleBus`]): each exchange sends
 //! every operational drive's RPDOs, then the SYNC (CiA 301 §7.2.5: the drives take the
-//! RPDOs' data and sample their inputs at the SYNC), and reads until the deadline the
-//! TPDOs they answer with. It watches the nodes from what they send: a TPDO set missing
-//! at the deadline is a lost exchange for its drive (`[bus.faults] lost_frames_limit` in
-//! a row faults it), a heartbeat silent for the consumer time, a boot-up (the node reset)
+//! RPDOs' data and sample their inputs at the SYNC; with `[bus] sync_counter` the SYNC
+//! counts 1..=N, §7.2.5.2.1), and reads until the deadline the TPDOs they answer with.
+//! gantry is a heartbeat producer too (§7.2.8.3.2.2: `[bus] master_node`, every
+//! `heartbeat_ms`, sent by the cycle after the SYNC), which every node consumes (0x1016,
+//! set at bring-up): a drive stops by its 0x6007 reaction when the cycle stops.
+//!
+//! It watches the nodes from what they send: a TPDO set missing at the deadline is a lost
+//! exchange for its drive (`[bus.faults] lost_frames_limit` in a row faults it), a heartbeat silent for the consumer time, a boot-up (the node reset)
 //! or a heartbeat reporting another NMT state fault it; an EMCY hands the drive's error
 //! code to its axis ([`CycleBus::drive_error`]). A reset brings a faulted node back one
 //! step per exchange: NMT reset communication, its boot-up, its configuration by SDO,
@@ -79,6 +83,16 @@ pub enum CanFault {
         /// What it reports.
         state: NmtState,
     },
+}
+
+/// A restore that failed, in CANopen's terms (the kernel's wording is bus-neutral).
+fn not_operational(drive: usize, node: u16, problem: &'static str) -> CommandError {
+    CommandError::DriveNotOperational {
+        position: u16::try_from(drive).unwrap_or(u16::MAX),
+        unit: "CANopen node",
+        id: node,
+        problem,
+    }
 }
 
 fn state_name(s: NmtState) -> &'static str {
@@ -242,6 +256,15 @@ pub struct CanopenBus {
     node_drive: [u8; 128],
     infos: Vec<NodeInfo>,
     sync: CanFrame,
+    /// 0x1019 the nodes were given (0: SYNC without counter), and the last counter sent.
+    sync_overflow: u8,
+    sync_counter: u8,
+    /// gantry's heartbeat (CiA 301 §7.2.8.3.2.2: the master is a heartbeat producer the
+    /// nodes consume by 0x1016): the frame, its period on the link's clock, when it is due.
+    heartbeat: CanFrame,
+    heartbeat_ns: u64,
+    heartbeat_due_ns: u64,
+    heartbeats_sent: u64,
     lost_limit: u32,
     consumer_ns: u64,
     counters: BusCounters,
@@ -310,12 +333,32 @@ impl CanopenBus {
                 steps,
             });
         }
+        let master = bring_up::master_node(config)?;
+        let _ = writeln!(
+            out,
+            "CANopen: gantry is node {}: its heartbeat every {} ms, the nodes stop {} ms \
+             without it; SYNC {}",
+            master.get(),
+            config.bus.heartbeat_producer_ms(),
+            config.bus.master_consumer_ms(),
+            match config.bus.sync_counter {
+                Some(n) => format!("with counter 1..={n}"),
+                None => "without counter".into(),
+            }
+        );
         Ok(Self {
             link,
             drives,
             node_drive,
             infos,
             sync: Sync::new().emit(),
+            sync_overflow: config.bus.sync_counter.unwrap_or(0),
+            sync_counter: 0,
+            heartbeat: Heartbeat::new(master, NmtState::Operational).emit(),
+            heartbeat_ns: u64::from(config.bus.heartbeat_producer_ms()) * 1_000_000,
+            // The first with the first exchange: the nodes' monitoring starts with it.
+            heartbeat_due_ns: 0,
+            heartbeats_sent: 0,
             lost_limit: config.bus.faults.lost_frames_limit.max(1),
             consumer_ns: u64::from(config.bus.heartbeat_consumer_ms()) * 1_000_000,
             counters: BusCounters::default(),
@@ -353,6 +396,41 @@ impl CanopenBus {
     /// Exchanges run since start.
     pub fn exchanges(&self) -> u64 {
         self.exchanges
+    }
+
+    /// gantry's heartbeats sent since start.
+    pub fn heartbeats_sent(&self) -> u64 {
+        self.heartbeats_sent
+    }
+
+    /// The SYNC of this exchange: with the next counter 1..=0x1019 when the nodes were
+    /// given one (CiA 301 §7.2.5.2.1: it restarts at 1 after the overflow value).
+    fn next_sync(&mut self) -> CanFrame {
+        match Sync::next_counter(self.sync_counter, self.sync_overflow) {
+            Some(c) => {
+                self.sync_counter = c;
+                Sync::with_counter(c).map_or(self.sync, |s| s.emit())
+            }
+            None => self.sync,
+        }
+    }
+
+    /// gantry's heartbeat when it is due (every `[bus] heartbeat_ms` on the link's clock,
+    /// keeping its phase; after a longer gap, from now).
+    fn produce_heartbeat(&mut self, now: u64) {
+        if self.heartbeat_ns == 0 || now < self.heartbeat_due_ns {
+            return;
+        }
+        // A frame the link did not take is tried again next exchange.
+        if self.link.send(&self.heartbeat).is_ok() {
+            self.heartbeats_sent += 1;
+            let next = self.heartbeat_due_ns.saturating_add(self.heartbeat_ns);
+            self.heartbeat_due_ns = if next > now {
+                next
+            } else {
+                now.saturating_add(self.heartbeat_ns)
+            };
+        }
     }
 
     /// The link (a test reaches its simulated bus through it).
@@ -561,17 +639,11 @@ impl CanopenBus {
         let Some(r) = self.restore.take() else {
             return;
         };
-        let address = self
+        let id = self
             .drives
             .get(r.drive)
             .map_or(0, |d| u16::from(d.node.get()));
-        self.restored = Some(Err(CommandError::SlaveNotOperational {
-            address,
-            problem,
-            al_status: 0,
-            al_status_code: 0,
-            code_text: "",
-        }));
+        self.restored = Some(Err(not_operational(r.drive, id, problem)));
     }
 
     fn on_sdo_outcome(&mut self, o: Outcome) {
@@ -586,7 +658,7 @@ impl CanopenBus {
                 };
             }
             (Outcome::Aborted { .. }, _) => {
-                self.fail_restore("CANopen: the node refused its configuration by SDO")
+                self.fail_restore("it refused its configuration by SDO")
             }
             _ => {}
         }
@@ -600,16 +672,16 @@ impl CanopenBus {
         if now >= r.deadline_ns {
             let problem = match r.step {
                 Step::Reset | Step::BootUp => {
-                    "CANopen: no boot-up after NMT reset communication (power, cable?)"
+                    "no boot-up after NMT reset communication (power, cable?)"
                 }
-                Step::Configure { .. } => "CANopen: its configuration by SDO did not finish",
-                Step::Start | Step::FirstTpdos => "CANopen: no TPDOs after NMT start",
+                Step::Configure { .. } => "its configuration by SDO did not finish",
+                Step::Start | Step::FirstTpdos => "no TPDOs after NMT start",
             };
             self.fail_restore(problem);
             return;
         }
         let Some(d) = self.drives.get_mut(r.drive) else {
-            self.fail_restore("CANopen: no such drive");
+            self.fail_restore("no such drive");
             return;
         };
         // A frame the link did not take leaves the step where it is: it is tried again
@@ -645,7 +717,7 @@ impl CanopenBus {
             Step::BootUp | Step::FirstTpdos => {}
             Step::Configure { k, started } => {
                 if d.sdo.poll(now).is_some() {
-                    self.fail_restore("CANopen: the node did not answer an SDO request in time");
+                    self.fail_restore("it did not answer an SDO request in time");
                     return;
                 }
                 if !started {
@@ -850,7 +922,11 @@ impl CycleBus for CanopenBus {
                 sent &= frame.is_ok_and(|f| self.link.send(&f).is_ok());
             }
         }
-        sent &= self.link.send(&self.sync).is_ok();
+        let sync = self.next_sync();
+        sent &= self.link.send(&sync).is_ok();
+        // gantry's heartbeat, after the SYNC (its identifier loses arbitration to every
+        // PDO anyway): the nodes stop if the cycle stops.
+        self.produce_heartbeat(now);
         // 4. The TPDOs the SYNC asks for.
         self.receive_tpdos(deadline, now);
         if let Some(d) = self.restore.and_then(|r| self.drives.get_mut(r.drive)) {
@@ -913,13 +989,7 @@ impl CycleBus for CanopenBus {
         }
         let now = self.link.now_ns();
         let Some(d) = self.drives.get(drive) else {
-            self.restored = Some(Err(CommandError::SlaveNotOperational {
-                address: 0,
-                problem: "CANopen: no such drive",
-                al_status: 0,
-                al_status_code: 0,
-                code_text: "",
-            }));
+            self.restored = Some(Err(not_operational(drive, 0, "no such drive")));
             return true;
         };
         if d.fault.is_none() && d.left.is_none() {

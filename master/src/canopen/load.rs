@@ -1,5 +1,6 @@
 //! The bus-load check at configuration: a CANopen cycle's frames — every drive's RPDOs,
-//! the SYNC, every drive's TPDOs, the nodes' heartbeats averaged over the cycles — must fit
+//! the SYNC, every drive's TPDOs, the nodes' and gantry's own heartbeats averaged over the
+//! cycles — must fit
 //! the time the cycle waits for its replies at the configured bit rate, or the
 //! configuration is refused with the figures. Each frame is counted at its worst-case
 //! length with stuff bits ([`frame_bits`]: 135 bits for 8 data bytes, so 1 Mbit/s
@@ -8,10 +9,10 @@
 //!
 //! Figures (CSP layouts, heartbeat every 100 ms, 1 ms cycle, whose replies are waited for
 //! 950 µs): the minimal layout (controlword + target / statusword + actual, one 6-byte
-//! PDO each way, 230 bits a drive) fits 3 drives at 1 Mbit/s (747 bits) but not 4 (977
+//! PDO each way, 230 bits a drive) fits 3 drives at 1 Mbit/s (748 bits) but not 4 (979
 //! bits: 1.03 Mbit/s in 950 µs); the full CSP layout (one 7-byte RPDO, TPDOs of 8 and 7
-//! bytes, 385 bits a drive) fits 2 (828 bits), and 4 need a 2 ms cycle (1597 bits in
-//! 1.95 ms: 0.82 Mbit/s).
+//! bytes, 385 bits a drive) fits 2 (827 bits), and 4 need a 2 ms cycle (1602 bits in
+//! 1.95 ms: 0.82 Mbit/s). A SYNC counter adds 10 bits a cycle.
 
 use std::fmt;
 
@@ -24,6 +25,8 @@ use crate::runtime::clock::reply_window_ns;
 
 /// Bits of a SYNC without counter (0 data bytes).
 pub const SYNC_BITS: u64 = frame_bits(0);
+/// Bits of a SYNC with counter (1 data byte).
+pub const SYNC_COUNTER_BITS: u64 = frame_bits(1);
 /// Bits of a heartbeat (1 data byte).
 pub const HEARTBEAT_BITS: u64 = frame_bits(1);
 
@@ -88,7 +91,7 @@ impl BusLoad {
             })?;
             plans.push(plan);
         }
-        Ok(Self::of(
+        let load = Self::of(
             &plans,
             u64::from(config.bus.cycle_us) * 1000,
             config.bus.bitrate.unwrap_or(0),
@@ -98,11 +101,22 @@ impl BusLoad {
                 .interface
                 .clone()
                 .unwrap_or_else(|| "the bus".into()),
-        ))
+        );
+        Ok(if config.bus.sync_counter.is_some() {
+            load.with_sync_counter()
+        } else {
+            load
+        })
     }
 
-    /// The load of drives with these PDOs, cycling every `period_ns`, each node sending
-    /// a heartbeat every `heartbeat_ns` (0: none).
+    /// The SYNC carries a counter (one data byte more).
+    pub fn with_sync_counter(mut self) -> Self {
+        self.bits = self.bits - SYNC_BITS + SYNC_COUNTER_BITS;
+        self
+    }
+
+    /// The load of drives with these PDOs, cycling every `period_ns`, each node and gantry
+    /// sending a heartbeat every `heartbeat_ns` (0: none).
     pub fn of(
         plans: &[DrivePlan],
         period_ns: u64,
@@ -114,7 +128,10 @@ impl BusLoad {
         let heartbeat_bits = if heartbeat_ns == 0 {
             0.0
         } else {
-            plans.len() as f64 * HEARTBEAT_BITS as f64 * period_ns as f64 / heartbeat_ns as f64
+            // The nodes' and gantry's own (CiA 301 §7.2.8.3.2.2: the master produces one
+            // the nodes consume).
+            (plans.len() + 1) as f64 * HEARTBEAT_BITS as f64 * period_ns as f64
+                / heartbeat_ns as f64
         };
         Self {
             drives: plans.len(),
@@ -168,7 +185,7 @@ fn round(x: f64) -> String {
 }
 
 impl fmt::Display for BusLoad {
-    /// "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (977 bits in the 950 µs the
+    /// "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (979 bits in the 950 µs the
     /// cycle waits for its TPDOs); can0 has 1 Mbit/s".
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let drives = if self.drives == 1 { "drive" } else { "drives" };
@@ -215,17 +232,18 @@ mod tests {
     #[test]
     fn three_minimal_drives_fit_1_mbit_at_1_ms_and_four_do_not() {
         let three = load(3, PdoLayout::csp_minimal(), 1000, 1_000_000);
-        // SYNC 55 + 3 × (115 + 115) + 3 heartbeats of 65 bits every 100 cycles.
-        assert_eq!(three.bits, 55 + 690 + 2);
-        assert!((three.heartbeat_bits - 1.95).abs() < 1e-9);
+        // SYNC 55 + 3 × (115 + 115) + 3 heartbeats and gantry's of 65 bits every 100
+        // cycles.
+        assert_eq!(three.bits, 55 + 690 + 3);
+        assert!((three.heartbeat_bits - 2.6).abs() < 1e-9);
         assert_eq!(three.window_ns(), 950_000);
         assert!(three.utilisation() < 0.8, "{}", three.utilisation());
         assert!(three.clone().check().is_ok());
         let four = load(4, PdoLayout::csp_minimal(), 1000, 1_000_000);
-        assert_eq!(four.bits, 55 + 920 + 3);
+        assert_eq!(four.bits, 55 + 920 + 4);
         assert_eq!(
             four.check().unwrap_err().to_string(),
-            "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (978 bits in the 950 µs the \
+            "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (979 bits in the 950 µs the \
              cycle waits for its TPDOs, heartbeats included); can0 has 1 Mbit/s"
         );
     }
@@ -234,12 +252,14 @@ mod tests {
     fn the_full_csp_layout_fits_two_drives_at_1_ms_and_four_at_2_ms() {
         assert!(load(2, PdoLayout::csp(), 1000, 1_000_000).check().is_ok());
         let three = load(3, PdoLayout::csp(), 1000, 1_000_000);
-        assert_eq!(three.bits, 55 + 3 * 385 + 2);
+        assert_eq!(three.bits, 55 + 3 * 385 + 3);
         assert!(three.check().is_err());
         let four = load(4, PdoLayout::csp(), 2000, 1_000_000).check().unwrap();
-        assert_eq!(four.bits, 55 + 4 * 385 + 6);
+        assert_eq!(four.bits, 55 + 4 * 385 + 7);
         assert_eq!(four.window_ns(), 1_950_000);
-        assert!((four.utilisation() - 1601.0 / 1950.0).abs() < 1e-9);
+        assert!((four.utilisation() - 1602.0 / 1950.0).abs() < 1e-9);
+        // A SYNC with counter: one data byte more (65 bits instead of 55).
+        assert_eq!(four.with_sync_counter().bits, 65 + 4 * 385 + 7);
     }
 
     #[test]

@@ -45,6 +45,20 @@ pub struct BusSection {
     /// before its axes stop (ms; default three heartbeat times).
     #[serde(default)]
     pub heartbeat_timeout_ms: Option<u32>,
+    /// CANopen only: gantry's own node id, under which it produces its heartbeat
+    /// (COB-ID 0x700 + id) for the nodes to consume (default [`DEFAULT_MASTER_NODE`]; no
+    /// axis may use it).
+    #[serde(default)]
+    pub master_node: Option<u8>,
+    /// CANopen only: the consumer time each node is given for gantry's heartbeat (0x1016,
+    /// ms; default three heartbeat times): a node that hears nothing from gantry for it
+    /// reacts by its 0x6007 (the drive faults).
+    #[serde(default)]
+    pub master_timeout_ms: Option<u16>,
+    /// CANopen only: SYNC with a counter counting 1..=N (0x1019 synchronous counter
+    /// overflow value, 2..=240, written to every node); none: SYNC without counter.
+    #[serde(default)]
+    pub sync_counter: Option<u8>,
 }
 
 /// Which bus a configuration drives.
@@ -59,6 +73,10 @@ pub enum BusKind {
 /// Heartbeat producer time given to every CANopen node unless `[bus] heartbeat_ms` says
 /// otherwise (ms).
 pub const DEFAULT_HEARTBEAT_MS: u16 = 100;
+
+/// gantry's node id on a CANopen bus unless `[bus] master_node` says otherwise: the
+/// highest, which drives rarely ship with.
+pub const DEFAULT_MASTER_NODE: u8 = 127;
 
 /// The bit rates of CiA 102 (the CAN physical layer CANopen devices implement; 1 Mbit/s
 /// up to 25 m of cable).
@@ -110,6 +128,19 @@ impl BusSection {
     pub fn heartbeat_consumer_ms(&self) -> u32 {
         self.heartbeat_timeout_ms
             .unwrap_or(3 * u32::from(self.heartbeat_producer_ms()))
+    }
+
+    /// CANopen: gantry's node id (its heartbeat's).
+    pub fn master_node(&self) -> u8 {
+        self.master_node.unwrap_or(DEFAULT_MASTER_NODE)
+    }
+
+    /// CANopen: the consumer time the nodes get for gantry's heartbeat (ms; three
+    /// heartbeat times unless given, at most 65535, what 0x1016 holds).
+    pub fn master_consumer_ms(&self) -> u16 {
+        self.master_timeout_ms.unwrap_or_else(|| {
+            u16::try_from(3 * u32::from(self.heartbeat_producer_ms())).unwrap_or(u16::MAX)
+        })
     }
 
     /// Checks values; the error names the key (below `bus.`) and the reason.
@@ -180,6 +211,9 @@ impl BusSection {
             ("bitrate", self.bitrate.is_some()),
             ("heartbeat_ms", self.heartbeat_ms.is_some()),
             ("heartbeat_timeout_ms", self.heartbeat_timeout_ms.is_some()),
+            ("master_node", self.master_node.is_some()),
+            ("master_timeout_ms", self.master_timeout_ms.is_some()),
+            ("sync_counter", self.sync_counter.is_some()),
         ] {
             if given {
                 return Err((
@@ -230,6 +264,42 @@ impl BusSection {
                      node would time out between two heartbeats (CiA 301 §7.2.8.3.2.3)"
                 ),
             ));
+        }
+        if !(1..=127).contains(&self.master_node()) {
+            return Err((
+                "master_node".into(),
+                format!(
+                    "{} is outside 1..=127 (CiA 301: a 7-bit node id)",
+                    self.master_node()
+                ),
+            ));
+        }
+        // gantry's heartbeat goes with the first cycle at or after it is due: up to its
+        // time plus a cycle apart.
+        if u64::from(self.master_consumer_ms()) * 1000
+            <= u64::from(producer) * 1000 + u64::from(self.cycle_us)
+        {
+            return Err((
+                "master_timeout_ms".into(),
+                format!(
+                    "{} ms is not longer than gantry's heartbeat time {producer} ms plus a \
+                     cycle ({} µs; the cycle sends it): every node would time gantry out \
+                     between two of its heartbeats (CiA 301 §7.2.8.3.2.3)",
+                    self.master_consumer_ms(),
+                    self.cycle_us
+                ),
+            ));
+        }
+        if let Some(n) = self.sync_counter {
+            if !(2..=gantry_drives::canopen::sync::MAX_COUNTER).contains(&n) {
+                return Err((
+                    "sync_counter".into(),
+                    format!(
+                        "{n} is not a synchronous counter overflow value (0x1019: 2..=240, \
+                         CiA 301 §7.5.2.22)"
+                    ),
+                ));
+            }
         }
         if self.pcap.is_some() {
             return Err((

@@ -12,6 +12,7 @@ mod switches;
 pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection, DRIVE_UNSET};
 pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
+    DEFAULT_MASTER_NODE,
 };
 pub use error::ConfigError;
 pub use switches::{SwitchSource, SwitchesSection};
@@ -153,6 +154,17 @@ impl Config {
                             span,
                             key("node"),
                             format!("node {node} is also axis[{other}]'s"),
+                        ));
+                    }
+                    if node == bus.master_node() {
+                        return Err(at(
+                            span,
+                            key("node"),
+                            format!(
+                                "node {node} is gantry's own (bus.master_node, its \
+                                 heartbeat's): give the drive another id or gantry another \
+                                 master_node"
+                            ),
                         ));
                     }
                     // Bus position i: the i-th axis' node (see `AxisSection::drive`).

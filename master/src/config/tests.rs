@@ -275,7 +275,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
     );
     assert_eq!(
         four,
-        "c.toml:5: bus.bitrate: 4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (978 bits \
+        "c.toml:5: bus.bitrate: 4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (979 bits \
          in the 950 µs the cycle waits for its TPDOs, heartbeats included); can0 has 1 Mbit/s"
     );
 }
@@ -308,6 +308,71 @@ fn canopen_settings_are_refused_on_ethercat_and_node_ids_too() {
             "bus.kind: \"profibus\" is not a bus gantry drives (\"ethercat\" or \"canopen\")"
         ),
         "{e}"
+    );
+}
+
+#[test]
+fn canopen_master_heartbeat_and_sync_counter_keys() {
+    let c = canopen(&["node = 1"], "bitrate = 1000000").unwrap();
+    assert_eq!(c.bus.master_node(), DEFAULT_MASTER_NODE);
+    assert_eq!(c.bus.master_consumer_ms(), 300);
+    assert_eq!(c.bus.sync_counter, None);
+    let c = canopen(
+        &["node = 1"],
+        "bitrate = 1000000\nmaster_node = 100\nmaster_timeout_ms = 250\nsync_counter = 16",
+    )
+    .unwrap();
+    assert_eq!(c.bus.master_node(), 100);
+    assert_eq!(c.bus.master_consumer_ms(), 250);
+    assert_eq!(c.bus.sync_counter, Some(16));
+    let e = |nodes: &[&str], bus: &str| canopen(nodes, bus).unwrap_err().to_string();
+    assert!(
+        e(&["node = 127"], "bitrate = 1000000").ends_with(
+            "axis[0].node: node 127 is gantry's own (bus.master_node, its heartbeat's): give \
+             the drive another id or gantry another master_node"
+        ),
+        "{}",
+        e(&["node = 127"], "bitrate = 1000000")
+    );
+    assert!(e(&["node = 1"], "bitrate = 1000000\nmaster_node = 0")
+        .contains("bus.master_node: 0 is outside 1..=127"));
+    assert!(
+        e(&["node = 1"], "bitrate = 1000000\nmaster_timeout_ms = 100").contains(
+            "bus.master_timeout_ms: 100 ms is not longer than gantry's heartbeat time 100 ms"
+        )
+    );
+    // 101 ms: longer than the heartbeat, but not than the heartbeat and a 1 ms cycle.
+    assert!(
+        e(&["node = 1"], "bitrate = 1000000\nmaster_timeout_ms = 101").contains(
+            "bus.master_timeout_ms: 101 ms is not longer than gantry's heartbeat time 100 ms \
+             plus a cycle (1000 µs; the cycle sends it)"
+        )
+    );
+    assert!(canopen(&["node = 1"], "bitrate = 1000000\nmaster_timeout_ms = 102").is_ok());
+    for bad in [0, 1, 241] {
+        assert!(
+            e(
+                &["node = 1"],
+                &format!("bitrate = 1000000\nsync_counter = {bad}")
+            )
+            .contains(&format!(
+                "bus.sync_counter: {bad} is not a synchronous counter overflow value"
+            )),
+            "{bad}"
+        );
+    }
+    let ethercat = Config::parse(
+        "[bus]\nkind = \"ethercat\"\ninterface = \"eth0\"\ncycle_us = 1000\nsync_counter = 4\n\
+         [[axis]]\nname = \"a\"\ndrive = 0\n\
+         scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+         max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n",
+        "e.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        ethercat.contains("bus.sync_counter: is a CANopen setting"),
+        "{ethercat}"
     );
 }
 
@@ -481,6 +546,38 @@ fn an_eds_is_refused_on_ethercat() {
         ),
         "{e}"
     );
+}
+
+#[test]
+fn gantrys_heartbeat_and_sync_counter_against_an_eds() {
+    let dir = scratch("eds-master");
+    std::fs::write(dir.join("acme_sx400.eds"), ACME).unwrap();
+    // ACME's drive has 0x1016: it is given a consumer of gantry's heartbeat.
+    let c = with_eds(&dir, "acme_sx400.eds", "bitrate = 1000000").unwrap();
+    let setup = crate::canopen::bring_up::drive_setup(&c, 0).unwrap();
+    let consumer = (127u32 << 16 | 300).to_le_bytes();
+    assert!(setup
+        .steps
+        .iter()
+        .any(|s| s.mux.index == 0x1016 && s.mux.sub == 1 && s.value() == consumer));
+    // A drive without 0x1016 (optional, CiA 301 §7.5.2.16) is not told one.
+    let text = ACME
+        .replacen("[1016]", "[2F16]", 1)
+        .replacen("8=0x1016", "8=0x2F16", 1);
+    std::fs::write(dir.join("no1016.eds"), text).unwrap();
+    let c = with_eds(&dir, "no1016.eds", "bitrate = 1000000").unwrap();
+    let setup = crate::canopen::bring_up::drive_setup(&c, 0).unwrap();
+    assert!(setup.steps.iter().all(|s| s.mux.index != 0x1016));
+    // A SYNC counter needs 0x1019, which ACME's drive does not have: refused at load.
+    let e = with_eds(
+        &dir,
+        "acme_sx400.eds",
+        "bitrate = 1000000\nsync_counter = 8",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("0x1019:00"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -9,6 +9,13 @@
 //!   cable is pulled, the slave drops out of OP, and a reset brings it back. Prints what
 //!   ran and which threads run in real time, and exits 0 — unless the kernel killed it
 //!   first.
+//! - `canopen`: the CANopen cycle (`Engine::cycle` on a `CanopenBus`: RPDOs, SYNC,
+//!   TPDOs, heartbeats — the nodes' and gantry's own —, EMCYs, the restore's NMT and SDO
+//!   steps) in lockstep on four simulated drives behind a link that takes no lock
+//!   (`gantry_tests::can_lockfree`), filtered from the first cycle for ~3 s of the
+//!   application's moves and resets, while a node's heartbeat is lost (its axis stops)
+//!   and another node is reset by another master, both brought back by resets inside the
+//!   filtered cycles. Needs no root (no real-time scheduling: lockstep time).
 //! - `contended-lock`, `parking`: the filtered thread waits on a held `Mutex`, or in
 //!   `futures_lite::block_on` (a parker): both must be killed, which shows the filter
 //!   catches what it is meant to.
@@ -41,11 +48,13 @@ fn main() {
     let mode = std::env::args().nth(1).unwrap_or_default();
     match mode.as_str() {
         "engine" => engine(),
+        "canopen" => canopen(),
         "contended-lock" => contended_lock(),
         "parking" => parking(),
         other => {
             eprintln!(
-                "cycle-under-seccomp: unknown mode {other:?} (engine, contended-lock, parking)"
+                "cycle-under-seccomp: unknown mode {other:?} (engine, canopen, contended-lock, \
+                 parking)"
             );
             std::process::exit(2);
         }
@@ -224,6 +233,145 @@ fn engine() {
         done(&resets),
         LOST_FRAMES.load(Ordering::Relaxed),
         real_time.join(" "),
+    );
+    std::process::exit(0);
+}
+
+static HEARTBEATS: AtomicU64 = AtomicU64::new(0);
+static EXCHANGES: AtomicU64 = AtomicU64::new(0);
+
+fn canopen() {
+    use gantry::canopen::CanopenBus;
+    use gantry::runtime::clock::StepClock;
+    use gantry::runtime::cycle::Cycle;
+    use gantry::runtime::engine::Engine;
+    use gantry_tests::can_lockfree::LockFreeLink;
+    use gantry_tests::can_rig::{can_config_with, servos};
+
+    const NODES: [u8; 4] = [1, 2, 3, 4];
+    // With a SYNC counter: its count and the restore's 0x1019 write run filtered too.
+    let config = can_config_with(&NODES, 2000, "csp", "sync_counter = 16");
+    let (link, control) = LockFreeLink::new(servos(&NODES));
+    let (tx, rx) = mpsc::channel();
+    let steer = control.clone();
+    let spawned = std::thread::Builder::new()
+        .name(CYCLE_THREAD.into())
+        .stack_size(CYCLE_STACK_BYTES)
+        .spawn(move || {
+            let bus = CanopenBus::bring_up_on(&config, Box::new(link), &mut std::io::sink())
+                .unwrap_or_else(|e| {
+                    eprintln!("bus up: {}", gantry::error_chain::Chain(&e));
+                    std::process::exit(4)
+                });
+            let cycle = Cycle::from_config(&config, &bus).unwrap_or_else(|e| {
+                eprintln!("the cycle: {}", gantry::error_chain::Chain(&e));
+                std::process::exit(4)
+            });
+            let start = bus.link().now_ns();
+            let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
+            steer.clock_ns.store(start, Ordering::Release);
+            steer.stepped.store(true, Ordering::Release);
+            let moved = steer.clone();
+            let mut clock = StepClock::new(2_000_000, start, move |to: u64| {
+                moved.clock_ns.store(to, Ordering::Release)
+            });
+            let _ = tx.send(ends);
+            if let Err(e) = forbid_futex_in_this_thread() {
+                eprintln!("seccomp: {e}");
+                std::process::exit(5);
+            }
+            FILTERED.store(true, Ordering::Release);
+            // Lockstep: each cycle at once, the step clock moving the bus' time.
+            while !STOP.load(Ordering::Relaxed) {
+                if !engine.cycle(&mut clock) {
+                    break;
+                }
+            }
+            CYCLES.store(engine.counters().cycles, Ordering::Relaxed);
+            HEARTBEATS.store(engine.bus.heartbeats_sent(), Ordering::Relaxed);
+            EXCHANGES.store(engine.bus.exchanges(), Ordering::Relaxed);
+            FINISHED.store(true, Ordering::Release);
+            park_forever();
+        });
+    if let Err(e) = spawned {
+        eprintln!("the cycle thread: {e}");
+        std::process::exit(4);
+    }
+    let Ok(ends) = rx.recv() else {
+        eprintln!("the cycle thread ended at start");
+        std::process::exit(4);
+    };
+    let ctl = Controller::new(ends, (0..AXES).map(|i| format!("a{i}")).collect());
+    let enable = |ctl: &Controller| {
+        for i in 0..AXES {
+            let _ = ctl.command(i, Command::Power(PowerCommand::Enable));
+        }
+    };
+    enable(&ctl);
+    for i in 0..AXES {
+        let _ = ctl.command(
+            i,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        );
+    }
+    wait_for(&FILTERED, "the filter");
+    let (mut handles, mut resets, mut snapshots) = (Vec::new(), Vec::new(), 0u64);
+    let mut trace = Vec::new();
+    for round in 1..=ROUNDS {
+        for i in 0..AXES {
+            let to = if round % 2 == 0 { 5.0 } else { 0.0 };
+            let m = MovePtp::new(PositioningMode::AbsNormal, to);
+            if let Ok(h) = ctl.command(i, Command::MovePtp(m)) {
+                handles.push(h);
+            }
+        }
+        match round % 10 {
+            // Node 2's heartbeat lost (its cable): its axis stops past the consumer time.
+            3 => control.drop.store(0x702, Ordering::Relaxed),
+            // Node 4 reset by another master: boot-up, its axis stops.
+            6 => control.reset_node.store(4, Ordering::Relaxed),
+            // Plugged back; resets bring both nodes back (NMT, SDO) inside the filter.
+            8 => {
+                control.drop.store(0, Ordering::Relaxed);
+                for i in 0..AXES {
+                    if let Ok(h) = ctl.reset(i) {
+                        resets.push(h);
+                    }
+                }
+            }
+            9 => enable(&ctl),
+            _ => {}
+        }
+        let until = std::time::Instant::now() + Duration::from_millis(60);
+        while std::time::Instant::now() < until {
+            std::hint::black_box(ctl.snapshot());
+            snapshots += 1;
+            ctl.drain_trace(&mut trace);
+            trace.clear();
+        }
+    }
+    STOP.store(true, Ordering::Relaxed);
+    wait_for(&FINISHED, "the end of the cycles");
+    let done = |hs: &[gantry::runtime::controller::CommandHandle]| {
+        hs.iter()
+            .filter(|h| h.status() == Some(CommandStatus::Done))
+            .count()
+    };
+    println!(
+        "cycles {}; exchanges {}; moves {} done {}; resets {} done {}; snapshots \
+         {snapshots}; boot-ups {}; gantry heartbeats {}; queue overflow {}",
+        CYCLES.load(Ordering::Relaxed),
+        EXCHANGES.load(Ordering::Relaxed),
+        handles.len(),
+        done(&handles),
+        resets.len(),
+        done(&resets),
+        control.boot_ups.load(Ordering::Relaxed),
+        HEARTBEATS.load(Ordering::Relaxed),
+        control.overflow.load(Ordering::Relaxed),
     );
     std::process::exit(0);
 }
