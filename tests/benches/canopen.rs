@@ -5,10 +5,15 @@
 //! of perfect drives (statusword from the controlword, position = target), so that the
 //! line is the master's alone. The bus was brought up on simulated nodes before (SDO
 //! mapping: 8 drives × 1 RPDO + 2 TPDOs of the full CSP layout, at 4 ms they fit 1 Mbit/s).
-//! Also timed: the same cycle on the simulated nodes (master + 8 simulated drives).
+//! The simulated nodes' clock is not run while the mirror answers. Also timed, in the same
+//! run: the mirror alone on one cycle's frames (its share of the master line, to
+//! subtract), the kernel step alone for the 8 moving axes (the baseline, as the EtherCAT
+//! bench's), and the same cycle on the simulated nodes (master + 8 simulated drives).
 //!
-//! Measured (2026-11-25, this 2-core shared VM, release): master alone median 3.3 µs
-//! (mean 7.3, slowest of 100 17 µs); master + 8 simulated nodes median 26.7 µs.
+//! Measured (2026-11-25, this 2-core shared VM under other builds, release, medians, two
+//! runs): master cycle 4.46 / 4.33 µs, mirror alone 0.58 / 0.56 µs, so ≈ 3.8–3.9 µs of
+//! master CPU per cycle (target ≤ 20 µs); kernel step alone 0.70 / 0.45 µs (the master's
+//! cycle ≈ 5.6–8.4× its kernel step); master + 8 simulated nodes 36 / 30 µs.
 
 use std::collections::VecDeque;
 use std::io;
@@ -172,10 +177,16 @@ fn engine(mirror: bool) -> (Engine<CanopenBus>, Controller, Clock) {
         n.stepped = true;
         n.clock_ns
     };
+    // With the mirror on, the simulated nodes are idle: their clock is not run, so that
+    // none of their work (timers, heartbeats) lands in the master's line.
     let clock: Clock = StepClock::new(
         4_000_000,
         start,
-        Box::new(move |to| nodes.lock().unwrap().tick(to)),
+        Box::new(move |to| {
+            if !mirror {
+                nodes.lock().unwrap().tick(to)
+            }
+        }),
     );
     (engine, ctl, clock)
 }
@@ -207,6 +218,54 @@ fn moving(mirror: bool) -> (Engine<CanopenBus>, Controller, Clock) {
 fn master_cycle_8_drives(bencher: divan::Bencher) {
     let (mut e, _ctl, mut clock) = moving(true);
     bencher.bench_local(|| e.cycle(&mut clock));
+}
+
+/// The mirror's share of the master line: what the bench link does per cycle (8 RPDOs
+/// and the SYNC taken, 16 TPDOs made and handed back), on the frames of one real cycle.
+/// Subtracted from the master line, it leaves the master's own work.
+#[divan::bench]
+fn mirror_alone_8_drives(bencher: divan::Bencher) {
+    let (e, _ctl, _clock) = moving(true);
+    let plans: Vec<(u8, DrivePlan)> = (0..e.bus.drives())
+        .map(|i| (e.bus.node(i).unwrap().get(), e.bus.plan(i).unwrap().clone()))
+        .collect();
+    let mut sent: Vec<CanFrame> = Vec::new();
+    for (node, plan) in &plans {
+        for p in &plan.rpdos {
+            let id = u32::from(0x200 + 0x100 * u16::from(p.number - 1) + u16::from(*node));
+            let mut data = [0u8; 8];
+            data[..2].copy_from_slice(&0x000Fu16.to_le_bytes());
+            sent.push(CanFrame::new(id, &data[..p.len]).unwrap());
+        }
+    }
+    sent.push(CanFrame::new(0x080, &[]).unwrap());
+    let mirror = Mutex::new(Mirror {
+        on: true,
+        plans,
+        state: vec![(0, 0); usize::from(DRIVES)],
+        queue: VecDeque::with_capacity(256),
+        syncs: 0,
+    });
+    bencher.bench_local(|| {
+        for f in &sent {
+            mirror.lock().unwrap().on_frame(f);
+        }
+        let mut n = 0;
+        while let Some(f) = mirror.lock().unwrap().queue.pop_front() {
+            n += f.data().len();
+        }
+        // A receive that finds nothing ends each exchange, as in the cycle.
+        let _ = mirror.lock().unwrap().queue.pop_front();
+        n
+    });
+}
+
+/// Baseline of the same run: the kernel step alone for the 8 moving axes (on the last
+/// feedback), as the EtherCAT bench's baseline.
+#[divan::bench]
+fn kernel_step_8_axes(bencher: divan::Bencher) {
+    let (mut e, _ctl, _clock) = moving(true);
+    bencher.bench_local(|| e.cycle.step());
 }
 
 /// The same cycle on 8 simulated CiA 402 nodes (master + simulator).

@@ -18,3 +18,4 @@ pub mod scan;
 pub mod sdo;
 pub mod simulator;
 pub mod status_table;
+pub mod sync_jitter;

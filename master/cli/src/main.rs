@@ -264,6 +264,11 @@ enum Cmd {
         /// Seconds to measure (each of gantry and cyclictest).
         #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
         seconds: f64,
+        /// Measure instead when a CANopen cycle thread hands each SYNC to its link, with
+        /// this many simulated servos (in memory, at 1 Mbit/s: no CAN hardware needed),
+        /// beside cyclictest on the same CPU.
+        #[arg(long, value_name = "DRIVES")]
+        can: Option<u8>,
     },
     /// Print the planned profile of one move as JSON.
     Profile {
@@ -664,6 +669,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             config,
             cycle_us,
             seconds,
+            can,
         } => {
             anyhow::ensure!(
                 seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0,
@@ -681,13 +687,26 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 (50..=100_000).contains(&cycle),
                 "--cycle-us {cycle} must be 50 to 100000"
             );
-            gantry_cli::rt_check::run(
-                &rt,
-                interface.as_deref(),
-                cycle,
-                seconds,
-                &mut std::io::stdout(),
-            )?;
+            if let Some(drives) = can {
+                anyhow::ensure!(
+                    (1..=127).contains(&drives),
+                    "--can {drives}: a CANopen network has nodes 1 to 127"
+                );
+            }
+            let mut stdout = std::io::stdout();
+            match can {
+                Some(drives) => {
+                    gantry_cli::rt_check::write_findings(&rt, None, &mut stdout)?;
+                    gantry_cli::rt_check::run_can(&rt, drives, cycle, seconds, &mut stdout)?;
+                }
+                None => gantry_cli::rt_check::run(
+                    &rt,
+                    interface.as_deref(),
+                    cycle,
+                    seconds,
+                    &mut stdout,
+                )?,
+            }
         }
         Cmd::Scan {
             interface,

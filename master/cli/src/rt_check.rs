@@ -184,9 +184,19 @@ pub fn measure(priority: u8, cycle_us: u32, seconds: f64) -> (Summary, bool) {
 }
 
 /// The same with `cyclictest`, if installed: one thread, same priority and interval.
-pub fn cyclictest(priority: u8, cycle_us: u32, seconds: f64) -> Result<Summary, String> {
+/// `cpu`: pinned there (`-a`), as the thread it is compared with.
+pub fn cyclictest(
+    priority: u8,
+    cpu: Option<usize>,
+    cycle_us: u32,
+    seconds: f64,
+) -> Result<Summary, String> {
     let loops = (seconds * 1e6 / f64::from(cycle_us)).max(1.0) as u64;
-    let out = Command::new("cyclictest")
+    let mut command = Command::new("cyclictest");
+    if let Some(cpu) = cpu {
+        command.arg(format!("-a{cpu}"));
+    }
+    let out = command
         .args(["-m", "-q", "-t1", "-h", "20000"])
         .arg(format!("-p{priority}"))
         .arg(format!("-i{cycle_us}"))
@@ -221,12 +231,91 @@ pub fn cyclictest(priority: u8, cycle_us: u32, seconds: f64) -> Result<Summary, 
     Ok(s)
 }
 
-/// Runs every check and the measurement; writes the report.
-pub fn run(
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        a / b
+    } else {
+        f64::NAN
+    }
+}
+
+/// `--can N`: the SYNC of a CANopen cycle thread on `N` simulated servos
+/// ([`crate::sync_jitter`]), then cyclictest at the same priority on the same CPU (the
+/// configuration's `rt.cpu`, else the last CPU: the cycle thread is pinned as in
+/// production), each for `seconds`.
+pub fn run_can(
     rt: &RtSection,
-    interface: Option<&str>,
+    drives: u8,
     cycle_us: u32,
     seconds: f64,
+    out: &mut impl Write,
+) -> std::io::Result<()> {
+    let mut rt = *rt;
+    rt.lock_memory = true;
+    rt.cpu = Some(rt.cpu.unwrap_or(num_cpus() - 1));
+    writeln!(
+        out,
+        "SYNC of the CANopen cycle thread ({drives} simulated servos at 1 Mbit/s), SCHED_FIFO {} on CPU {}, memory locked, every {cycle_us} µs for {seconds} s:",
+        rt.priority,
+        rt.cpu.unwrap_or(0)
+    )?;
+    let j = match crate::sync_jitter::measure(rt, drives, cycle_us, seconds) {
+        Ok(j) => j,
+        Err(e) => {
+            writeln!(out, "  not measured: {e}")?;
+            return Ok(());
+        }
+    };
+    writeln!(
+        out,
+        "  SYNC |interval − period|  {}{}",
+        j.deviation,
+        if j.real_time {
+            ""
+        } else {
+            "  (NOT real time: SCHED_FIFO, pinning or mlockall refused)"
+        }
+    )?;
+    writeln!(out, "  SYNC sent − deadline     {}", j.lateness)?;
+    writeln!(
+        out,
+        "  less the simulator's time in the RPDO sends before the SYNC (the thread's own):"
+    )?;
+    writeln!(out, "  SYNC |interval − period|  {}", j.deviation_own)?;
+    writeln!(out, "  SYNC sent − deadline     {}", j.lateness_own)?;
+    writeln!(
+        out,
+        "  {} SYNCs in {} cycles, {} TPDOs lost",
+        j.syncs, j.cycles, j.lost
+    )?;
+    match cyclictest(rt.priority, rt.cpu, cycle_us, seconds) {
+        Ok(c) => {
+            writeln!(out, "  cyclictest latency       {c}")?;
+            for (what, g) in [
+                ("|interval − period|", j.deviation),
+                ("sent − deadline", j.lateness),
+                ("|interval − period| own", j.deviation_own),
+                ("sent − deadline own", j.lateness_own),
+            ] {
+                writeln!(
+                    out,
+                    "  ratio SYNC {what}/cyclictest: p50 {:.2}, p99 {:.2}, p99.9 {:.2}, max {:.2}",
+                    ratio(g.p50_us, c.p50_us),
+                    ratio(g.p99_us, c.p99_us),
+                    ratio(g.p999_us, c.p999_us),
+                    ratio(g.max_us, c.max_us)
+                )?;
+            }
+        }
+        Err(e) => writeln!(out, "  cyclictest  not run: {e}")?,
+    }
+    Ok(())
+}
+
+/// The machine's settings, as a report.
+pub fn write_findings(
+    rt: &RtSection,
+    interface: Option<&str>,
     out: &mut impl Write,
 ) -> std::io::Result<()> {
     writeln!(out, "gantry rt-check")?;
@@ -236,6 +325,18 @@ pub fn run(
             writeln!(out, "  {:<26} → {a}", "")?;
         }
     }
+    Ok(())
+}
+
+/// Runs every check and the measurement; writes the report.
+pub fn run(
+    rt: &RtSection,
+    interface: Option<&str>,
+    cycle_us: u32,
+    seconds: f64,
+    out: &mut impl Write,
+) -> std::io::Result<()> {
+    write_findings(rt, interface, out)?;
     writeln!(
         out,
         "wake-up latency, SCHED_FIFO {}, every {cycle_us} µs for {seconds} s:",
@@ -251,10 +352,9 @@ pub fn run(
             "  (NOT real time: SCHED_FIFO refused)"
         }
     )?;
-    match cyclictest(rt.priority, cycle_us, seconds) {
+    match cyclictest(rt.priority, None, cycle_us, seconds) {
         Ok(c) => {
             writeln!(out, "  cyclictest  {c}")?;
-            let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
             writeln!(
                 out,
                 "  ratio gantry/cyclictest: p50 {:.2}, p99 {:.2}, p99.9 {:.2}, max {:.2}",

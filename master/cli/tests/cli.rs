@@ -366,6 +366,38 @@ fn pcap_of_the_ethercat_demo_dissects_clean_in_tshark() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `rt-check --can N`: the SYNC figures of a CANopen cycle thread on N simulated servos,
+/// one SYNC per cycle; a node count out of 1..=127 is refused by name.
+#[test]
+fn rt_check_can_measures_the_sync_of_simulated_servos() {
+    let out = gantry()
+        .args([
+            "rt-check",
+            "--can",
+            "2",
+            "--seconds",
+            "0.3",
+            "--cycle-us",
+            "2000",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("2 simulated servos"), "{text}");
+    assert!(text.contains("SYNC |interval − period|  p50"), "{text}");
+    assert!(text.contains("SYNC sent − deadline     p50"), "{text}");
+    assert!(text.contains("150 SYNCs in 150 cycles"), "{text}");
+    let bad = gantry().args(["rt-check", "--can", "0"]).output().unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--can 0"), "{err}");
+}
+
 #[test]
 fn rt_check_reports_the_machine_and_measures() {
     let out = gantry()
