@@ -299,18 +299,8 @@ impl ServoSwitches {
 
     /// The drive's switches.
     pub fn drive_switches(&self) -> DriveSwitches {
-        let mut cams = [SwitchCam {
-            input: 0,
-            from: 0,
-            to: 0,
-            normally_closed: false,
-        }; 3];
-        let mut n = 0;
-        for ((_, c), slot) in self.cams().zip(cams.iter_mut()) {
-            *slot = c;
-            n += 1;
-        }
-        DriveSwitches::new(cams.get(..n).unwrap_or_default())
+        let cams: Vec<SwitchCam> = self.cams().map(|(_, c)| c).collect();
+        DriveSwitches::new(&cams)
     }
 }
 

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
-    BufferMode, HomeMode, HomeSwitches, JogDirection, MoveMode, Request as Line,
+    BufferMode, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request as Line,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -78,33 +78,13 @@ impl AxisCommand {
             ),
             AxisCmd::Home {
                 axis,
-                direction,
-                switches,
-                mode,
-                speed_switch,
-                max_distance_switch,
-                speed_reference,
-                max_distance_reference,
-                acceleration,
-                jerk,
-                reference_offset,
-                normal_position,
+                params,
                 no_wait,
                 client,
             } => (
                 Line::Home {
                     axis,
-                    direction,
-                    switches,
-                    mode,
-                    speed_switch,
-                    max_distance_switch,
-                    speed_reference,
-                    max_distance_reference,
-                    acceleration,
-                    jerk,
-                    reference_offset,
-                    normal_position,
+                    params: params.into(),
                 },
                 no_wait,
                 client,
@@ -305,6 +285,62 @@ enum Cmd {
     },
 }
 
+/// `gantry home`'s parameters (each left out keeps the axis' last-used one).
+#[derive(clap::Args, Debug)]
+struct HomeArgs {
+    /// Search direction: + or - (or positive, negative).
+    #[arg(long, allow_hyphen_values = true)]
+    direction: Option<JogDirection>,
+    /// ref-and-limit, ref, limit or none (the index pulse only).
+    #[arg(long)]
+    switches: Option<HomeSwitches>,
+    /// edge, edge-2 (switch fast, edge slowly), zero-pulse, zero-pulse-2.
+    #[arg(long)]
+    mode: Option<HomeMode>,
+    /// Speed of the switch search (units/s).
+    #[arg(long, value_parser = finite)]
+    speed_switch: Option<f64>,
+    /// Longest switch search (units).
+    #[arg(long, value_parser = finite)]
+    max_distance_switch: Option<f64>,
+    /// Speed of the reference search (units/s).
+    #[arg(long, value_parser = finite)]
+    speed_reference: Option<f64>,
+    /// Longest reference search (units).
+    #[arg(long, value_parser = finite)]
+    max_distance_reference: Option<f64>,
+    /// Acceleration (units/s²).
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Jerk (units/s³).
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+    /// The position the reference gets (units).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    reference_offset: Option<f64>,
+    /// Where the axis goes after homing (units).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    normal_position: Option<f64>,
+}
+
+impl From<HomeArgs> for HomeParams {
+    fn from(a: HomeArgs) -> Self {
+        Self {
+            direction: a.direction,
+            switches: a.switches,
+            mode: a.mode,
+            speed_switch: a.speed_switch,
+            max_distance_switch: a.max_distance_switch,
+            speed_reference: a.speed_reference,
+            max_distance_reference: a.max_distance_reference,
+            acceleration: a.acceleration,
+            jerk: a.jerk,
+            reference_offset: a.reference_offset,
+            normal_position: a.normal_position,
+        }
+    }
+}
+
 /// The commands to one axis of a running gantry.
 #[derive(Subcommand, Debug)]
 enum AxisCmd {
@@ -359,39 +395,8 @@ enum AxisCmd {
     Home {
         /// Axis name.
         axis: String,
-        /// Search direction: + or - (or positive, negative).
-        #[arg(long, allow_hyphen_values = true)]
-        direction: Option<JogDirection>,
-        /// ref-and-limit, ref, limit or none (the index pulse only).
-        #[arg(long)]
-        switches: Option<HomeSwitches>,
-        /// edge, edge-2 (switch fast, edge slowly), zero-pulse, zero-pulse-2.
-        #[arg(long)]
-        mode: Option<HomeMode>,
-        /// Speed of the switch search (units/s).
-        #[arg(long, value_parser = finite)]
-        speed_switch: Option<f64>,
-        /// Longest switch search (units).
-        #[arg(long, value_parser = finite)]
-        max_distance_switch: Option<f64>,
-        /// Speed of the reference search (units/s).
-        #[arg(long, value_parser = finite)]
-        speed_reference: Option<f64>,
-        /// Longest reference search (units).
-        #[arg(long, value_parser = finite)]
-        max_distance_reference: Option<f64>,
-        /// Acceleration (units/s²).
-        #[arg(long, value_parser = finite)]
-        acceleration: Option<f64>,
-        /// Jerk (units/s³).
-        #[arg(long, value_parser = finite)]
-        jerk: Option<f64>,
-        /// The position the reference gets (units).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        reference_offset: Option<f64>,
-        /// Where the axis goes after homing (units).
-        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
-        normal_position: Option<f64>,
+        #[command(flatten)]
+        params: HomeArgs,
         /// Return at once with the command's handle.
         #[arg(long)]
         no_wait: bool,

@@ -125,6 +125,46 @@ macro_rules! word_impls {
     };
 }
 
+/// MoveHome's parameters as a `home` request carries them (`"params": {…}`); each one
+/// left out keeps the axis' last-used value.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct HomeParams {
+    /// Search direction.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<JogDirection>,
+    /// What the search uses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub switches: Option<HomeSwitches>,
+    /// What the reference is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mode: Option<HomeMode>,
+    /// Speed of the switch search (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_switch: Option<f64>,
+    /// Longest switch search (units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_distance_switch: Option<f64>,
+    /// Speed of the reference search (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_reference: Option<f64>,
+    /// Longest reference search (units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_distance_reference: Option<f64>,
+    /// Acceleration (units/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Jerk (units/s³).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jerk: Option<f64>,
+    /// The position the reference gets (units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_offset: Option<f64>,
+    /// Where the axis goes after homing (units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal_position: Option<f64>,
+}
+
 /// How a move's `to` is meant. What `absolute` means depends on the axis: on a modulo axis
 /// it takes the shorter way round.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -356,39 +396,9 @@ pub enum Request {
     Home {
         /// Axis name.
         axis: String,
-        /// Search direction.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        direction: Option<JogDirection>,
-        /// What the search uses.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        switches: Option<HomeSwitches>,
-        /// What the reference is.
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        mode: Option<HomeMode>,
-        /// Speed of the switch search (units/s).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        speed_switch: Option<f64>,
-        /// Longest switch search (units).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        max_distance_switch: Option<f64>,
-        /// Speed of the reference search (units/s).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        speed_reference: Option<f64>,
-        /// Longest reference search (units).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        max_distance_reference: Option<f64>,
-        /// Acceleration (units/s²).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        acceleration: Option<f64>,
-        /// Jerk (units/s³).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        jerk: Option<f64>,
-        /// The position the reference gets (units).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        reference_offset: Option<f64>,
-        /// Where the axis goes after homing (units).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        normal_position: Option<f64>,
+        /// The run's parameters.
+        #[serde(default)]
+        params: HomeParams,
     },
     /// Leave ErrorStop: the slave back to OP if needed, the drive's fault reset.
     Reset {
@@ -632,17 +642,19 @@ mod tests {
             },
             Request::Home {
                 axis: axis(),
-                direction: Some(JogDirection::Negative),
-                switches: Some(HomeSwitches::RefAndLimit),
-                mode: Some(HomeMode::Edge2),
-                speed_switch: Some(20.0),
-                max_distance_switch: Some(500.0),
-                speed_reference: Some(2.0),
-                max_distance_reference: Some(10.0),
-                acceleration: Some(200.0),
-                jerk: Some(4000.0),
-                reference_offset: Some(-3.0),
-                normal_position: Some(5.0),
+                params: HomeParams {
+                    direction: Some(JogDirection::Negative),
+                    switches: Some(HomeSwitches::RefAndLimit),
+                    mode: Some(HomeMode::Edge2),
+                    speed_switch: Some(20.0),
+                    max_distance_switch: Some(500.0),
+                    speed_reference: Some(2.0),
+                    max_distance_reference: Some(10.0),
+                    acceleration: Some(200.0),
+                    jerk: Some(4000.0),
+                    reference_offset: Some(-3.0),
+                    normal_position: Some(5.0),
+                },
             },
             Request::Shutdown,
         ]

@@ -22,7 +22,8 @@ use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
-    self, HomeMode, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection, MAX_LINE,
+    self, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection,
+    MAX_LINE,
 };
 use crate::config::Config;
 use crate::error_chain::Chain;
@@ -458,48 +459,9 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             },
         )),
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
-        Request::Home {
-            axis: a,
-            direction,
-            switches,
-            mode,
-            speed_switch,
-            max_distance_switch,
-            speed_reference,
-            max_distance_reference,
-            acceleration,
-            jerk,
-            reference_offset,
-            normal_position,
-        } => {
-            let call = MoveHomeCall {
-                direction: direction.map(|d| match d {
-                    JogDirection::Positive => MoveDirection::Positive,
-                    JogDirection::Negative => MoveDirection::Negative,
-                }),
-                switch_config: switches.map(|s| match s {
-                    HomeSwitches::None => SwitchConfig::NoSwitch,
-                    HomeSwitches::RefAndLimit => SwitchConfig::RefAndLimitSwitch,
-                    HomeSwitches::Ref => SwitchConfig::RefSwitch,
-                    HomeSwitches::Limit => SwitchConfig::LimitSwitch,
-                }),
-                mode: mode.map(|m| match m {
-                    HomeMode::Edge => HomingMode::SwitchingEdge1Phase,
-                    HomeMode::Edge2 => HomingMode::SwitchingEdge2Phase,
-                    HomeMode::ZeroPulse => HomingMode::ZeroPulse1Phase,
-                    HomeMode::ZeroPulse2 => HomingMode::ZeroPulse2Phase,
-                }),
-                acceleration,
-                jerk,
-                speed_switch_search: speed_switch,
-                max_distance_switch_search: max_distance_switch,
-                speed_reference_search: speed_reference,
-                max_distance_reference_search: max_distance_reference,
-                reference_offset,
-                normal_position,
-            };
-            // The kernel checks every operand (finite, > 0 where it must be) and says which.
-            sent(ctl.command(axis(&a)?, Command::MoveHome(call)))
+        // The kernel checks every operand (finite, > 0 where it must be) and says which.
+        Request::Home { axis: a, params } => {
+            sent(ctl.command(axis(&a)?, Command::MoveHome(params.into())))
         }
         Request::Sdo {
             axis: a,
@@ -591,6 +553,46 @@ impl From<JogDirection> for MoveDirection {
         match d {
             JogDirection::Positive => Self::Positive,
             JogDirection::Negative => Self::Negative,
+        }
+    }
+}
+
+impl From<HomeSwitches> for SwitchConfig {
+    fn from(s: HomeSwitches) -> Self {
+        match s {
+            HomeSwitches::None => Self::NoSwitch,
+            HomeSwitches::RefAndLimit => Self::RefAndLimitSwitch,
+            HomeSwitches::Ref => Self::RefSwitch,
+            HomeSwitches::Limit => Self::LimitSwitch,
+        }
+    }
+}
+
+impl From<HomeMode> for HomingMode {
+    fn from(m: HomeMode) -> Self {
+        match m {
+            HomeMode::Edge => Self::SwitchingEdge1Phase,
+            HomeMode::Edge2 => Self::SwitchingEdge2Phase,
+            HomeMode::ZeroPulse => Self::ZeroPulse1Phase,
+            HomeMode::ZeroPulse2 => Self::ZeroPulse2Phase,
+        }
+    }
+}
+
+impl From<HomeParams> for MoveHomeCall {
+    fn from(p: HomeParams) -> Self {
+        Self {
+            direction: p.direction.map(Into::into),
+            switch_config: p.switches.map(Into::into),
+            mode: p.mode.map(Into::into),
+            acceleration: p.acceleration,
+            jerk: p.jerk,
+            speed_switch_search: p.speed_switch,
+            max_distance_switch_search: p.max_distance_switch,
+            speed_reference_search: p.speed_reference,
+            max_distance_reference_search: p.max_distance_reference,
+            reference_offset: p.reference_offset,
+            normal_position: p.normal_position,
         }
     }
 }
