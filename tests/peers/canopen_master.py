@@ -124,9 +124,17 @@ def main():
         network.add_node(node)
         node.emcy.add_callback(lambda e: emcys.append([e.code, e.register]))
 
-        # NMT: reset node, boot-up.
+        # NMT: reset node, boot-up. Listened for before the reset is sent: the node may
+        # answer before python-canopen's wait_for_bootup starts waiting, and that call
+        # only sees a boot-up that arrives after it (a race that failed 1 CI run in 3).
+        booted = threading.Event()
+        network.subscribe(
+            0x700 + a.node,
+            lambda _id, data, _t: booted.set() if bytes(data[:1]) == b"\x00" else None,
+        )
         node.nmt.send_command(0x81)
-        node.nmt.wait_for_bootup(10)
+        if not booted.wait(10):
+            raise RuntimeError("no boot-up within 10 s of NMT reset node")
         r["bootup"] = True
         log("boot-up seen; NMT state", node.nmt.state)
 
