@@ -1,6 +1,12 @@
 //! 0x6060/0x6061 Modes of operation (CiA 402-2 Table 32). Decoding is total: vendor modes
 //! (negative values) and undefined ones are kept as `Other(raw)`.
 
+/// 0x6060 value of gantry-sim's manufacturer-specific open-loop current-vector mode (CiA
+/// 402-2 §6.2 leaves negative values to the manufacturer): the drive applies the current
+/// vector of 0x2102 (amplitude) at 0x2103 (electrical angle) without using its encoder, as
+/// drives do to find the commutation; the rotor turns to align with it.
+pub const OPEN_LOOP_CURRENT_VECTOR: i8 = -1;
+
 /// A mode of operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ModeOfOperation {

@@ -153,6 +153,33 @@ pub const DIGITAL_INPUTS: ObjectId = obj(0x60FD, 0, DataType::U32, "Digital inpu
 /// 0x60FF Target velocity (increments/s).
 pub const TARGET_VELOCITY: ObjectId = obj(0x60FF, 0, DataType::I32, "Target velocity");
 
+/// 0x2100 Commutation offset (manufacturer-specific, CiA 301 §7.4.1 gives 0x2000–0x5FFF
+/// to the manufacturer; gantry-sim's servo): where in the encoder's count the rotor's
+/// electrical angle is zero, in encoder increments; the drive commutates with it.
+/// Read-write: commissioning measures and writes it (a value modulo one electrical
+/// revolution, counts per motor revolution / pole pairs).
+pub const COMMUTATION_OFFSET: ObjectId = obj(0x2100, 0, DataType::I32, "Commutation offset");
+/// 0x2101 Motor pole pairs (manufacturer-specific, read-only: the motor's).
+pub const MOTOR_POLE_PAIRS: ObjectId = obj(0x2101, 0, DataType::U8, "Motor pole pairs");
+/// 0x2102 Commutation current amplitude (manufacturer-specific): in the open-loop
+/// current-vector mode [`super::mode::OPEN_LOOP_CURRENT_VECTOR`], the current the drive
+/// applies, per mille of the rated torque's current (the unit of 0x6071), capped by 0x6072.
+pub const COMMUTATION_CURRENT: ObjectId =
+    obj(0x2102, 0, DataType::U16, "Commutation current amplitude");
+/// 0x2103 Commutation current angle (manufacturer-specific): in the open-loop
+/// current-vector mode, the electrical angle of the current vector in the stator's frame,
+/// 65536 to an electrical revolution (it wraps, as an angle does).
+pub const COMMUTATION_ANGLE: ObjectId = obj(0x2103, 0, DataType::U16, "Commutation current angle");
+
+/// The manufacturer-specific objects above (gantry-sim's servo; another vendor's drive
+/// has its own indices for the same things).
+pub const MANUFACTURER: [ObjectId; 4] = [
+    COMMUTATION_OFFSET,
+    MOTOR_POLE_PAIRS,
+    COMMUTATION_CURRENT,
+    COMMUTATION_ANGLE,
+];
+
 /// Every object above, for tables and lookups.
 pub const ALL: [ObjectId; 35] = [
     ERROR_CODE,
@@ -192,9 +219,10 @@ pub const ALL: [ObjectId; 35] = [
     TARGET_VELOCITY,
 ];
 
-/// The object at `index:sub`, if gantry knows it.
+/// The object at `index:sub`, if gantry knows it (standard or [`MANUFACTURER`]).
 pub fn lookup(index: u16, sub: u8) -> Option<ObjectId> {
     ALL.iter()
+        .chain(MANUFACTURER.iter())
         .copied()
         .find(|o| o.index == index && o.sub == sub)
 }

@@ -22,6 +22,7 @@
 //! | 0x1400–0x1403, 0x1600–0x1603 | rw | RPDO communication / mapping ([`super::pdo`]) |
 //! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping |
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
+//! | 0x2100–0x2103 | rw, ro, rw, rw | the servo's commutation offset, pole pairs, open-loop current vector amplitude and angle (manufacturer-specific, `gantry_drives::cia402::objects::MANUFACTURER`; installed by the servo, as on EtherCAT) |
 //! | 0x6007 | rw | abort connection option code (CiA 402-2): 0 none, 1 fault |
 //! | 0x6000… | | the device's objects (`CanDevice::install_objects`) and every mappable one |
 

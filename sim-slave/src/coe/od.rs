@@ -31,6 +31,10 @@ pub struct Entry {
     /// The values a download may write (inclusive, as a signed or unsigned integer of
     /// the entry's size); `None`: any.
     pub range: Option<(i64, i64)>,
+    /// The only values a download may write, within `range` (an object whose valid
+    /// values have gaps, as 0x6060 modes of operation: only the modes the drive has);
+    /// `None`: any in the range.
+    pub values: Option<&'static [i64]>,
 }
 
 /// An object dictionary.
@@ -83,6 +87,7 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
+                values: None,
             }),
         }
     }
@@ -97,6 +102,22 @@ impl ObjectDictionary {
             .find(|e| e.index == index && e.sub == sub)
         {
             e.range = Some((min, max));
+        }
+    }
+
+    /// Adds or replaces an entry that downloads may only set to one of `values` (CiA 301
+    /// §7.2.4.3.17: abort 0x06090030 otherwise); the range is their span, which tells
+    /// the sign.
+    pub fn insert_values(&mut self, index: u16, sub: u8, value: &[u8], values: &'static [i64]) {
+        let min = values.iter().copied().min().unwrap_or(0);
+        let max = values.iter().copied().max().unwrap_or(0);
+        self.insert_ranged(index, sub, value, min, max);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.values = Some(values);
         }
     }
 
@@ -213,7 +234,7 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max {
+            if v < min || v > max || e.values.is_some_and(|set| !set.contains(&v)) {
                 return Err(OdError::ValueRange);
             }
         }

@@ -27,6 +27,18 @@
 //! - **Actual values** are the model's: velocity 0x606C, torque 0x6077 (per mille of the
 //!   rated torque 0x6076, from the current: what accelerates the inertia plus friction),
 //!   following error 0x60F4.
+//! - **Overspeed** (a velocity supervision every drive has; CiA 402-2 leaves it to the
+//!   manufacturer): a motor faster than [`OVERSPEED_FACTOR`] × its top speed faults the
+//!   drive with 0x8400 (velocity control error) in any mode, and the power stage goes off
+//!   at once, whatever 0x605E says: a motor that overspeeds is not obeying its velocity
+//!   loop (a wrong commutation turns it the wrong way), so braking with that loop would
+//!   only drive it harder.
+//! - **Commutation** (see [`motor`]): the motor is a permanent-magnet synchronous motor
+//!   commutated with the drive's setting 0x2100; the true offset is hidden in
+//!   [`ServoParams::commutation_offset`]. What a drive exposes to measure it: 0x2101 pole
+//!   pairs (ro) and the manufacturer mode [`OPEN_LOOP`] (0x6060 = -1), in which the drive
+//!   holds a current vector of amplitude 0x2102 at electrical angle 0x2103 without its
+//!   encoder; the master sees the rotor turn only in the position actual value.
 //! - **32-bit positions wrap** as CSP drives count: the position actual value is the low
 //!   half of the drive's position, and a target is taken the short way from the last one.
 //!
@@ -59,7 +71,7 @@ use gantry_drives::cia402::{Controlword, DeviceStateMachine, State, Statusword};
 use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
-use motor::{Drive, Gains, Motor};
+use motor::{Commutation, Drive, Gains, Motor};
 pub use params::{ParamError, ServoParams};
 use probe::{Edge, TouchProbe};
 
@@ -75,6 +87,13 @@ pub const ERROR_FOLLOWING: u16 = 0x8611;
 /// setpoint period (manufacturer-specific, CiA 301 0xFF00…0xFFFF; see the module doc).
 pub const ERROR_SETPOINT_STEP: u16 = 0xFF01;
 
+/// Error code of an overspeed (CiA 402-2 0x8400 velocity control error).
+pub const ERROR_OVERSPEED: u16 = 0x8400;
+/// A motor faster than this many times its top speed (`max_speed_rpm`) overspeeds. The
+/// velocity command is clipped at the top speed, and the tuned loops overshoot a step to
+/// it by a few per cent, so only a motor out of control reaches this.
+pub const OVERSPEED_FACTOR: f64 = 1.2;
+
 /// Most loop substeps in one run (bounded work): 100 ms at 16 kHz, the longest
 /// application period the simulator allows. A longer run takes longer substeps.
 const MAX_SUBSTEPS: usize = 1600;
@@ -83,6 +102,16 @@ const MAX_SUBSTEPS: usize = 1600;
 const CSP: i8 = 8;
 const CSV: i8 = 9;
 const CST: i8 = 10;
+/// The manufacturer mode: open-loop current vector (0x2102 amplitude at 0x2103 angle).
+pub const OPEN_LOOP: i8 = gantry_drives::cia402::mode::OPEN_LOOP_CURRENT_VECTOR;
+
+/// The modes the drive has, as 0x6060 values.
+const MODES: [i64; 4] = [OPEN_LOOP as i64, CSP as i64, CSV as i64, CST as i64];
+
+/// Whether the drive has mode `m` (a mode it does not have is not taken).
+fn has_mode(m: i8) -> bool {
+    MODES.contains(&i64::from(m))
+}
 
 /// How the drive brakes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -131,6 +160,10 @@ struct Settings {
     shutdown_option_code: i16,
     disable_operation_option_code: i16,
     fault_reaction_option_code: i16,
+    /// 0x2102 (per mille of the rated torque's current).
+    commutation_current: u16,
+    /// 0x2103 (65536 to an electrical revolution).
+    commutation_angle: u16,
 }
 
 impl Settings {
@@ -146,6 +179,8 @@ impl Settings {
             shutdown_option_code: p.shutdown_option_code,
             disable_operation_option_code: p.disable_operation_option_code,
             fault_reaction_option_code: p.fault_reaction_option_code,
+            commutation_current: 0,
+            commutation_angle: 0,
         }
     }
 }
@@ -275,13 +310,19 @@ impl ServoDrive {
     }
 
     /// cos of the electrical angle by which the commutation setting misses the motor's
-    /// true offset: 1 when commissioned, 0 at 90° electrical (no torque at all).
+    /// true offset: the share of the commanded torque the closed loops get (1 when
+    /// commissioned, 0 at 90° electrical, negative beyond: torque the wrong way).
     pub fn torque_efficiency(&self) -> f64 {
         let p = &self.params;
         let error = f64::from(p.commutation_offset) - f64::from(self.commutation_setting);
         let electrical = 2.0 * core::f64::consts::PI * f64::from(p.pole_pairs) * error
             / f64::from(p.counts_per_rev.max(1));
         electrical.cos()
+    }
+
+    /// The commutation the loops see: the motor's true offset and the drive's setting.
+    pub fn commutation(&self) -> Commutation {
+        Commutation::of(&self.params, self.commutation_setting)
     }
 
     /// The probes and switches see the load move from `from` to `to` (counts): the home
@@ -442,8 +483,7 @@ impl ServoDrive {
     pub fn install_objects(&self, od: &mut ObjectDictionary) {
         let max_speed = self.params.max_speed_counts().min(f64::from(u32::MAX)) as i64;
         let u32_max = i64::from(u32::MAX);
-        let ranged: [(ObjectId, i64, i64); 11] = [
-            (objects::MODES_OF_OPERATION, i64::from(CSP), i64::from(CST)),
+        let ranged: [(ObjectId, i64, i64); 12] = [
             (objects::FOLLOWING_ERROR_WINDOW, 0, u32_max),
             (objects::FOLLOWING_ERROR_TIME_OUT, 0, i64::from(u16::MAX)),
             (objects::MAX_TORQUE, 0, i64::from(u16::MAX)),
@@ -456,13 +496,27 @@ impl ServoDrive {
             (objects::SHUTDOWN_OPTION_CODE, 0, 1),
             (objects::DISABLE_OPERATION_OPTION_CODE, 0, 1),
             (objects::FAULT_REACTION_OPTION_CODE, 0, 4),
+            // At most the power stage's peak (in per mille of the rated torque).
+            (
+                objects::COMMUTATION_CURRENT,
+                0,
+                i64::from(self.settings.max_torque),
+            ),
+            (objects::COMMUTATION_ANGLE, 0, i64::from(u16::MAX)),
         ];
         for (o, min, max) in ranged {
             od.insert_ranged(o.index, o.sub, &vec![0; o.kind.size()], min, max);
         }
-        // The simulated motor is fixed: its rated torque is read-only here.
-        let o = objects::MOTOR_RATED_TORQUE;
-        od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
+        // Only the modes the drive has (CiA 301 abort 0x06090030 for the others).
+        let o = objects::MODES_OF_OPERATION;
+        od.insert_values(o.index, o.sub, &vec![0; o.kind.size()], &MODES);
+        // The simulated motor is fixed: its rated torque and pole pairs are read-only here.
+        for o in [objects::MOTOR_RATED_TORQUE, objects::MOTOR_POLE_PAIRS] {
+            od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
+        }
+        // Any offset: the drive takes it modulo an electrical revolution.
+        let o = objects::COMMUTATION_OFFSET;
+        od.insert(o.index, o.sub, &vec![0; o.kind.size()], true);
         self.publish_objects(od);
     }
 
@@ -533,6 +587,18 @@ impl ServoDrive {
             i64::from(s.fault_reaction_option_code),
         );
         let tp = &self.probe;
+        let commutation = [
+            (
+                objects::COMMUTATION_OFFSET,
+                i64::from(self.commutation_setting),
+            ),
+            (objects::MOTOR_POLE_PAIRS, i64::from(self.params.pole_pairs)),
+            (
+                objects::COMMUTATION_CURRENT,
+                i64::from(s.commutation_current),
+            ),
+            (objects::COMMUTATION_ANGLE, i64::from(s.commutation_angle)),
+        ];
         let io = [
             (objects::TOUCH_PROBE_FUNCTION, i64::from(tp.function())),
             (objects::TOUCH_PROBE_STATUS, i64::from(tp.status())),
@@ -554,7 +620,12 @@ impl ServoDrive {
             ),
             (objects::DIGITAL_INPUTS, i64::from(self.digital_inputs())),
         ];
-        for (o, v) in values.into_iter().chain([fault_reaction]).chain(io) {
+        for (o, v) in values
+            .into_iter()
+            .chain([fault_reaction])
+            .chain(commutation)
+            .chain(io)
+        {
             let bytes = v.to_le_bytes();
             if let Some(b) = bytes.get(..o.kind.size()) {
                 // An object the dictionary does not carry is not the drive's to add.
@@ -600,9 +671,18 @@ impl ServoDrive {
             }
         }
         if let Some(v) = get(objects::MODES_OF_OPERATION) {
-            if matches!(v as i8, CSP | CSV | CST) {
+            if has_mode(v as i8) {
                 self.mode = v as i8;
             }
+        }
+        if let Some(v) = get(objects::COMMUTATION_OFFSET) {
+            self.commutation_setting = v as i32;
+        }
+        if let Some(v) = get(objects::COMMUTATION_CURRENT) {
+            s.commutation_current = v as u16;
+        }
+        if let Some(v) = get(objects::COMMUTATION_ANGLE) {
+            s.commutation_angle = v as u16;
         }
         if let Some(v) = get(objects::FOLLOWING_ERROR_WINDOW) {
             s.following_error_window = v as u32;
@@ -703,10 +783,7 @@ impl ServoDrive {
                 self.pending_touch_probe = Some(f);
             }
             // A mode the drive does not have is not taken (the display keeps the old).
-            if let Some(m) = img
-                .modes_of_operation()
-                .filter(|m| matches!(*m, CSP | CSV | CST))
-            {
+            if let Some(m) = img.modes_of_operation().filter(|m| has_mode(*m)) {
                 self.mode = m;
             }
         }
@@ -774,11 +851,11 @@ impl ServoDrive {
             let n = ((dt * self.params.loop_rate_hz).ceil() as usize).clamp(1, MAX_SUBSTEPS);
             let g = Gains::of(&self.params, dt / n as f64);
             let limit = self.torque_limit();
-            let efficiency = self.torque_efficiency();
+            let commutation = self.commutation();
             let mut torque = 0.0;
             for _ in 0..n {
                 let from = self.position_counts();
-                self.substep(&g, limit, efficiency);
+                self.substep(&g, limit, &commutation);
                 self.watch_travel(from, self.position_counts());
                 torque += self.motor.torque;
             }
@@ -972,9 +1049,9 @@ impl ServoDrive {
         0.001 * self.params.max_speed_counts()
     }
 
-    /// One period of the drive's loops, with the torque limit (N·m) and the commutation's
-    /// torque efficiency.
-    fn substep(&mut self, g: &Gains, limit: f64, efficiency: f64) {
+    /// One period of the drive's loops, with the torque limit (N·m) and the motor's
+    /// commutation.
+    fn substep(&mut self, g: &Gains, limit: f64, commutation: &Commutation) {
         let kp = self.params.position_gain;
         let vmax = self.params.max_speed_counts();
         let drive = if let Some(b) = self.braking.as_mut() {
@@ -1024,6 +1101,13 @@ impl ServoDrive {
                     CST => Drive::Torque(
                         f64::from(self.target_torque) / 1000.0 * self.params.rated_torque_nm,
                     ),
+                    OPEN_LOOP => Drive::Vector {
+                        current: f64::from(self.settings.commutation_current) / 1000.0
+                            * self.params.rated_torque_nm,
+                        angle: f64::from(self.settings.commutation_angle) / 65536.0
+                            * 2.0
+                            * core::f64::consts::PI,
+                    },
                     _ => Drive::Off,
                 },
                 State::QuickStopActive => {
@@ -1032,7 +1116,11 @@ impl ServoDrive {
                 _ => Drive::Off,
             }
         };
-        self.motor.substep(g, drive, limit, efficiency);
+        self.motor.substep(g, drive, limit, commutation);
+        if self.motor.velocity.abs() > OVERSPEED_FACTOR * vmax && self.power_on() {
+            self.overspeed();
+            return;
+        }
         if let Some(b) = self.braking {
             let ramp_done = !matches!(b.brake, Brake::Ramp(_)) || b.ramp == 0.0;
             if ramp_done && self.motor.velocity.abs() < self.standstill() {
@@ -1040,6 +1128,34 @@ impl ServoDrive {
             }
         } else if self.following() && self.mode == CSP {
             self.watch_following_error(g.h);
+        }
+    }
+
+    /// Whether the power stage is on (the loops drive the motor).
+    fn power_on(&self) -> bool {
+        matches!(
+            self.state.state(),
+            State::OperationEnabled | State::QuickStopActive | State::FaultReactionActive
+        ) && !matches!(
+            self.braking,
+            Some(Braking {
+                brake: Brake::Coast,
+                ..
+            })
+        )
+    }
+
+    /// The motor overspeeds: fault 0x8400 (unless already faulting) and the power stage
+    /// off at once, the load coasting (see the module doc).
+    fn overspeed(&mut self) {
+        self.fault(ERROR_OVERSPEED);
+        if self.state.state() == State::FaultReactionActive {
+            self.braking = Some(Braking {
+                brake: Brake::Coast,
+                why: StopCause::FaultReaction,
+                ramp: 0.0,
+            });
+            self.finish_braking();
         }
     }
 

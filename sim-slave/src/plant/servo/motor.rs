@@ -3,7 +3,19 @@
 //! viscous friction. One [`Motor::substep`] is one period of the drive's own loop rate; the
 //! position loop and the stop ramps (in `super`) give it its velocity command.
 //!
-//! Units: positions in encoder counts, velocities in counts/s, torques in N·m.
+//! The motor is a permanent-magnet synchronous motor: its torque is the current vector's
+//! amplitude times the sine of the electrical angle between that vector and the rotor's
+//! magnets (see [`Commutation`]). In the closed-loop modes the drive puts the vector 90°
+//! electrical ahead of where it believes the rotor is, from its encoder count and its
+//! commutation offset setting; a setting that misses the motor's true offset by δ yields
+//! cos δ of the torque asked for, none at 90°, and beyond 90° torque the wrong way: the
+//! velocity loop then drives the motor away from its command, harder the further it gets
+//! (positive feedback), until the drive's supervision faults it.
+//!
+//! Units: positions in encoder counts, velocities in counts/s, torques in N·m, electrical
+//! angles in radians.
+
+use core::f64::consts::{FRAC_PI_2, PI};
 
 use super::params::ServoParams;
 
@@ -16,6 +28,58 @@ pub enum Drive {
     Velocity(f64),
     /// Torque command straight to the current loop (N·m).
     Torque(f64),
+    /// Open loop: the current loop holds a current vector of this amplitude (N·m when
+    /// aligned for torque) at this electrical angle of the stator's frame (rad), without
+    /// the encoder; the rotor's magnets turn towards it.
+    Vector {
+        /// Amplitude (N·m of torque it gives at 90° to the rotor).
+        current: f64,
+        /// Electrical angle in the stator's frame (rad).
+        angle: f64,
+    },
+}
+
+/// Where the motor's magnets are, and where the drive believes they are: the geometry of
+/// a permanent-magnet synchronous motor under a field-oriented drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Commutation {
+    /// Electrical radians per encoder count: 2π · pole pairs / counts per revolution.
+    electrical_per_count: f64,
+    /// The motor's true commutation offset (counts): the encoder count at which the
+    /// rotor's electrical angle is zero (modulo an electrical revolution).
+    offset: f64,
+    /// The offset the drive was told (counts).
+    setting: f64,
+}
+
+impl Commutation {
+    /// The commutation of `p`'s motor under a drive whose setting is `setting` (counts).
+    pub fn of(p: &ServoParams, setting: i32) -> Self {
+        Self {
+            electrical_per_count: 2.0 * PI * f64::from(p.pole_pairs)
+                / f64::from(p.counts_per_rev.max(1)),
+            offset: f64::from(p.commutation_offset),
+            setting: f64::from(setting),
+        }
+    }
+
+    /// The rotor's true electrical angle at load position `position` (rad).
+    pub fn rotor(&self, position: f64) -> f64 {
+        self.electrical_per_count * (position - self.offset)
+    }
+
+    /// The electrical angle the drive computes for the rotor (rad): from its encoder,
+    /// which counts whole increments, and its commutation setting.
+    pub fn estimate(&self, position: f64) -> f64 {
+        self.electrical_per_count * (position.round() - self.setting)
+    }
+
+    /// The torque (N·m) a current vector of `current` (N·m when at 90° to the rotor) at
+    /// electrical angle `angle` (rad) exerts on the rotor at `position`: the magnets are
+    /// pulled towards the vector, with the sine of the angle between them.
+    pub fn torque(&self, current: f64, angle: f64, position: f64) -> f64 {
+        current * (angle - self.rotor(position)).sin()
+    }
 }
 
 /// Loop constants for one run of substeps of `h` seconds.
@@ -92,10 +156,13 @@ impl Motor {
     }
 
     /// One loop period: the velocity loop makes a torque command, the current loop follows
-    /// it within `limit` (N·m), and the motor turns it into torque with `efficiency` (the
-    /// cosine of the commutation error) against the load's inertia and friction.
-    pub fn substep(&mut self, g: &Gains, drive: Drive, limit: f64, efficiency: f64) {
+    /// it within `limit` (N·m) along the electrical angle the drive commutates to (90°
+    /// ahead of the rotor as the drive estimates it; in [`Drive::Vector`] the angle
+    /// given), and the motor turns that current into torque by its true angle to the rotor
+    /// (`commutation`), against the load's inertia and friction.
+    pub fn substep(&mut self, g: &Gains, drive: Drive, limit: f64, commutation: &Commutation) {
         let limit = limit.max(0.0);
+        let mut angle = None;
         let command = match drive {
             Drive::Off => {
                 self.integral = 0.0;
@@ -106,6 +173,11 @@ impl Motor {
             Drive::Torque(t) => {
                 self.integral = 0.0;
                 Some(t)
+            }
+            Drive::Vector { current, angle: a } => {
+                self.integral = 0.0;
+                angle = Some(a);
+                Some(current)
             }
             Drive::Velocity(v) => {
                 let e = v - self.velocity;
@@ -125,7 +197,9 @@ impl Motor {
             let c = c.clamp(-limit, limit);
             self.torque += (c - self.torque) * g.current;
         }
-        self.mechanics(g, self.torque * efficiency);
+        let vector = angle.unwrap_or_else(|| commutation.estimate(self.position) + FRAC_PI_2);
+        let tm = commutation.torque(self.torque, vector, self.position);
+        self.mechanics(g, tm);
     }
 
     /// The load under motor torque `tm` (N·m) for one substep: Coulomb friction holds it
@@ -161,13 +235,19 @@ mod tests {
         (p, Gains::of(&p, 1.0 / p.loop_rate_hz))
     }
 
+    /// A commissioned motor: the drive's setting is the true offset.
+    fn aligned(p: &ServoParams) -> Commutation {
+        Commutation::of(p, p.commutation_offset)
+    }
+
     #[test]
     fn torque_accelerates_the_inertia_less_friction() {
         let (p, g) = gains();
+        let c = aligned(&p);
         let mut m = Motor::default();
         // Rated torque for 10 ms from rest.
         for _ in 0..160 {
-            m.substep(&g, Drive::Torque(p.rated_torque_nm), 10.0, 1.0);
+            m.substep(&g, Drive::Torque(p.rated_torque_nm), 10.0, &c);
         }
         // a = (T - Tc) / J at low speed (viscous is small): in counts/s².
         let a = (p.rated_torque_nm - p.coulomb_friction_nm) / p.inertia() / g.k;
@@ -179,9 +259,10 @@ mod tests {
     #[test]
     fn coulomb_friction_holds_below_breakaway_and_stops_a_coasting_load() {
         let (p, g) = gains();
+        let c = aligned(&p);
         let mut m = Motor::default();
         for _ in 0..1600 {
-            m.substep(&g, Drive::Torque(0.9 * p.coulomb_friction_nm), 10.0, 1.0);
+            m.substep(&g, Drive::Torque(0.9 * p.coulomb_friction_nm), 10.0, &c);
         }
         assert_eq!((m.position, m.velocity), (0.0, 0.0), "stiction holds");
         // Coasting from 1000 rpm: friction alone stops it, in about J·ω/(Tc + b·ω).
@@ -189,7 +270,7 @@ mod tests {
         m.velocity = w;
         let mut t = 0.0;
         while m.velocity != 0.0 && t < 10.0 {
-            m.substep(&g, Drive::Off, 10.0, 1.0);
+            m.substep(&g, Drive::Off, 10.0, &c);
             t += g.h;
         }
         let w_rad = w * g.k;
@@ -204,11 +285,12 @@ mod tests {
     #[test]
     fn the_torque_limit_caps_the_velocity_loop() {
         let (p, g) = gains();
+        let c = aligned(&p);
         let mut m = Motor::default();
-        m.substep(&g, Drive::Velocity(1e7), p.peak_torque_nm, 1.0);
+        m.substep(&g, Drive::Velocity(1e7), p.peak_torque_nm, &c);
         assert!(m.limited);
         for _ in 0..100 {
-            m.substep(&g, Drive::Velocity(1e7), p.peak_torque_nm, 1.0);
+            m.substep(&g, Drive::Velocity(1e7), p.peak_torque_nm, &c);
         }
         assert!((m.torque - p.peak_torque_nm).abs() < 1e-6, "{}", m.torque);
     }

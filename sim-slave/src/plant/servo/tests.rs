@@ -999,3 +999,160 @@ fn a_pause_between_setpoints_is_not_taken_for_the_period() {
     assert!((i.position - r.target).abs() <= 1, "{i:?}");
     assert_eq!(r.d.record().faults, 0);
 }
+
+/// A servo of 24 000 counts and 5 pole pairs (4800 counts to an electrical revolution,
+/// 800 to 60°) whose drive setting misses the motor's true offset by `degrees` electrical.
+fn miscommutated(degrees: i32) -> ServoParams {
+    let mut params = p();
+    params.counts_per_rev = 24_000;
+    params.pole_pairs = 5;
+    params.following_error_window = 24_000 / 4;
+    params.commutation_offset = degrees * 4800 / 360;
+    params
+}
+
+#[test]
+fn a_commutation_error_costs_torque_as_its_cosine() {
+    // CST at 40 % rated torque: the load accelerates with cos(error) of it, less friction.
+    let accel = |degrees: i32| {
+        let mut r = Rig::enabled(0, miscommutated(degrees), CST);
+        r.torque = 400;
+        let v0 = r.cycle().velocity;
+        let v1 = r.cycles(20).velocity;
+        f64::from(v1 - v0) / (20.0 * DT)
+    };
+    let params = miscommutated(0);
+    let k = 2.0 * core::f64::consts::PI / f64::from(params.counts_per_rev);
+    let expect = |share: f64| {
+        (share * 0.4 * params.rated_torque_nm - params.coulomb_friction_nm) / params.inertia() / k
+    };
+    for (degrees, share) in [(0, 1.0), (60, 0.5), (-60, 0.5), (30, 0.75f64.sqrt())] {
+        let a = accel(degrees);
+        let e = expect(share);
+        assert!((a - e).abs() < 0.03 * e, "{degrees}°: {a} vs {e} counts/s²");
+    }
+    // At 120° the same command turns it the other way, with half the torque.
+    let a = accel(120);
+    let e = -expect(0.5);
+    assert!(a < 0.0 && (a - e).abs() < 0.03 * e.abs(), "{a} vs {e}");
+}
+
+#[test]
+fn past_90_degrees_electrical_csp_runs_away_and_faults_with_the_following_error() {
+    for degrees in [120, 180, -150] {
+        let mut r = Rig::enabled(0, miscommutated(degrees), CSP);
+        // A slow ramp forward (60 rpm): the motor turns backwards instead.
+        let mut fault_at = None;
+        let mut min_position = 0;
+        for n in 1..=400 {
+            r.target += 24;
+            let i = r.cycle();
+            min_position = min_position.min(i.position);
+            if fault_at.is_none() && i.error != 0 {
+                fault_at = Some(n);
+                assert_eq!(i.error, ERROR_FOLLOWING, "{degrees}°");
+            }
+        }
+        let fault = fault_at.unwrap_or_else(|| panic!("{degrees}°: no fault"));
+        // A quarter turn (the window, 6000 counts) the wrong way within the first cycles at
+        // peak torque, then the 10 ms time out.
+        assert!(fault <= 40, "{degrees}°: faulted at cycle {fault}");
+        assert!(
+            min_position < -6000,
+            "{degrees}°: ran backwards {min_position}"
+        );
+        // The fault reaction's braking runs away too (its velocity loop pushes the wrong
+        // way): overspeed switches the power stage off, and friction stops the load.
+        let i = r.cycles(10_000);
+        assert_eq!(i.sw.state(), Some(State::Fault), "{degrees}°");
+        assert_eq!(r.d.velocity(), 0.0, "{degrees}°: coasted to rest");
+        assert_eq!(r.d.torque_nm(), 0.0, "{degrees}°: power off");
+        assert_eq!(r.d.record().last_fault_code, ERROR_FOLLOWING);
+    }
+}
+
+#[test]
+fn past_90_degrees_electrical_csv_runs_away_until_overspeed_cuts_the_power() {
+    let params = miscommutated(180);
+    let vmax = params.max_speed_counts();
+    let mut r = Rig::enabled(0, params, CSV);
+    r.velocity = 24_000; // 1 rev/s forward
+    let mut fastest: f64 = 0.0;
+    let mut fault_at = None;
+    for n in 1..=2000 {
+        let i = r.cycle();
+        fastest = fastest.max(r.d.velocity().abs());
+        if fault_at.is_none() && i.error != 0 {
+            fault_at = Some(n);
+            assert_eq!(i.error, ERROR_OVERSPEED);
+            assert_eq!(i.sw.state(), Some(State::Fault), "power off at once");
+            assert!(r.d.velocity() < 0.0, "backwards");
+        }
+    }
+    assert!(fault_at.is_some(), "overspeed");
+    // One substep of peak torque beyond the trip point at most.
+    assert!(
+        fastest < OVERSPEED_FACTOR * vmax * 1.01,
+        "{fastest} vs {vmax}"
+    );
+    assert!(fastest > OVERSPEED_FACTOR * vmax);
+    assert_eq!(r.d.velocity(), 0.0, "coasted to rest");
+    // The same motor commissioned follows the command.
+    let mut params = miscommutated(180);
+    params.commutation_offset = 0;
+    let mut r = Rig::enabled(0, params, CSV);
+    r.velocity = 24_000;
+    let i = r.cycles(200);
+    assert_eq!(i.error, 0);
+    assert!((i.velocity - 24_000).abs() < 100, "{i:?}");
+}
+
+#[test]
+fn the_open_loop_current_vector_turns_the_rotor_to_its_angle_whatever_the_setting() {
+    use crate::coe::od::OdError;
+    let mut params = miscommutated(0);
+    params.commutation_offset = 1234;
+    let mut r = Rig::enabled(0, params, OPEN_LOOP);
+    let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+    r.d.install_objects(&mut od);
+    // The pole pairs are the motor's: read-only. The offset setting is rw.
+    assert_eq!(od.read(0x2101, 0).unwrap(), [5]);
+    assert_eq!(od.write(0x2101, 0, &[4]), Err(OdError::ReadOnly));
+    assert_eq!(od.write(0x6060, 0, &[6]), Err(OdError::ValueRange));
+    assert_eq!(od.write(0x6060, 0, &[0xFF]), Ok(()), "-1: open loop");
+    assert_eq!(
+        od.write(0x2102, 0, &3001u16.to_le_bytes()),
+        Err(OdError::ValueRange),
+        "beyond the peak current"
+    );
+    od.write(0x2100, 0, &2000i32.to_le_bytes()).unwrap();
+    r.d.take_objects(&od);
+    assert_eq!(r.d.commutation_setting, 2000, "not used in this mode");
+    // 30 % current at angles stepped round an electrical revolution: the rotor follows,
+    // lagging by at most the friction's angle (asin(Tc / I)) and the settling.
+    let current = 0.3 * params.rated_torque_nm;
+    let lag = (params.coulomb_friction_nm / current).asin();
+    let e = 4800.0;
+    for k in 0..=16u16 {
+        let angle = k.wrapping_mul(4096);
+        od.write(0x2102, 0, &300u16.to_le_bytes()).unwrap();
+        od.write(0x2103, 0, &angle.to_le_bytes()).unwrap();
+        r.d.take_objects(&od);
+        let i = r.cycles(300);
+        assert_eq!(i.error, 0);
+        let rotor = r.d.commutation().rotor(r.d.position());
+        let want = f64::from(angle) / 65536.0 * 2.0 * core::f64::consts::PI;
+        let miss = (rotor - want).sin().asin();
+        assert!(
+            miss.abs() <= lag * 1.05,
+            "step {k}: {miss} rad off (lag {lag})"
+        );
+        // Where the master sees it: the offset plus the angle's share of E, mod E.
+        let seen = f64::from(i.position) - f64::from(angle) / 65536.0 * e - 1234.0;
+        let seen = (seen / e - (seen / e).round()) * 2.0 * core::f64::consts::PI;
+        assert!((seen - miss).abs() < 0.01, "{seen} vs {miss}");
+    }
+    // The torque actual is the current's amplitude.
+    r.d.publish_objects(&mut od);
+    assert_eq!(od.read(0x6077, 0).unwrap(), 300i16.to_le_bytes());
+}
