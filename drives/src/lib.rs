@@ -2,7 +2,8 @@
 //! [`cia402`] objects, the controlword/statusword state machine, modes of operation, PDO
 //! layouts and the typed process-data view ([`cia402::image`]); user units ⇄ drive
 //! counts ([`scaling`]); and the master's side of a drive in cyclic synchronous position
-//! mode ([`csp`]). It depends on no other gantry crate. Not yet: homing-method table.
+//! mode ([`csp`]); the commutation offset measurement ([`commutation`]). It depends on no
+//! other gantry crate. Not yet: homing-method table.
 #![deny(missing_docs)]
 #![cfg_attr(
     not(test),
@@ -16,5 +17,6 @@
 
 pub mod canopen;
 pub mod cia402;
+pub mod commutation;
 pub mod csp;
 pub mod scaling;
