@@ -6,6 +6,7 @@ pub mod image;
 pub mod mode;
 pub mod objects;
 pub mod pdo;
+pub mod procedure;
 pub mod state;
 pub mod statusword;
 

@@ -64,6 +64,7 @@ impl Axis {
                 state: self.state,
             });
         }
+        self.refuse_or_end_lending(cmd, handles)?;
         self.check_towards_limit(cmd)?;
         match *cmd {
             Command::MoveHome(ref c) => self.move_home(c, h, handles),
