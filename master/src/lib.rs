@@ -12,6 +12,7 @@
 pub mod axis_fault;
 pub mod bus;
 pub mod canopen;
+pub mod commission;
 pub mod config;
 pub mod drive_axis;
 pub mod error_chain;

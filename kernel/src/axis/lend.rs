@@ -114,8 +114,8 @@ pub enum DriveProcedureFailure {
 }
 
 impl Axis {
-    /// Lends the axis to its drive (see the module doc): from Standstill only, on an axis
-    /// with a drive.
+    /// Lends the axis to its drive (see the module doc): from Standstill, on an axis with a
+    /// drive (or from Disabled for a procedure that is not homing: see below).
     pub(crate) fn lend(
         &mut self,
         procedure: &'static str,
@@ -134,7 +134,15 @@ impl Axis {
                 procedure: l.procedure,
             });
         }
-        if self.state != AxisState::Standstill || self.motion.is_some() || self.overlay.is_some() {
+        // From Standstill; a procedure that is not homing also from Disabled: the drive is
+        // then enabled by the procedure itself (a commutation measurement must not pass
+        // through a closed loop whose commutation is unknown), and disabled again when the
+        // axis is handed back, as the axis still is.
+        let from_disabled = !homing && self.state == AxisState::Disabled;
+        if !(self.state == AxisState::Standstill || from_disabled)
+            || self.motion.is_some()
+            || self.overlay.is_some()
+        {
             return Err(CommandError::NotAllowedInState {
                 command: procedure,
                 state: self.state,
@@ -364,6 +372,38 @@ mod tests {
         }]);
         assert!(matches!(k.command_status(h), CommandStatus::Error(_)));
         assert_eq!(status(&k).state, AxisState::ErrorStop);
+        assert!(!k.is_lent(0));
+    }
+
+    /// A procedure that is not homing may start from Disabled (the drive is enabled by the
+    /// procedure, never in a closed loop first: a commutation measurement); the axis stays
+    /// Disabled, its set position tracks the drive, and a power off ends the lending.
+    /// Homing is refused there.
+    #[test]
+    fn a_procedure_that_is_not_homing_may_be_lent_from_disabled() {
+        let mut k = Kernel::new(1e-3, vec![AxisConfig::new("x", AxisKind::Real)]).unwrap();
+        let mut fb = AxisFeedback {
+            position: 2.0,
+            ..Default::default()
+        };
+        k.step(&[fb]);
+        assert_eq!(status(&k).state, AxisState::Disabled);
+        let e = k.lend_to_drive(0, "drive homing", true).unwrap_err();
+        assert!(matches!(e, CommandError::NotAllowedInState { .. }), "{e:?}");
+        let h = k
+            .lend_to_drive(0, "commutation measurement", false)
+            .unwrap();
+        assert_eq!(k.command_status(h), CommandStatus::Active);
+        // The drive, enabled by the procedure, turns the motor: tracked.
+        fb.operation_enabled = true;
+        for i in 0..10 {
+            fb.position = 2.0 + 0.1 * f64::from(i);
+            k.step(&[fb]);
+            assert_eq!(status(&k).state, AxisState::Disabled);
+            assert!((status(&k).set.p - fb.position).abs() < 1e-12);
+        }
+        k.command(0, Command::Power(PowerCommand::Disable)).unwrap();
+        assert_eq!(k.command_status(h), CommandStatus::Aborted);
         assert!(!k.is_lent(0));
     }
 }

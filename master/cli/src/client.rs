@@ -587,3 +587,76 @@ pub fn trace(
     .map_err(ClientError::Output)?;
     Ok(())
 }
+
+/// `gantry commission AXIS …`: starts the procedure, shows its progress until it ends
+/// (on a terminal), and prints its outcome. When `interrupted` turns true (Ctrl-C) the
+/// axis is stopped (`stop`, which cancels the procedure: it switches the drive's current
+/// off and leaves the axis stopped) and the procedure's end is waited for and reported.
+pub fn commission(
+    client: &mut Client,
+    request: &Request,
+    interrupted: &std::sync::atomic::AtomicBool,
+    json_out: bool,
+    out: &mut impl Write,
+) -> Result<(), ClientError> {
+    use std::sync::atomic::Ordering;
+    let io = ClientError::Output;
+    let axis = request.axis().unwrap_or_default().to_string();
+    let started = client.request(request)?;
+    let id = started["procedure"].as_u64().unwrap_or(0);
+    let tty = std::io::stdout().is_terminal();
+    let mut stopped = false;
+    let end = loop {
+        if interrupted.load(Ordering::Relaxed) && !stopped {
+            stopped = true;
+            if tty {
+                print!("\r\x1b[K");
+            }
+            writeln!(out, "{axis}: stopping (Ctrl-C)").map_err(io)?;
+            client.request(&Request::Stop { axis: axis.clone() })?;
+        }
+        let p = client.request(&Request::Procedure { id })?;
+        if p["done"] == json!(true) {
+            if tty {
+                print!("\r\x1b[K");
+            }
+            break p;
+        }
+        if tty {
+            let frac = p["progress"].as_f64().unwrap_or(0.0).clamp(0.0, 1.0);
+            let bar: String = (0..20)
+                .map(|i| if (i as f64) < frac * 20.0 { '#' } else { '-' })
+                .collect();
+            print!(
+                "\r\x1b[K{axis} {} [{bar}] {:3.0}%  {}",
+                p["procedure"].as_str().unwrap_or(""),
+                frac * 100.0,
+                p["phase"].as_str().unwrap_or("")
+            );
+            let _ = std::io::stdout().flush();
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    if json_out {
+        writeln!(out, "{end}").map_err(io)?;
+    }
+    if end["ok"] != json!(true) {
+        return Err(ClientError::Explained(
+            end["error"].as_str().unwrap_or("failed").to_string(),
+        ));
+    }
+    if !json_out {
+        let r = &end["result"];
+        let line = match end["procedure"].as_str() {
+            Some("commutation") => format!(
+                "{axis}: commutation offset {} counts written to the drive (rotor lag {:.1}° \
+                 electrical, cancelled out)",
+                r["offset_counts"],
+                r["lag_electrical_deg"].as_f64().unwrap_or(f64::NAN)
+            ),
+            _ => format!("{axis}: reversing done, {} cycles", r["cycles"]),
+        };
+        writeln!(out, "{line}").map_err(io)?;
+    }
+    Ok(())
+}

@@ -7,7 +7,8 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
-    BufferMode, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request as Line,
+    BufferMode, CommissionKind, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode,
+    Request as Line,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -198,6 +199,15 @@ enum Cmd {
     /// The commands to one axis.
     #[command(flatten)]
     Axis(AxisCmd),
+    /// Commission an axis (seed 000 §5.2.6): measure its motor's commutation offset and
+    /// write it to the drive, or run the reversing test motion. Shows the progress; Ctrl-C
+    /// or `gantry stop AXIS` cancels, leaving the axis stopped and the drive's current off.
+    Commission {
+        /// The axis.
+        axis: String,
+        #[command(subcommand)]
+        what: CommissionWhat,
+    },
     /// Record set and actual positions of axes, to CSV or SVG (by extension).
     Trace {
         /// Axis names.
@@ -283,6 +293,46 @@ enum Cmd {
         #[arg(long)]
         batch: bool,
     },
+}
+
+/// What `gantry commission` does.
+#[derive(Subcommand, Debug)]
+enum CommissionWhat {
+    /// Measure the commutation offset in the dynamic mode (small motion: about one
+    /// electrical revolution each way, the axis must stand enabled) and write it to the
+    /// drive.
+    Commutation {
+        /// Current of the measurement (per mille of the motor's rated current).
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=3000))]
+        current: Option<u16>,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Move back and forth between two positions (point-to-point, the axis' last-used
+    /// speed and ramps unless --speed), to tune the loops.
+    Reversing {
+        /// One end (the axis' units); the motion starts by moving here.
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        from: f64,
+        /// The other end.
+        #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+        to: f64,
+        /// Cycles there and back.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+        cycles: u32,
+        /// Speed (units/s).
+        #[arg(long, value_parser = finite)]
+        speed: Option<f64>,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+}
+
+/// Set by SIGINT while `gantry commission` runs.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn on_sigint(_: nix::libc::c_int) {
+    INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
 /// `gantry home`'s parameters (each left out keeps the axis' last-used one).
@@ -617,6 +667,61 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             client::status(&mut c, opts.json, &mut std::io::stdout())?;
         }
         Cmd::Axis(command) => AxisCommand::of(command).send()?,
+        Cmd::Commission { axis, what } => {
+            let (request, opts) = match what {
+                CommissionWhat::Commutation {
+                    current,
+                    client: opts,
+                } => (
+                    Line::Commission {
+                        axis,
+                        procedure: CommissionKind::Commutation,
+                        from: None,
+                        to: None,
+                        cycles: None,
+                        speed: None,
+                        current,
+                    },
+                    opts,
+                ),
+                CommissionWhat::Reversing {
+                    from,
+                    to,
+                    cycles,
+                    speed,
+                    client: opts,
+                } => (
+                    Line::Commission {
+                        axis,
+                        procedure: CommissionKind::Reversing,
+                        from: Some(from),
+                        to: Some(to),
+                        cycles: Some(cycles),
+                        speed,
+                        current: None,
+                    },
+                    opts,
+                ),
+            };
+            // Ctrl-C stops the axis (and with it the procedure) instead of leaving it
+            // running unattended.
+            // SAFETY: the handler only stores to an atomic (async-signal-safe).
+            unsafe {
+                nix::sys::signal::signal(
+                    nix::sys::signal::Signal::SIGINT,
+                    nix::sys::signal::SigHandler::Handler(on_sigint),
+                )
+            }
+            .context("installing the Ctrl-C handler")?;
+            let mut c = opts.connect()?;
+            client::commission(
+                &mut c,
+                &request,
+                &INTERRUPTED,
+                opts.json,
+                &mut std::io::stdout(),
+            )?;
+        }
         Cmd::Sdo { op } => {
             let (target, object, value, ty, timeout, opts) = match op {
                 SdoOp::Upload {

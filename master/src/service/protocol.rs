@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Commands: `status`, `enable`, `disable`, `move`, `jog`, `halt`, `stop`, `release`,
-//! `set_position`, `reset`, `command` (status of a handle), `wait`, `trace`, `sdo`, `shutdown`. A malformed or
+//! `set_position`, `reset`, `home`, `commission` (a commissioning procedure), `procedure` (its
+//! progress), `command` (status of a handle), `wait`, `trace`, `sdo`, `shutdown`. A malformed or
 //! hostile request gets an error reply; nothing of it reaches the cycle thread.
 //!
 //! [`Request`] is the one description of a request: the CLI serialises it
@@ -205,6 +206,24 @@ impl Word for HomeSwitches {
     ];
 }
 word_impls!(HomeSwitches);
+
+/// Which commissioning procedure a `commission` request runs (seed 000 §5.2.6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommissionKind {
+    /// Measure the commutation offset (dynamic mode) and write it to the drive.
+    Commutation,
+    /// The reversing test motion between `from` and `to`.
+    Reversing,
+}
+
+impl Word for CommissionKind {
+    const FIELD: &'static str = "procedure";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("commutation", Self::Commutation),
+        ("reversing", Self::Reversing),
+    ];
+}
+word_impls!(CommissionKind);
 
 /// What a homing run takes as the reference, in how many phases (Jetter MoveHome
 /// `ReferencingMode`).
@@ -400,6 +419,34 @@ pub enum Request {
         #[serde(default)]
         params: HomeParams,
     },
+    /// A commissioning procedure on the axis (`gantry commission`); it runs on in the
+    /// service, `procedure` follows it, `stop` on the axis cancels it.
+    Commission {
+        /// Axis name.
+        axis: String,
+        /// Which procedure.
+        procedure: CommissionKind,
+        /// Reversing: one end (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        from: Option<f64>,
+        /// Reversing: the other end (units).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to: Option<f64>,
+        /// Reversing: cycles there and back.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        cycles: Option<u32>,
+        /// Reversing: speed (units/s; default the axis' last-used).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        speed: Option<f64>,
+        /// Commutation: current of the vector (per mille of rated; default 300).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        current: Option<u16>,
+    },
+    /// Where a commissioning procedure is, and how it ended.
+    Procedure {
+        /// Its id (the `commission` reply's `procedure`).
+        id: u64,
+    },
     /// Leave ErrorStop: the slave back to OP if needed, the drive's fault reset.
     Reset {
         /// Axis name.
@@ -480,6 +527,8 @@ impl Request {
             Self::SetPosition { .. } => "set_position",
             Self::Reset { .. } => "reset",
             Self::Home { .. } => "home",
+            Self::Commission { .. } => "commission",
+            Self::Procedure { .. } => "procedure",
             Self::Command { .. } => "command",
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
@@ -501,9 +550,11 @@ impl Request {
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
             | Self::Home { axis, .. }
+            | Self::Commission { axis, .. }
             | Self::Reset { axis } => Some(axis),
             Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
+            | Self::Procedure { .. }
             | Self::Command { .. }
             | Self::Wait { .. }
             | Self::Trace { .. }
@@ -656,6 +707,25 @@ mod tests {
                     normal_position: Some(5.0),
                 },
             },
+            Request::Commission {
+                axis: axis(),
+                procedure: CommissionKind::Reversing,
+                from: Some(-5.0),
+                to: Some(12.5),
+                cycles: Some(3),
+                speed: Some(40.0),
+                current: None,
+            },
+            Request::Commission {
+                axis: axis(),
+                procedure: CommissionKind::Commutation,
+                from: None,
+                to: None,
+                cycles: None,
+                speed: None,
+                current: Some(250),
+            },
+            Request::Procedure { id: 4 },
             Request::Shutdown,
         ]
     }
@@ -683,11 +753,13 @@ mod tests {
             Request::Sdo { .. } => 14,
             Request::Object { .. } => 15,
             Request::Home { .. } => 16,
+            Request::Commission { .. } => 17,
+            Request::Procedure { .. } => 18,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..17).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..19).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 17, "{words:?}");
+        assert_eq!(words.len(), 19, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

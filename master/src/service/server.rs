@@ -16,14 +16,18 @@ use gantry_kernel::axis::command::{
     PowerCommand,
 };
 use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::axis::state::AxisState;
 use serde_json::{json, Value};
 use thiserror::Error;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
-    self, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection,
-    MAX_LINE,
+    self, CommissionKind, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request,
+    SdoDirection, MAX_LINE,
+};
+use crate::commission::{
+    CommissionError, CommutationSettings, Procedure, ProcedureHandle, ProcedureOutcome, Reversing,
 };
 use crate::config::Config;
 use crate::error_chain::Chain;
@@ -45,6 +49,8 @@ pub struct ServerState {
     pub real_time: bool,
     trace: Mutex<VecDeque<TraceSample>>,
     handles: Mutex<Vec<CommandHandle>>,
+    /// Commissioning procedures started, by id.
+    procedures: Mutex<Vec<(u64, ProcedureHandle)>>,
     /// Set when the service ends: recordings in progress answer with what they have.
     ending: tokio::sync::watch::Sender<bool>,
 }
@@ -58,6 +64,7 @@ impl ServerState {
             real_time,
             trace: Mutex::new(VecDeque::with_capacity(TRACE_KEEP)),
             handles: Mutex::new(Vec::new()),
+            procedures: Mutex::new(Vec::new()),
             ending: tokio::sync::watch::Sender::new(false),
         })
     }
@@ -205,6 +212,22 @@ pub enum Refused {
     /// No such handle.
     #[error("no handle {0} (handles are per service run)")]
     NoHandle(u64),
+    /// No such commissioning procedure.
+    #[error("no procedure {0} (procedures are per service run)")]
+    NoProcedure(u64),
+    /// A commissioning procedure cannot start.
+    #[error(transparent)]
+    Commission(#[from] crate::commission::CommissionError),
+    /// A procedure already runs on the axis.
+    #[error(
+        "{axis}: a {procedure} procedure is already running (`gantry stop {axis}` cancels it)"
+    )]
+    ProcedureRunning {
+        /// The axis.
+        axis: String,
+        /// The procedure.
+        procedure: &'static str,
+    },
     /// `wait` ran out of time (the client polls on this text: "not final").
     #[error("handle {handle} not final after {timeout_s} s")]
     NotFinal {
@@ -365,6 +388,107 @@ fn number(field: &'static str, value: f64) -> Result<f64, Refused> {
     }
 }
 
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Starts a commissioning procedure (`commission` request): one at a time per axis.
+fn commission(
+    state: &ServerState,
+    a: String,
+    kind: CommissionKind,
+    (from, to, cycles, speed): (Option<f64>, Option<f64>, Option<u32>, Option<f64>),
+    current: Option<u16>,
+) -> Result<Value, Refused> {
+    let i = state.controller.axis(&a)?;
+    let section = state
+        .config
+        .axes
+        .get(i)
+        .ok_or_else(|| Refused::NoConfig(a.clone()))?;
+    let missing = |operand: &'static str| {
+        Refused::Commission(CommissionError::Operand {
+            axis: a.clone(),
+            procedure: "reversing",
+            operand,
+            reason: "is required".into(),
+        })
+    };
+    let procedure = match kind {
+        CommissionKind::Commutation => Procedure::Commutation(CommutationSettings {
+            drive: section.drive,
+            counts_per_rev: section.scaling.counts_per_motor_rev,
+            current_per_mille: current,
+            counts_per_unit: section
+                .scaling()
+                .map_err(|_| Refused::NoConfig(a.clone()))?
+                .velocity_to_counts(1.0),
+        }),
+        CommissionKind::Reversing => {
+            let r = Reversing {
+                from: from.ok_or_else(|| missing("--from"))?,
+                to: to.ok_or_else(|| missing("--to"))?,
+                cycles: cycles.ok_or_else(|| missing("--cycles"))?,
+                speed,
+            };
+            r.check(&a)?;
+            Procedure::Reversing(r)
+        }
+    };
+    let mut procedures = lock(&state.procedures);
+    if let Some((_, p)) = procedures
+        .iter()
+        .find(|(_, p)| p.axis() == i && p.outcome().is_none())
+    {
+        return Err(Refused::ProcedureRunning {
+            axis: a,
+            procedure: p.name(),
+        });
+    }
+    let handle = crate::commission::start(&state.controller, i, procedure)?;
+    let id = procedures.last().map_or(1, |(id, _)| id + 1);
+    if procedures.len() >= 256 {
+        procedures.remove(0);
+    }
+    procedures.push((id, handle));
+    Ok(json!({ "procedure": id }))
+}
+
+/// A procedure's progress and outcome, as the `procedure` request replies.
+fn procedure_json(state: &ServerState, p: &ProcedureHandle) -> Value {
+    let progress = p.progress();
+    let axis = state.controller.axes().get(p.axis()).cloned();
+    let mut v = json!({
+        "axis": axis,
+        "procedure": p.name(),
+        "phase": progress.phase,
+        "progress": progress.fraction,
+        "done": false,
+    });
+    match p.outcome() {
+        None => {}
+        Some(Ok(outcome)) => {
+            v["done"] = json!(true);
+            v["ok"] = json!(true);
+            v["result"] = match outcome {
+                ProcedureOutcome::Commutation(c) => json!({
+                    "offset_counts": c.offset_counts,
+                    "lag_electrical_deg": c.lag_electrical_deg,
+                    "travel_counts": c.travel_counts,
+                }),
+                ProcedureOutcome::Reversing { cycles } => json!({ "cycles": cycles }),
+            };
+        }
+        Some(Err(e)) => {
+            v["done"] = json!(true);
+            v["ok"] = json!(false);
+            v["cancelled"] = json!(matches!(*e, CommissionError::Cancelled { .. }));
+            v["error"] = json!(Chain(&*e).to_string());
+        }
+    }
+    v
+}
+
 async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused> {
     let ctl = &state.controller;
     let axis = |name: &str| ctl.axis(name);
@@ -448,7 +572,50 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             },
         )),
         Request::Stop { axis: a } => {
-            sent(ctl.command(axis(&a)?, Command::Stop { deceleration: None }))
+            let i = axis(&a)?;
+            // A commissioning procedure on the axis is cancelled too (it switches its
+            // drive's current off and ends); the Stop is this one. A commutation
+            // measurement runs with the axis Disabled (its drive enabled by the procedure):
+            // there the stop is a power off, which ends the lending as a Stop would.
+            let procedures = lock(&state.procedures);
+            let running: Vec<&ProcedureHandle> = procedures
+                .iter()
+                .map(|(_, p)| p)
+                .filter(|p| p.axis() == i && p.outcome().is_none())
+                .collect();
+            let disabled = ctl
+                .snapshot()
+                .axes
+                .get(i)
+                .is_some_and(|a| a.state == AxisState::Disabled);
+            let command = if !running.is_empty() && disabled {
+                Command::Power(PowerCommand::Disable)
+            } else {
+                Command::Stop { deceleration: None }
+            };
+            let stop = ctl.command(i, command);
+            for p in running {
+                p.cancel_stopped();
+            }
+            drop(procedures);
+            sent(stop)
+        }
+        Request::Commission {
+            axis: a,
+            procedure,
+            from,
+            to,
+            cycles,
+            speed,
+            current,
+        } => commission(state, a, procedure, (from, to, cycles, speed), current),
+        Request::Procedure { id } => {
+            let procedures = lock(&state.procedures);
+            let (_, p) = procedures
+                .iter()
+                .find(|(i, _)| *i == id)
+                .ok_or(Refused::NoProcedure(id))?;
+            Ok(procedure_json(state, p))
         }
         Request::Release { axis: a } => sent(ctl.command(axis(&a)?, Command::Release)),
         Request::SetPosition { axis: a, position } => sent(ctl.command(

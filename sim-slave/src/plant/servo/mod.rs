@@ -652,6 +652,9 @@ impl ServoDrive {
                 }
             })
         };
+        if let Some(v) = get(objects::MODES_OF_OPERATION) {
+            self.take_mode(v as i8);
+        }
         let s = &mut self.settings;
         if let Some(v) = get(objects::CONTROLWORD) {
             self.controlword = Controlword(v as u16);
@@ -668,11 +671,6 @@ impl ServoDrive {
         if let Some(v) = get(objects::TOUCH_PROBE_FUNCTION) {
             if v as u16 != self.probe.function() {
                 self.pending_touch_probe = Some(v as u16);
-            }
-        }
-        if let Some(v) = get(objects::MODES_OF_OPERATION) {
-            if has_mode(v as i8) {
-                self.mode = v as i8;
             }
         }
         if let Some(v) = get(objects::COMMUTATION_OFFSET) {
@@ -782,9 +780,8 @@ impl ServoDrive {
             if let Some(f) = img.touch_probe_function() {
                 self.pending_touch_probe = Some(f);
             }
-            // A mode the drive does not have is not taken (the display keeps the old).
-            if let Some(m) = img.modes_of_operation().filter(|m| has_mode(*m)) {
-                self.mode = m;
+            if let Some(m) = img.modes_of_operation() {
+                self.take_mode(m);
             }
         }
         // The setpoint period: the time between two setpoints once two intervals in a
@@ -815,6 +812,20 @@ impl ServoDrive {
         let enabling = self.controlword.command(self.last_controlword) == Command::EnableOperation;
         if self.following() && self.mode == CSP && enabling {
             self.record.target(self.target);
+        }
+    }
+
+    /// A mode of operation commanded: taken if the drive has it (else the display keeps
+    /// the old). A change while enabled starts the new mode where the load is, as at
+    /// enabling: drives re-initialise their position demand to the actual position on a
+    /// mode switch, so a CSP that follows another mode does not chase a stale demand.
+    fn take_mode(&mut self, m: i8) {
+        if !has_mode(m) || m == self.mode {
+            return;
+        }
+        self.mode = m;
+        if self.state.state() == State::OperationEnabled && self.braking.is_none() {
+            self.on_enable();
         }
     }
 

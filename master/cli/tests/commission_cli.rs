@@ -1,0 +1,217 @@
+//! `gantry commission` end to end, through the binary: `gantry run --no-rt` on the example
+//! configuration with axis `x`'s simulated motor built with a commutation offset its drive
+//! does not know (the chain file's `commutation_offset`, which only this test reads).
+//! `gantry commission x commutation`, on the axis disabled as it starts, measures the offset
+//! through the drive's open-loop current mode and its position feedback and writes it
+//! (read back by SDO and judged against the hidden value, ±1° electrical), leaving the axis
+//! disabled; enabled, it then moves; enabled, a second measurement is refused. `gantry commission x reversing` runs its cycles;
+//! a wrong operand is refused by name; `gantry stop x` cancels a running procedure and
+//! leaves the axis stopped.
+
+mod support;
+
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use gantry_drives::commutation::electrical_error_deg;
+use support::Service;
+
+/// The simulated motor of `x`: 2¹⁷ counts, 5 pole pairs (the simulator's defaults), and
+/// its true commutation offset: 9000 counts, 123.6° electrical from the drive's 0.
+const COUNTS_PER_REV: u32 = 1 << 17;
+const POLE_PAIRS: u32 = 5;
+const HIDDEN_OFFSET: i64 = 9000;
+
+fn start() -> Service {
+    Service::start_with("commission", |chain| {
+        let first = "[[slave]]\nkind = \"servo\"\n";
+        assert!(chain.contains(first));
+        // Not real time (`--no-rt`): the drives ride through the host's stalls.
+        let chain = chain.replace("sync_error_limit = 32", "sync_error_limit = 1000");
+        chain.replacen(
+            first,
+            &format!("{first}commutation_offset = {HIDDEN_OFFSET}\n"),
+            1,
+        )
+    })
+}
+
+fn wait_state(svc: &Service, axis: &str, states: &[&str]) -> serde_json::Value {
+    let end = Instant::now() + Duration::from_secs(20);
+    loop {
+        let a = svc.axis(axis);
+        if states.iter().any(|s| a["state"] == *s) {
+            return a;
+        }
+        assert!(Instant::now() < end, "{axis} never {states:?}: {a}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Faults of the host, not of the procedure: without real time (`--no-rt`) on a loaded
+/// build machine the cycle thread now and then stalls past the drive's 100 ms process-data
+/// watchdog (0x8700), loses frames in a row (0x8100) or overruns (0x6100), as the README's
+/// known limitations say of the veth tests.
+const HOST_STALLS: [&str; 3] = ["0x8700", "0x8100", "0x6100"];
+
+/// `gantry commission x commutation` until it runs through: a run ended by a stall of the
+/// host (the axis' error says so) is reset and tried again, at most three times in all;
+/// any other failure fails the test. Its stdout.
+fn commutation(svc: &Service) -> String {
+    let mut attempt = 0;
+    loop {
+        attempt += 1;
+        let out = svc.cli(&["commission", "x", "commutation"]);
+        if out.status.success() {
+            return String::from_utf8_lossy(&out.stdout).into_owned();
+        }
+        let x = svc.axis("x");
+        let why = x["error"].as_str().unwrap_or_default().to_string();
+        assert!(
+            attempt < 3 && HOST_STALLS.iter().any(|c| why.contains(c)),
+            "attempt {attempt}: {}{} {x}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        eprintln!("attempt {attempt} ended by a stall of the host ({why}); again");
+        svc.ok(&["reset", "x"]);
+        wait_state(svc, "x", &["Disabled"]);
+    }
+}
+
+#[test]
+fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
+    let svc = start();
+    // Uncommissioned (the drive would commutate 123.6° off and run the motor away in a
+    // closed loop): measured from disabled, and written.
+    assert_eq!(svc.axis("x")["state"], "Disabled");
+    let out = commutation(&svc);
+    assert!(out.contains("x: commutation offset "), "{out}");
+    let written: i64 = svc
+        .ok(&["sdo", "upload", "--axis", "x", "0x2100:0", "--type", "i32"])
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(out.contains(&format!("offset {written} counts")), "{out}");
+    let miss = electrical_error_deg(written, HIDDEN_OFFSET, COUNTS_PER_REV, POLE_PAIRS);
+    assert!(miss.abs() <= 1.0, "{written} is {miss}° electrical off");
+    // Left disabled, in CSP, the current off; enabled, it holds and moves.
+    assert_eq!(
+        svc.ok(&["sdo", "upload", "--axis", "x", "0x6061:0", "--type", "i8"])
+            .trim(),
+        "8"
+    );
+    assert_eq!(svc.axis("x")["state"], "Disabled");
+    svc.ok(&["enable", "x"]);
+    svc.ok(&["set-position", "x", "--position", "0"]);
+    let out = svc.ok(&["move", "x", "--to", "2", "--speed", "10"]);
+    assert!(out.contains("x: "), "{out}");
+    // Enabled, the measurement is refused: it needs the power off.
+    let e = svc.fails(&["commission", "x", "commutation"]);
+    assert!(e.contains("x: ") && e.contains("must be disabled"), "{e}");
+
+    // Reversing: its operands checked by name, then two cycles from 0 to 3 and back.
+    let e = svc.fails(&[
+        "commission",
+        "x",
+        "reversing",
+        "--from",
+        "1",
+        "--to",
+        "1",
+        "--cycles",
+        "2",
+    ]);
+    assert!(e.contains("x: reversing: --to"), "{e}");
+    let e = svc.fails(&[
+        "commission",
+        "x",
+        "reversing",
+        "--from",
+        "0",
+        "--to",
+        "3",
+        "--cycles",
+        "0",
+    ]);
+    assert!(e.contains("--cycles"), "{e}");
+    let out = svc.ok(&[
+        "commission",
+        "x",
+        "reversing",
+        "--from",
+        "0",
+        "--to",
+        "3",
+        "--cycles",
+        "2",
+        "--speed",
+        "20",
+    ]);
+    assert!(out.contains("x: reversing done, 2 cycles"), "{out}");
+    let x = svc.axis("x");
+    assert_eq!(x["set_position"], 0.0, "{x}");
+
+    // Cancelled by `gantry stop x`: the procedure ends saying so, the axis stands stopped.
+    let child = svc
+        .command(&[
+            "commission",
+            "x",
+            "reversing",
+            "--from",
+            "0",
+            "--to",
+            "20",
+            "--cycles",
+            "50",
+            "--speed",
+            "10",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(800));
+    let e = svc.fails(&["commission", "x", "commutation"]);
+    assert!(e.contains("already running"), "{e}");
+    svc.ok(&["stop", "x"]);
+    let out = child.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("x: reversing cancelled"), "{e}");
+    let x = wait_state(&svc, "x", &["Stopping"]);
+    assert_eq!(x["velocity"], 0.0, "{x}");
+    svc.ok(&["release", "x"]);
+
+    // The commutation measurement cancelled too: current off, CSP again, disabled.
+    svc.ok(&["disable", "x"]);
+    let child = svc
+        .command(&["commission", "x", "commutation"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    svc.ok(&["stop", "x"]);
+    let out = child.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("x: commutation cancelled") && e.contains("the axis is disabled"),
+        "{e}"
+    );
+    assert_eq!(svc.axis("x")["state"], "Disabled");
+    assert_eq!(
+        svc.ok(&["sdo", "upload", "--axis", "x", "0x2102:0", "--type", "u16"])
+            .trim(),
+        "0",
+        "current off"
+    );
+    assert_eq!(
+        svc.ok(&["sdo", "upload", "--axis", "x", "0x6061:0", "--type", "i8"])
+            .trim(),
+        "8"
+    );
+    svc.ok(&["enable", "x"]);
+    svc.ok(&["move", "x", "--to", "1", "--speed", "10"]);
+}
