@@ -577,3 +577,51 @@ fn rpdo_event_timer_is_a_deadline() {
         State::Fault | State::FaultReactionActive
     ));
 }
+
+/// The commutation measurement (`gantry_drives::commutation`) over CANopen: the open-loop
+/// mode, the pole pairs and the current vector by SDO (the master's client, segmenting
+/// nothing), the rotor in the TPDO's position actual value, the drive enabled and kept so
+/// by RPDO on SYNC at 1 ms; the hidden offset (7 pole pairs, 31 000 counts) found within
+/// 1° electrical and written to 0x2100, read back by SDO.
+#[test]
+fn the_commutation_offset_is_measured_over_sdo_and_the_tpdo_position() {
+    use gantry_drives::commutation::{
+        electrical_error_deg, CommutationConfig, CommutationMeasurement, Step,
+    };
+    let mut c = CanNodeConfig::servo(id(11));
+    c.params.pole_pairs = 7;
+    c.params.commutation_offset = 31_000;
+    let mut r = Rig::with_configs(&[c]);
+    // The manufacturer mode while disabled; the drive then enabled in it.
+    r.m.write(11, 0x6060, 0, &[0xFF]).unwrap();
+    assert_eq!(r.m.read(11, 0x6061, 0).unwrap(), [0xFF]);
+    r.enable();
+    let pole_pairs = r.m.read(11, 0x2101, 0).unwrap()[0];
+    assert_eq!(r.m.write(11, 0x2101, 0, &[3]), Err(AbortCode::READ_ONLY));
+    let config = CommutationConfig::new(REV as u32, u32::from(pole_pairs));
+    let mut m = CommutationMeasurement::new(config).unwrap();
+    let outcome = loop {
+        let t = r.m.now as f64 * 1e-9;
+        match m.poll(t, r.axes[0].pos).unwrap() {
+            Step::Write(o, v) => {
+                let bytes = v.to_le_bytes();
+                r.m.write(11, o.index, o.sub, &bytes[..o.kind.size()])
+                    .unwrap_or_else(|e| panic!("{}: {e}", o.name));
+            }
+            Step::Wait => {}
+            Step::Done(o) => break o,
+        }
+        let pos = r.axes[0].pos;
+        r.cycle(&[Some((0x0F, pos))]);
+        assert!(r.m.now < 30_000 * MS, "runs out");
+    };
+    let miss = electrical_error_deg(i64::from(outcome.offset_counts), 31_000, REV as u32, 7);
+    assert!(miss.abs() <= 1.0, "{outcome:?}: {miss}° electrical");
+    let written = r.m.read(11, 0x2100, 0).unwrap();
+    assert_eq!(
+        i32::from_le_bytes([written[0], written[1], written[2], written[3]]),
+        outcome.offset_counts
+    );
+    assert_eq!(r.m.read(11, 0x2102, 0).unwrap(), [0, 0], "current off");
+    assert_eq!(r.servo(0).error_code(), 0);
+}
