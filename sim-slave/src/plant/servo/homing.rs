@@ -324,12 +324,19 @@ impl Homing {
         }
     }
 
-    /// Statusword bits 10, 12, 13 (see the module doc); `standing`: the load stands.
-    pub fn status_bits(&self, standing: bool) -> u16 {
+    /// Statusword bits 10, 12, 13 (see the module doc); `standing`: the load stands;
+    /// `halted`: the controlword's halt bit is set (bit 10 then says the axle has
+    /// velocity 0, CiA 402-2 §10.4.2, whatever the homing's state).
+    pub fn status_bits(&self, standing: bool, halted: bool) -> u16 {
         const TARGET_REACHED: u16 = 1 << 10;
         const ATTAINED: u16 = 1 << 12;
         const ERROR: u16 = 1 << 13;
-        match self.phase {
+        let halt = if halted && standing {
+            TARGET_REACHED
+        } else {
+            0
+        };
+        halt | match self.phase {
             Phase::Idle { attained: true, .. } if self.faults.never_attains => 0,
             Phase::Idle { attained: true, .. } => ATTAINED | TARGET_REACHED,
             Phase::Idle { error: true, .. } => ERROR | if standing { TARGET_REACHED } else { 0 },

@@ -219,6 +219,9 @@ pub struct ServoDrive {
     probe: TouchProbe,
     /// Homing mode (0x6098–0x609A, 0x607C).
     homing: Homing,
+    /// The first CSP target of the last sequence (after enabling or a change of mode)
+    /// and the position actual value when it was taken.
+    takeover: Option<(i32, i32)>,
     /// The position actual value minus the load's raw position (counts): what homing
     /// set (0 until a homing attains; lost at a power-on reset, as an incremental
     /// encoder's reference is).
@@ -285,6 +288,7 @@ impl ServoDrive {
             hold: p,
             probe: TouchProbe::default(),
             homing: Homing::idle(p, params.homing_faults),
+            takeover: None,
             shift: 0,
             last_mode: CSP,
             last_start: false,
@@ -382,6 +386,18 @@ impl ServoDrive {
     /// set (0 before any).
     pub fn position_shift(&self) -> i64 {
         self.shift
+    }
+
+    /// The mode of operation it is in (0x6061).
+    pub fn mode(&self) -> i8 {
+        self.mode
+    }
+
+    /// The first CSP target the drive took after it was last enabled or switched to CSP,
+    /// and its position actual value then (counts): a master that takes a drive over
+    /// without a jump sends the latter.
+    pub fn takeover(&self) -> Option<(i32, i32)> {
+        self.takeover
     }
 
     /// The homing mode's state and objects.
@@ -970,6 +986,10 @@ impl ServoDrive {
         let halt = cw & (1 << 8) != 0;
         let mode_changed = self.mode != self.last_mode;
         self.last_mode = self.mode;
+        if mode_changed {
+            // Targets in another mode are no CSP setpoints: a new sequence starts.
+            self.record.disabled();
+        }
         if mode_changed && self.following() {
             self.on_enable();
         }
@@ -1078,6 +1098,9 @@ impl ServoDrive {
                 .max(period * (1.0 + self.missed_periods as f64)),
             None => period,
         };
+        if self.target_abs.is_none() {
+            self.takeover = Some((self.target, self.actual_counts()));
+        }
         let reference = self.target_abs.unwrap_or(self.demand);
         // The target counts as the position actual value does (raw + what homing set).
         let shift = self.shift as f64;
@@ -1246,7 +1269,8 @@ impl ServoDrive {
         if self.mode == HM {
             // Bits 10, 12, 13 as the homing mode says (CiA 402-2 §10.4.2).
             let standing = self.motor.velocity.abs() < self.standstill();
-            sw |= self.homing.status_bits(standing);
+            let halted = self.controlword.0 & (1 << 8) != 0;
+            sw |= self.homing.status_bits(standing, halted);
         } else if self.following() {
             sw |= statusword::MODE_SPECIFIC_12;
         }
