@@ -151,6 +151,12 @@ impl Kernel {
         }
     }
 
+    /// The command (Stop, QuickStop) that asked to cancel axis `axis`' drive procedure, if
+    /// one did: the master halts the drive, hands it back and ends the lending.
+    pub fn cancel_requested(&self, axis: usize) -> Option<&'static str> {
+        self.axes.get(axis).and_then(Axis::cancel_requested)
+    }
+
     /// Whether axis `axis` is lent to its drive (false for no such axis).
     pub fn is_lent(&self, axis: usize) -> bool {
         self.axes.get(axis).is_some_and(Axis::is_lent)

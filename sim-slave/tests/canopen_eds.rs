@@ -159,6 +159,25 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
     );
     // The limits of the servo's ranged objects.
     assert_eq!(e.entry(0x6007, 0).unwrap().limits(), Some((0, 1)));
+    // Homing mode (CiA 402-2 §10.4): the method within 0…37 (the reserved ones within
+    // that span are refused by the node), the speeds an ARRAY.
+    let method = e.entry(0x6098, 0).unwrap();
+    assert_eq!(
+        (method.data_type, method.limits()),
+        (DataType::Integer8, Some((0, 37)))
+    );
+    assert_eq!(e.object(0x6099).unwrap().object_type, ObjectType::Array);
+    assert_eq!(e.entry(0x6099, 2).unwrap().data_type, DataType::Unsigned32);
+    assert_eq!(e.entry(0x607C, 0).unwrap().data_type, DataType::Integer32);
+    assert_eq!(e.entry(0x609A, 0).unwrap().data_type, DataType::Unsigned32);
+    // Modes -1 (the manufacturer's open-loop current vector) to 10 (CST); those between
+    // that the drive lacks are refused by the node.
+    assert_eq!(e.entry(0x6060, 0).unwrap().limits(), Some((-1, 10)));
+    // The commutation objects (manufacturer-specific), typed.
+    assert_eq!(e.entry(0x2100, 0).unwrap().data_type, DataType::Integer32);
+    assert_eq!(e.entry(0x2101, 0).unwrap().data_type, DataType::Unsigned8);
+    assert_eq!(e.entry(0x2102, 0).unwrap().limits(), Some((0, 2992)));
+    assert_eq!(e.entry(0x2103, 0).unwrap().data_type, DataType::Unsigned16);
 }
 
 #[test]

@@ -2,6 +2,7 @@
 
 pub mod controlword;
 pub mod error_code;
+pub mod homing;
 pub mod image;
 pub mod mode;
 pub mod objects;

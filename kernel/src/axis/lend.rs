@@ -7,9 +7,10 @@
 //!   itself; the kernel plans nothing), so that when the axis is handed back the first
 //!   set value is where the drive stands and nothing jumps;
 //! - it refuses every command but power off, Stop and QuickStop
-//!   ([`CommandError::LentToDrive`]); those end the lending first (the handle is
-//!   Aborted) and then act as always — the master sees the axis is no longer lent and
-//!   takes the drive back;
+//!   ([`CommandError::LentToDrive`]): power off ends the lending at once (the handle is
+//!   Aborted) and switches the drive off; Stop and QuickStop ask the master to cancel
+//!   ([`crate::Kernel::cancel_requested`]): it halts the drive in its mode, hands it back
+//!   and ends the lending with an error naming the command;
 //! - the hardware limit switch stop is off (a homing method reverses at the switches);
 //! - a drive fault ends it in ErrorStop as any fault does, the handle in Error.
 //!
@@ -35,6 +36,8 @@ pub(crate) struct Lent {
     pub procedure: &'static str,
     /// A homing procedure: the axis is in Homing and not homed while it runs.
     pub homing: bool,
+    /// Stop or QuickStop asked to cancel it (the command's name).
+    pub cancel: Option<&'static str>,
 }
 
 /// Why a procedure the drive ran by itself failed. `Copy`: it lives in the RT status.
@@ -105,6 +108,12 @@ pub enum DriveProcedureFailure {
         /// Why.
         what: &'static str,
     },
+    /// A command (Stop, QuickStop) cancelled it; the drive was halted and handed back.
+    #[error("cancelled by {by}")]
+    Cancelled {
+        /// The command.
+        by: &'static str,
+    },
     /// The procedure was asked of an axis that cannot run it.
     #[error("{what}")]
     Unusable {
@@ -156,6 +165,7 @@ impl Axis {
             handle: h,
             procedure,
             homing,
+            cancel: None,
         });
         self.main = KinematicState::at_rest(self.actual_p);
         Ok(CommandStatus::Active)
@@ -210,33 +220,43 @@ impl Axis {
         true
     }
 
-    /// A command while lent: power off, Stop and QuickStop end the lending (its handle
-    /// Aborted) and go on; every other command is refused.
-    pub(super) fn refuse_or_end_lending(
+    /// A command while lent: `None` when the axis is not lent (the command goes on as
+    /// always). Power off ends the lending at once (its handle Aborted) and goes on: the
+    /// drive is switched off, whatever mode it is in. Stop and QuickStop ask the master to
+    /// cancel the procedure — the drive halts in its mode and is handed back, the lending's
+    /// handle ends in Error naming the command — and are Done at once (the axis stands as
+    /// far as the kernel plans). Every other command is refused.
+    pub(super) fn lent_command(
         &mut self,
         cmd: &Command,
         handles: &mut HandleTable,
-    ) -> Result<(), CommandError> {
-        let Some(l) = self.lent else {
-            return Ok(());
-        };
+    ) -> Option<Result<CommandStatus, CommandError>> {
+        let l = self.lent.as_mut()?;
         match cmd {
-            Command::Power(PowerCommand::Disable | PowerCommand::DisableForced)
-            | Command::Stop { .. }
-            | Command::QuickStop => {
+            Command::Power(PowerCommand::Disable | PowerCommand::DisableForced) => {
+                let h = l.handle;
                 self.lent = None;
                 if self.state == AxisState::Homing {
                     self.enter(Event::MotionDone);
                 }
                 self.main = KinematicState::at_rest(self.actual_p);
-                handles.set(l.handle, CommandStatus::Aborted);
-                Ok(())
+                handles.set(h, CommandStatus::Aborted);
+                None
             }
-            _ => Err(CommandError::LentToDrive {
+            Command::Stop { .. } | Command::QuickStop => {
+                l.cancel.get_or_insert(cmd.name());
+                Some(Ok(CommandStatus::Done))
+            }
+            _ => Some(Err(CommandError::LentToDrive {
                 command: cmd.name(),
                 procedure: l.procedure,
-            }),
+            })),
         }
+    }
+
+    /// The command that asked to cancel the procedure (Stop, QuickStop), if one did.
+    pub(crate) fn cancel_requested(&self) -> Option<&'static str> {
+        self.lent.and_then(|l| l.cancel)
     }
 }
 
@@ -328,11 +348,16 @@ mod tests {
         let fb = enabled_at(&mut k, 1.0);
         let h = k.lend_to_drive(0, "drive homing", true).unwrap();
         k.step(&[fb]);
-        k.command(0, Command::QuickStop).unwrap();
+        // QuickStop asks the master to cancel: still lent (tracking) until it has.
+        let q = k.command(0, Command::QuickStop).unwrap();
+        assert_eq!(k.command_status(q), CommandStatus::Done);
+        assert_eq!(k.cancel_requested(0), Some("QuickStop"));
+        assert!(k.is_lent(0));
+        // Power off ends it at once.
+        k.command(0, Command::Power(PowerCommand::Disable)).unwrap();
         assert_eq!(k.command_status(h), CommandStatus::Aborted);
         assert!(!k.is_lent(0));
-        // Not from Stopping; a second lending while lent is refused.
-        assert!(k.lend_to_drive(0, "drive homing", true).is_err());
+        assert_eq!(k.cancel_requested(0), None);
         let mut k = Kernel::new(1e-3, vec![AxisConfig::new("x", AxisKind::Real)]).unwrap();
         let fb = enabled_at(&mut k, 1.0);
         let h = k.lend_to_drive(0, "commutation", false).unwrap();

@@ -70,6 +70,9 @@ pub struct AxisSection {
     /// Limit and reference switches and the touch probe (`[axis.switches]`).
     #[serde(default)]
     pub switches: super::switches::SwitchesSection,
+    /// Homing done by the drive itself (`[axis.drive_homing]`).
+    #[serde(default)]
+    pub drive_homing: Option<super::drive_homing::DriveHomingSection>,
 }
 
 /// `drive` as read when the file does not give it.
@@ -195,10 +198,21 @@ impl AxisSection {
         Ok(layout)
     }
 
+    /// The drive homing parameters of `[axis.drive_homing]` in the drive's counts, if
+    /// the axis has them.
+    pub fn drive_homing_params(
+        &self,
+    ) -> Result<Option<gantry_drives::cia402::homing::DriveHomingParams>, (String, String)> {
+        self.drive_homing
+            .map(|d| d.params(&self.scaling()?, self.max.speed))
+            .transpose()
+    }
+
     /// The kernel's configuration of this axis (checked by the kernel's own rules).
     pub fn kernel_config(&self) -> Result<AxisConfig, (String, String)> {
         self.scaling()?;
         self.pdo_layout()?;
+        self.drive_homing_params()?;
         let mut c = AxisConfig::new(&self.name, AxisKind::Real);
         let kind = match self.kind.as_str() {
             "linear" => MotionKind::Linear,

@@ -31,10 +31,9 @@ pub struct Entry {
     /// The values a download may write (inclusive, as a signed or unsigned integer of
     /// the entry's size); `None`: any.
     pub range: Option<(i64, i64)>,
-    /// The only values a download may write, within `range` (an object whose valid
-    /// values have gaps, as 0x6060 modes of operation: only the modes the drive has);
-    /// `None`: any in the range.
-    pub values: Option<&'static [i64]>,
+    /// One-byte entries whose valid values have holes (0x6060 modes the device has,
+    /// 0x6098 methods): bit `v as u8` set for each value a download may write.
+    pub allowed: Option<[u64; 4]>,
 }
 
 /// An object dictionary.
@@ -87,7 +86,7 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
-                values: None,
+                allowed: None,
             }),
         }
     }
@@ -105,19 +104,27 @@ impl ObjectDictionary {
         }
     }
 
-    /// Adds or replaces an entry that downloads may only set to one of `values` (CiA 301
-    /// §7.2.4.3.17: abort 0x06090030 otherwise); the range is their span, which tells
-    /// the sign.
-    pub fn insert_values(&mut self, index: u16, sub: u8, value: &[u8], values: &'static [i64]) {
-        let min = values.iter().copied().min().unwrap_or(0);
-        let max = values.iter().copied().max().unwrap_or(0);
-        self.insert_ranged(index, sub, value, min, max);
+    /// Adds or replaces a one-byte entry that downloads may only set to the values in
+    /// `allowed` (each value `v` as bit `v as u8`; CiA 301 §7.2.4.3.17: abort 0x06090030
+    /// otherwise); its range (for the EDS) spans them as signed values.
+    pub fn insert_set(&mut self, index: u16, sub: u8, value: u8, allowed: [u64; 4]) {
+        self.insert(index, sub, &[value], true);
+        let values = (i8::MIN..=i8::MAX).filter(|v| {
+            let i = (*v as u8) as usize;
+            allowed
+                .get(i / 64)
+                .is_some_and(|w| w & (1 << (i % 64)) != 0)
+        });
+        let (lo, hi) = values.fold((i64::MAX, i64::MIN), |(lo, hi), v| {
+            (lo.min(i64::from(v)), hi.max(i64::from(v)))
+        });
         if let Some(e) = self
             .entries
             .iter_mut()
             .find(|e| e.index == index && e.sub == sub)
         {
-            e.values = Some(values);
+            e.range = (lo <= hi).then_some((lo, hi));
+            e.allowed = Some(allowed);
         }
     }
 
@@ -234,7 +241,13 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max || e.values.is_some_and(|set| !set.contains(&v)) {
+            if v < min || v > max {
+                return Err(OdError::ValueRange);
+            }
+        }
+        if let (Some(allowed), [b]) = (e.allowed, value) {
+            let i = usize::from(*b);
+            if allowed.get(i / 64).is_none_or(|w| w & (1 << (i % 64)) == 0) {
                 return Err(OdError::ValueRange);
             }
         }

@@ -64,7 +64,9 @@ impl Axis {
                 state: self.state,
             });
         }
-        self.refuse_or_end_lending(cmd, handles)?;
+        if let Some(r) = self.lent_command(cmd, handles) {
+            return r;
+        }
         self.check_towards_limit(cmd)?;
         match *cmd {
             Command::MoveHome(ref c) => self.move_home(c, h, handles),

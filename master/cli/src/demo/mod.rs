@@ -259,6 +259,7 @@ fn axis(
         target_monitoring: Default::default(),
         pdo: "csp".into(),
         switches: Default::default(),
+        drive_homing: None,
     }
 }
 
