@@ -25,7 +25,13 @@ use core::f64::consts::{PI, TAU};
 
 use thiserror::Error;
 
+use crate::cia402::mode::OPEN_LOOP_CURRENT_VECTOR;
 use crate::cia402::objects::{self, ObjectId};
+use crate::cia402::procedure::{
+    ModeSwitch, ProcedureFailure, ProcedureInputs, ProcedureOutputs, ProcedureStep, SdoAccess,
+    SdoOutcome, Switching,
+};
+use crate::cia402::{ModeOfOperation, State};
 
 /// Angle units of 0x2103 to an electrical revolution.
 pub const ANGLE_UNITS: f64 = 65536.0;
@@ -172,7 +178,7 @@ impl Circular {
 }
 
 /// One commutation measurement (see the module doc).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommutationMeasurement {
     config: CommutationConfig,
     phase: Phase,
@@ -245,7 +251,7 @@ impl CommutationMeasurement {
     }
 
     /// Where it is.
-    pub fn phase(&self) -> Phase {
+    pub const fn phase(&self) -> Phase {
         self.phase
     }
 
@@ -423,6 +429,223 @@ impl CommutationMeasurement {
             lag_electrical_deg: lag_deg,
             travel_counts: travel,
         })
+    }
+}
+
+/// The measurement as a procedure the master's cycle thread runs on a drive lent to it
+/// (`crate::cia402::procedure`): the vector's current set to 0 (SDO), the open-loop mode
+/// ([`crate::cia402::mode::OPEN_LOOP_CURRENT_VECTOR`]) switched to and shown, the drive
+/// enabled in it (the channel enables it: the axis may be lent from Disabled, so that a
+/// drive of unknown commutation never holds a closed loop), then the measurement's writes
+/// one by one by SDO on the position of the process data; it ends with the current off,
+/// still in the open-loop mode: handed back, the drive is disabled by its Disabled axis,
+/// and the master sets 0x6060 back to CSP then (see `gantry::commission::commutation`).
+/// A failure or a cancel switches the current off first too.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommutationProcedure {
+    measurement: CommutationMeasurement,
+    step: ProcedureStage,
+    switch: ModeSwitch,
+    /// The access on its way (its outcome comes in the next inputs).
+    awaiting: Option<SdoAccess>,
+    /// Why it will end in failure, once the current is off.
+    failure: Option<ProcedureFailure>,
+    /// When the measurement's clock started (s).
+    t0: Option<f64>,
+    /// When the drive was told to enable (s).
+    enabling_since: Option<f64>,
+}
+
+/// Where a [`CommutationProcedure`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ProcedureStage {
+    /// Current 0 before anything is energised.
+    ZeroCurrent,
+    /// Switching to the open-loop mode.
+    ToOpenLoop,
+    /// Waiting for Operation enabled.
+    Enabling,
+    /// Measuring.
+    Measuring,
+    /// Switching the current off (after a failure or a cancel).
+    CurrentOff,
+    /// Over.
+    Ended,
+}
+
+/// How long the drive may take to reach Operation enabled (s).
+const ENABLE_TIMEOUT_S: f64 = 1.0;
+
+impl CommutationProcedure {
+    /// A procedure running `measurement`.
+    pub fn new(measurement: CommutationMeasurement) -> Self {
+        Self {
+            measurement,
+            step: ProcedureStage::ZeroCurrent,
+            switch: ModeSwitch::to(ModeOfOperation::Other(OPEN_LOOP_CURRENT_VECTOR)),
+            awaiting: None,
+            failure: None,
+            t0: None,
+            enabling_since: None,
+        }
+    }
+
+    /// What it is doing, in words.
+    pub const fn phase_name(&self) -> &'static str {
+        match self.step {
+            ProcedureStage::ZeroCurrent | ProcedureStage::ToOpenLoop => {
+                "switching to the open-loop current mode"
+            }
+            ProcedureStage::Enabling => "enabling the drive",
+            ProcedureStage::Measuring => match self.measurement.phase() {
+                Phase::Start | Phase::Align => "aligning the rotor with the current vector",
+                Phase::Forward => "turning the current vector forwards",
+                Phase::Backward => "turning the current vector back",
+                Phase::WriteOffset => "writing the offset",
+                Phase::Release | Phase::Done => "switching the current off",
+            },
+            ProcedureStage::CurrentOff => "switching the current off",
+            ProcedureStage::Ended => "ended",
+        }
+    }
+
+    /// How far the measurement is, 0 to 1.
+    pub fn progress(&self, now_s: f64) -> f64 {
+        self.measurement.progress(now_s - self.t0.unwrap_or(now_s))
+    }
+
+    /// Cancels it (a Stop or QuickStop of the axis): the current off, then the end.
+    pub fn cancel(&mut self, by: &'static str) {
+        if self.failure.is_none() && self.step != ProcedureStage::Ended {
+            self.failure = Some(ProcedureFailure::Cancelled { by });
+        }
+    }
+
+    fn outputs() -> Option<ProcedureOutputs> {
+        Some(ProcedureOutputs::idle(ModeOfOperation::Other(
+            OPEN_LOOP_CURRENT_VECTOR,
+        )))
+    }
+
+    fn access(&mut self, object: ObjectId, value: i64) -> ProcedureStep {
+        let a = SdoAccess {
+            object,
+            write: Some(value),
+        };
+        self.awaiting = Some(a);
+        ProcedureStep {
+            outputs: Self::outputs(),
+            sdo: Some(a),
+            end: None,
+        }
+    }
+
+    fn end(&mut self, result: Result<(), ProcedureFailure>) -> ProcedureStep {
+        self.step = ProcedureStage::Ended;
+        ProcedureStep {
+            outputs: Self::outputs(),
+            sdo: None,
+            end: Some(result),
+        }
+    }
+
+    /// One cycle (see `crate::cia402::procedure`).
+    pub fn step(&mut self, io: &ProcedureInputs) -> ProcedureStep {
+        // The outcome of the write on its way.
+        if let Some(a) = self.awaiting {
+            let Some(outcome) = io.sdo else {
+                return ProcedureStep::hold(Self::outputs());
+            };
+            self.awaiting = None;
+            let failed = match outcome {
+                SdoOutcome::Done(_) => None,
+                SdoOutcome::Aborted(code) => Some(ProcedureFailure::Refused {
+                    object: a.object,
+                    value: a.write.unwrap_or(0),
+                    code,
+                }),
+                SdoOutcome::Failed(what) => Some(ProcedureFailure::Sdo {
+                    object: a.object,
+                    what,
+                }),
+            };
+            if let Some(f) = failed {
+                if self.step == ProcedureStage::CurrentOff {
+                    // The current could not be switched off: the hand-back disables it.
+                    return self.end(Err(self.failure.unwrap_or(f)));
+                }
+                self.failure.get_or_insert(f);
+            }
+            if self.step == ProcedureStage::CurrentOff {
+                let f = self
+                    .failure
+                    .unwrap_or(ProcedureFailure::Cancelled { by: "a failure" });
+                return self.end(Err(f));
+            }
+        }
+        if self.failure.is_some() && self.step != ProcedureStage::CurrentOff {
+            self.step = ProcedureStage::CurrentOff;
+            return self.access(objects::COMMUTATION_CURRENT, 0);
+        }
+        match self.step {
+            ProcedureStage::ZeroCurrent => {
+                self.step = ProcedureStage::ToOpenLoop;
+                self.access(objects::COMMUTATION_CURRENT, 0)
+            }
+            ProcedureStage::ToOpenLoop => match self.switch.step(io, 0) {
+                Switching::Pending(s) => s,
+                Switching::Done => {
+                    self.step = ProcedureStage::Enabling;
+                    self.enabling_since = Some(io.now_s);
+                    ProcedureStep::hold(Self::outputs())
+                }
+                Switching::Failed(f) => {
+                    self.failure = Some(f);
+                    self.step = ProcedureStage::CurrentOff;
+                    self.access(objects::COMMUTATION_CURRENT, 0)
+                }
+            },
+            ProcedureStage::Enabling => {
+                if io.statusword.state() == Some(State::OperationEnabled) {
+                    self.step = ProcedureStage::Measuring;
+                    self.t0 = Some(io.now_s);
+                } else if io.now_s - self.enabling_since.unwrap_or(io.now_s) > ENABLE_TIMEOUT_S {
+                    self.failure = Some(ProcedureFailure::NotReported {
+                        missing: "Operation enabled in the open-loop current mode",
+                        timeout_s: ENABLE_TIMEOUT_S,
+                    });
+                    self.step = ProcedureStage::CurrentOff;
+                    return self.access(objects::COMMUTATION_CURRENT, 0);
+                }
+                ProcedureStep::hold(Self::outputs())
+            }
+            ProcedureStage::Measuring => {
+                let t = io.now_s - self.t0.unwrap_or(io.now_s);
+                match self.measurement.poll(t, io.position) {
+                    Ok(Step::Write(o, v)) => self.access(o, v),
+                    Ok(Step::Wait) => ProcedureStep::hold(Self::outputs()),
+                    Ok(Step::Done(_)) => self.end(Ok(())),
+                    Err(e) => {
+                        self.failure = Some(ProcedureFailure::DriveReports {
+                            what: match e {
+                                CommutationError::NotFollowing { .. } => {
+                                    "a rotor that did not follow the current vector"
+                                }
+                                CommutationError::TooMuchLag { .. } => {
+                                    "a rotor lagging the current vector too far"
+                                }
+                                CommutationError::BadConfig { .. } => "a configuration error",
+                            },
+                        });
+                        self.step = ProcedureStage::CurrentOff;
+                        self.access(objects::COMMUTATION_CURRENT, 0)
+                    }
+                }
+            }
+            ProcedureStage::CurrentOff | ProcedureStage::Ended => {
+                ProcedureStep::hold(Self::outputs())
+            }
+        }
     }
 }
 

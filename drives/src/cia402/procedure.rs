@@ -85,6 +85,9 @@ pub struct ProcedureInputs {
     pub mode_mapped: bool,
     /// Time (s), monotonic.
     pub now_s: f64,
+    /// 0x6064 Position actual value from the process data (a commissioning measurement
+    /// follows the rotor in it).
+    pub position: i32,
     /// The outcome of the access asked for last, once (the cycle it arrives).
     pub sdo: Option<SdoOutcome>,
 }

@@ -649,10 +649,9 @@ pub fn commission(
         let r = &end["result"];
         let line = match end["procedure"].as_str() {
             Some("commutation") => format!(
-                "{axis}: commutation offset {} counts written to the drive (rotor lag {:.1}° \
-                 electrical, cancelled out)",
-                r["offset_counts"],
-                r["lag_electrical_deg"].as_f64().unwrap_or(f64::NAN)
+                "{axis}: commutation offset {} counts written to the drive; the axis is \
+                 disabled (enable it to move)",
+                r["offset_counts"]
             ),
             _ => format!("{axis}: reversing done, {} cycles", r["cycles"]),
         };

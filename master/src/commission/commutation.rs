@@ -1,49 +1,43 @@
 //! `gantry commission AXIS commutation`: the commutation offset measured in the seed's
-//! dynamic mode (`gantry_drives::commutation`) on a running axis, through what its drive
-//! exposes — the open-loop current-vector mode and its objects, by SDO, and the position
-//! actual value — then written to the drive.
+//! dynamic mode on a running service, through what the axis' drive exposes — the
+//! open-loop current-vector mode and its objects, by SDO, and the position actual value.
+//!
+//! The measurement runs in the cycle thread as a drive procedure
+//! ([`crate::runtime::procedure::DriveProcedure::Commutation`], the sequencer
+//! `gantry_drives::commutation::CommutationProcedure`): the axis is lent to its drive, the
+//! sequencer's SDO accesses go beside the cycle and it reads the rotor in each cycle's
+//! position actual value. This module starts it and follows it.
 //!
 //! The axis must be **disabled** to start: a drive whose commutation is unknown cannot hold
 //! its motor in a closed loop (past 90° electrical it turns it the wrong way and runs it
-//! away), so it is never enabled in CSP before the offset is known. The steps: with the
-//! power off, the vector's current and angle set to 0 and 0x6060 to the open-loop mode
-//! (0x6061 awaited); the axis enabled (the drive energises a vector of no current) and
-//! lent to its drive (`Controller::lend_to_drive`: the drive kept in Operation enabled,
-//! its target its own position, the kernel's set position tracking it); then the
-//! measurement's writes go out one by one by SDO while 0x6064 is read back. At the end —
-//! done, failed or cancelled alike — the current is switched off, the lending ended, the
-//! axis disabled and 0x6060 set back to CSP: the axis is left **disabled**, as the seed's
-//! `MeasureCommutationOffset` leaves it (`when xAxis1.State.IsDisabled continue`), to be
-//! enabled again with the offset now in the drive.
+//! away), so it is never enabled in CSP before the offset is known. Lent from Disabled, the
+//! drive is enabled by the procedure in the open-loop mode; handed back, it is disabled by
+//! its Disabled axis, and 0x6060 is set back to CSP here, with the drive's power off. The
+//! axis is left **disabled**, as the seed's `MeasureCommutationOffset` leaves it (`when
+//! xAxis1.State.IsDisabled continue`), done, failed or cancelled alike, with the current of
+//! the vector off.
 
 use std::time::{Duration, Instant};
 
-use gantry_drives::cia402::mode::OPEN_LOOP_CURRENT_VECTOR;
 use gantry_drives::cia402::objects::{self, ObjectId};
-use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::cia402::{ModeOfOperation, State};
-use gantry_drives::commutation::{
-    CommutationConfig, CommutationError, CommutationMeasurement, Phase, Step,
-};
+use gantry_drives::commutation::{CommutationConfig, CommutationMeasurement, CommutationProcedure};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::lend::{DriveProcedureError, DriveProcedureFailure};
 use gantry_kernel::axis::state::AxisState;
 
 use super::{CommissionError, Context, ProcedureOutcome, POLL};
-use crate::runtime::controller::CommandHandle;
+use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::sdo::{SdoData, SdoError, SdoRequest};
 
-/// What the lending is called in the axis' messages.
+/// The procedure's name in messages.
 pub const PROCEDURE: &str = "commutation measurement";
 
-/// How often the measurement looks at the rotor (and writes the vector's angle at most).
-const MEASURE_POLL: Duration = Duration::from_millis(4);
-
-/// How often the drive's power state is looked at while it changes.
+/// How long the drive may take to show a mode or a power state it was told.
+const SETTLE_TIMEOUT: Duration = Duration::from_secs(2);
+/// How often the drive's state is looked at meanwhile.
 const SETTLE_POLL: Duration = Duration::from_millis(10);
-
-/// How long the drive may take to show a mode it was told (0x6061).
-const MODE_TIMEOUT: Duration = Duration::from_secs(2);
+/// How often a running measurement is looked at (progress, cancel).
+const FOLLOW_POLL: Duration = Duration::from_millis(20);
 
 /// The measurement's parameters from the configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,22 +48,13 @@ pub struct CommutationSettings {
     pub counts_per_rev: u32,
     /// Current of the vector (per mille of the rated torque's); `None`: the default 300.
     pub current_per_mille: Option<u16>,
-    /// Drive counts per axis unit (signed: negative for an inverted axis), to follow the
-    /// rotor in the snapshot's actual position between SDO reads of 0x6064.
-    pub counts_per_unit: f64,
 }
 
-/// A running measurement's link to its axis.
+/// The app side of one measurement.
 struct Run<'a> {
     cx: &'a Context,
     s: CommutationSettings,
-    lent: Option<CommandHandle>,
-    /// The drive was switched to the open-loop mode.
-    switched: bool,
 }
-
-/// What a cancelled or failed measurement leaves the axis in.
-const LEFT: &str = "the axis is disabled, its drive's current off and in CSP again";
 
 impl Run<'_> {
     fn sdo_error(&self, o: ObjectId, source: SdoError) -> CommissionError {
@@ -128,98 +113,98 @@ impl Run<'_> {
         })
     }
 
-    /// The lending still holds: not ended by a Stop, a power off or a fault.
-    fn still_lent(&self) -> Result<(), CommissionError> {
-        let Some(h) = &self.lent else {
-            return Ok(());
-        };
-        match h.status() {
-            Some(CommandStatus::Error(source)) => Err(CommissionError::Command {
-                axis: self.cx.name.clone(),
-                procedure: PROCEDURE,
-                command: PROCEDURE,
-                source: Box::new(source),
-            }),
-            Some(CommandStatus::Aborted) | Some(CommandStatus::Expired) => Err(self
-                .cx
-                .cancelled_error("by a stop of the axis".into(), LEFT)),
-            _ => Ok(()),
+    fn drive_error(&self, what: String) -> CommissionError {
+        CommissionError::Drive {
+            axis: self.cx.name.clone(),
+            procedure: PROCEDURE,
+            what,
         }
     }
 
-    /// Sets the mode by SDO and waits for 0x6061 to show it.
-    fn mode(&self, mode: ModeOfOperation) -> Result<(), CommissionError> {
-        self.write(objects::MODES_OF_OPERATION, i64::from(mode.raw()))?;
-        let end = Instant::now() + MODE_TIMEOUT;
+    /// Waits until the drive's power stage is off (the axis disabled it).
+    fn drive_off(&self) -> Result<(), CommissionError> {
+        let end = Instant::now() + SETTLE_TIMEOUT;
         loop {
-            let shown = self.read(objects::MODES_OF_OPERATION_DISPLAY)?;
-            if shown == i64::from(mode.raw()) {
+            let state = self
+                .cx
+                .ctl
+                .snapshot()
+                .drives
+                .get(self.cx.axis)
+                .and_then(|d| d.state);
+            if !matches!(
+                state,
+                Some(State::OperationEnabled | State::QuickStopActive)
+            ) {
                 return Ok(());
             }
             if Instant::now() >= end {
-                return Err(CommissionError::Drive {
-                    axis: self.cx.name.clone(),
-                    procedure: PROCEDURE,
-                    what: format!(
-                        "the drive shows mode {shown} (0x6061), not {} ({}), after {} s",
-                        mode.raw(),
-                        mode.short(),
-                        MODE_TIMEOUT.as_secs()
-                    ),
-                });
+                return Err(self.drive_error(format!(
+                    "the drive is still {} {} s after the hand-back",
+                    state.map_or("?", State::name),
+                    SETTLE_TIMEOUT.as_secs()
+                )));
             }
-            std::thread::sleep(POLL);
+            std::thread::sleep(SETTLE_POLL);
         }
     }
 
-    /// The measurement proper, between lending and handing back.
-    fn measure(&mut self) -> Result<ProcedureOutcome, CommissionError> {
+    /// 0x6060 = CSP by SDO (with the power off), 0x6061 awaited.
+    fn back_to_csp(&self) -> Result<(), CommissionError> {
+        let csp = ModeOfOperation::CyclicSyncPosition.raw();
+        self.write(objects::MODES_OF_OPERATION, i64::from(csp))?;
+        let end = Instant::now() + SETTLE_TIMEOUT;
+        loop {
+            let shown = self.read(objects::MODES_OF_OPERATION_DISPLAY)?;
+            if shown == i64::from(csp) {
+                return Ok(());
+            }
+            if Instant::now() >= end {
+                return Err(self.drive_error(format!(
+                    "the drive shows mode {shown} (0x6061), not 8 (CSP), after {} s",
+                    SETTLE_TIMEOUT.as_secs()
+                )));
+            }
+            std::thread::sleep(SETTLE_POLL);
+        }
+    }
+
+    /// Starts the procedure and follows it to its end.
+    fn measure(&self) -> Result<(), CommissionError> {
         let cx = self.cx;
         let pole_pairs = self.read(objects::MOTOR_POLE_PAIRS)?;
         let mut config = CommutationConfig::new(self.s.counts_per_rev, pole_pairs as u32);
         if let Some(c) = self.s.current_per_mille {
             config.current_per_mille = c;
         }
-        let mut m =
+        let m =
             CommutationMeasurement::new(config).map_err(|source| CommissionError::Measurement {
                 axis: cx.name.clone(),
                 source,
             })?;
-        let state = cx
+        let total_s = 2.0 * config.ramp_s + 2.0 * config.turn_s;
+        let h = cx
             .ctl
-            .snapshot()
-            .axes
-            .get(cx.axis)
-            .map(|a| a.state)
-            .unwrap_or(AxisState::ErrorStop);
-        if state != AxisState::Disabled {
-            return Err(CommissionError::Drive {
-                axis: cx.name.clone(),
-                procedure: PROCEDURE,
-                what: format!(
-                    "the axis must be disabled, it is {} (a drive whose commutation is not \
-                     known cannot hold the motor; `gantry disable {}` first)",
-                    state.name(),
-                    cx.name
-                ),
-            });
-        }
-        cx.progress("switching the drive to its open-loop current mode", 0.0);
-        self.write(objects::COMMUTATION_CURRENT, 0)?;
-        self.write(objects::COMMUTATION_ANGLE, 0)?;
-        // Lent from Disabled: the channel enables the drive itself, in the open-loop mode
-        // (sent by PDO where 0x6060 is mapped; by SDO here for where it is not).
-        let lent = cx
-            .ctl
-            .lend_to_drive(
+            .drive_procedure(
                 cx.axis,
-                PROCEDURE,
-                ProcedureOutputs::idle(ModeOfOperation::Other(OPEN_LOOP_CURRENT_VECTOR)),
+                DriveProcedure::Commutation(CommutationProcedure::new(m)),
             )
             .map_err(|e| cx.control(e))?;
+        let t0 = Instant::now();
+        let mut cancelled = false;
         loop {
-            match lent.status() {
-                Some(CommandStatus::Active) | Some(CommandStatus::Busy) => break,
+            if cx.cancelled() && !cancelled {
+                // The axis is Disabled: a power off ends the lending (a Stop is for a
+                // powered axis). `gantry stop` gave it already.
+                cancelled = true;
+                if !cx.stop_given() {
+                    let _ = cx.command(gantry_kernel::axis::command::Command::Power(
+                        gantry_kernel::axis::command::PowerCommand::Disable,
+                    ));
+                }
+            }
+            match h.status() {
+                Some(CommandStatus::Done) => return Ok(()),
                 Some(CommandStatus::Error(source)) => {
                     return Err(CommissionError::Command {
                         axis: cx.name.clone(),
@@ -228,175 +213,83 @@ impl Run<'_> {
                         source: Box::new(source),
                     })
                 }
-                Some(s) if s.is_final() => {
-                    return Err(cx.cancelled_error("before it started".into(), LEFT))
+                Some(CommandStatus::Aborted) | Some(CommandStatus::Expired) => {
+                    return Err(cx.cancelled_error("by a stop of the axis".into(), LEFT))
                 }
-                _ => std::thread::sleep(POLL),
+                _ => {}
             }
-        }
-        self.lent = Some(lent);
-        self.switched = true;
-        self.mode(ModeOfOperation::Other(OPEN_LOOP_CURRENT_VECTOR))?;
-        cx.progress("enabling the drive (no current yet)", 0.0);
-        self.drive_enabled(true)?;
-        // Where the rotor is: 0x6064 read once, at rest (no current yet), and from then on
-        // the axis' actual position from the snapshot (what the drive reports each cycle,
-        // scaled), so that the SDO channel carries only the measurement's writes — a
-        // transfer a cycle beside the process data would load a cycle without real time.
-        let origin_counts = self.read(objects::POSITION_ACTUAL_VALUE)?;
-        let origin_units = self.actual_units();
-        let t0 = Instant::now();
-        loop {
-            if cx.cancelled() {
-                return Err(cx.cancelled_error(format!("while {}", phase_words(m.phase())), LEFT));
+            let snap = cx.ctl.snapshot();
+            if snap.ended {
+                return Err(cx.control(crate::runtime::controller::ControlError::Ended));
             }
-            self.still_lent()?;
-            let moved = (self.actual_units() - origin_units) * self.s.counts_per_unit;
-            let position = (origin_counts + moved.round() as i64) as i32;
-            let now = t0.elapsed().as_secs_f64();
-            cx.progress(phase_words(m.phase()), m.progress(now));
-            match m.poll(now, position) {
-                Ok(Step::Write(o, v)) => self.write(o, v)?,
-                Ok(Step::Wait) => std::thread::sleep(MEASURE_POLL),
-                Ok(Step::Done(r)) => return Ok(ProcedureOutcome::Commutation(r)),
-                Err(source) => {
-                    return Err(CommissionError::Measurement {
-                        axis: cx.name.clone(),
-                        source,
-                    })
-                }
-            }
-        }
-    }
-
-    /// The axis' actual position in the latest snapshot (units).
-    fn actual_units(&self) -> f64 {
-        self.cx
-            .ctl
-            .snapshot()
-            .axes
-            .get(self.cx.axis)
-            .map_or(0.0, |a| a.actual_position)
-    }
-
-    /// Waits until the drive's power state is Operation enabled (`true`) or not.
-    fn drive_enabled(&self, enabled: bool) -> Result<(), CommissionError> {
-        let end = Instant::now() + MODE_TIMEOUT;
-        loop {
-            self.still_lent()
-                .or_else(|e| if enabled { Err(e) } else { Ok(()) })?;
-            let state = self
-                .cx
-                .ctl
-                .snapshot()
+            let phase = snap
                 .drives
-                .get(self.cx.axis)
-                .and_then(|d| d.state);
-            if (state == Some(State::OperationEnabled)) == enabled {
-                return Ok(());
-            }
-            std::thread::sleep(SETTLE_POLL);
-            if Instant::now() >= end {
-                return Err(CommissionError::Drive {
-                    axis: self.cx.name.clone(),
-                    procedure: PROCEDURE,
-                    what: format!(
-                        "the drive is {} after {} s, not {}",
-                        state.map_or("not reporting", State::name),
-                        MODE_TIMEOUT.as_secs(),
-                        if enabled { "enabled" } else { "disabled" }
-                    ),
-                });
-            }
-            std::thread::sleep(POLL);
+                .get(cx.axis)
+                .and_then(|d| d.procedure)
+                .map_or("starting", |p| p.phase);
+            cx.progress(phase, t0.elapsed().as_secs_f64() / total_s);
+            std::thread::sleep(FOLLOW_POLL);
         }
     }
-
-    /// Current off, the lending ended (`failure`: its handle ends in Error with it), the
-    /// axis disabled, CSP again. Best effort: each step is tried whatever the last did.
-    fn hand_back(&mut self, failure: Option<DriveProcedureFailure>) -> Result<(), CommissionError> {
-        let cx = self.cx;
-        cx.progress("switching the current off and the drive back to CSP", 1.0);
-        let off = self.write(objects::COMMUTATION_CURRENT, 0);
-        if self.lent.take().is_some() {
-            let outcome = match failure {
-                None => Ok(()),
-                Some(failure) => Err(DriveProcedureError {
-                    procedure: PROCEDURE,
-                    method: None,
-                    failure,
-                }),
-            };
-            let _ = cx.ctl.end_drive_procedure(cx.axis, outcome);
-        }
-        // The axis was Disabled all along: handed back, the channel disables the drive.
-        let disabled = self.drive_enabled(false);
-        let csp = if self.switched {
-            self.mode(ModeOfOperation::CyclicSyncPosition)
-        } else {
-            Ok(())
-        };
-        off.and(disabled).and(csp)
-    }
 }
 
-/// A phase in words, for the progress line.
-fn phase_words(p: Phase) -> &'static str {
-    match p {
-        Phase::Start => "starting",
-        Phase::Align => "aligning the rotor with the current vector",
-        Phase::Forward => "turning the current vector forwards",
-        Phase::Backward => "turning the current vector back",
-        Phase::WriteOffset => "writing the offset",
-        Phase::Release | Phase::Done => "switching the current off",
-    }
-}
-
-/// What the kernel is told of a failed measurement (the commission error has the detail).
-fn failure_of(e: &CommissionError) -> Option<DriveProcedureFailure> {
-    match e {
-        CommissionError::Cancelled { .. } => None,
-        CommissionError::Measurement {
-            source: CommutationError::NotFollowing { .. },
-            ..
-        } => Some(DriveProcedureFailure::Unusable {
-            what: "the rotor did not follow the current vector",
-        }),
-        CommissionError::Measurement { .. } => Some(DriveProcedureFailure::Unusable {
-            what: "the measurement failed",
-        }),
-        CommissionError::Sdo { .. } => Some(DriveProcedureFailure::Unusable {
-            what: "an object of the drive could not be read or written",
-        }),
-        _ => Some(DriveProcedureFailure::Unusable {
-            what: "the measurement did not finish",
-        }),
-    }
-}
+/// What a cancelled or failed measurement leaves the axis in.
+const LEFT: &str = "the axis is disabled, its drive's current off and in CSP again";
 
 /// Runs it (see the module doc).
 pub(crate) fn run(
     cx: &Context,
     s: CommutationSettings,
 ) -> Result<ProcedureOutcome, CommissionError> {
-    let mut run = Run {
-        cx,
-        s,
-        lent: None,
-        switched: false,
-    };
+    let state = cx
+        .ctl
+        .snapshot()
+        .axes
+        .get(cx.axis)
+        .map(|a| a.state)
+        .unwrap_or(AxisState::ErrorStop);
+    if state != AxisState::Disabled {
+        return Err(CommissionError::Drive {
+            axis: cx.name.clone(),
+            procedure: PROCEDURE,
+            what: format!(
+                "the axis must be disabled, it is {} (a drive whose commutation is not known \
+                 cannot hold the motor; `gantry disable {}` first)",
+                state.name(),
+                cx.name
+            ),
+        });
+    }
+    let run = Run { cx, s };
     let result = run.measure();
-    let refused_at_start = matches!(result, Err(CommissionError::Drive { .. })) && !run.switched;
-    let back = if refused_at_start {
-        Ok(())
-    } else {
-        run.hand_back(result.as_ref().err().and_then(failure_of))
-    };
-    match (result, back) {
-        (Ok(o), Ok(())) => {
+    // Handed back: the power off, then the current off and CSP again, whatever happened.
+    cx.progress("switching the drive back to CSP", 1.0);
+    let off = run
+        .drive_off()
+        .and_then(|()| run.write(objects::COMMUTATION_CURRENT, 0))
+        .and_then(|()| run.back_to_csp());
+    let result = result.and(off);
+    match result {
+        Ok(()) => {
+            let offset = run.read(objects::COMMUTATION_OFFSET)?;
             cx.progress("done", 1.0);
-            Ok(o)
+            Ok(ProcedureOutcome::Commutation {
+                offset_counts: offset as i32,
+            })
         }
-        (Ok(_), Err(e)) | (Err(e), _) => Err(e),
+        Err(CommissionError::Command { source, .. })
+            if matches!(
+                *source,
+                gantry_kernel::axis::command::CommandError::DriveProcedure(
+                    gantry_kernel::axis::lend::DriveProcedureError {
+                        failure: gantry_kernel::axis::lend::DriveProcedureFailure::Cancelled { .. },
+                        ..
+                    }
+                )
+            ) =>
+        {
+            Err(cx.cancelled_error("by a stop of the axis".into(), LEFT))
+        }
+        Err(e) => Err(e),
     }
 }

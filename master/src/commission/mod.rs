@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use gantry_drives::commutation::{CommutationError, CommutationOutcome};
+use gantry_drives::commutation::CommutationError;
 use gantry_kernel::axis::command::{Command, CommandError};
 use gantry_kernel::axis::handle::CommandStatus;
 use thiserror::Error;
@@ -51,7 +51,10 @@ impl Procedure {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ProcedureOutcome {
     /// The commutation offset, written to the drive.
-    Commutation(CommutationOutcome),
+    Commutation {
+        /// The offset (counts), as the drive's 0x2100 reads after the measurement.
+        offset_counts: i32,
+    },
     /// Reversing cycles run.
     Reversing {
         /// Cycles (there and back) run.
@@ -255,6 +258,11 @@ impl Context {
             p.phase = phase.to_string();
         }
         p.fraction = fraction.clamp(0.0, 1.0);
+    }
+
+    /// Whether the canceller stopped the axis itself.
+    pub fn stop_given(&self) -> bool {
+        self.shared.stop_given.load(Ordering::Relaxed)
     }
 
     /// Whether it was asked to stop.

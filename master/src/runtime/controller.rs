@@ -7,10 +7,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::lend::DriveProcedureError;
 use thiserror::Error;
 
 use super::engine::AppEnds;
@@ -135,45 +133,6 @@ impl Controller {
     /// Resets axis `axis` (its slave back to OP if needed, then the axis' Reset).
     pub fn reset(&self, axis: usize) -> Result<CommandHandle, ControlError> {
         self.send(|id| Request::Reset { id, axis })
-    }
-
-    /// Lends axis `axis` to its drive for `procedure` (see [`Request::LendToDrive`]): from
-    /// Standstill; the handle is Active while lent, Aborted when a power off, Stop or
-    /// QuickStop ends it, Done or Error at [`Controller::end_drive_procedure`].
-    pub fn lend_to_drive(
-        &self,
-        axis: usize,
-        procedure: &'static str,
-        outputs: ProcedureOutputs,
-    ) -> Result<CommandHandle, ControlError> {
-        self.send(|id| Request::LendToDrive {
-            id,
-            axis,
-            procedure,
-            outputs,
-        })
-    }
-
-    /// Changes what a lent axis' drive is sent.
-    pub fn set_procedure_outputs(
-        &self,
-        axis: usize,
-        outputs: ProcedureOutputs,
-    ) -> Result<(), ControlError> {
-        lock(&self.shared.requests)
-            .push(Request::ProcedureOutputs { axis, outputs })
-            .map_err(|_| ControlError::QueueFull)
-    }
-
-    /// Ends the lending of axis `axis` with `outcome`.
-    pub fn end_drive_procedure(
-        &self,
-        axis: usize,
-        outcome: Result<(), DriveProcedureError>,
-    ) -> Result<(), ControlError> {
-        lock(&self.shared.requests)
-            .push(Request::EndDriveProcedure { axis, outcome })
-            .map_err(|_| ControlError::QueueFull)
     }
 
     /// Asks the cycle to quick-stop, disable and end.

@@ -361,7 +361,6 @@ impl<B: CycleBus> Engine<B> {
         }
         self.run_procedures();
         self.cycle.step();
-        self.take_back_unlent();
         let _ = self.cycle.write_to(&mut self.bus);
         let t1 = now_ns();
         let reply_by = self.late_reply.reply_by(&wake, t1);
@@ -413,38 +412,6 @@ impl<B: CycleBus> Engine<B> {
                     let entry = self.reset(id, axis);
                     self.track(entry);
                 }
-                Request::LendToDrive {
-                    id,
-                    axis,
-                    procedure,
-                    outputs,
-                } => {
-                    let entry = match self.cycle.kernel.lend_to_drive(axis, procedure, false) {
-                        Ok(h) => {
-                            let _ = self.cycle.set_procedure_outputs(axis, Some(outputs));
-                            Entry {
-                                id,
-                                handle: Some(h),
-                                status: self.cycle.kernel.command_status(h),
-                            }
-                        }
-                        Err(e) => Entry {
-                            id,
-                            handle: None,
-                            status: CommandStatus::Error(e),
-                        },
-                    };
-                    self.track(entry);
-                }
-                Request::ProcedureOutputs { axis, outputs } => {
-                    if self.cycle.kernel.is_lent(axis) {
-                        let _ = self.cycle.set_procedure_outputs(axis, Some(outputs));
-                    }
-                }
-                Request::EndDriveProcedure { axis, outcome } => {
-                    let _ = self.cycle.set_procedure_outputs(axis, None);
-                    self.cycle.kernel.end_drive_procedure(axis, outcome);
-                }
                 Request::Shutdown => self.begin_shutdown(),
                 Request::Procedure {
                     id,
@@ -454,16 +421,6 @@ impl<B: CycleBus> Engine<B> {
                     let entry = self.start_procedure(id, axis, procedure);
                     self.track(entry);
                 }
-            }
-        }
-    }
-
-    /// A drive whose axis the kernel no longer lends (power off, Stop, QuickStop or a
-    /// fault ended it) gets its CSP outputs again: the kernel drives the axis.
-    fn take_back_unlent(&mut self) {
-        for axis in 0..self.cycle.len() {
-            if self.cycle.procedure_outputs(axis).is_some() && !self.cycle.kernel.is_lent(axis) {
-                let _ = self.cycle.set_procedure_outputs(axis, None);
             }
         }
     }
@@ -787,6 +744,7 @@ impl<B: CycleBus> Engine<B> {
                 mode_display: inputs.mode_display,
                 mode_mapped,
                 now_s,
+                position: inputs.position,
                 sdo: if r.active.is_some() {
                     None
                 } else {

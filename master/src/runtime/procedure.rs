@@ -21,15 +21,22 @@ use gantry_drives::cia402::homing::DriveHoming;
 use gantry_drives::cia402::procedure::{
     ModeSwitch, ProcedureFailure, ProcedureInputs, ProcedureStep, SdoAccess, SdoOutcome,
 };
+use gantry_drives::commutation::CommutationProcedure;
 use gantry_kernel::axis::lend::{DriveProcedureError, DriveProcedureFailure};
 
 use super::sdo::{SdoData, SdoError, SdoRequest, SdoResult};
 
 /// A procedure a drive runs by itself.
+// Inline on purpose (the commutation measurement carries its samples' sums): boxed, the
+// cycle thread would free it.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DriveProcedure {
     /// CiA 402 homing mode.
     Homing(DriveHoming),
+    /// The commutation measurement in the manufacturer's open-loop current mode
+    /// (`gantry_drives::commutation`).
+    Commutation(CommutationProcedure),
 }
 
 impl DriveProcedure {
@@ -37,6 +44,7 @@ impl DriveProcedure {
     pub const fn name(&self) -> &'static str {
         match self {
             Self::Homing(_) => "drive homing",
+            Self::Commutation(_) => "commutation measurement",
         }
     }
 
@@ -49,6 +57,7 @@ impl DriveProcedure {
     pub const fn method(&self) -> Option<i16> {
         match self {
             Self::Homing(h) => Some(h.params().method as i16),
+            Self::Commutation(_) => None,
         }
     }
 
@@ -56,18 +65,21 @@ impl DriveProcedure {
     pub const fn phase_name(&self) -> &'static str {
         match self {
             Self::Homing(h) => h.phase_name(),
+            Self::Commutation(c) => c.phase_name(),
         }
     }
 
     fn step(&mut self, io: &ProcedureInputs) -> ProcedureStep {
         match self {
             Self::Homing(h) => h.step(io),
+            Self::Commutation(c) => c.step(io),
         }
     }
 
     fn cancel(&mut self, by: &'static str) {
         match self {
             Self::Homing(h) => h.cancel(by),
+            Self::Commutation(c) => c.cancel(by),
         }
     }
 

@@ -3,11 +3,9 @@
 //! trace samples (a second SPSC queue). Every type here is fixed-size or preallocated, so
 //! the cycle thread neither allocates nor locks to use them.
 
-use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::cia402::State;
 use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::lend::DriveProcedureError;
 use gantry_kernel::axis::status::AxisStatus;
 
 use super::bus::{CanNodeStatus, Unreachable};
@@ -20,6 +18,9 @@ pub const TRACE_AXES: usize = 16;
 pub const TRACKED_COMMANDS: usize = 256;
 
 /// A request from the application.
+// Inline on purpose (a drive procedure is the largest): boxed, the cycle thread would free
+// it.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Request {
     /// A motion or power command for an axis.
@@ -37,36 +38,6 @@ pub enum Request {
         id: u64,
         /// Axis index.
         axis: usize,
-    },
-    /// Lend an axis to its drive for a procedure the application runs
-    /// ([`gantry_drives::cia402::procedure`]): the kernel lends it
-    /// (`Kernel::lend_to_drive`) and the drive gets `outputs` instead of its CSP outputs
-    /// until [`Request::EndDriveProcedure`], or until the kernel ends the lending itself
-    /// (power off, Stop, QuickStop, a fault).
-    LendToDrive {
-        /// Request id: its handle follows the lending.
-        id: u64,
-        /// Axis index.
-        axis: usize,
-        /// What the drive does (for messages).
-        procedure: &'static str,
-        /// What the drive is sent meanwhile.
-        outputs: ProcedureOutputs,
-    },
-    /// Changes what a lent axis' drive is sent (e.g. the mode back to CSP before the end).
-    ProcedureOutputs {
-        /// Axis index.
-        axis: usize,
-        /// The new outputs.
-        outputs: ProcedureOutputs,
-    },
-    /// Ends a lending: the drive gets its CSP outputs again, the kernel takes the axis
-    /// back (`Kernel::end_drive_procedure`), its handle Done or Error.
-    EndDriveProcedure {
-        /// Axis index.
-        axis: usize,
-        /// How the procedure ended.
-        outcome: Result<(), DriveProcedureError>,
     },
     /// Stop moving axes, disable the drives, end the cycle.
     Shutdown,

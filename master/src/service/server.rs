@@ -419,10 +419,6 @@ fn commission(
             drive: section.drive,
             counts_per_rev: section.scaling.counts_per_motor_rev,
             current_per_mille: current,
-            counts_per_unit: section
-                .scaling()
-                .map_err(|_| Refused::NoConfig(a.clone()))?
-                .velocity_to_counts(1.0),
         }),
         CommissionKind::Reversing => {
             let r = Reversing {
@@ -471,10 +467,8 @@ fn procedure_json(state: &ServerState, p: &ProcedureHandle) -> Value {
             v["done"] = json!(true);
             v["ok"] = json!(true);
             v["result"] = match outcome {
-                ProcedureOutcome::Commutation(c) => json!({
-                    "offset_counts": c.offset_counts,
-                    "lag_electrical_deg": c.lag_electrical_deg,
-                    "travel_counts": c.travel_counts,
+                ProcedureOutcome::Commutation { offset_counts } => json!({
+                    "offset_counts": offset_counts,
                 }),
                 ProcedureOutcome::Reversing { cycles } => json!({ "cycles": cycles }),
             };
