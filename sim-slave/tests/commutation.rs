@@ -224,3 +224,112 @@ fn a_blocked_rotor_is_reported_and_the_current_switched_off() {
     );
     assert_eq!(r.read(objects::COMMUTATION_CURRENT), [0, 0]);
 }
+
+/// The measurement as the master's cycle thread runs it
+/// (`gantry_drives::commutation::CommutationProcedure`), emulated here as the engine does:
+/// each cycle the drive's inputs (statusword, 0x6064) and the outcome of the one SDO access
+/// on its way; the outputs it asks for stepped towards Operation enabled (as the channel
+/// does for a lent drive: from Switch on disabled, the axis Disabled); its accesses served
+/// by the drive's dictionary, answered the next cycle. `cancel_at`: a Stop at that cycle.
+fn run_procedure(
+    r: &mut Rig,
+    cancel_at: Option<usize>,
+) -> Result<(), gantry_drives::cia402::procedure::ProcedureFailure> {
+    use gantry_drives::cia402::procedure::{ProcedureInputs, SdoOutcome};
+    use gantry_drives::cia402::Statusword;
+    use gantry_drives::commutation::CommutationProcedure;
+    let pole_pairs = u32::from(r.read(objects::MOTOR_POLE_PAIRS)[0]);
+    let config = CommutationConfig::new(r.d.params.counts_per_rev, pole_pairs);
+    let mut p = CommutationProcedure::new(CommutationMeasurement::new(config).unwrap());
+    let mut sdo: Option<SdoOutcome> = None;
+    for n in 0..20_000 {
+        if cancel_at == Some(n) {
+            p.cancel("Stop");
+        }
+        // The cycle: the controlword towards Operation enabled (no PDO mode: 0x6060 goes
+        // by SDO), then the drive's inputs.
+        r.cw = match r.d.state() {
+            State::SwitchOnDisabled => 0x06,
+            State::ReadyToSwitchOn => 0x07,
+            _ => 0x0F,
+        };
+        let position = r.cycle();
+        let mut inp = [0u8; 6];
+        r.d.publish_input_image(&mut inp);
+        let sw = Statusword(u16::from_le_bytes([inp[0], inp[1]]));
+        let io = ProcedureInputs {
+            statusword: sw,
+            mode_display: None,
+            mode_mapped: false,
+            now_s: r.t,
+            position,
+            sdo: sdo.take(),
+        };
+        let step = p.step(&io);
+        if let Some(a) = step.sdo {
+            sdo = Some(match a.write {
+                Some(v) => {
+                    let bytes = v.to_le_bytes();
+                    match r
+                        .od
+                        .write(a.object.index, a.object.sub, &bytes[..a.object.kind.size()])
+                    {
+                        Ok(()) => {
+                            r.d.take_objects(&r.od);
+                            SdoOutcome::Done(0)
+                        }
+                        Err(_) => SdoOutcome::Aborted(0x0609_0030),
+                    }
+                }
+                None => {
+                    let b = r.read(a.object);
+                    let mut raw = [0u8; 8];
+                    raw[..b.len()].copy_from_slice(&b);
+                    let v = i64::from_le_bytes(raw);
+                    let shift = 64 - 8 * b.len() as u32;
+                    SdoOutcome::Done((v << shift) >> shift)
+                }
+            });
+        }
+        if let Some(end) = step.end {
+            return end;
+        }
+    }
+    panic!("the procedure did not end");
+}
+
+#[test]
+fn the_cycle_thread_procedure_measures_from_a_disabled_drive_and_ends_with_the_current_off() {
+    let params = ServoParams {
+        pole_pairs: 4,
+        commutation_offset: 23_456,
+        ..ServoParams::default()
+    };
+    let mut r = Rig::new(params, 5000);
+    assert_eq!(r.d.state(), State::SwitchOnDisabled);
+    run_procedure(&mut r, None).unwrap();
+    let miss = electrical_error_deg(
+        i64::from(r.d.commutation_setting),
+        23_456,
+        params.counts_per_rev,
+        4,
+    );
+    assert!(miss.abs() <= 1.0, "{}: {miss}°", r.d.commutation_setting);
+    assert_eq!(r.read(objects::COMMUTATION_CURRENT), [0, 0], "current off");
+    assert_eq!(
+        r.read(objects::MODES_OF_OPERATION_DISPLAY),
+        [0xFF],
+        "still open loop"
+    );
+    assert_eq!(r.d.error_code(), 0);
+
+    // Cancelled while the vector turns: the current is switched off, the end says why.
+    let mut r = Rig::new(params, 0);
+    let e = run_procedure(&mut r, Some(1500)).unwrap_err();
+    assert_eq!(
+        e,
+        gantry_drives::cia402::procedure::ProcedureFailure::Cancelled { by: "Stop" }
+    );
+    assert_eq!(r.read(objects::COMMUTATION_CURRENT), [0, 0], "current off");
+    assert_eq!(r.d.commutation_setting, 0, "nothing written");
+}
