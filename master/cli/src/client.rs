@@ -214,10 +214,22 @@ pub fn status(
     )
     .map_err(io)?;
     for d in s["drives"].as_array().into_iter().flatten() {
+        // A procedure the drive runs by itself shows where the fault would.
+        let procedure = d["procedure"].is_object().then(|| {
+            let p = &d["procedure"];
+            format!(
+                "{} method {}: {}",
+                p["name"].as_str().unwrap_or("?"),
+                p["method"],
+                p["phase"].as_str().unwrap_or("?")
+            )
+        });
         let fault = d["bus_fault"]
             .as_str()
             .or(d["error_code"].as_str())
-            .unwrap_or("");
+            .map(str::to_string)
+            .or(procedure)
+            .unwrap_or_default();
         writeln!(
             out,
             "{:<6} {:<6} {:<22} {:<10} {}",

@@ -68,4 +68,31 @@ fn gantry_home_drive_lets_the_drive_home_itself_from_the_shell() {
     svc.ok(&["move", "x", "--to", "5", "--speed", "20"]);
     let p = svc.axis("x")["position"].as_f64().unwrap();
     assert!((p - 5.0).abs() < 0.01, "{p}");
+    // Progress in `gantry status`: started without waiting from 7 mm below the edge
+    // (3.5 s of search at 2 mm/s), the drive's line names the procedure and its phase.
+    svc.ok(&["move", "x", "--to=-9", "--speed", "50"]);
+    svc.ok(&["home", "x", "--drive", "--speed-switch", "2", "--no-wait"]);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let mut seen = None;
+    while std::time::Instant::now() < deadline {
+        let table = svc.ok(&["status"]);
+        if let Some(line) = table
+            .lines()
+            .find(|l| l.starts_with("x ") && l.contains("drive homing method 19: "))
+        {
+            seen = Some(line.to_string());
+            break;
+        }
+    }
+    let line = seen.expect("the procedure in the status table");
+    assert!(
+        line.contains("homing") || line.contains("writing"),
+        "{line}"
+    );
+    while std::time::Instant::now() < deadline && svc.axis("x")["state"] != "Standstill" {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let x = svc.axis("x");
+    assert_eq!(x["homed"], true, "{x}");
+    assert!((x["position"].as_f64().unwrap() + 2.0).abs() < 0.001, "{x}");
 }
