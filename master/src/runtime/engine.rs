@@ -743,8 +743,8 @@ impl<B: CycleBus> Engine<B> {
                 statusword: inputs.statusword,
                 mode_display: inputs.mode_display,
                 mode_mapped,
-                now_s,
                 position: inputs.position,
+                now_s,
                 sdo: if r.active.is_some() {
                     None
                 } else {
