@@ -283,10 +283,16 @@ impl Rig {
         rig
     }
 
-    /// One lockstep cycle.
+    /// One lockstep cycle. The model's probe follows the setpoint's routing (a drive
+    /// layer that puts the probe on the limit switch the kernel asks for): the limit's
+    /// edges are latched only while the kernel asks for them.
     pub fn cycle(&mut self) -> Sample {
         let fb = self.m.feedback();
         let sp = self.k.step(&[fb])[0];
+        self.m.probe_source = match sp.probe_on_limit {
+            Some(side) => ProbeSource::Limit(side),
+            None => ProbeSource::Reference,
+        };
         self.m.advance(&sp);
         self.sp = sp;
         Sample {
