@@ -259,6 +259,11 @@ impl Saved {
         }
     }
 
+    /// Whether an axis has an absolute encoder (whose offset is watched and saved).
+    pub fn has_absolute(&self) -> bool {
+        self.encoders.iter().any(|e| e.0 == Encoder::Absolute)
+    }
+
     /// The absolute axes whose position offset changed while homed, in `snap`: their
     /// new offsets (remembered at once), to be saved with [`Saved::save_offset`].
     pub fn offsets_to_save(&self, snap: &Snapshot) -> Vec<(usize, f64)> {

@@ -269,6 +269,9 @@ pub fn restore_positions(
 /// Saves the position offsets of absolute axes that changed while homed (a blocking
 /// write, done on a thread of its own so the control socket goes on).
 fn save_offsets(saved: &Arc<Saved>, controller: &Controller) {
+    if !saved.has_absolute() || saved.store().is_none() {
+        return;
+    }
     let snap = controller.snapshot();
     for (axis, offset) in saved.offsets_to_save(&snap) {
         let saved = saved.clone();
