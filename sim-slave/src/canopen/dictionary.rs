@@ -224,6 +224,7 @@ fn od_abort(e: OdError) -> AbortCode {
         OdError::NotMappable => AbortCode::NOT_MAPPABLE,
         OdError::PdoTooLong => AbortCode::PDO_LENGTH_EXCEEDED,
         OdError::ValueRange => AbortCode::INVALID_VALUE,
+        OdError::ValueTooHigh => AbortCode::VALUE_TOO_HIGH,
     }
 }
 
