@@ -1145,6 +1145,7 @@ impl Axis {
             },
             homing: self.home_status,
             switches: self.switches,
+            position_offset: self.position_offset,
         };
     }
 

@@ -70,6 +70,27 @@ pub struct AxisSection {
     /// Limit and reference switches and the touch probe (`[axis.switches]`).
     #[serde(default)]
     pub switches: super::switches::SwitchesSection,
+    /// What the drive's position counts from: `"incremental"` (default: from where the
+    /// drive was switched on) or `"absolute"` (a multi-turn absolute encoder: the same
+    /// place reads the same after power-off). An absolute axis' position offset is saved
+    /// whenever it is homed and restored at start (SPEC §1: restored, not homed).
+    #[serde(default)]
+    pub encoder: Encoder,
+    /// An absolute axis is homed at start from its saved position offset (SPEC §1: "homed
+    /// only when told so"). Refused for an incremental encoder.
+    #[serde(default)]
+    pub homed_at_start: bool,
+}
+
+/// `encoder` of `[[axis]]`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Encoder {
+    /// Counts from where the drive was switched on.
+    #[default]
+    Incremental,
+    /// Reads the same at the same place after a power-off (multi-turn absolute).
+    Absolute,
 }
 
 /// `drive` as read when the file does not give it.
@@ -197,6 +218,15 @@ impl AxisSection {
 
     /// The kernel's configuration of this axis (checked by the kernel's own rules).
     pub fn kernel_config(&self) -> Result<AxisConfig, (String, String)> {
+        if self.homed_at_start && self.encoder != Encoder::Absolute {
+            return Err((
+                "homed_at_start".into(),
+                "needs an absolute encoder (encoder = \"absolute\"): an incremental \
+                 encoder's position is lost when the drive is switched off, so a saved \
+                 offset would home the axis at the wrong place"
+                    .into(),
+            ));
+        }
         self.scaling()?;
         self.pdo_layout()?;
         let mut c = AxisConfig::new(&self.name, AxisKind::Real);

@@ -254,7 +254,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `encoder`, `homed_at_start`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -602,5 +602,59 @@ fn canopen_cycles_may_be_longer_than_ethercat_ones() {
     assert!(
         e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"),
         "{e}"
+    );
+}
+
+#[test]
+fn homed_at_start_needs_an_absolute_encoder() {
+    let x = "software_limits = [-10.0, 400.0]   # active once homed";
+    let e = mistake(x, &format!("{x}\nhomed_at_start = true"));
+    assert!(e.starts_with("g.toml:"), "{e}");
+    assert!(
+        e.ends_with(
+            "axis[0].homed_at_start: needs an absolute encoder (encoder = \"absolute\"): an \
+             incremental encoder's position is lost when the drive is switched off, so a saved \
+             offset would home the axis at the wrong place"
+        ),
+        "{e}"
+    );
+    let e = mistake(x, &format!("{x}\nencoder = \"optical\""));
+    assert!(e.contains("encoder") && e.contains("absolute"), "{e}");
+    let ok = Config::parse(
+        &EXAMPLE.replacen(
+            x,
+            &format!("{x}\nencoder = \"absolute\"\nhomed_at_start = true"),
+            1,
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    assert_eq!(ok.axes[0].encoder, Encoder::Absolute);
+    assert!(ok.axes[0].homed_at_start);
+    assert_eq!(ok.axes[1].encoder, Encoder::Incremental);
+}
+
+#[test]
+fn the_state_directory_is_relative_to_the_configuration() {
+    let rt = "overrun_limit = 10            # overruns in a row before every axis stops";
+    let e = mistake(rt, &format!("{rt}\n\n[service]\nstate_dir = \" \""));
+    assert!(e.contains("service.state_dir: is empty"), "{e}");
+    let dir = std::env::temp_dir().join(format!("gantry-config-state-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g.toml");
+    let with = |d: &str| EXAMPLE.replacen(rt, &format!("{rt}\n\n[service]\nstate_dir = {d:?}"), 1);
+    std::fs::write(&path, with("state")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(
+        c.service.state_dir,
+        Some(dir.join("state").display().to_string())
+    );
+    std::fs::write(&path, with("/var/lib/g")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(c.service.state_dir.as_deref(), Some("/var/lib/g"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        Config::parse(EXAMPLE, "g.toml").unwrap().service.state_dir,
+        None
     );
 }

@@ -15,10 +15,12 @@ pub mod checksum;
 pub mod envelope;
 pub mod error;
 pub mod params;
+pub mod saved;
 pub mod store;
 
 pub use error::PersistError;
 pub use params::{AxisParams, PositionOffset, PtpParams, ScalingStamp};
+pub use saved::{Saved, StartPosition};
 pub use store::Store;
 
 use std::path::PathBuf;
