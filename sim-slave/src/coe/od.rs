@@ -14,6 +14,10 @@ pub fn servo_pdo_rules() -> PdoRules {
         outputs: image::OUTPUT_OBJECTS.to_vec(),
         inputs: image::INPUT_OBJECTS.to_vec(),
         max_entries: 10,
+        // 0x1600–0x1603 / 0x1A00–0x1A03, as CiA 402 drives commonly offer.
+        pdos: 4,
+        // The servo's process data buffer each way.
+        max_bytes: 64,
     }
 }
 
@@ -63,6 +67,9 @@ pub enum OdError {
     PdoTooLong,
     /// The value is outside the object's range (abort 0x06090030).
     ValueRange,
+    /// The value is above the object's maximum (abort 0x06090031): more PDOs assigned
+    /// than the device has.
+    ValueTooHigh,
 }
 
 impl ObjectDictionary {
