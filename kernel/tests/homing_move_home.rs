@@ -379,3 +379,94 @@ fn saved_parameters_are_used_by_a_call_without_parameters() {
     rig.k.command(0, Command::MoveHome(changed)).unwrap();
     assert_eq!(rig.k.axes()[0].move_home_parameters().normal_position, 1.0);
 }
+
+/// An axis whose drive layer cannot put the touch probe on its limit switches
+/// (`limit_edges_latched` off: no 0x60D0 configured) refuses MoveHome with LimitSwitch in
+/// every mode — its edge (the reference, or where the index search starts) would be
+/// another switch's latch — and still homes on its reference switch.
+#[test]
+fn a_limit_switch_edge_needs_the_probe_on_the_limit_switch() {
+    let mut cfg = axis_config();
+    cfg.limit_edges_latched = false;
+    let mut rig = Rig::new(cfg, Layout::STANDARD, 0.0);
+    for mode in MODES {
+        let call = MoveHomeCall::all(params(
+            MoveDirection::Positive,
+            SwitchConfig::LimitSwitch,
+            mode,
+        ));
+        let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "MoveHome: parameter SwitchConfig = NaN LimitSwitch takes the limit switch's \
+                 edge from the drive's touch probe"
+            ),
+            "{e}"
+        );
+        assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Standstill);
+    }
+    let call = MoveHomeCall::all(params(
+        MoveDirection::Positive,
+        SwitchConfig::RefSwitch,
+        HomingMode::SwitchingEdge1Phase,
+    ));
+    let h = rig.k.command(0, Command::MoveHome(call)).unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Busy);
+}
+
+/// The setpoint asks the drive layer for the probe on the limit switch exactly while a
+/// MoveHome with LimitSwitch runs (ZeroPulse too: its index search starts at the switch's
+/// edge), not for one on the reference switch, not after the run.
+#[test]
+fn the_setpoint_routes_the_probe_to_the_limit_switch_for_the_run_only() {
+    for (direction, mode, routed) in [
+        (
+            MoveDirection::Positive,
+            HomingMode::SwitchingEdge1Phase,
+            Some(gantry_kernel::homing::LimitSide::Positive),
+        ),
+        (
+            MoveDirection::Negative,
+            HomingMode::SwitchingEdge2Phase,
+            Some(gantry_kernel::homing::LimitSide::Negative),
+        ),
+        (
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse2Phase,
+            Some(gantry_kernel::homing::LimitSide::Positive),
+        ),
+    ] {
+        let p = params(direction, SwitchConfig::LimitSwitch, mode);
+        let mut rig = rig_for(Layout::STANDARD, &p, 20.0);
+        assert_eq!(rig.sp.probe_on_limit, None);
+        let h = rig
+            .k
+            .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+            .unwrap();
+        assert_eq!(rig.cycle().setpoint.probe_on_limit, routed, "{mode:?}");
+        let mut out = Vec::new();
+        assert_eq!(
+            rig.run_until_final(h, 200_000, &mut out),
+            CommandStatus::Done,
+            "{direction:?} {mode:?}"
+        );
+        assert!(out
+            .iter()
+            .all(|s| s.setpoint.probe_on_limit == routed || s.setpoint.probe_on_limit.is_none()));
+        assert_eq!(rig.cycle().setpoint.probe_on_limit, None, "after the run");
+    }
+    let p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge1Phase,
+    );
+    let mut rig = rig_for(Layout::STANDARD, &p, 20.0);
+    rig.k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    assert_eq!(
+        rig.cycle().setpoint.probe_on_limit,
+        None,
+        "reference switch"
+    );
+}

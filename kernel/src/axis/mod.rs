@@ -153,6 +153,12 @@ pub struct AxisConfig {
     ///
     /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
     pub move_home: Option<crate::homing::MoveHome>,
+    /// The drive layer can latch a limit switch's edges with the touch probe (it routes
+    /// the probe to [`AxisSetpoint::probe_on_limit`]). Without it MoveHome with
+    /// `LimitSwitch` in a SwitchingEdge mode is refused: the latches would be another
+    /// switch's. On in [`AxisConfig::new`]; the master turns it off unless the drive's
+    /// touch-probe source (0x60D0) is configured.
+    pub limit_edges_latched: bool,
 }
 
 impl AxisConfig {
@@ -184,6 +190,7 @@ impl AxisConfig {
             initial_position: 0.0,
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
             move_home: None,
+            limit_edges_latched: true,
         }
     }
 
@@ -391,6 +398,10 @@ pub struct AxisSetpoint {
     pub enable: bool,
     /// A Reset asks the drive to clear its fault (the drive layer sends the fault reset).
     pub reset_fault: bool,
+    /// A homing run looks for this limit switch's edge: the drive layer routes the touch
+    /// probe to it (CiA 402 0x60D0) until the run ends, so the rising and falling latches
+    /// are that switch's. `None`: the probe on the reference switch.
+    pub probe_on_limit: Option<crate::homing::LimitSide>,
 }
 
 /// One axis.
@@ -641,6 +652,10 @@ impl Axis {
             acceleration: self.status.set.a,
             enable: self.powered,
             reset_fault: self.reset_pending.is_some(),
+            probe_on_limit: self
+                .homing
+                .as_ref()
+                .and_then(|(seq, _)| seq.plan().latched_limit()),
         }
     }
 

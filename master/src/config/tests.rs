@@ -207,6 +207,81 @@ fn switches_add_their_objects_to_the_layout_and_name_their_mistakes() {
     );
 }
 
+/// `probe_source`: 0x60D0:1/:2 written at bring-up, 0x60BD mapped, MoveHome on a limit
+/// switch allowed; its mistakes named; without it the kernel refuses that MoveHome.
+#[test]
+fn the_probe_source_for_the_limit_switches_is_checked_and_written() {
+    let with = |switches: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp-minimal\"\nswitches = {{ {switches} }}"),
+            1,
+        )
+    };
+    let limits = "negative_limit = \"drive\", positive_limit = \"drive\", reference = \"drive\"";
+    let c = Config::parse(
+        &with(&format!(
+            "{limits}, probe_source = {{ negative_limit = -1, positive_limit = -2 }}"
+        )),
+        "g.toml",
+    )
+    .unwrap();
+    let x = &c.axes[0];
+    assert_eq!(
+        x.pdo_layout().unwrap().inputs.last().map(|o| o.index),
+        Some(0x60BD)
+    );
+    let w: Vec<(u16, u8, Vec<u8>)> = x
+        .switches
+        .sdo_writes()
+        .unwrap()
+        .into_iter()
+        .map(|w| (w.index, w.sub, w.value))
+        .collect();
+    assert_eq!(
+        w,
+        [
+            (0x60D0, 1, (-1i16).to_le_bytes().to_vec()),
+            (0x60D0, 2, (-2i16).to_le_bytes().to_vec())
+        ]
+    );
+    assert!(x.kernel_config().unwrap().limit_edges_latched);
+    // Without it: nothing written, no 0x60BD, the kernel told.
+    let c = Config::parse(&with(limits), "g.toml").unwrap();
+    assert!(c.axes[0].switches.sdo_writes().unwrap().is_empty());
+    assert!(!c.axes[0].kernel_config().unwrap().limit_edges_latched);
+    for (switches, why) in [
+        (
+            "positive_limit = \"drive\", reference = \"drive\", \
+             probe_source = { negative_limit = -1, positive_limit = -2 }",
+            "needs negative_limit and positive_limit from the drive",
+        ),
+        (
+            &*format!("{limits}, probe_source = {{ negative_limit = 0, positive_limit = -2 }}"),
+            "0 is reserved in 0x60D0 (ETG.6010); give the drive's values",
+        ),
+        (
+            &*format!("{limits}, probe_source = {{ negative_limit = -3, positive_limit = -3 }}"),
+            "negative_limit and positive_limit name the same source",
+        ),
+        (
+            &*format!(
+                "{limits}, touch_probe = false, \
+                 probe_source = {{ negative_limit = -1, positive_limit = -2 }}"
+            ),
+            "needs the touch probe (a reference switch, or touch_probe = true)",
+        ),
+    ] {
+        let e = Config::parse(&with(switches), "g.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with(&format!("axis[0].switches.probe_source: {why}")),
+            "{e}"
+        );
+    }
+}
+
 /// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
 /// lines added to `[bus]`.
 fn canopen(nodes: &[&str], bus: &str) -> Result<Config, ConfigError> {

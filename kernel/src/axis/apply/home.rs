@@ -131,6 +131,19 @@ impl Axis {
                 problem: "SwitchingEdge needs a switch: SwitchConfig NoSwitch is for ZeroPulse",
             });
         }
+        // Every LimitSwitch run looks for the limit switch's edge (SwitchingEdge: the
+        // reference; ZeroPulse: where the index search starts), which comes from the touch
+        // probe only.
+        if p.switch_config == SwitchConfig::LimitSwitch && !self.cfg.limit_edges_latched {
+            return Err(CommandError::HomingParameter {
+                command: c,
+                parameter: "SwitchConfig",
+                value: f64::NAN,
+                problem: "LimitSwitch takes the limit switch's edge from the drive's touch \
+                          probe, which this axis cannot route to its limit switches \
+                          (configure [axis.switches] probe_source, 0x60D0)",
+            });
+        }
         self.check_homing_direction(c, p.direction.sign())?;
         self.move_home = p;
         let dynamics = HomingDynamics {
