@@ -44,6 +44,7 @@
 //! at the drive's SYNC0 edge: [`ServoDrive::take_outputs`], [`ServoDrive::run`],
 //! [`ServoDrive::publish_inputs`] ([`ServoDrive::step`] does all three).
 
+pub mod crossings;
 pub mod motor;
 pub mod params;
 pub mod probe;
@@ -59,6 +60,7 @@ use gantry_drives::cia402::{Controlword, DeviceStateMachine, State, Statusword};
 use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
+use crossings::CrossingLog;
 use motor::{Drive, Gains, Motor};
 pub use params::{ParamError, ServoParams};
 use probe::{Edge, Signal, TouchProbe};
@@ -218,6 +220,9 @@ pub struct ServoDrive {
     /// view the master uses too (`gantry_drives::cia402::image`).
     map: PdoMap,
     record: DriveRecord,
+    /// Every switch edge and index pulse the load crossed (the simulator's truth for
+    /// homing tests).
+    crossings: CrossingLog,
 }
 
 impl ServoDrive {
@@ -274,6 +279,7 @@ impl ServoDrive {
             map: PdoMap::of(&layout),
             layout,
             record: DriveRecord::default(),
+            crossings: CrossingLog::default(),
         }
     }
 
@@ -294,6 +300,7 @@ impl ServoDrive {
         if from == to {
             return;
         }
+        self.crossings.watch(&self.params, from, to);
         let p = &self.params;
         let index =
             probe::index_crossing(from, to, i64::from(p.index_at), i64::from(p.counts_per_rev));
@@ -423,6 +430,11 @@ impl ServoDrive {
         self.pending_touch_probe = None;
         self.probe = TouchProbe::default();
         self.record.disabled();
+    }
+
+    /// The switch edges and index pulses the load crossed, where (counts).
+    pub fn crossings(&self) -> &CrossingLog {
+        &self.crossings
     }
 
     /// What the drive recorded of the setpoints it took.
