@@ -663,8 +663,10 @@ fn save_if_accepted(
             }
             tokio::time::sleep(Duration::from_millis(2)).await;
         };
-        if matches!(status, CommandStatus::Error(_) | CommandStatus::Expired) {
-            return;
+        match status {
+            CommandStatus::Error(e) if !failed_after_start(&e) => return,
+            CommandStatus::Expired => return,
+            _ => {}
         }
         match tokio::task::spawn_blocking(save).await {
             Ok(Ok(_)) => {}
@@ -679,6 +681,19 @@ fn save_if_accepted(
             Err(_) => {}
         }
     });
+}
+
+/// Whether a command's error came after the axis took it (its parameters were then the
+/// axis', and are saved): the run failed — a homing search, a limit switch, a fault, the
+/// target not reached — as opposed to the command being refused at once.
+fn failed_after_start(e: &CommandError) -> bool {
+    matches!(
+        e,
+        CommandError::Homing(_)
+            | CommandError::LimitSwitch { .. }
+            | CommandError::AxisFault { .. }
+            | CommandError::TargetNotReached { .. }
+    )
 }
 
 fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
@@ -752,6 +767,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         "time_s": snap.time_s,
         "cycles": snap.cycle,
         "real_time": state.real_time,
+        "state_dir": state.saved.store().map(|s| s.dir().display().to_string()),
         "ended": snap.ended,
         "overrun_stop": snap.overrun_stop,
         "axes": axes,
