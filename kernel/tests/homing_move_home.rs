@@ -398,8 +398,8 @@ fn a_limit_switch_edge_needs_the_probe_on_the_limit_switch() {
         let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
         assert!(
             e.to_string().starts_with(
-                "MoveHome: parameter SwitchConfig = NaN LimitSwitch takes the limit switch's \
-                 edge from the drive's touch probe"
+                "MoveHome: parameter SwitchConfig = NaN needs the limit switch's edge from the \
+                 drive's touch probe, which this axis cannot route to its limit switches"
             ),
             "{e}"
         );
@@ -411,6 +411,58 @@ fn a_limit_switch_edge_needs_the_probe_on_the_limit_switch() {
         HomingMode::SwitchingEdge1Phase,
     ));
     let h = rig.k.command(0, Command::MoveHome(call)).unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Busy);
+}
+
+/// A reference switch the probe cannot latch (read from an I/O module): every MoveHome
+/// that looks for its edge is refused — SwitchingEdge (the reference) and ZeroPulse (the
+/// index search starts at the edge) —, StepAbsoluteSwitch on an edge too; a ZeroPulse
+/// run without a switch (the index pulse, latched by probe 2) and a Beckhoff search for
+/// the switch's level (sampled, as TwinCAT's mcOn) still run.
+#[test]
+fn a_reference_switch_the_probe_cannot_latch_refuses_edge_homing_only() {
+    use gantry_kernel::homing::{HomeDirection, StepAbsoluteSwitch, SwitchMode};
+    let mut cfg = axis_config();
+    cfg.reference_edges_latched = false;
+    let mut rig = Rig::new(cfg, Layout::STANDARD, 0.0);
+    for (config, mode) in [
+        (SwitchConfig::RefSwitch, HomingMode::SwitchingEdge1Phase),
+        (
+            SwitchConfig::RefAndLimitSwitch,
+            HomingMode::SwitchingEdge2Phase,
+        ),
+        (SwitchConfig::RefSwitch, HomingMode::ZeroPulse1Phase),
+        (SwitchConfig::RefAndLimitSwitch, HomingMode::ZeroPulse2Phase),
+    ] {
+        let call = MoveHomeCall::all(params(MoveDirection::Positive, config, mode));
+        let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "MoveHome: parameter SwitchConfig = NaN needs the reference switch's edge"
+            ),
+            "{config:?} {mode:?}: {e}"
+        );
+        assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Standstill);
+    }
+    let step = |mode| {
+        Command::StepAbsoluteSwitch(StepAbsoluteSwitch {
+            direction: HomeDirection::Positive,
+            switch_mode: mode,
+            position: 0.0,
+            velocity: 10.0,
+            acceleration: 100.0,
+            deceleration: 100.0,
+            jerk: 1_000.0,
+            distance_limit: f64::INFINITY,
+        })
+    };
+    let e = rig.k.command(0, step(SwitchMode::RisingEdge)).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("StepAbsoluteSwitch: parameter SwitchMode = NaN needs the reference"),
+        "{e}"
+    );
+    let h = rig.k.command(0, step(SwitchMode::On)).unwrap();
     assert_eq!(rig.k.command_status(h), CommandStatus::Busy);
 }
 

@@ -44,6 +44,26 @@ pub const AXIS_SWITCHES_TOML: &str = "[axis.switches]\nnegative_limit = \"drive\
      positive_limit = \"drive\"\nreference = \"drive\"\n\
      probe_source = { negative_limit = -1, positive_limit = -2 }\n";
 
+/// A digital-input module (chain position 1, watching the servo at 0) with the same
+/// switches on its inputs: 0 the home cam, 1 the positive and 2 the negative limit
+/// switch, both normally closed (the input drops when actuated).
+pub fn module_switches_toml() -> String {
+    format!(
+        "[[slave]]\nkind = \"switches\"\naxis = 0\n\
+         [[slave.cam]]\ninput = 0\nfrom = {}\nto = {}\n\
+         [[slave.cam]]\ninput = 1\nfrom = {POSITIVE_LIMIT_AT}\nto = 9000000000\nnormally_closed = true\n\
+         [[slave.cam]]\ninput = 2\nfrom = -9000000000\nto = {NEGATIVE_LIMIT_AT}\nnormally_closed = true\n",
+        CAM.0, CAM.1
+    )
+}
+
+/// The axis' switches on the module of [`module_switches_toml`] (`[axis.switches]`); the
+/// drive's touch probe stays mapped for the index pulse.
+pub const AXIS_MODULE_SWITCHES_TOML: &str = "[axis.switches]\n\
+     negative_limit = { from = \"module\", slave = 1, input = 2, normally_closed = true }\n\
+     positive_limit = { from = \"module\", slave = 1, input = 1, normally_closed = true }\n\
+     reference = { from = \"module\", slave = 1, input = 0 }\n";
+
 /// Counts per mm: 2¹⁷ counts per motor revolution, 5 mm per revolution.
 pub const COUNTS_PER_MM: f64 = 131_072.0 / 5.0;
 /// The home cam: 10 mm to just under 12 mm (counts, both included).
@@ -98,6 +118,51 @@ pub fn scenario(rig: &mut impl HomingRig) {
     move_home_takes_the_edge_from_the_touch_probe_to_the_count(rig);
     move_home_on_the_index_pulse(rig);
     move_home_on_a_limit_switch_edge(rig);
+    assert_eq!(rig.drive_faults(), 0);
+}
+
+/// The scenario with the switches on an I/O module ([`AXIS_MODULE_SWITCHES_TOML`]): they
+/// reach the axis every cycle and a limit switch stops it as the drive's do; MoveHome on
+/// the reference switch's edge (and ZeroPulse after it, which starts at that edge) is
+/// refused — the probe cannot latch a module input — and the axis goes on; MoveHome on
+/// the index pulse alone runs.
+pub fn module_scenario(rig: &mut impl HomingRig) {
+    the_drive_s_switches_reach_the_axis(rig);
+    a_limit_switch_stops_the_axis_and_lets_it_only_move_away(rig);
+    for mode in [HomingMode::SwitchingEdge1Phase, HomingMode::ZeroPulse1Phase] {
+        let status = run(rig, move_home(MoveDirection::Positive, mode, 10.0, 2.0));
+        let CommandStatus::Error(e) = status else {
+            panic!("{mode:?}: {status:?}, not refused");
+        };
+        assert!(
+            e.to_string()
+                .contains("needs the reference switch's edge from the drive's touch probe"),
+            "{mode:?}: {e}"
+        );
+        assert_eq!(rig.status().state, AxisState::Standstill);
+    }
+    // ZeroPulse without a switch: the index pulse (probe 2) only.
+    let below = axis_frame(rig, -20.0);
+    let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, below).speed(50.0));
+    assert_eq!(run(rig, to), CommandStatus::Done);
+    let params = MoveHome {
+        switch_config: SwitchConfig::NoSwitch,
+        ..home_params(
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse1Phase,
+            5.0,
+            5.0,
+        )
+    };
+    let status = run(rig, Command::MoveHome(MoveHomeCall::all(params)));
+    assert_eq!(status, CommandStatus::Done, "{:?}", rig.status().error);
+    rig.cycles(200);
+    let at = drive_counts(rig);
+    let index = 1000 + (at - 1000 + 65_536).div_euclid(131_072) * 131_072;
+    assert!(
+        (at - index).abs() <= 1,
+        "stands at {at}, nearest index {index}"
+    );
     assert_eq!(rig.drive_faults(), 0);
 }
 

@@ -154,11 +154,16 @@ pub struct AxisConfig {
     /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
     pub move_home: Option<crate::homing::MoveHome>,
     /// The drive layer can latch a limit switch's edges with the touch probe (it routes
-    /// the probe to [`AxisSetpoint::probe_on_limit`]). Without it MoveHome with
-    /// `LimitSwitch` in a SwitchingEdge mode is refused: the latches would be another
-    /// switch's. On in [`AxisConfig::new`]; the master turns it off unless the drive's
-    /// touch-probe source (0x60D0) is configured.
+    /// the probe to [`AxisSetpoint::probe_on_limit`]). Without it a homing run that looks
+    /// for a limit switch's edge (MoveHome with `LimitSwitch`) is refused: the latches
+    /// would be another switch's. On in [`AxisConfig::new`]; the master turns it off
+    /// unless the drive's touch-probe source (0x60D0) is configured.
     pub limit_edges_latched: bool,
+    /// The touch probe latches the reference switch's edges (the switch is wired to the
+    /// drive's probe input). Without it a homing run that looks for the reference
+    /// switch's edge is refused. On in [`AxisConfig::new`]; the master turns it off for a
+    /// reference switch read from an I/O module.
+    pub reference_edges_latched: bool,
 }
 
 impl AxisConfig {
@@ -191,6 +196,7 @@ impl AxisConfig {
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
             move_home: None,
             limit_edges_latched: true,
+            reference_edges_latched: true,
         }
     }
 

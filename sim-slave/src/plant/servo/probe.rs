@@ -16,9 +16,8 @@
 //! edge, or by clearing that edge's sample-enable bit and setting it again; in continuous
 //! mode every event overwrites the value. Status bits 6/7 (probe 2: 14/15, user-defined in
 //! the profile) toggle with each positive/negative latch, so a master sees every new
-//! value in continuous mode too. A source the simulated drive does not have (bits 2–3 =
-//! 10: the source in 0x60D0; 11: reserved) never triggers. The zero impulse is a mark, not
-//! a level: it latches on the positive-edge sample only.
+//! value in continuous mode too. Bits 2–3 = 11b (reserved) never trigger. The zero
+//! impulse is a mark, not a level: it latches on the positive-edge sample only.
 //!
 //! Source 10b takes the probe's source from 0x60D0 (sub 1 probe 1, sub 2 probe 2;
 //! ETG.6010). The simulated drive has the values [`source::ALLOWED`]: its probe inputs 1
