@@ -70,6 +70,9 @@ pub struct AxisSection {
     /// Limit and reference switches and the touch probe (`[axis.switches]`).
     #[serde(default)]
     pub switches: super::switches::SwitchesSection,
+    /// Homing done by the drive itself (`[axis.drive_homing]`).
+    #[serde(default)]
+    pub drive_homing: Option<super::drive_homing::DriveHomingSection>,
     /// What the drive's position counts from: `"incremental"` (default: from where the
     /// drive was switched on) or `"absolute"` (a multi-turn absolute encoder: the same
     /// place reads the same after power-off). An absolute axis' position offset is saved
@@ -216,6 +219,16 @@ impl AxisSection {
         Ok(layout)
     }
 
+    /// The drive homing parameters of `[axis.drive_homing]` in the drive's counts, if
+    /// the axis has them.
+    pub fn drive_homing_params(
+        &self,
+    ) -> Result<Option<gantry_drives::cia402::homing::DriveHomingParams>, (String, String)> {
+        self.drive_homing
+            .map(|d| d.params(&self.scaling()?, self.max.speed))
+            .transpose()
+    }
+
     /// The kernel's configuration of this axis (checked by the kernel's own rules).
     pub fn kernel_config(&self) -> Result<AxisConfig, (String, String)> {
         if self.homed_at_start && self.encoder != Encoder::Absolute {
@@ -229,6 +242,7 @@ impl AxisSection {
         }
         self.scaling()?;
         self.pdo_layout()?;
+        self.drive_homing_params()?;
         let mut c = AxisConfig::new(&self.name, AxisKind::Real);
         let kind = match self.kind.as_str() {
             "linear" => MotionKind::Linear,

@@ -365,6 +365,62 @@ fn the_probe_source_for_the_limit_switches_is_checked_and_written() {
     }
 }
 
+#[test]
+fn drive_homing_converts_to_counts_and_names_its_mistakes() {
+    let with = |section: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp\"\ndrive_homing = {{ {section} }}"),
+            1,
+        )
+    };
+    let ok = "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+              home_offset = -1.5, timeout = 12.0";
+    let c = Config::parse(&with(ok), "g.toml").unwrap();
+    // 131 072 counts per 5 mm.
+    let p = c.axes[0].drive_homing_params().unwrap().unwrap();
+    assert_eq!(
+        (
+            p.method,
+            p.speed_switch,
+            p.speed_zero,
+            p.acceleration,
+            p.home_offset
+        ),
+        (19, 524_288, 52_429, 5_242_880, -39_322)
+    );
+    assert_eq!((p.timeout_s, p.skip), (12.0, false));
+    assert_eq!(
+        c.axes[1].drive_homing_params().unwrap(),
+        None,
+        "not configured"
+    );
+    let e = |section: &str| {
+        Config::parse(&with(section), "g.toml")
+            .unwrap_err()
+            .to_string()
+    };
+    assert_eq!(
+        e("method = 19, speed_switch = 0.0, speed_zero = 2.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_switch: 0 must be a finite number > 0"
+    );
+    assert_eq!(
+        e("method = 19, speed_switch = 20.0, speed_zero = 900.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_zero: 900 exceeds max.speed 250"
+    );
+    assert_eq!(
+        e(
+            "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+           home_offset = 1e9"
+        ),
+        "g.toml:33: axis[0].drive_homing.home_offset: 1000000000 is beyond what the drive's \
+         32 bits count"
+    );
+    let big = e("method = 300, speed_switch = 1.0, speed_zero = 1.0, acceleration = 1.0");
+    assert!(big.starts_with("g.toml:33:"), "{big}");
+    assert!(big.contains("300"), "{big}");
+}
+
 /// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
 /// lines added to `[bus]`.
 fn canopen(nodes: &[&str], bus: &str) -> Result<Config, ConfigError> {
@@ -412,7 +468,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `encoder`, `homed_at_start`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `encoder`, `homed_at_start`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));

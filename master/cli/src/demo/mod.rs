@@ -261,6 +261,7 @@ fn axis(
         switches: Default::default(),
         encoder: Default::default(),
         homed_at_start: false,
+        drive_homing: None,
     }
 }
 
