@@ -9,6 +9,7 @@ pub mod cyclic_frame;
 pub mod dc_phase;
 pub mod drive_counts;
 pub mod homing;
+pub mod homing_matrix;
 pub mod invariant;
 pub mod lockstep;
 pub mod netns;

@@ -42,9 +42,10 @@ fn switches_limit_switches_and_move_home_over_ethercat() {
         "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = {DEFAULT_SYNC_ERROR_LIMIT}\n{}",
         servo_switches_toml()
     );
-    // "csp" with the switches and the probe: 11 inputs, more than one PDO takes (the
-    // simulated drive, as many real ones, takes at most 10; the master puts 8 in each), so
-    // the master maps 0x1A00 and 0x1A01 and assigns both to SM3.
+    // "csp" with the switches, the probe and its source for the limit switches: 12 inputs
+    // (0x60BD for probe 2 on the positive limit), more than one PDO takes (the simulated
+    // drive, as many real ones, takes at most 10; the master puts 8 in each), so the
+    // master maps 0x1A00 and 0x1A01 and assigns both to SM3.
     let axes = format!(
         "[[axis]]\nname = \"x\"\ndrive = 0\npdo = \"csp\"\n\
          scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
@@ -58,8 +59,11 @@ fn switches_limit_switches_and_move_home_over_ethercat() {
         let od = chain.slaves()[0].object_dictionary().expect("CoE");
         assert_eq!(od.read(0x1C13, 0), Ok(&[2u8][..]));
         assert_eq!(od.read(0x1C13, 2), Ok(&0x1A01u16.to_le_bytes()[..]));
-        assert_eq!(od.read(0x1A01, 0), Ok(&[3u8][..]));
+        assert_eq!(od.read(0x1A01, 0), Ok(&[4u8][..]));
         assert_eq!(od.read(0x1C12, 0), Ok(&[1u8][..]));
+        // The touch probe sources for the limit switches, written at bring-up.
+        assert_eq!(od.read(0x60D0, 1), Ok(&(-1i16).to_le_bytes()[..]));
+        assert_eq!(od.read(0x60D0, 2), Ok(&(-2i16).to_le_bytes()[..]));
     }
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),

@@ -286,6 +286,8 @@ impl AxisSection {
         }
         c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
         c.homing_required = self.homing_required;
+        c.limit_edges_latched = self.switches.probe_source()?.is_some();
+        c.reference_edges_latched = self.switches.reference_latched()?;
         let tm = self.target_monitoring;
         c.target_monitoring.enabled = tm.enabled.unwrap_or(c.target_monitoring.enabled);
         c.target_monitoring.dwell_s = tm.dwell_s.unwrap_or(c.target_monitoring.dwell_s);

@@ -17,7 +17,7 @@ pub use bus::{
 };
 pub use error::ConfigError;
 pub use service::ServiceSection;
-pub use switches::{SwitchSource, SwitchesSection};
+pub use switches::{ModuleInput, ProbeSource, SwitchSource, SwitchesSection};
 
 use std::path::Path;
 use std::sync::Arc;
@@ -207,6 +207,22 @@ impl Config {
             let k = a
                 .kernel_config()
                 .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+            if kind == BusKind::Canopen {
+                let modules = a
+                    .switches
+                    .module_inputs()
+                    .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+                let names = ["negative_limit", "positive_limit", "reference"];
+                if let Some((name, _)) = names.iter().zip(modules).find(|(_, m)| m.is_some()) {
+                    return Err(at(
+                        span,
+                        key(&format!("switches.{name}")),
+                        "a module input is read on EtherCAT only; on CANopen the bus does not \
+                         read a CiA 401 node's inputs yet (use the drive's 0x60FD)"
+                            .into(),
+                    ));
+                }
+            }
             let sheet = match (&a.eds, kind) {
                 (None, _) => None,
                 (Some(_), BusKind::Ethercat) => {

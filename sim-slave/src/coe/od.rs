@@ -35,6 +35,9 @@ pub struct Entry {
     /// The values a download may write (inclusive, as a signed or unsigned integer of
     /// the entry's size); `None`: any.
     pub range: Option<(i64, i64)>,
+    /// Within the range, only these values (an enumeration with gaps, e.g. 0x60D0's
+    /// sources); `None`: the whole range.
+    pub allowed: Option<&'static [i64]>,
 }
 
 /// An object dictionary.
@@ -90,6 +93,7 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
+                allowed: None,
             }),
         }
     }
@@ -104,6 +108,27 @@ impl ObjectDictionary {
             .find(|e| e.index == index && e.sub == sub)
         {
             e.range = Some((min, max));
+        }
+    }
+
+    /// Adds or replaces an entry that downloads may only set to one of `allowed` (abort
+    /// 0x06090030 otherwise, as for a range).
+    pub fn insert_enumerated(
+        &mut self,
+        index: u16,
+        sub: u8,
+        value: &[u8],
+        allowed: &'static [i64],
+    ) {
+        let min = allowed.iter().copied().min().unwrap_or(0);
+        let max = allowed.iter().copied().max().unwrap_or(0);
+        self.insert_ranged(index, sub, value, min, max);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.allowed = Some(allowed);
         }
     }
 
@@ -220,7 +245,7 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max {
+            if v < min || v > max || e.allowed.is_some_and(|a| !a.contains(&v)) {
                 return Err(OdError::ValueRange);
             }
         }
