@@ -106,8 +106,9 @@ fn a_kill_during_a_save_never_leaves_a_corrupt_file() {
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        // The child needs a few ms to start; a save (two fsyncs) takes about a ms or more.
-        std::thread::sleep(Duration::from_micros(2_000 + rng.below(12_000)));
+        // The child needs a few ms to start; a save (two fsyncs) takes about a ms or more:
+        // kills from 1 to 10 ms after the start land before, between and inside saves.
+        std::thread::sleep(Duration::from_micros(1_000 + rng.below(9_000)));
         child.kill().unwrap(); // SIGKILL
         let status = child.wait().unwrap();
         assert!(
@@ -146,12 +147,10 @@ fn a_kill_during_a_save_never_leaves_a_corrupt_file() {
          temporary file and its rename"
     );
     // The kills landed inside the saving, not before it started or after it ended.
-    // (Measured on the project's VM: 442 versions, 456 reads saw a newer one, 518 kills
-    // between a temporary file's creation and its rename, in 18 s.)
-    assert!(
-        advanced > KILLS / 10,
-        "too few saves between kills: {advanced}"
-    );
+    // Measured on the project's VM (2 CPUs shared, load 1 to 16): 17 to 29 s; 136 to 442
+    // versions; 137 to 456 reads saw a newer version; 369 to 518 kills between a
+    // temporary file and its rename.
+    assert!(advanced >= 10, "too few saves between kills: {advanced}");
     assert!(torn_saves > 0, "no kill landed inside a save");
     let _ = std::fs::remove_dir_all(&dir);
 }

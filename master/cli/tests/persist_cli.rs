@@ -223,6 +223,13 @@ fn an_absolute_axis_is_homed_at_start_from_its_saved_offset() {
     // The simulated drive starts where it did (an absolute encoder reads the same place
     // the same): the axis is at 100 again, within the drive's standstill hold.
     let p = x["position"].as_f64().unwrap();
+    // Axis position minus drive position, as saved: 100 less where the drive stood (to the
+    // count: a disabled drive stands still).
+    let offset = x["position_offset"].as_f64().unwrap();
+    assert!(
+        (offset - (100.0 - drive_at)).abs() <= 1.0 / COUNTS_PER_MM,
+        "{x}"
+    );
     assert!(
         (p - 100.0).abs() <= 8.0 / COUNTS_PER_MM,
         "{p} (the drive stood at {drive_at})"

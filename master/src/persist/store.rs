@@ -380,4 +380,57 @@ mod tests {
         assert!(e.to_string().contains("state directory"), "{e}");
         let _ = std::fs::remove_dir_all(s.dir().parent().unwrap());
     }
+
+    /// A file of format 1 as this gantry wrote it (`Store::save` of these values, byte
+    /// for byte): later versions must read it as it is, and write the same bytes.
+    const FORMAT_1: &str = r#"# gantry axis parameters, format 1
+axis = "x"
+commutation_offset = -123456
+
+[home]
+direction = "+"
+switches = "ref-and-limit"
+mode = "edge-2"
+speed_switch = 12.5
+max_distance_switch = inf
+speed_reference = 1.25
+max_distance_reference = inf
+acceleration = 250.0
+jerk = 2500.0
+reference_offset = 0.0
+normal_position = 0.0
+
+[ptp]
+speed = 12.5
+deceleration = 300.0
+
+[position]
+offset = -1234.5
+
+[position.scaling]
+counts_per_motor_rev = 131072
+motor_revs = 1
+load_revs = 1
+units_per_load_rev = 5.0
+invert = false
+# crc32 7a1f9420
+"#;
+
+    #[test]
+    fn a_format_1_file_reads_and_writes_byte_for_byte() {
+        let s = store("fixture");
+        std::fs::write(s.path_of("x"), FORMAT_1).unwrap();
+        let p = s.load("x").unwrap().unwrap();
+        assert_eq!(p.commutation_offset, Some(-123_456));
+        assert_eq!(
+            p.home,
+            Some(HomeParams::from(MoveHome::defaults(50.0, 500.0, 5000.0)))
+        );
+        assert_eq!(p.ptp.and_then(|q| q.deceleration), Some(300.0));
+        assert_eq!(p.position.map(|o| o.offset), Some(-1234.5));
+        std::fs::remove_file(s.path_of("x")).unwrap();
+        s.save(&p).unwrap();
+        assert_eq!(std::fs::read_to_string(s.path_of("x")).unwrap(), FORMAT_1);
+        let _ = std::fs::remove_dir_all(s.dir().parent().unwrap());
+    }
 }

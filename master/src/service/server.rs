@@ -721,6 +721,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "state": s.state.name(),
                 "position": s.actual_position,
                 "set_position": s.set.p,
+                "position_offset": s.position_offset,
                 "velocity": s.set.v,
                 "homed": s.bits.homed,
                 "moving": s.bits.moving,
