@@ -522,3 +522,64 @@ fn the_setpoint_routes_the_probe_to_the_limit_switch_for_the_run_only() {
         "reference switch"
     );
 }
+
+/// A drive whose touch probe stays on the home switch although the axis says its limit
+/// edges are latched (its probe source 0x60D0 not set to the limit switch): a LimitSwitch
+/// run must never take the home cam's latches for the limit switch's edge (before the fix
+/// it homed on the cam's end, silently). It crosses the limit switch, sees no latch of it,
+/// and fails naming the reference search's distance and the limit switch, in ErrorStop.
+#[test]
+fn limit_switch_homing_never_takes_the_home_switch_latch_for_the_limit_edge() {
+    use gantry_kernel::axis::command::CommandError;
+    use gantry_kernel::axis::status::AxisFault;
+    use gantry_kernel::homing::HomingError;
+    for mode in MODES {
+        for dir in [MoveDirection::Positive, MoveDirection::Negative] {
+            // From below, on and above the cam: the search crosses the cam on its way to
+            // the limit switch from one side or the other.
+            for (name, x0) in STARTS {
+                let mut p = params(dir, SwitchConfig::LimitSwitch, mode);
+                // Far enough to cross the limit switch from every start, short of the
+                // other one when a second phase comes back from it.
+                p.max_distance_switch_search = 180.0;
+                p.max_distance_reference_search = 180.0;
+                let mut rig = rig_for(Layout::STANDARD, &p, x0);
+                rig.m.probe_source = ProbeSource::Reference;
+                let h = rig
+                    .k
+                    .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+                    .expect("accepted");
+                let mut samples = Vec::new();
+                let st = rig.run_until_final(h, 600_000, &mut samples);
+                let what = format!("{mode:?} {dir:?} start {name}");
+                assert!(
+                    !samples.iter().any(|s| s.status.homing.reference_found),
+                    "{what}: took a home-switch latch for the limit's edge"
+                );
+                assert_ne!(st, CommandStatus::Done, "{what}");
+                let status = *rig.k.axis_status(0).expect("axis");
+                assert_eq!(status.state, AxisState::ErrorStop, "{what}");
+                let limit = if dir == MoveDirection::Positive {
+                    "positive limit switch"
+                } else {
+                    "negative limit switch"
+                };
+                assert!(
+                    matches!(
+                        status.error,
+                        Some(AxisFault::Command(CommandError::Homing(
+                            HomingError::DistanceExceeded { looking_for, .. }
+                        ))) if looking_for == limit
+                    ),
+                    "{what}: {:?}",
+                    status.error
+                );
+                // It did cross the limit switch it looked for.
+                let beyond = samples
+                    .iter()
+                    .any(|s| s.load * dir.sign() >= Layout::STANDARD.positive_limit);
+                assert!(beyond, "{what}: never reached the limit switch");
+            }
+        }
+    }
+}

@@ -159,6 +159,18 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
     );
     // The limits of the servo's ranged objects.
     assert_eq!(e.entry(0x6007, 0).unwrap().limits(), Some((0, 1)));
+    // Homing mode (CiA 402-2 §10.4): the method within 0…37 (the reserved ones within
+    // that span are refused by the node), the speeds an ARRAY.
+    let method = e.entry(0x6098, 0).unwrap();
+    assert_eq!(
+        (method.data_type, method.limits()),
+        (DataType::Integer8, Some((0, 37)))
+    );
+    assert_eq!(e.object(0x6099).unwrap().object_type, ObjectType::Array);
+    assert_eq!(e.entry(0x6099, 2).unwrap().data_type, DataType::Unsigned32);
+    assert_eq!(e.entry(0x607C, 0).unwrap().data_type, DataType::Integer32);
+    assert_eq!(e.entry(0x609A, 0).unwrap().data_type, DataType::Unsigned32);
+    assert_eq!(e.entry(0x6060, 0).unwrap().limits(), Some((6, 10)));
 }
 
 #[test]

@@ -3,6 +3,7 @@
 use thiserror::Error;
 
 use crate::cia402::pdo::PdoLayout;
+use crate::cia402::procedure::{ProcedureOutputs, MODE_BITS};
 use crate::cia402::{next_command, Controlword, State, Target};
 use crate::scaling::{CountExtender, ModuloCounts, Scaling, ScalingError};
 
@@ -335,6 +336,37 @@ impl CspChannel {
         }
         // The low half, as the drive counts (its counter wraps, see the module doc).
         (self.last_cw, self.last_target as i32)
+    }
+}
+
+impl CspChannel {
+    /// The outputs for a cycle in which the drive is lent to a procedure
+    /// ([`crate::cia402::procedure`]): one step of the power state machine towards
+    /// Operation enabled with the procedure's mode-specific bits, and the drive's own
+    /// actual position as the target (ignored outside CSP; a drive that switches back to
+    /// CSP finds it where it stands). The channel lets go of the drive: when the
+    /// procedure ends, it takes the drive over again as at enabling (the first CSP target
+    /// is the set position the kernel tracked the drive with, its actual position).
+    pub fn procedure_outputs(
+        &mut self,
+        p: &ProcedureOutputs,
+        inputs: &CspInputs,
+    ) -> (Controlword, i32) {
+        let state = inputs
+            .statusword
+            .state()
+            .unwrap_or(State::NotReadyToSwitchOn);
+        let cmd = next_command(state, Target::Enabled, false, self.last_cw);
+        self.last_cw = Controlword::of(cmd);
+        self.driving = false;
+        self.count_error = None;
+        self.last_target = self.actual;
+        let bits = if state == State::OperationEnabled {
+            p.mode_bits & MODE_BITS
+        } else {
+            0
+        };
+        (Controlword(self.last_cw.0 | bits), inputs.position)
     }
 }
 

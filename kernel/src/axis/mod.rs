@@ -7,6 +7,7 @@
 
 pub mod command;
 pub mod handle;
+pub mod lend;
 pub mod motion;
 pub mod state;
 pub mod status;
@@ -468,6 +469,11 @@ pub struct Axis {
     home_status: crate::homing::HomingStatus,
     /// MoveHome parameters last used (a call leaves out what it keeps).
     move_home: crate::homing::MoveHome,
+    /// The drive runs a procedure by itself (see [`lend`]): its handle and what it is.
+    lent: Option<lend::Lent>,
+    /// The lending ended since the last cycle: the set position takes the drive's actual
+    /// position once more (the drive may have moved since the last feedback).
+    rejoin: bool,
 }
 
 /// Dynamics of the moves of a homing run.
@@ -527,6 +533,8 @@ impl Axis {
             move_home: cfg.move_home.unwrap_or_else(|| {
                 crate::homing::MoveHome::defaults(cfg.max.vmax, cfg.max.amax, cfg.max.jmax)
             }),
+            lent: None,
+            rejoin: false,
             cfg,
         };
         axis.normalise_frame();
@@ -634,6 +642,7 @@ impl Axis {
         if self.cfg.kind.has_feedback() {
             self.take_switches(fb);
             self.take_feedback(fb, handles);
+            self.track_lent_drive();
         }
         self.advance(now, dt, handles);
         if let Some(o) = self.overlay {
@@ -1009,6 +1018,9 @@ impl Axis {
             },
         };
         self.homing = None;
+        if let Some(l) = self.lent.take() {
+            handles.set(l.handle, CommandStatus::Error(err));
+        }
         if let Some(m) = self.motion.take() {
             handles.set(m.handle, CommandStatus::Error(err));
         }
@@ -1166,6 +1178,7 @@ impl Axis {
             },
             homing: self.home_status,
             switches: self.switches,
+            position_offset: self.position_offset,
         };
     }
 

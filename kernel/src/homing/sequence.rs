@@ -279,6 +279,8 @@ pub struct Sequencer {
     last_found: f64,
     status: HomingStatus,
     started: bool,
+    /// The switches as the previous cycle saw them.
+    prev_inputs: SwitchInputs,
 }
 
 impl Sequencer {
@@ -301,6 +303,7 @@ impl Sequencer {
                 ..HomingStatus::default()
             },
             started: false,
+            prev_inputs: SwitchInputs::default(),
         }
     }
 
@@ -320,6 +323,7 @@ impl Sequencer {
         if !self.started {
             self.started = true;
             self.last_set_p = o.set_p;
+            self.prev_inputs = o.inputs;
             return self.begin(0, o);
         }
         self.travelled += (o.set_p - self.last_set_p).abs();
@@ -358,6 +362,7 @@ impl Sequencer {
         if let Some(m) = motion_sign(o) {
             self.last_motion = m;
         }
+        self.prev_inputs = o.inputs;
         d
     }
 
@@ -527,9 +532,24 @@ impl Sequencer {
             }
         }
         match s.goal {
-            Goal::Edge { side, approach, .. } => {
+            Goal::Edge {
+                signal,
+                side,
+                approach,
+            } => {
                 for (new, x, rising) in events {
                     if !new || Side::of(rising, motion) != side {
+                        continue;
+                    }
+                    let level = signal.level(&o.inputs);
+                    if matches!(signal, Signal::Limit(_))
+                        && (level != rising || signal.level(&self.prev_inputs) == rising)
+                    {
+                        // A limit switch's cam reaches to the end of the travel: crossing its
+                        // edge changes its level in the same cycle the drive latches it, and
+                        // the level stays. A latch without that change is another input's (a
+                        // probe still on the home switch: the drive's probe source, 0x60D0,
+                        // is not the limit switch), never the limit's edge.
                         continue;
                     }
                     match approach {

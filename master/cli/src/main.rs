@@ -285,7 +285,7 @@ enum Cmd {
     },
 }
 
-/// `gantry home`'s parameters (each left out keeps the axis' last-used one).
+/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept across restarts when the service has a state directory).
 #[derive(clap::Args, Debug)]
 struct HomeArgs {
     /// Search direction: + or - (or positive, negative).
@@ -391,7 +391,8 @@ enum AxisCmd {
         client: ClientOpts,
     },
     /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
-    /// the phases; what is left out keeps the axis' last-used parameters.
+    /// the phases; what is left out is the axis' saved parameters (the last call's, kept
+    /// across restarts in the state directory).
     Home {
         /// Axis name.
         axis: String,

@@ -365,6 +365,62 @@ fn the_probe_source_for_the_limit_switches_is_checked_and_written() {
     }
 }
 
+#[test]
+fn drive_homing_converts_to_counts_and_names_its_mistakes() {
+    let with = |section: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp\"\ndrive_homing = {{ {section} }}"),
+            1,
+        )
+    };
+    let ok = "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+              home_offset = -1.5, timeout = 12.0";
+    let c = Config::parse(&with(ok), "g.toml").unwrap();
+    // 131 072 counts per 5 mm.
+    let p = c.axes[0].drive_homing_params().unwrap().unwrap();
+    assert_eq!(
+        (
+            p.method,
+            p.speed_switch,
+            p.speed_zero,
+            p.acceleration,
+            p.home_offset
+        ),
+        (19, 524_288, 52_429, 5_242_880, -39_322)
+    );
+    assert_eq!((p.timeout_s, p.skip), (12.0, false));
+    assert_eq!(
+        c.axes[1].drive_homing_params().unwrap(),
+        None,
+        "not configured"
+    );
+    let e = |section: &str| {
+        Config::parse(&with(section), "g.toml")
+            .unwrap_err()
+            .to_string()
+    };
+    assert_eq!(
+        e("method = 19, speed_switch = 0.0, speed_zero = 2.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_switch: 0 must be a finite number > 0"
+    );
+    assert_eq!(
+        e("method = 19, speed_switch = 20.0, speed_zero = 900.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_zero: 900 exceeds max.speed 250"
+    );
+    assert_eq!(
+        e(
+            "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+           home_offset = 1e9"
+        ),
+        "g.toml:33: axis[0].drive_homing.home_offset: 1000000000 is beyond what the drive's \
+         32 bits count"
+    );
+    let big = e("method = 300, speed_switch = 1.0, speed_zero = 1.0, acceleration = 1.0");
+    assert!(big.starts_with("g.toml:33:"), "{big}");
+    assert!(big.contains("300"), "{big}");
+}
+
 /// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
 /// lines added to `[bus]`.
 fn canopen(nodes: &[&str], bus: &str) -> Result<Config, ConfigError> {
@@ -412,7 +468,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `encoder`, `homed_at_start`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -760,5 +816,59 @@ fn canopen_cycles_may_be_longer_than_ethercat_ones() {
     assert!(
         e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"),
         "{e}"
+    );
+}
+
+#[test]
+fn homed_at_start_needs_an_absolute_encoder() {
+    let x = "software_limits = [-10.0, 400.0]   # active once homed";
+    let e = mistake(x, &format!("{x}\nhomed_at_start = true"));
+    assert!(e.starts_with("g.toml:"), "{e}");
+    assert!(
+        e.ends_with(
+            "axis[0].homed_at_start: needs an absolute encoder (encoder = \"absolute\"): an \
+             incremental encoder's position is lost when the drive is switched off, so a saved \
+             offset would home the axis at the wrong place"
+        ),
+        "{e}"
+    );
+    let e = mistake(x, &format!("{x}\nencoder = \"optical\""));
+    assert!(e.contains("encoder") && e.contains("absolute"), "{e}");
+    let ok = Config::parse(
+        &EXAMPLE.replacen(
+            x,
+            &format!("{x}\nencoder = \"absolute\"\nhomed_at_start = true"),
+            1,
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    assert_eq!(ok.axes[0].encoder, Encoder::Absolute);
+    assert!(ok.axes[0].homed_at_start);
+    assert_eq!(ok.axes[1].encoder, Encoder::Incremental);
+}
+
+#[test]
+fn the_state_directory_is_relative_to_the_configuration() {
+    let rt = "overrun_limit = 10            # overruns in a row before every axis stops";
+    let e = mistake(rt, &format!("{rt}\n\n[service]\nstate_dir = \" \""));
+    assert!(e.contains("service.state_dir: is empty"), "{e}");
+    let dir = std::env::temp_dir().join(format!("gantry-config-state-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g.toml");
+    let with = |d: &str| EXAMPLE.replacen(rt, &format!("{rt}\n\n[service]\nstate_dir = {d:?}"), 1);
+    std::fs::write(&path, with("state")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(
+        c.service.state_dir,
+        Some(dir.join("state").display().to_string())
+    );
+    std::fs::write(&path, with("/var/lib/g")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(c.service.state_dir.as_deref(), Some("/var/lib/g"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        Config::parse(EXAMPLE, "g.toml").unwrap().service.state_dir,
+        None
     );
 }

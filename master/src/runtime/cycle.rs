@@ -12,8 +12,10 @@ use super::bus::{CycleBus, DriveError};
 use crate::config::Config;
 use crate::config::ModuleInput;
 use crate::drive_axis::AxisChannel;
+use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::csp::{
-    encode_outputs, encode_touch_probe, CspChannel, CspInputs, FAULT_CODE_NOT_MAPPED,
+    encode_outputs, encode_procedure_outputs, encode_touch_probe, CspChannel, CspInputs,
+    FAULT_CODE_NOT_MAPPED,
 };
 
 /// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
@@ -116,6 +118,9 @@ pub struct Cycle {
     setpoints: Vec<AxisSetpoint>,
     /// The bus position of each axis' drive.
     drives: Vec<usize>,
+    /// Drives lent to a procedure: what they get instead of their CSP outputs (see
+    /// [`Cycle::set_procedure_outputs`]).
+    procedures: Vec<Option<ProcedureOutputs>>,
     /// Per axis, the switches read from I/O modules (negative limit, positive limit,
     /// reference) and their last levels.
     modules: Vec<ModuleSwitches>,
@@ -150,6 +155,7 @@ impl Cycle {
             setpoints: vec![AxisSetpoint::default(); n],
             drives: (0..n).collect(),
             modules: vec![ModuleSwitches::default(); n],
+            procedures: vec![None; n],
         }
     }
 
@@ -411,6 +417,25 @@ impl Cycle {
         Ok(())
     }
 
+    /// Sends axis `i`'s drive `outputs` instead of its CSP outputs from the next write on
+    /// (`None`: CSP again), for a procedure the drive runs by itself
+    /// ([`gantry_drives::cia402::procedure`] says how to use it). The axis must be lent to
+    /// the drive in the kernel meanwhile (`Kernel::lend_to_drive`), so that its set
+    /// position tracks the drive.
+    pub fn set_procedure_outputs(
+        &mut self,
+        i: usize,
+        outputs: Option<ProcedureOutputs>,
+    ) -> Result<(), CycleError> {
+        *self.procedures.get_mut(i).ok_or(CycleError::NoDrive(i))? = outputs;
+        Ok(())
+    }
+
+    /// What axis `i`'s drive is sent in place of its CSP outputs, if it is lent.
+    pub fn procedure_outputs(&self, i: usize) -> Option<ProcedureOutputs> {
+        self.procedures.get(i).copied().flatten()
+    }
+
     /// Runs the kernel on the feedback read so far.
     pub fn step(&mut self) {
         let sps = self.kernel.step(&self.feedback);
@@ -439,8 +464,16 @@ impl Cycle {
             self.setpoints.get(i).ok_or(CycleError::NoDrive(i))?,
             self.inputs.get(i).ok_or(CycleError::NoDrive(i))?,
         );
-        let (cw, target) = channel.outputs(sp, inputs);
-        encode_outputs(&channel.offsets, bytes, cw, target);
+        match self.procedures.get(i).copied().flatten() {
+            Some(p) => {
+                let (cw, target) = channel.procedure_outputs(&p, inputs);
+                encode_procedure_outputs(&channel.offsets, bytes, cw, target, p.mode);
+            }
+            None => {
+                let (cw, target) = channel.outputs(sp, inputs);
+                encode_outputs(&channel.offsets, bytes, cw, target);
+            }
+        }
         if let Some(f) = channel.probe_function() {
             encode_touch_probe(&channel.offsets, bytes, f);
         }
@@ -454,6 +487,7 @@ mod tests {
     use gantry_drives::csp::COUNT_RANGE_FAULT;
     use gantry_drives::scaling::{Scaling, ScalingConfig};
     use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity, PowerCommand};
+    use gantry_kernel::axis::handle::CommandStatus;
     use gantry_kernel::axis::state::AxisState;
     use gantry_kernel::axis::status::AxisFault;
     use gantry_kernel::{AxisConfig, AxisKind};
@@ -530,6 +564,74 @@ mod tests {
         let n = sent.len();
         assert!(n > 10, "moved a while first: {n} cycles");
         assert_eq!(sent[n - 2], sent[n - 3], "held, not substituted");
+    }
+
+    /// A drive lent to a procedure (homing mode, bit 4 set) moves by itself: it gets the
+    /// procedure's controlword bits and its own position as the target, the kernel's set
+    /// position tracks it, and the first CSP target after the hand-back is where the
+    /// drive stands (no jump), on the drive's own position (homing done).
+    #[test]
+    fn a_drive_lent_to_a_procedure_is_handed_back_where_it_stands() {
+        use gantry_drives::cia402::procedure::ProcedureOutputs;
+        use gantry_drives::cia402::ModeOfOperation;
+        let mut cfg = AxisConfig::new("x", AxisKind::Real);
+        cfg.homing_required = false;
+        let kernel = Kernel::new(1e-3, vec![cfg]).unwrap();
+        let scaling = Scaling::new(ScalingConfig {
+            counts_per_motor_rev: 10_000,
+            motor_revs: 1,
+            load_revs: 1,
+            units_per_load_rev: 10.0,
+            invert: false,
+        })
+        .unwrap();
+        let mut c = Cycle::new(kernel, vec![CspChannel::new(scaling)]);
+        c.kernel
+            .command(0, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        let mut out = [0u8; 6];
+        let mut cycle = |c: &mut Cycle, at: i32| {
+            c.read_inputs(0, &enabled_at(at)).unwrap();
+            c.step();
+            c.write_outputs(0, &mut out).unwrap();
+            (
+                u16::from_le_bytes([out[0], out[1]]),
+                i32::from_le_bytes([out[2], out[3], out[4], out[5]]),
+            )
+        };
+        for _ in 0..3 {
+            assert_eq!(cycle(&mut c, 700), (0x0F, 700));
+        }
+        let h = c.kernel.lend_to_drive(0, "drive homing", true).unwrap();
+        let homing = ProcedureOutputs::idle(ModeOfOperation::Homing).with(0x10);
+        c.set_procedure_outputs(0, Some(homing)).unwrap();
+        for k in 0..50 {
+            let at = 700 - 100 * k;
+            assert_eq!(
+                cycle(&mut c, at),
+                (0x1F, at),
+                "bit 4 set, the target is the drive's"
+            );
+        }
+        // Homing done: the drive stands at -4300 counts (its new reference frame).
+        c.set_procedure_outputs(0, None).unwrap();
+        assert!(c.kernel.end_drive_procedure(0, Ok(())));
+        assert_eq!(c.kernel.command_status(h), CommandStatus::Done);
+        for _ in 0..3 {
+            assert_eq!(
+                cycle(&mut c, -4300),
+                (0x0F, -4300),
+                "no jump at the hand-back"
+            );
+        }
+        let st = c.kernel.axis_status(0).unwrap();
+        assert_eq!(st.state, AxisState::Standstill);
+        assert!(st.bits.homed);
+        assert!(
+            (st.actual_position + 4.3).abs() < 1e-9,
+            "{}",
+            st.actual_position
+        );
     }
 
     /// Replies lost while an axis runs at full speed (a stall of the slave's host: the

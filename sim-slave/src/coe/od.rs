@@ -37,7 +37,10 @@ pub struct Entry {
     pub range: Option<(i64, i64)>,
     /// Within the range, only these values (an enumeration with gaps, e.g. 0x60D0's
     /// sources); `None`: the whole range.
-    pub allowed: Option<&'static [i64]>,
+    pub enumeration: Option<&'static [i64]>,
+    /// One-byte entries whose valid values have holes (0x6060 modes the device has,
+    /// 0x6098 methods): bit `v as u8` set for each value a download may write.
+    pub allowed: Option<[u64; 4]>,
 }
 
 /// An object dictionary.
@@ -93,6 +96,7 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
+                enumeration: None,
                 allowed: None,
             }),
         }
@@ -128,6 +132,30 @@ impl ObjectDictionary {
             .iter_mut()
             .find(|e| e.index == index && e.sub == sub)
         {
+            e.enumeration = Some(allowed);
+        }
+    }
+
+    /// Adds or replaces a one-byte entry that downloads may only set to the values in
+    /// `allowed` (each value `v` as bit `v as u8`; CiA 301 §7.2.4.3.17: abort 0x06090030
+    /// otherwise); its range (for the EDS) spans them as signed values.
+    pub fn insert_set(&mut self, index: u16, sub: u8, value: u8, allowed: [u64; 4]) {
+        self.insert(index, sub, &[value], true);
+        let values = (i8::MIN..=i8::MAX).filter(|v| {
+            let i = (*v as u8) as usize;
+            allowed
+                .get(i / 64)
+                .is_some_and(|w| w & (1 << (i % 64)) != 0)
+        });
+        let (lo, hi) = values.fold((i64::MAX, i64::MIN), |(lo, hi), v| {
+            (lo.min(i64::from(v)), hi.max(i64::from(v)))
+        });
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.range = (lo <= hi).then_some((lo, hi));
             e.allowed = Some(allowed);
         }
     }
@@ -245,7 +273,13 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max || e.allowed.is_some_and(|a| !a.contains(&v)) {
+            if v < min || v > max || e.enumeration.is_some_and(|a| !a.contains(&v)) {
+                return Err(OdError::ValueRange);
+            }
+        }
+        if let (Some(allowed), [b]) = (e.allowed, value) {
+            let i = usize::from(*b);
+            if allowed.get(i / 64).is_none_or(|w| w & (1 << (i % 64)) == 0) {
                 return Err(OdError::ValueRange);
             }
         }

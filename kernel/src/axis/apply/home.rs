@@ -331,7 +331,10 @@ impl Axis {
     /// Outside homing: moving into an active limit switch is a quick stop into ErrorStop.
     pub(in crate::axis) fn check_limit_switches(&mut self, handles: &mut HandleTable) {
         use crate::axis::state::AxisState;
-        if self.homing.is_some() || matches!(self.state, AxisState::ErrorStop | AxisState::Disabled)
+        // A drive homing by itself reverses at the switches as its method says.
+        if self.homing.is_some()
+            || self.lent.is_some()
+            || matches!(self.state, AxisState::ErrorStop | AxisState::Disabled)
         {
             return;
         }

@@ -272,6 +272,11 @@ impl DriveSwitches {
         s
     }
 
+    /// The cam on 0x60FD bit `input`, if one is wired.
+    pub fn cam(&self, input: u8) -> Option<SwitchCam> {
+        self.cams.get(usize::from(input)).copied().flatten()
+    }
+
     /// Whether any cam is wired.
     pub fn any(&self) -> bool {
         self.cams.iter().any(Option::is_some)
