@@ -544,6 +544,7 @@ fn limit_switch_homing_never_takes_the_home_switch_latch_for_the_limit_edge() {
                 p.max_distance_switch_search = 180.0;
                 p.max_distance_reference_search = 180.0;
                 let mut rig = rig_for(Layout::STANDARD, &p, x0);
+                rig.probe_routed = false;
                 rig.m.probe_source = ProbeSource::Reference;
                 let h = rig
                     .k
