@@ -293,7 +293,7 @@ enum Cmd {
     },
 }
 
-/// `gantry home`'s parameters (each left out keeps the axis' last-used one).
+/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept across restarts when the service has a state directory).
 #[derive(clap::Args, Debug)]
 struct HomeArgs {
     /// Search direction: + or - (or positive, negative).
@@ -452,9 +452,9 @@ enum AxisCmd {
         client: ClientOpts,
     },
     /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
-    /// the phases; what is left out keeps the axis' last-used parameters. With --drive the
-    /// drive homes itself (CiA 402 homing mode, `[axis.drive_homing]`) and is handed back
-    /// in CSP.
+    /// the phases; what is left out is the axis' saved parameters (the last call's, kept
+    /// across restarts in the state directory). With --drive the drive homes itself (CiA
+    /// 402 homing mode, `[axis.drive_homing]`) and is handed back in CSP.
     Home {
         /// Axis name.
         axis: String,

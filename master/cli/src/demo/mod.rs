@@ -260,6 +260,8 @@ fn axis(
         pdo: "csp".into(),
         switches: Default::default(),
         drive_homing: None,
+        encoder: Default::default(),
+        homed_at_start: false,
     }
 }
 
@@ -327,6 +329,8 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             sync_counter: None,
         },
         rt: RtSection::default(),
+        // The demo saves nothing.
+        service: Default::default(),
         eds: vec![None; axes.len()],
         axes,
         kernel_axes,
