@@ -223,3 +223,74 @@ pub fn skip(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
     let reads = rig.with_servo(|s| i64::from(s.actual_counts()));
     assert!((st.actual_position - reads as f64 / COUNTS_PER_MM).abs() < 1e-6);
 }
+
+/// Starts drive homing with `params` without waiting.
+fn start(rig: &mut impl DriveHomingRig, params: DriveHomingParams) -> CommandHandle {
+    rig.ctl()
+        .drive_procedure(0, DriveProcedure::Homing(DriveHoming::new(params)))
+        .expect("queued")
+}
+
+/// QuickStop while the drive homes: the master halts it in homing mode and hands it back
+/// (the lending's handle ends naming QuickStop); the drive stands, in CSP, unfaulted,
+/// the first CSP target its own position; the axis in Standstill, not homed. Then power
+/// off while the drive homes: the lending ends at once (Aborted), the drive is switched
+/// off and set back to CSP (by SDO where the layout has no 0x6060), and enables and moves
+/// again.
+pub fn cancel_and_power_off(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
+    // Method 1: a long way to the negative limit switch.
+    let params = DriveHomingParams { method: 1, ..base };
+    let h = start(rig, params);
+    rig.cycles((0.5 / rig.cycle_s()) as usize);
+    let moving = rig.with_servo(|s| s.velocity().abs());
+    assert!(moving > 1000.0, "homing runs: {moving} counts/s");
+    let q = rig.ctl().command(0, Command::QuickStop).expect("queued");
+    assert_eq!(rig.finish(&q, 100), CommandStatus::Done);
+    let status = rig.finish(&h, (10.0 / rig.cycle_s()) as usize);
+    let CommandStatus::Error(e) = status else {
+        panic!("expected the cancel, got {status:?}");
+    };
+    assert_eq!(
+        e.to_string(),
+        "drive homing method 1: cancelled by QuickStop"
+    );
+    rig.cycles(20);
+    let st = rig.status();
+    assert_eq!(st.state, AxisState::Standstill);
+    assert!(!st.bits.homed);
+    let (mode, velocity, takeover, faults) =
+        rig.with_servo(|s| (s.mode(), s.velocity(), s.takeover(), s.record().faults));
+    assert_eq!((mode, faults), (8, 0));
+    assert!(velocity.abs() < 100.0, "stands: {velocity}");
+    let (target, actual) = takeover.expect("a CSP target");
+    assert!(
+        (i64::from(target) - i64::from(actual)).abs() <= 1,
+        "first CSP target {target}, the drive stood at {actual}"
+    );
+    // Power off in the middle of it.
+    let h = start(rig, params);
+    rig.cycles((0.3 / rig.cycle_s()) as usize);
+    let off = rig
+        .ctl()
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Disable),
+        )
+        .expect("queued");
+    rig.finish(&off, 2000);
+    assert_eq!(rig.finish(&h, 10), CommandStatus::Aborted);
+    rig.cycles((1.0 / rig.cycle_s()) as usize);
+    assert_eq!(rig.status().state, AxisState::Disabled);
+    assert_eq!(rig.with_servo(|s| s.mode()), 8, "set back to CSP");
+    let on = rig
+        .ctl()
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+        )
+        .expect("queued");
+    assert_eq!(rig.finish(&on, 5000), CommandStatus::Done);
+    let here = rig.status().actual_position;
+    move_to(rig, here + 1.0);
+    assert_eq!(rig.with_servo(|s| s.record().faults), 0);
+}

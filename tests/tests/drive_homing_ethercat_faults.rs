@@ -74,4 +74,5 @@ fn drive_homing_refused_methods_and_timeout_over_ethercat() {
     drive_homing::refused_method(&mut r, base, 0);
     drive_homing::refused_method(&mut r, base, 21);
     drive_homing::timeout_path(&mut r, base);
+    drive_homing::cancel_and_power_off(&mut r, base);
 }

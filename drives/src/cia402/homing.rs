@@ -16,7 +16,11 @@
 //!    "attained" of an earlier homing).
 //! 4. On an error, a timeout or a cancel: bit 8 halt, until bit 10 (the drive stands)
 //!    or [`HALT_TIMEOUT_S`].
-//! 5. Bits cleared, mode 8 (CSP) again until 0x6061 shows it; then the end.
+//! 5. The position actual value still (within a count for [`SETTLE_STEPS`] steps, at most
+//!    [`SETTLE_TIMEOUT_S`]): a drive reports "target reached" while its position loop
+//!    still settles by a few counts, and the first CSP target after the hand-back is the
+//!    position last read.
+//! 6. Bits cleared, mode 8 (CSP) again until 0x6061 shows it; then the end.
 //!
 //! A drive with an absolute encoder that needs no homing is configured to skip it: the
 //! sequence ends at once, done, without touching the drive (the master marks the axis
@@ -43,6 +47,10 @@ pub const HOMING_START: u16 = MODE_SPECIFIC_4;
 pub const STALE_STEPS: u32 = 5;
 /// How long a halted drive may take to stand (s).
 pub const HALT_TIMEOUT_S: f64 = 5.0;
+/// Steps in a row the position must stay within a count before the hand-back.
+pub const SETTLE_STEPS: u32 = 3;
+/// Longest wait for it (s): a drive that keeps creeping is handed back anyway.
+pub const SETTLE_TIMEOUT_S: f64 = 1.0;
 
 /// Homing parameters in the drive's units (counts, counts/s, counts/s²).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,6 +87,13 @@ enum Phase {
     /// Halting since `since`, then leaving with `result`.
     Halt {
         since: f64,
+        result: Result<(), ProcedureFailure>,
+    },
+    /// Waiting for the position to stand still, then leaving with `result`.
+    Settle {
+        since: f64,
+        last: i32,
+        still: u32,
         result: Result<(), ProcedureFailure>,
     },
     Leave {
@@ -121,6 +136,7 @@ impl DriveHoming {
             Phase::Enter(_) => "switching to homing mode",
             Phase::Run { .. } => "homing",
             Phase::Halt { .. } => "halting",
+            Phase::Settle { .. } => "waiting for the drive to stand",
             Phase::Leave { .. } => "switching back to CSP",
             Phase::Ended => "ended",
         }
@@ -272,6 +288,32 @@ impl DriveHoming {
                 }
                 ProcedureStep::hold(Some(homing.with(HOMING_START | HALT)))
             }
+            Phase::Settle {
+                since,
+                last,
+                still,
+                result,
+            } => {
+                let still = if (i64::from(io.position) - i64::from(last)).abs() <= 1 {
+                    still + 1
+                } else {
+                    0
+                };
+                if still >= SETTLE_STEPS || io.now_s - since > SETTLE_TIMEOUT_S {
+                    self.phase = Phase::Leave {
+                        switch: ModeSwitch::to(ModeOfOperation::CyclicSyncPosition),
+                        result,
+                    };
+                    return self.step(&without_sdo(io));
+                }
+                self.phase = Phase::Settle {
+                    since,
+                    last: io.position,
+                    still,
+                    result,
+                };
+                ProcedureStep::hold(Some(ProcedureOutputs::idle(ModeOfOperation::Homing)))
+            }
             Phase::Leave { mut switch, result } => match switch.step(io, 0) {
                 Switching::Pending(step) => {
                     self.phase = Phase::Leave { switch, result };
@@ -311,11 +353,13 @@ impl DriveHoming {
         io: &ProcedureInputs,
         result: Result<(), ProcedureFailure>,
     ) -> ProcedureStep {
-        self.phase = Phase::Leave {
-            switch: ModeSwitch::to(ModeOfOperation::CyclicSyncPosition),
+        self.phase = Phase::Settle {
+            since: io.now_s,
+            last: io.position,
+            still: 0,
             result,
         };
-        self.step(&without_sdo(io))
+        ProcedureStep::hold(Some(ProcedureOutputs::idle(ModeOfOperation::Homing)))
     }
 }
 
@@ -331,4 +375,127 @@ fn end(result: Result<(), ProcedureFailure>) -> ProcedureStep {
 /// must not take its predecessor's outcome for its own).
 fn without_sdo(io: &ProcedureInputs) -> ProcedureInputs {
     ProcedureInputs { sdo: None, ..*io }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cia402::Statusword;
+
+    fn params() -> DriveHomingParams {
+        DriveHomingParams {
+            method: 19,
+            speed_switch: 1000,
+            speed_zero: 100,
+            acceleration: 10_000,
+            home_offset: -7,
+            timeout_s: 1.0,
+            skip: false,
+        }
+    }
+
+    fn io(sw: u16, display: i8, t: f64, sdo: Option<SdoOutcome>) -> ProcedureInputs {
+        ProcedureInputs {
+            statusword: Statusword(sw),
+            mode_display: Some(display),
+            mode_mapped: true,
+            position: 0,
+            now_s: t,
+            sdo,
+        }
+    }
+
+    /// The objects go by SDO in order while the drive stays in CSP; a statusword that
+    /// still shows an earlier homing's "attained" right after the start edge is not
+    /// taken; the real one is, and the drive is handed back in CSP.
+    #[test]
+    fn writes_the_objects_starts_and_ignores_a_stale_attained() {
+        let mut h = DriveHoming::new(params());
+        let mut written = Vec::new();
+        let mut step = h.step(&io(0x0237, 8, 0.0, None));
+        while let Some(a) = step.sdo {
+            assert_eq!(step.outputs, None, "still CSP while writing");
+            written.push((a.object.index, a.object.sub, a.write));
+            step = h.step(&io(0x0237, 8, 0.0, Some(SdoOutcome::Done(0))));
+        }
+        assert_eq!(
+            written,
+            [
+                (0x6098, 0, Some(19)),
+                (0x6099, 1, Some(1000)),
+                (0x6099, 2, Some(100)),
+                (0x609A, 0, Some(10_000)),
+                (0x607C, 0, Some(-7)),
+            ]
+        );
+        // Mode 6 by PDO; bit 4 once the display shows it.
+        assert_eq!(step.outputs.map(|o| o.mode), Some(ModeOfOperation::Homing));
+        let step = h.step(&io(0x0237, 6, 0.01, None));
+        assert_eq!(step.outputs.map(|o| o.mode_bits), Some(HOMING_START));
+        let stale = 0x0237 | HOMING_ATTAINED | TARGET_REACHED;
+        for k in 0..STALE_STEPS {
+            let step = h.step(&io(stale, 6, 0.02 + f64::from(k) * 0.001, None));
+            assert_eq!(step.end, None, "step {k}: a stale statusword");
+        }
+        assert_eq!(h.phase_name(), "homing");
+        // Attained now; the position stands: settle, then CSP, then the end.
+        let mut end = None;
+        for k in 0..20 {
+            let display = if k < 5 { 6 } else { 8 };
+            let step = h.step(&io(stale, display, 0.1 + f64::from(k) * 0.001, None));
+            if step.end.is_some() {
+                end = step.end;
+                break;
+            }
+        }
+        assert_eq!(end, Some(Ok(())));
+    }
+
+    #[test]
+    fn the_timeout_names_what_was_missing_and_a_refused_method_ends_in_csp() {
+        let mut h = DriveHoming::new(params());
+        let step = h.step(&io(0x0237, 8, 0.0, None));
+        assert!(step.sdo.is_some());
+        let step = h.step(&io(0x0237, 8, 0.0, Some(SdoOutcome::Aborted(0x0609_0030))));
+        assert_eq!(
+            step.end,
+            Some(Err(ProcedureFailure::Refused {
+                object: objects::HOMING_METHOD,
+                value: 19,
+                code: 0x0609_0030
+            }))
+        );
+        assert_eq!(step.outputs, None, "never left CSP");
+        let mut h = DriveHoming::new(params());
+        let mut step = h.step(&io(0x0237, 8, 0.0, None));
+        while step.sdo.is_some() {
+            step = h.step(&io(0x0237, 8, 0.0, Some(SdoOutcome::Done(0))));
+        }
+        let mut t = 0.0;
+        let mut end = None;
+        while t < 10.0 {
+            t += 0.01;
+            // In homing mode, "in progress" forever; halted, it stands (bit 10).
+            let halted = h.phase_name() == "halting";
+            let sw = 0x0237 | if halted { TARGET_REACHED } else { 0 };
+            let display = if matches!(h.phase_name(), "switching back to CSP") {
+                8
+            } else {
+                6
+            };
+            let step = h.step(&io(sw, display, t, None));
+            if let Some(e) = step.end {
+                end = Some(e);
+                break;
+            }
+        }
+        assert_eq!(
+            end,
+            Some(Err(ProcedureFailure::NotReported {
+                missing: "homing attained",
+                timeout_s: 1.0
+            }))
+        );
+        assert!(t > 1.0 && t < 1.5, "{t}");
+    }
 }

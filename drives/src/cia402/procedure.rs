@@ -83,6 +83,8 @@ pub struct ProcedureInputs {
     pub mode_display: Option<i8>,
     /// Whether the process data carries 0x6060 (else the mode goes by SDO).
     pub mode_mapped: bool,
+    /// 0x6064 position actual value (counts).
+    pub position: i32,
     /// Time (s), monotonic.
     pub now_s: f64,
     /// The outcome of the access asked for last, once (the cycle it arrives).

@@ -743,6 +743,7 @@ impl<B: CycleBus> Engine<B> {
                 statusword: inputs.statusword,
                 mode_display: inputs.mode_display,
                 mode_mapped,
+                position: inputs.position,
                 now_s,
                 sdo: if r.active.is_some() {
                     None

@@ -166,6 +166,34 @@ pub struct HomeParams {
     pub normal_position: Option<f64>,
 }
 
+/// Drive homing's parameters as a `drive_home` request carries them (`"params": {…}`);
+/// each one left out is the axis' `[axis.drive_homing]` value.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DriveHomeParams {
+    /// CiA 402 homing method (0x6098).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<i8>,
+    /// Speed during search for switch (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_switch: Option<f64>,
+    /// Speed during search for zero (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_zero: Option<f64>,
+    /// Homing acceleration (units/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Home offset (units; the home position reads as minus this).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub home_offset: Option<f64>,
+    /// How long the drive may take to report homing attained (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timeout_s: Option<f64>,
+    /// Skip the drive's homing run (an absolute drive): homed where it stands.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skip: Option<bool>,
+}
+
 /// How a move's `to` is meant. What `absolute` means depends on the axis: on a modulo axis
 /// it takes the shorter way round.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -401,6 +429,15 @@ pub enum Request {
         #[serde(default)]
         params: HomeParams,
     },
+    /// Homing done by the axis' drive itself (CiA 402 homing mode), then back in CSP;
+    /// every parameter left out is the axis' `[axis.drive_homing]` one.
+    DriveHome {
+        /// Axis name.
+        axis: String,
+        /// The parameters.
+        #[serde(default)]
+        params: DriveHomeParams,
+    },
     /// Leave ErrorStop: the slave back to OP if needed, the drive's fault reset.
     Reset {
         /// Axis name.
@@ -481,6 +518,7 @@ impl Request {
             Self::SetPosition { .. } => "set_position",
             Self::Reset { .. } => "reset",
             Self::Home { .. } => "home",
+            Self::DriveHome { .. } => "drive_home",
             Self::Command { .. } => "command",
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
@@ -502,6 +540,7 @@ impl Request {
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
             | Self::Home { axis, .. }
+            | Self::DriveHome { axis, .. }
             | Self::Reset { axis } => Some(axis),
             Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
@@ -657,6 +696,18 @@ mod tests {
                     normal_position: Some(5.0),
                 },
             },
+            Request::DriveHome {
+                axis: axis(),
+                params: DriveHomeParams {
+                    method: Some(19),
+                    speed_switch: Some(20.0),
+                    speed_zero: Some(2.0),
+                    acceleration: Some(200.0),
+                    home_offset: Some(-1.5),
+                    timeout_s: Some(30.0),
+                    skip: Some(false),
+                },
+            },
             Request::Shutdown,
         ]
     }
@@ -684,11 +735,12 @@ mod tests {
             Request::Sdo { .. } => 14,
             Request::Object { .. } => 15,
             Request::Home { .. } => 16,
+            Request::DriveHome { .. } => 17,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..17).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..18).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 17, "{words:?}");
+        assert_eq!(words.len(), 18, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

@@ -22,15 +22,17 @@ use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
-    self, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection,
-    MAX_LINE,
+    self, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request,
+    SdoDirection, MAX_LINE,
 };
-use crate::config::Config;
+use crate::config::{Config, DriveHomingSection};
 use crate::error_chain::Chain;
 use crate::persist::{PersistError, PtpParams, Saved};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
+use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::protocol::{Snapshot, TraceSample};
 use crate::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_DATA, SDO_TIMEOUT_NS};
+use gantry_drives::cia402::homing::{DriveHoming, DriveHomingParams};
 use gantry_kernel::homing::{HomingMode, MoveHomeCall, SwitchConfig};
 
 /// Trace samples kept for `trace` requests (60 s at 1 kHz).
@@ -217,6 +219,14 @@ pub enum Refused {
     /// disagree: a bug).
     #[error("axis {0:?} has no configuration")]
     NoConfig(String),
+    /// A drive homing parameter is missing or wrong.
+    #[error("{key}: {reason}")]
+    DriveHoming {
+        /// The parameter (as the configuration names it).
+        key: String,
+        /// Why.
+        reason: String,
+    },
     /// No such handle.
     #[error("no handle {0} (handles are per service run)")]
     NoHandle(u64),
@@ -508,6 +518,16 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             }
             sent(Ok(h))
         }
+        Request::DriveHome { axis: a, params } => {
+            let i = axis(&a)?;
+            let cfg = state
+                .config
+                .axes
+                .get(i)
+                .ok_or(Refused::NoConfig(a.clone()))?;
+            let params = drive_home_params(cfg, &params)?;
+            sent(ctl.drive_procedure(i, DriveProcedure::Homing(DriveHoming::new(params))))
+        }
         Request::Sdo {
             axis: a,
             drive,
@@ -578,6 +598,52 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             Ok(json!({"shutting_down": true}))
         }
     }
+}
+
+/// The axis' `[axis.drive_homing]` with the request's values in place of its own, in the
+/// drive's counts; what is missing or wrong is refused by its key.
+fn drive_home_params(
+    cfg: &crate::config::AxisSection,
+    p: &DriveHomeParams,
+) -> Result<DriveHomingParams, Refused> {
+    let base = cfg.drive_homing;
+    let missing = |key: &'static str| Refused::DriveHoming {
+        key: key.into(),
+        reason: format!(
+            "not given, and axis {:?} has no [axis.drive_homing] to take it from",
+            cfg.name
+        ),
+    };
+    let section = DriveHomingSection {
+        method: p
+            .method
+            .or(base.map(|b| b.method))
+            .ok_or_else(|| missing("method"))?,
+        speed_switch: p
+            .speed_switch
+            .or(base.map(|b| b.speed_switch))
+            .ok_or_else(|| missing("speed_switch"))?,
+        speed_zero: p
+            .speed_zero
+            .or(base.map(|b| b.speed_zero))
+            .ok_or_else(|| missing("speed_zero"))?,
+        acceleration: p
+            .acceleration
+            .or(base.map(|b| b.acceleration))
+            .ok_or_else(|| missing("acceleration"))?,
+        home_offset: p.home_offset.or(base.map(|b| b.home_offset)).unwrap_or(0.0),
+        timeout: p
+            .timeout_s
+            .or(base.map(|b| b.timeout))
+            .unwrap_or(crate::config::DRIVE_HOMING_TIMEOUT_S),
+        skip: p.skip.or(base.map(|b| b.skip)).unwrap_or(false),
+    };
+    let scaling = cfg
+        .scaling()
+        .map_err(|(key, reason)| Refused::DriveHoming { key, reason })?;
+    section
+        .params(&scaling, cfg.max.speed)
+        .map_err(|(key, reason)| Refused::DriveHoming { key, reason })
 }
 
 impl From<protocol::BufferMode> for BufferMode {
@@ -753,6 +819,12 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "statusword": format!("{:#06x}", d.statusword),
                 "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),
                 "bus_fault": d.bus_fault.map(|f| f.to_string()),
+                "mode": d.mode_display,
+                "procedure": d.procedure.map(|p| json!({
+                    "name": p.name,
+                    "method": p.method,
+                    "phase": p.phase,
+                })),
                 "canopen": d.can_node.map(|n| json!({
                     "node": n.node,
                     "nmt": n.nmt,

@@ -37,10 +37,11 @@ pub struct Entry {
     pub range: Option<(i64, i64)>,
     /// Within the range, only these values (an enumeration with gaps, e.g. 0x60D0's
     /// sources); `None`: the whole range.
-    pub enumeration: Option<&'static [i64]>,
-    /// One-byte entries whose valid values have holes (0x6060 modes the device has,
-    /// 0x6098 methods): bit `v as u8` set for each value a download may write.
-    pub allowed: Option<[u64; 4]>,
+    pub allowed: Option<&'static [i64]>,
+    /// One-byte entries whose valid values depend on the device's configuration (0x6060
+    /// modes it has, 0x6098 methods, less those a fault knob refuses): bit `v as u8` set
+    /// for each value a download may write.
+    pub allowed_bytes: Option<[u64; 4]>,
 }
 
 /// An object dictionary.
@@ -96,8 +97,8 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
-                enumeration: None,
                 allowed: None,
+                allowed_bytes: None,
             }),
         }
     }
@@ -112,27 +113,6 @@ impl ObjectDictionary {
             .find(|e| e.index == index && e.sub == sub)
         {
             e.range = Some((min, max));
-        }
-    }
-
-    /// Adds or replaces an entry that downloads may only set to one of `allowed` (abort
-    /// 0x06090030 otherwise, as for a range).
-    pub fn insert_enumerated(
-        &mut self,
-        index: u16,
-        sub: u8,
-        value: &[u8],
-        allowed: &'static [i64],
-    ) {
-        let min = allowed.iter().copied().min().unwrap_or(0);
-        let max = allowed.iter().copied().max().unwrap_or(0);
-        self.insert_ranged(index, sub, value, min, max);
-        if let Some(e) = self
-            .entries
-            .iter_mut()
-            .find(|e| e.index == index && e.sub == sub)
-        {
-            e.enumeration = Some(allowed);
         }
     }
 
@@ -156,6 +136,27 @@ impl ObjectDictionary {
             .find(|e| e.index == index && e.sub == sub)
         {
             e.range = (lo <= hi).then_some((lo, hi));
+            e.allowed_bytes = Some(allowed);
+        }
+    }
+
+    /// Adds or replaces an entry that downloads may only set to one of `allowed` (abort
+    /// 0x06090030 otherwise, as for a range).
+    pub fn insert_enumerated(
+        &mut self,
+        index: u16,
+        sub: u8,
+        value: &[u8],
+        allowed: &'static [i64],
+    ) {
+        let min = allowed.iter().copied().min().unwrap_or(0);
+        let max = allowed.iter().copied().max().unwrap_or(0);
+        self.insert_ranged(index, sub, value, min, max);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
             e.allowed = Some(allowed);
         }
     }
@@ -273,11 +274,11 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max || e.enumeration.is_some_and(|a| !a.contains(&v)) {
+            if v < min || v > max || e.allowed.is_some_and(|a| !a.contains(&v)) {
                 return Err(OdError::ValueRange);
             }
         }
-        if let (Some(allowed), [b]) = (e.allowed, value) {
+        if let (Some(allowed), [b]) = (e.allowed_bytes, value) {
             let i = usize::from(*b);
             if allowed.get(i / 64).is_none_or(|w| w & (1 << (i % 64)) == 0) {
                 return Err(OdError::ValueRange);

@@ -1309,7 +1309,7 @@ impl ServoDrive {
         let mut sw = self.state.statusword().0 | statusword::REMOTE;
         if self.mode == HM {
             // Bits 10, 12, 13 as the homing mode says (CiA 402-2 §10.4.2).
-            let standing = self.motor.velocity.abs() < self.standstill();
+            let standing = self.motor.velocity.abs() < HOMING_STANDSTILL;
             let halted = self.controlword.0 & (1 << 8) != 0;
             sw |= self.homing.status_bits(standing, halted);
         } else if self.following() {
