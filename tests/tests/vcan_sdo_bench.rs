@@ -97,6 +97,10 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
             .upload(node, RECORDER, 0, UploadMode::Block)
             .unwrap_or_else(|o| panic!("gantry block upload: {o:?}"));
         gantry_block.push(t0.elapsed().as_secs_f64());
+        eprintln!(
+            "SDO bench: gantry block upload {:.3} s",
+            t0.elapsed().as_secs_f64()
+        );
         check_bytes("gantry block upload", &data);
         // It was a block transfer: 64 KiB in segments of 7 bytes (CiA 301 §7.2.4.3.12),
         // not a segmented one.
@@ -114,6 +118,7 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
         .upload(node, RECORDER, 0, UploadMode::Normal)
         .unwrap_or_else(|o| panic!("gantry segmented upload: {o:?}"));
     let gantry_segmented = t0.elapsed().as_secs_f64();
+    eprintln!("SDO bench: gantry segmented upload {gantry_segmented:.3} s");
     check_bytes("gantry segmented upload", &data);
 
     // python-canopen's client on the same node.
