@@ -32,8 +32,10 @@ const IFACE: &str = "vcan1";
 const NODE: u8 = 5;
 /// 64 KiB: the figure.
 const BYTES: usize = 65_536;
-/// Block uploads each client makes (the median is compared).
+/// Block uploads gantry's client makes (the median is compared).
 const RUNS: usize = 3;
+/// Block uploads python-canopen's makes (in the emulated VM it is slow).
+const PYTHON_RUNS: usize = 1;
 
 fn chain() -> String {
     format!(
@@ -88,7 +90,7 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
         })
         .expect("gantry-sim's node boots");
 
-    // gantry's client: block uploads, then one segmented (for the record).
+    // gantry's client: block uploads.
     let mut gantry_block = Vec::new();
     for _ in 0..RUNS {
         let first = master.seen.len();
@@ -113,14 +115,6 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
             "{segments} frames from the node"
         );
     }
-    let t0 = Instant::now();
-    let data = master
-        .upload(node, RECORDER, 0, UploadMode::Normal)
-        .unwrap_or_else(|o| panic!("gantry segmented upload: {o:?}"));
-    let gantry_segmented = t0.elapsed().as_secs_f64();
-    eprintln!("SDO bench: gantry segmented upload {gantry_segmented:.3} s");
-    check_bytes("gantry segmented upload", &data);
-
     // python-canopen's client on the same node.
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("peers/sdo_bench.py");
     let mut peer = gantry_tests::netns::Reaped::new(
@@ -129,7 +123,7 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
             .arg(IFACE)
             .args(["--node", &NODE.to_string()])
             .args(["--index", &format!("{RECORDER:#06x}")])
-            .args(["--runs", &RUNS.to_string()])
+            .args(["--runs", &PYTHON_RUNS.to_string()])
             .arg("--out")
             .arg(&dir)
             .stdout(Stdio::piped())
@@ -195,10 +189,6 @@ fn vcan_sdo_bench_64_kib_upload_gantry_against_python_canopen() {
     eprintln!(
         "SDO bench: gantry block      {gantry_block:.3?} s, median {gb:.3} s ({:.0} KiB/s)",
         kib_s(gb)
-    );
-    eprintln!(
-        "SDO bench: gantry segmented  {gantry_segmented:.3} s ({:.0} KiB/s)",
-        kib_s(gantry_segmented)
     );
     eprintln!(
         "SDO bench: python block      {python_block:.3?} s, median {pb:.3} s ({:.0} KiB/s)",
