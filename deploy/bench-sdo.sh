@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The SDO benchmark of the CANopen issue: a 64 KiB upload (the simulated node's recorder
 # 0x2100) by gantry's SDO client and by python-canopen's, on the same gantry-sim node over
-# vcan, in one run (tests/tests/vcan_sdo_bench.rs). Prints the "SDO bench:" figures.
+# vcan, in one run (tests/tests/sdo_bench_vcan.rs). Prints the "SDO bench:" figures.
 # Runs in a network namespace where the host kernel has vcan, else in the VM of deploy/vm/
 # (the build machines' kernels have no CAN; there the figures are an emulator's).
 # Usage: bash deploy/bench-sdo.sh        (deploy/test.sh runs the same test with the others)
@@ -16,14 +16,14 @@ if ! "$py" -c "import importlib.metadata as m, sys; sys.exit(m.version('canopen'
 fi
 
 cargo build --release -p gantry-sim --bin gantry-sim
-bin=$(cargo test -p gantry-tests --release --features vcan --test vcan_sdo_bench --no-run \
+bin=$(cargo test -p gantry-tests --release --features vcan --test sdo_bench_vcan --no-run \
         --message-format=json \
       | python3 -c 'import json, sys
 for line in sys.stdin:
     m = json.loads(line)
     if m.get("reason") == "compiler-artifact" and m.get("executable") and "test" in m["target"]["kind"]:
         print(m["executable"])')
-[ -n "$bin" ] || { echo "vcan_sdo_bench was not built" >&2; exit 1; }
+[ -n "$bin" ] || { echo "sdo_bench_vcan was not built" >&2; exit 1; }
 cmd="GANTRY_PEER_PYTHON=$py $bin --nocapture >/tmp/gantry-sdo-bench.log 2>&1; rc=\$?; grep -E 'SDO bench|panicked|test result' /tmp/gantry-sdo-bench.log; exit \$rc"
 
 if [ "$(id -u)" = 0 ] && modprobe vcan >/dev/null 2>&1 && ip netns add gantry-sdo-bench >/dev/null 2>&1; then
