@@ -37,8 +37,9 @@ const CYCLE_US: u32 = 20_000;
 const WAIT: Duration = Duration::from_secs(60);
 
 /// How long the bus is watched after gantry's exit for a node reporting a lost SYNC or
-/// heartbeat: ten times the nodes' 300 ms heartbeat consumer time.
-const AFTER_EXIT: Duration = Duration::from_secs(3);
+/// heartbeat: twice the nodes' consumer time of gantry's heartbeat (`master_timeout_ms`
+/// 3000 here).
+const AFTER_EXIT: Duration = Duration::from_secs(6);
 
 /// One chain file for `gantry-sim` with servos on `nodes`.
 fn chain(nodes: &[u8]) -> String {
@@ -88,6 +89,10 @@ fn master_config() -> String {
             // The emulated VM stalls for hundreds of ms: heartbeats and TPDOs arrive
             // late there, which a real bus would not do.
             out.push_str("heartbeat_timeout_ms = 3000\n");
+            // And the nodes' consumer of gantry's heartbeat (300 ms by default): a node
+            // that misses it leaves Operational (0x1029:01 = 0), as one did at bring-up
+            // under a loaded host.
+            out.push_str("master_timeout_ms = 3000\n");
             cycle = true;
         } else if line.starts_with("lost_frames_limit =") {
             out.push_str("lost_frames_limit = 20\n");

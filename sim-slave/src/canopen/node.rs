@@ -134,6 +134,10 @@ impl CanNodeConfig {
             start_counts: servo.start_position,
             sync_timeout_periods: servo.sync_timeout_periods,
             recorder_bytes: servo.recorder_bytes as usize,
+            sdo: SdoConfig {
+                timeout_ns: u64::from(servo.sdo_timeout_ms) * 1_000_000,
+                ..SdoConfig::default()
+            },
             ..Self::servo(node)
         }
     }
