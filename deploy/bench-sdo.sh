@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The SDO benchmark of the CANopen issue: a 64 KiB upload (the simulated node's recorder
-# 0x2100) by gantry's SDO client and by python-canopen's, on the same gantry-sim node over
+# 0x2F00) by gantry's SDO client and by python-canopen's, on the same gantry-sim node over
 # vcan, in one run (tests/tests/sdo_bench_vcan.rs). Prints the "SDO bench:" figures.
 # Runs in a network namespace where the host kernel has vcan, else in the VM of deploy/vm/
 # (the build machines' kernels have no CAN; there the figures are an emulator's).

@@ -200,7 +200,7 @@ pub struct ServoConfig {
     /// reaction). CiA 301 §7.5.2.6 leaves it to the device; 1.5 (CANopenNode's) by
     /// default. A larger one tolerates a master on a host without real time.
     pub sync_timeout_periods: f64,
-    /// On a CAN bus: bytes of the manufacturer DOMAIN 0x2100 "recorder" (read-only, known
+    /// On a CAN bus: bytes of the manufacturer DOMAIN 0x2F00 "recorder" (read-only, known
     /// content, for large SDO uploads; 0: the node has none; at most 1 MiB).
     pub recorder_bytes: u32,
     /// On a CAN bus: how long its SDO server waits for the client's next frame before it

@@ -175,7 +175,7 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
     assert_eq!(e.entry(0x6060, 0).unwrap().limits(), Some((6, 10)));
 }
 
-/// A node with the recorder 0x2100 (chain `recorder_bytes`) describes it as a read-only
+/// A node with the recorder 0x2F00 (chain `recorder_bytes`) describes it as a read-only
 /// DOMAIN that no PDO maps; one without it does not describe it.
 #[test]
 fn the_recorder_is_a_read_only_domain_in_the_eds() {
@@ -185,12 +185,12 @@ fn the_recorder_is_a_read_only_domain_in_the_eds() {
     })
     .unwrap();
     let e = agrees_with_the_node(&mut n);
-    let r = e.entry(0x2100, 0).unwrap();
+    let r = e.entry(0x2F00, 0).unwrap();
     assert_eq!(
         (r.data_type, r.access, r.pdo_mapping),
         (DataType::Domain, AccessType::ReadOnly, false)
     );
-    assert!(read(&mut node(5)).entry(0x2100, 0).is_none());
+    assert!(read(&mut node(5)).entry(0x2F00, 0).is_none());
 }
 
 #[test]

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """python-canopen's SDO client uploading one object from a node, timed, block and segmented.
 
-Usage: sdo_bench.py CHANNEL --node N --index 0x2100 --out DIR [--runs 3] [--segmented-runs 1]
+Usage: sdo_bench.py CHANNEL --node N --index 0x2F00 --out DIR [--runs 3] [--segmented-runs 1]
 
 On the SocketCAN interface CHANNEL: uploads INDEX:00 of node N with python-canopen's
 block upload (`SdoClient.open(..., block_transfer=True)`: sub-blocks of 127, CRC asked

@@ -1,5 +1,5 @@
 //! The SDO benchmark of the CANopen issue (§7): a 64 KiB upload from one simulated node
-//! (`gantry-sim --can vcan1`, its recorder DOMAIN 0x2100 of known content) by gantry's SDO
+//! (`gantry-sim --can vcan1`, its recorder DOMAIN 0x2F00 of known content) by gantry's SDO
 //! client (`gantry-drives`, block upload: sub-blocks of 127 with CRC) and by python-canopen's
 //! (its block upload and its segmented upload, `tests/peers/sdo_bench.py`), on the same node
 //! in the same run. Every upload is checked byte for byte against the recorder's content
@@ -202,7 +202,7 @@ fn sdo_bench_vcan_64_kib_upload_gantry_against_python_canopen() {
         median(&python_block),
         median(&python_segmented),
     );
-    eprintln!("SDO bench: 64 KiB upload of 0x2100 from gantry-sim node {NODE} on {IFACE}");
+    eprintln!("SDO bench: 64 KiB upload of 0x2F00 from gantry-sim node {NODE} on {IFACE}");
     eprintln!(
         "SDO bench: gantry block      {gantry_block:.3?} s, median {gb:.3} s ({:.0} KiB/s)",
         kib_s(gb)

@@ -22,7 +22,7 @@
 //! | 0x1400–0x1403, 0x1600–0x1603 | rw | RPDO communication / mapping ([`super::pdo`]) |
 //! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping |
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
-//! | 0x2100 | ro | recorder: a manufacturer DOMAIN of `recorder_bytes` (chain file; absent when 0) whose byte `i` is [`recorder_byte`]`(i)`, for large SDO uploads (segmented, block) |
+//! | 0x2F00 | ro | recorder: a manufacturer DOMAIN of `recorder_bytes` (chain file; absent when 0) whose byte `i` is [`recorder_byte`]`(i)`, for large SDO uploads (segmented, block) |
 //! | 0x6007 | rw | abort connection option code (CiA 402-2): 0 none, 1 fault |
 //! | 0x6000… | | the device's objects (`CanDevice::install_objects`) and every mappable one |
 
@@ -78,16 +78,16 @@ pub const ERROR_BEHAVIOUR: u16 = 0x1029;
 /// (time, not count); a count in a row is what EtherCAT drives configure (ETG.1020 0x10F1:02
 /// "sync error counter limit"), so the CANopen drive is judged like the EtherCAT one.
 pub const MISSED_SETPOINT_LIMIT: u16 = 0x2010;
-/// Manufacturer-specific 0x2100: the recorder, a read-only DOMAIN (CiA 301 §7.4.7.1
+/// Manufacturer-specific 0x2F00: the recorder, a read-only DOMAIN (CiA 301 §7.4.7.1
 /// data type 0x000F: any length, uploaded segmented or by block, never expedited unless
 /// 4 bytes or less) whose content is known ([`recorder_byte`]) so a client's upload can be
 /// checked byte for byte. Present only with a length (chain file `recorder_bytes`).
-pub const RECORDER: u16 = 0x2100;
+pub const RECORDER: u16 = 0x2F00;
 /// Largest recorder (bytes): a 64 KiB trace is what the SDO benchmark moves; 1 MiB
 /// leaves room without letting a chain file ask for gigabytes.
 pub const RECORDER_MAX_BYTES: usize = 1 << 20;
 
-/// Byte `i` of the recorder 0x2100: the top byte of a multiplicative hash of `i`
+/// Byte `i` of the recorder 0x2F00: the top byte of a multiplicative hash of `i`
 /// (Knuth's 2654435761), so that no 256-byte period hides a segment delivered in the
 /// wrong place. Python: `((i * 2654435761) & 0xFFFFFFFF) >> 24`.
 pub const fn recorder_byte(i: usize) -> u8 {
@@ -229,7 +229,7 @@ pub struct NodeDictionary {
     pub tx_image: [u8; IMAGE_BYTES],
     /// What the last SDO writes changed (the node takes and clears it).
     pub changed: Changed,
-    /// 0x2100's content (empty: no recorder).
+    /// 0x2F00's content (empty: no recorder).
     recorder: Box<[u8]>,
 }
 
@@ -337,13 +337,13 @@ impl NodeDictionary {
         d
     }
 
-    /// Gives the node the recorder 0x2100 of `bytes` bytes ([`recorder_byte`]; 0: none).
+    /// Gives the node the recorder 0x2F00 of `bytes` bytes ([`recorder_byte`]; 0: none).
     /// Allocates: call it before the node runs.
     pub fn set_recorder(&mut self, bytes: usize) {
         self.recorder = (0..bytes).map(recorder_byte).collect();
     }
 
-    /// Bytes of the recorder 0x2100 (0: the node has none).
+    /// Bytes of the recorder 0x2F00 (0: the node has none).
     pub fn recorder_len(&self) -> usize {
         self.recorder.len()
     }

@@ -94,7 +94,7 @@ pub struct CanNodeConfig {
     pub sdo: SdoConfig,
     /// Largest object served segmented or by block (bytes); at least the recorder's.
     pub sdo_buffer: usize,
-    /// Bytes of the recorder DOMAIN 0x2100 (0: none; see
+    /// Bytes of the recorder DOMAIN 0x2F00 (0: none; see
     /// [`super::dictionary::RECORDER`]).
     pub recorder_bytes: usize,
     /// The SYNC watchdog's margin (periods of 0x1006; at least 1).
@@ -278,7 +278,7 @@ pub enum CanNodeError {
     },
     /// A recorder larger than the simulator holds.
     #[error(
-        "CANopen node {node}: recorder_bytes = {bytes}: the recorder 0x2100 holds at most \
+        "CANopen node {node}: recorder_bytes = {bytes}: the recorder 0x2F00 holds at most \
          {max} bytes",
         max = super::dictionary::RECORDER_MAX_BYTES
     )]

@@ -207,7 +207,7 @@ pub fn client(node: u8) -> SdoClient<Vec<u8>> {
         timeout_ns: 50 * MS,
         ..SdoConfig::default()
     };
-    // The recorder 0x2100 of the large-upload tests is 64 KiB.
+    // The recorder 0x2F00 of the large-upload tests is 64 KiB.
     SdoClient::new(id(node), config, vec![0; 1 << 16]).unwrap()
 }
 
