@@ -200,6 +200,14 @@ pub struct ServoConfig {
     /// reaction). CiA 301 §7.5.2.6 leaves it to the device; 1.5 (CANopenNode's) by
     /// default. A larger one tolerates a master on a host without real time.
     pub sync_timeout_periods: f64,
+    /// On a CAN bus: bytes of the manufacturer DOMAIN 0x2F00 "recorder" (read-only, known
+    /// content, for large SDO uploads; 0: the node has none; at most 1 MiB).
+    pub recorder_bytes: u32,
+    /// On a CAN bus: how long its SDO server waits for the client's next frame before it
+    /// aborts the transfer with 0x05040000 (ms; CiA 301 leaves it to the device; 1000 by
+    /// default). A longer one serves a slow client (a Python master in an emulated VM
+    /// acknowledging a sub-block of 127 segments).
+    pub sdo_timeout_ms: u32,
     /// How fast its distributed clock's oscillator runs against true time (ppm;
     /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
     /// the network's reference, which the master's cycle has to follow.
@@ -336,6 +344,8 @@ impl Default for ServoConfig {
             node: None,
             start_position: 0,
             sync_timeout_periods: crate::canopen::node::SYNC_TIMEOUT_PERIODS,
+            recorder_bytes: 0,
+            sdo_timeout_ms: 1000,
             dc_drift_ppm: 0.0,
             commutation_offset: p.commutation_offset,
             bandwidth_hz: p.velocity_loop_hz,

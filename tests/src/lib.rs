@@ -10,6 +10,7 @@ pub mod dc_phase;
 pub mod drive_counts;
 pub mod drive_homing;
 pub mod homing;
+pub mod homing_matrix;
 pub mod invariant;
 pub mod lockstep;
 pub mod netns;

@@ -71,12 +71,12 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
         .unwrap();
     let (ends, chain) = rx.recv().unwrap();
     // An object longer than a drive's mailbox carries in one message: segmented both ways
-    // (0x2F00: free on the simulated servo, whose 0x2100 is its commutation offset).
+    // (0x2E00: free on the simulated servo, whose 0x2100 is its commutation offset).
     let long: Vec<u8> = (0..200u32).map(|i| i as u8).collect();
     for i in 0..AXES {
         let mut c = chain.lock().unwrap();
         let od = c.slave_mut(i).and_then(|s| s.object_dictionary_mut());
-        od.expect("a servo with CoE").insert(0x2F00, 0, &long, true);
+        od.expect("a servo with CoE").insert(0x2E00, 0, &long, true);
     }
     let names = (0..AXES).map(|i| format!("a{i}")).collect();
     let ctl = Controller::new(ends, names);
@@ -87,8 +87,8 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
         let requests = [
             SdoRequest::upload(drive, 0x1018, 1),
             SdoRequest::download(drive, 0x6060, 0, SdoData::new(&[8]).unwrap()),
-            SdoRequest::download(drive, 0x2F00, 0, SdoData::new(&new).unwrap()),
-            SdoRequest::upload(drive, 0x2F00, 0),
+            SdoRequest::download(drive, 0x2E00, 0, SdoData::new(&new).unwrap()),
+            SdoRequest::upload(drive, 0x2E00, 0),
             SdoRequest::upload(drive, 0x2000, 0),
         ];
         let mut outcomes = Vec::new();

@@ -18,9 +18,9 @@ use gantry_tests::rig::Rig;
 /// An object the test adds to a drive: longer than its 128-byte mailbox carries in one
 /// message (112 bytes), so both ways go in segments. (Not 0x2100/0x2101: the simulated
 /// servo's commutation offset and pole pairs.)
-const LONG: u16 = 0x2F00;
+const LONG: u16 = 0x2E00;
 /// One that fits a single message (normal, not expedited, not segmented).
-const MEDIUM: u16 = 0x2F01;
+const MEDIUM: u16 = 0x2E01;
 
 /// The drives' firmware takes this long to answer a mailbox request: the master polls.
 const MAILBOX_MS: u64 = 3;
@@ -322,13 +322,13 @@ fn what_the_bus_cannot_do_is_refused_at_once(rig: &mut Rig) {
         .slave_mut(0)
         .and_then(|s| s.object_dictionary_mut())
         .unwrap()
-        .insert(0x2F02, 0, &big, false);
-    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x2F02, 0));
+        .insert(0x2E02, 0, &big, false);
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x2E02, 0));
     assert_eq!(
         r,
         Err(SdoError::TooLarge {
             drive: 0,
-            index: 0x2F02,
+            index: 0x2E02,
             sub: 0,
             size: 300
         })

@@ -7,7 +7,7 @@ use crate::cia402::procedure::{ProcedureOutputs, MODE_BITS};
 use crate::cia402::{next_command, Controlword, State, Target};
 use crate::scaling::{CountExtender, ModuloCounts, Scaling, ScalingError};
 
-use super::probe::{DriveSwitches, ProbeArming, SwitchWiring};
+use super::probe::{DriveSwitches, ProbeArming, ProbeTarget, SwitchWiring};
 use super::{CspInputs, CspOffsets, LayoutError, COUNT_RANGE_FAULT, FAULT_CODE_NOT_MAPPED};
 use crate::cia402::objects;
 
@@ -24,6 +24,9 @@ pub struct CspSetpoint {
     pub enable: bool,
     /// Send a fault reset (the axis' Reset asks for it).
     pub reset_fault: bool,
+    /// Which switch the touch probe latches (a homing run on a limit switch's edge asks
+    /// for that limit switch).
+    pub probe: ProbeTarget,
 }
 
 /// Actual values of one drive in user units.
@@ -299,6 +302,7 @@ impl CspChannel {
     /// drive is enabled, its actual position otherwise, so that enabling never jumps. The
     /// target is the low 32 bits of the 64-bit count (the drive's counter wraps).
     pub fn drive_outputs(&mut self, sp: &CspSetpoint, inputs: &CspInputs) -> (Controlword, i32) {
+        self.probe.set_target(sp.probe);
         let state = inputs
             .statusword
             .state()

@@ -45,6 +45,7 @@ impl CspInputs {
                     img.touch_probe_pos1_pos_value(),
                     img.touch_probe_pos1_neg_value(),
                     img.touch_probe_pos2_pos_value(),
+                    img.touch_probe_pos2_neg_value(),
                 ],
             }),
         })

@@ -154,6 +154,17 @@ pub struct AxisConfig {
     ///
     /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
     pub move_home: Option<crate::homing::MoveHome>,
+    /// The drive layer can latch a limit switch's edges with the touch probe (it routes
+    /// the probe to [`AxisSetpoint::probe_on_limit`]). Without it a homing run that looks
+    /// for a limit switch's edge (MoveHome with `LimitSwitch`) is refused: the latches
+    /// would be another switch's. On in [`AxisConfig::new`]; the master turns it off
+    /// unless the drive's touch-probe source (0x60D0) is configured.
+    pub limit_edges_latched: bool,
+    /// The touch probe latches the reference switch's edges (the switch is wired to the
+    /// drive's probe input). Without it a homing run that looks for the reference
+    /// switch's edge is refused. On in [`AxisConfig::new`]; the master turns it off for a
+    /// reference switch read from an I/O module.
+    pub reference_edges_latched: bool,
 }
 
 impl AxisConfig {
@@ -185,6 +196,8 @@ impl AxisConfig {
             initial_position: 0.0,
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
             move_home: None,
+            limit_edges_latched: true,
+            reference_edges_latched: true,
         }
     }
 
@@ -392,6 +405,10 @@ pub struct AxisSetpoint {
     pub enable: bool,
     /// A Reset asks the drive to clear its fault (the drive layer sends the fault reset).
     pub reset_fault: bool,
+    /// A homing run looks for this limit switch's edge: the drive layer routes the touch
+    /// probe to it (CiA 402 0x60D0) until the run ends, so the rising and falling latches
+    /// are that switch's. `None`: the probe on the reference switch.
+    pub probe_on_limit: Option<crate::homing::LimitSide>,
 }
 
 /// One axis.
@@ -650,6 +667,10 @@ impl Axis {
             acceleration: self.status.set.a,
             enable: self.powered,
             reset_fault: self.reset_pending.is_some(),
+            probe_on_limit: self
+                .homing
+                .as_ref()
+                .and_then(|(seq, _)| seq.plan().latched_limit()),
         }
     }
 
@@ -1157,6 +1178,7 @@ impl Axis {
             },
             homing: self.home_status,
             switches: self.switches,
+            position_offset: self.position_offset,
         };
     }
 

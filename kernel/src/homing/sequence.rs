@@ -198,6 +198,21 @@ pub struct Plan {
     pub direction: f64,
 }
 
+impl Plan {
+    /// The limit switch whose edge a search of this plan looks for (MoveHome with
+    /// `LimitSwitch` in a SwitchingEdge mode): its position comes from the touch probe,
+    /// so the drive layer must route the probe to that switch while the run lasts.
+    pub fn latched_limit(&self) -> Option<LimitSide> {
+        self.searches.iter().flatten().find_map(|s| match s.goal {
+            Goal::Edge {
+                signal: Signal::Limit(side),
+                ..
+            } => Some(side),
+            _ => None,
+        })
+    }
+}
+
 /// What the axis gives the sequencer each cycle (axis frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Observation {
@@ -264,6 +279,8 @@ pub struct Sequencer {
     last_found: f64,
     status: HomingStatus,
     started: bool,
+    /// The switches as the previous cycle saw them.
+    prev_inputs: SwitchInputs,
 }
 
 impl Sequencer {
@@ -286,6 +303,7 @@ impl Sequencer {
                 ..HomingStatus::default()
             },
             started: false,
+            prev_inputs: SwitchInputs::default(),
         }
     }
 
@@ -305,6 +323,7 @@ impl Sequencer {
         if !self.started {
             self.started = true;
             self.last_set_p = o.set_p;
+            self.prev_inputs = o.inputs;
             return self.begin(0, o);
         }
         self.travelled += (o.set_p - self.last_set_p).abs();
@@ -343,6 +362,7 @@ impl Sequencer {
         if let Some(m) = motion_sign(o) {
             self.last_motion = m;
         }
+        self.prev_inputs = o.inputs;
         d
     }
 
@@ -398,6 +418,11 @@ impl Sequencer {
             }
         }
         self.velocity(self.dir * s.speed)
+    }
+
+    /// The plan this run follows.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
     }
 
     /// The limit switch the plan uses as its reference switch, if any: braking into it
@@ -507,9 +532,24 @@ impl Sequencer {
             }
         }
         match s.goal {
-            Goal::Edge { side, approach, .. } => {
+            Goal::Edge {
+                signal,
+                side,
+                approach,
+            } => {
                 for (new, x, rising) in events {
                     if !new || Side::of(rising, motion) != side {
+                        continue;
+                    }
+                    let level = signal.level(&o.inputs);
+                    if matches!(signal, Signal::Limit(_))
+                        && (level != rising || signal.level(&self.prev_inputs) == rising)
+                    {
+                        // A limit switch's cam reaches to the end of the travel: crossing its
+                        // edge changes its level in the same cycle the drive latches it, and
+                        // the level stays. A latch without that change is another input's (a
+                        // probe still on the home switch: the drive's probe source, 0x60D0,
+                        // is not the limit switch), never the limit's edge.
                         continue;
                     }
                     match approach {

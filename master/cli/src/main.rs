@@ -306,8 +306,8 @@ enum Cmd {
 #[derive(Subcommand, Debug)]
 enum CommissionWhat {
     /// Measure the commutation offset in the dynamic mode (small motion: about one
-    /// electrical revolution each way, the axis must stand enabled) and write it to the
-    /// drive.
+    /// electrical revolution each way) and write it to the drive. The axis must be
+    /// disabled (a drive of unknown commutation cannot hold its motor) and is left so.
     Commutation {
         /// Current of the measurement (per mille of the motor's rated current).
         #[arg(long, value_parser = clap::value_parser!(u16).range(1..=3000))]
@@ -342,7 +342,7 @@ extern "C" fn on_sigint(_: nix::libc::c_int) {
     INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// `gantry home`'s parameters (each left out keeps the axis' last-used one).
+/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept across restarts when the service has a state directory).
 #[derive(clap::Args, Debug)]
 struct HomeArgs {
     /// Search direction: + or - (or positive, negative).
@@ -501,9 +501,9 @@ enum AxisCmd {
         client: ClientOpts,
     },
     /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
-    /// the phases; what is left out keeps the axis' last-used parameters. With --drive the
-    /// drive homes itself (CiA 402 homing mode, `[axis.drive_homing]`) and is handed back
-    /// in CSP.
+    /// the phases; what is left out is the axis' saved parameters (the last call's, kept
+    /// across restarts in the state directory). With --drive the drive homes itself (CiA
+    /// 402 homing mode, `[axis.drive_homing]`) and is handed back in CSP.
     Home {
         /// Axis name.
         axis: String,

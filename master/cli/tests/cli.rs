@@ -234,23 +234,38 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
     }
     // AL state and process data per slave, as the master has them once in OP.
     line(&text, ">> every slave reported OP");
-    for (i, axis) in ["x", "y", "c"].iter().enumerate() {
+    // x: the minimal CSP layout with its switches (0x60FD) and touch probe (0x60B8…0x60BC).
+    for (i, axis, inputs, outputs) in [
+        (0, "x", "24", "8"),
+        (1, "y", "15", "7"),
+        (2, "c", "15", "7"),
+    ] {
         let l = line(&text, &format!("   {i}      "));
         let words: Vec<&str> = l.split_whitespace().collect();
         assert_eq!(
             words,
-            [&i.to_string(), "OP", "15", "B", "7", "B", axis],
+            [&i.to_string(), "OP", inputs, "B", outputs, "B", axis],
             "{l}"
         );
     }
     let image = line(&text, ">> process data: ");
     assert!(
-        image.starts_with(">> process data: 66 B in 1 LRW datagram(s), expected working counter 9"),
+        image.starts_with(">> process data: 76 B in 1 LRW datagram(s), expected working counter 9"),
         "{image}"
     );
     // Bytes on the wire: the image and every header, the same at start and at the end.
     let wire = number_before(image, " B on the wire per cycle");
-    assert!(wire >= 66.0 + 14.0 + 2.0 + 10.0 + 2.0 + 4.0, "{image}");
+    assert!(wire >= 76.0 + 14.0 + 2.0 + 10.0 + 2.0 + 4.0, "{image}");
+    // x homed on its reference cam and the index pulse beyond it: x = 0 mm is the index
+    // pulse at drive count 1000, as the simulated drive recorded crossing it.
+    line(
+        &text,
+        ">> x homed: x = 0 mm stands at drive count 1000, the index pulse its drive crossed at 1000",
+    );
+    assert!(
+        text.find(">> x: MoveHome on its reference switch") < text.find(">> x: S-curve MovePtp"),
+        "x homes before it moves"
+    );
     let end = line(&text, ">> on the wire: ");
     assert_eq!(number_before(end, " B per cycle"), wire, "{end}");
     // Distributed clocks: SYNC0 at the cycle time, the frames held a quarter period after
@@ -482,7 +497,13 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
         "CANopen: 4 nodes booted after NMT reset communication",
     );
     // Each node, what the bring-up read of it and its PDOs.
-    for (node, axis) in [(1, "x"), (2, "y"), (3, "z"), (4, "c")] {
+    // x: the minimal layout with its switches and touch probe (3 TPDOs).
+    for (node, axis, tpdos, outputs, inputs) in [
+        (1, "x", "3", "8", "24"),
+        (2, "y", "2", "7", "15"),
+        (3, "z", "2", "7", "15"),
+        (4, "c", "2", "7", "15"),
+    ] {
         let l = line(&text, &format!("   {node}     0x00020192"));
         let words: Vec<&str> = l.split_whitespace().collect();
         assert_eq!(
@@ -493,10 +514,10 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
                 "0x00000A5A",
                 "0x00000402",
                 "1",
-                "2",
-                "7",
+                tpdos,
+                outputs,
                 "B",
-                "15",
+                inputs,
                 "B",
                 axis
             ],
@@ -508,7 +529,7 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
         ">> every node Operational; each cycle: RPDOs, SYNC, TPDOs — ",
     );
     assert!(load.contains("of 2000 µs at 1000 kbit/s"), "{load}");
-    // Nothing lost on a lockstep bus; 13 frames a cycle: 4 RPDOs, the SYNC, 8 TPDOs.
+    // Nothing lost on a lockstep bus; 14 frames a cycle: 4 RPDOs, the SYNC, 9 TPDOs.
     let cycles = line(&text, ">> cycles: ");
     assert!(
         cycles.contains("TPDO sets lost 0 (incomplete 0); malformed frames 0; overruns 0"),
@@ -517,7 +538,11 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
     assert!(number_before(cycles, "; TPDO") > 2500.0, "{cycles}");
     let bus = line(&text, ">> on the bus: ");
     let per_cycle = number_before(bus, " per cycle;");
-    assert!((12.9..=13.2).contains(&per_cycle), "{bus}");
+    assert!((13.9..=14.2).contains(&per_cycle), "{bus}");
+    line(
+        &text,
+        ">> x homed: x = 0 mm stands at drive count 1000, the index pulse its drive crossed at 1000",
+    );
     line(&text, ">> the axes at the end:");
     for axis in ["x", "y", "z", "c"] {
         let l = line(&text, &format!("   {axis}: "));

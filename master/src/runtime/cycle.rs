@@ -10,6 +10,7 @@ use thiserror::Error;
 
 use super::bus::{CycleBus, DriveError};
 use crate::config::Config;
+use crate::config::ModuleInput;
 use crate::drive_axis::AxisChannel;
 use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::csp::{
@@ -120,6 +121,18 @@ pub struct Cycle {
     /// Drives lent to a procedure: what they get instead of their CSP outputs (see
     /// [`Cycle::set_procedure_outputs`]).
     procedures: Vec<Option<ProcedureOutputs>>,
+    /// Per axis, the switches read from I/O modules (negative limit, positive limit,
+    /// reference) and their last levels.
+    modules: Vec<ModuleSwitches>,
+}
+
+/// An axis' switches read from I/O modules on the bus, and what they read last.
+#[derive(Clone, Copy, Debug, Default)]
+struct ModuleSwitches {
+    /// Negative limit, positive limit, reference.
+    inputs: [Option<ModuleInput>; 3],
+    /// Their last levels (active), kept through a cycle whose inputs did not come.
+    active: [bool; 3],
 }
 
 impl Cycle {
@@ -141,6 +154,7 @@ impl Cycle {
             feedback: vec![AxisFeedback::default(); n],
             setpoints: vec![AxisSetpoint::default(); n],
             drives: (0..n).collect(),
+            modules: vec![ModuleSwitches::default(); n],
             procedures: vec![None; n],
         }
     }
@@ -151,6 +165,7 @@ impl Cycle {
     /// bus carries for that drive. Allocates; build it before the drives go operational.
     pub fn from_config(config: &Config, bus: &impl CycleBus) -> Result<Self, SetupError> {
         let mut channels = Vec::with_capacity(config.axes.len());
+        let mut modules = Vec::with_capacity(config.axes.len());
         for a in &config.axes {
             if a.drive >= bus.drives() {
                 return Err(SetupError::MissingDrive {
@@ -195,6 +210,32 @@ impl Cycle {
                 return Err(short("output", outputs, need));
             }
             channels.push(channel);
+            // Switches on I/O modules: the module there, its input in its process data.
+            let inputs = a.switches.module_inputs().map_err(axis_error)?;
+            let names = ["negative_limit", "positive_limit", "reference"];
+            for (name, m) in names.iter().zip(inputs) {
+                let Some(m) = m else { continue };
+                let bytes = bus.inputs(m.slave).len();
+                if m.slave >= bus.drives() || m.active(bus.inputs(m.slave)).is_none() {
+                    return Err(SetupError::Axis {
+                        axis: a.name.clone(),
+                        key: format!("switches.{name}"),
+                        reason: format!(
+                            "input {} of slave {}: the bus has {} slaves, slave {} {} input \
+                             bytes",
+                            m.input,
+                            m.slave,
+                            bus.drives(),
+                            m.slave,
+                            bytes
+                        ),
+                    });
+                }
+            }
+            modules.push(ModuleSwitches {
+                inputs,
+                active: [false; 3],
+            });
         }
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
         let kernel =
@@ -204,6 +245,7 @@ impl Cycle {
             })?;
         let mut cycle = Self::new(kernel, channels);
         cycle.drives = config.axes.iter().map(|a| a.drive).collect();
+        cycle.modules = modules;
         Ok(cycle)
     }
 
@@ -231,6 +273,50 @@ impl Cycle {
             self.read_inputs(axis, bus.inputs(drive))?;
             if let Some(e) = bus.drive_error(drive) {
                 self.drive_error(axis, e)?;
+            }
+        }
+        for axis in 0..self.drives.len() {
+            self.read_module_switches(axis, bus)?;
+        }
+        Ok(())
+    }
+
+    /// Axis `axis`' switches on I/O modules: each module input's level this cycle (the
+    /// last one when the module's inputs did not come), into the axis' feedback; a module
+    /// the bus cannot reach gives the axis a communication fault (its limit switches are
+    /// not watched any more).
+    fn read_module_switches(&mut self, axis: usize, bus: &impl CycleBus) -> Result<(), CycleError> {
+        let m = self
+            .modules
+            .get_mut(axis)
+            .ok_or(CycleError::NoDrive(axis))?;
+        let mut unreachable = false;
+        for (input, active) in m.inputs.iter().zip(m.active.iter_mut()) {
+            let Some(input) = input else { continue };
+            if bus.fault(input.slave).is_some() {
+                unreachable = true;
+            } else if bus.inputs_fresh(input.slave) {
+                if let Some(a) = input.active(bus.inputs(input.slave)) {
+                    *active = a;
+                }
+            }
+        }
+        let (inputs, [neg, pos, reference]) = (m.inputs, m.active);
+        if unreachable {
+            return self.comm_fault(axis);
+        }
+        let feedback = self
+            .feedback
+            .get_mut(axis)
+            .ok_or(CycleError::NoDrive(axis))?;
+        let sw = &mut feedback.switches;
+        for (input, (slot, level)) in inputs.iter().zip([
+            (&mut sw.negative_limit, neg),
+            (&mut sw.positive_limit, pos),
+            (&mut sw.reference, reference),
+        ]) {
+            if input.is_some() {
+                *slot = level;
             }
         }
         Ok(())
@@ -791,6 +877,66 @@ mod on_a_bus {
             })
         );
         assert_eq!(error(1), None, "the other drive is reachable");
+    }
+
+    /// Axis "a" (drive 0) with its positive limit switch on input 11 of the module at
+    /// position 1 (normally closed) and its reference on input 0.
+    fn module_config() -> Config {
+        let text = "[bus]\nkind = \"ethercat\"\ninterface = \"none\"\ncycle_us = 1000\n\
+             [[axis]]\nname = \"a\"\ndrive = 0\npdo = \"csp-minimal\"\n\
+             homing_required = false\n\
+             scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+             max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n\
+             [axis.switches]\ntouch_probe = false\n\
+             positive_limit = { from = \"module\", slave = 1, input = 11, normally_closed = true }\n\
+             reference = { from = \"module\", slave = 1, input = 0 }\n";
+        Config::parse(text, "g.toml").unwrap()
+    }
+
+    #[test]
+    fn switches_on_a_module_reach_the_axis_with_their_polarity() {
+        let mut bus = Image::new(2, 6);
+        let mut cycle = Cycle::from_config(&module_config(), &bus).unwrap();
+        bus.inputs[0] = enabled_at(0);
+        let switches = |c: &Cycle| c.kernel.axis_status(0).unwrap().switches;
+        // Input 11 (byte 1, bit 3) high: the closed contact, not actuated; input 0 low.
+        bus.inputs[1] = vec![0, 0b1000, 0, 0, 0, 0];
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        let s = switches(&cycle);
+        assert!(
+            !s.positive_limit && !s.reference && !s.negative_limit,
+            "{s:?}"
+        );
+        // Input 11 drops (actuated), input 0 high.
+        bus.inputs[1] = vec![1, 0, 0, 0, 0, 0];
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        let s = switches(&cycle);
+        assert!(
+            s.positive_limit && s.reference && !s.negative_limit,
+            "{s:?}"
+        );
+        // The module unreachable: its axis stops with the communication fault.
+        bus.faults[1] = Some(Unreachable::new(&"gone"));
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        assert_eq!(
+            cycle.kernel.axis_status(0).unwrap().error,
+            Some(AxisFault::Drive {
+                code: COMMUNICATION_FAULT
+            })
+        );
+        // An input the module does not have, a module the bus does not have.
+        let mut short = Image::new(2, 6);
+        short.inputs[1] = vec![0];
+        let e = Cycle::from_config(&module_config(), &short).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "axis \"a\": switches.positive_limit: input 11 of slave 1: the bus has 2 slaves, \
+             slave 1 1 input bytes"
+        );
+        assert!(Cycle::from_config(&module_config(), &Image::new(1, 6)).is_err());
     }
 
     #[test]

@@ -127,7 +127,8 @@ macro_rules! word_impls {
 }
 
 /// MoveHome's parameters as a `home` request carries them (`"params": {…}`); each one
-/// left out keeps the axis' last-used value.
+/// left out is the axis' saved value (the last call's; the service keeps the whole set in
+/// the axis' parameter file, `persist`, so it holds across restarts).
 #[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HomeParams {
@@ -439,7 +440,7 @@ pub enum Request {
         position: f64,
     },
     /// A homing run (Jetter MoveHome) on the axis' switches and its drive's touch probe;
-    /// every parameter left out keeps the axis' last-used one.
+    /// every parameter left out is the axis' saved one (see [`HomeParams`]).
     Home {
         /// Axis name.
         axis: String,

@@ -31,6 +31,7 @@ use crate::commission::{
 };
 use crate::config::{Config, DriveHomingSection};
 use crate::error_chain::Chain;
+use crate::persist::{PersistError, PtpParams, Saved};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::protocol::{Snapshot, TraceSample};
@@ -55,11 +56,24 @@ pub struct ServerState {
     procedures: Mutex<Vec<(u64, ProcedureHandle)>>,
     /// Set when the service ends: recordings in progress answer with what they have.
     ending: tokio::sync::watch::Sender<bool>,
+    /// Each axis' saved parameters (homing, PTP, position and commutation offsets).
+    pub saved: Arc<Saved>,
 }
 
 impl ServerState {
-    /// Shared state for a server.
+    /// Shared state for a server that saves nothing.
     pub fn new(controller: Controller, config: Config, real_time: bool) -> Arc<Self> {
+        let saved = Arc::new(Saved::none(&config));
+        Self::with_saved(controller, config, real_time, saved)
+    }
+
+    /// Shared state for a server that saves the axes' parameters in `saved`.
+    pub fn with_saved(
+        controller: Controller,
+        config: Config,
+        real_time: bool,
+        saved: Arc<Saved>,
+    ) -> Arc<Self> {
         Arc::new(Self {
             controller,
             config,
@@ -68,6 +82,7 @@ impl ServerState {
             handles: Mutex::new(Vec::new()),
             procedures: Mutex::new(Vec::new()),
             ending: tokio::sync::watch::Sender::new(false),
+            saved,
         })
     }
 
@@ -542,11 +557,27 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
                 }
             };
             let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer.into());
-            m.speed = speed;
-            m.acceleration = acceleration;
-            m.deceleration = deceleration;
-            m.jerk = jerk;
-            sent(ctl.command(i, Command::MovePtp(m)))
+            // What the move leaves out: the saved dynamics of the last moves (Jetter's
+            // rule, across restarts), then the axis' own.
+            let given = PtpParams {
+                speed,
+                acceleration,
+                deceleration,
+                jerk,
+            };
+            let used = state.saved.ptp_used(i, given);
+            m.speed = used.speed;
+            m.acceleration = used.acceleration;
+            m.deceleration = used.deceleration;
+            m.jerk = used.jerk;
+            let h = ctl.command(i, Command::MovePtp(m))?;
+            if given != PtpParams::default() {
+                let saved = state.saved.clone();
+                save_if_accepted(h.clone(), a, "point-to-point parameters", move || {
+                    saved.ptp_accepted(i, used)
+                });
+            }
+            sent(Ok(h))
         }
         Request::Jog {
             axis: a,
@@ -631,8 +662,22 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
         )),
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
         // The kernel checks every operand (finite, > 0 where it must be) and says which.
+        // What the call leaves out are the saved parameters (seed 000 §6.3.2, across
+        // restarts); a call that gives some saves the whole set once the axis took it.
         Request::Home { axis: a, params } => {
-            sent(ctl.command(axis(&a)?, Command::MoveHome(params.into())))
+            let i = axis(&a)?;
+            let call = MoveHomeCall::from(params);
+            let Some(run) = state.saved.home_run(i, &call) else {
+                return sent(ctl.command(i, Command::MoveHome(call)));
+            };
+            let h = ctl.command(i, Command::MoveHome(MoveHomeCall::all(run)))?;
+            if params != HomeParams::default() {
+                let saved = state.saved.clone();
+                save_if_accepted(h.clone(), a, "homing parameters", move || {
+                    saved.home_accepted(i, run)
+                });
+            }
+            sent(Ok(h))
         }
         Request::DriveHome { axis: a, params } => {
             let i = axis(&a)?;
@@ -824,6 +869,60 @@ impl From<HomeParams> for MoveHomeCall {
     }
 }
 
+/// Once the cycle has taken command `h` for axis `axis`: unless the axis refused it (its
+/// parameters are then not the axis' and must not be saved), runs `save` — a blocking
+/// file write — off the runtime's threads; a failure is reported on the service's
+/// output (the command itself goes on).
+fn save_if_accepted(
+    h: CommandHandle,
+    axis: String,
+    what: &'static str,
+    save: impl FnOnce() -> Result<Option<PathBuf>, PersistError> + Send + 'static,
+) {
+    tokio::spawn(async move {
+        let end = tokio::time::Instant::now() + Duration::from_secs(10);
+        let status = loop {
+            if let Some(s) = h.status() {
+                break s;
+            }
+            if tokio::time::Instant::now() >= end {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        };
+        match status {
+            CommandStatus::Error(e) if !failed_after_start(&e) => return,
+            CommandStatus::Expired => return,
+            _ => {}
+        }
+        match tokio::task::spawn_blocking(save).await {
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => {
+                use std::io::Write;
+                let _ = writeln!(
+                    std::io::stdout(),
+                    "gantry: axis {axis}: {what} not saved: {}",
+                    Chain(&e)
+                );
+            }
+            Err(_) => {}
+        }
+    });
+}
+
+/// Whether a command's error came after the axis took it (its parameters were then the
+/// axis', and are saved): the run failed — a homing search, a limit switch, a fault, the
+/// target not reached — as opposed to the command being refused at once.
+fn failed_after_start(e: &CommandError) -> bool {
+    matches!(
+        e,
+        CommandError::Homing(_)
+            | CommandError::LimitSwitch { .. }
+            | CommandError::AxisFault { .. }
+            | CommandError::TargetNotReached { .. }
+    )
+}
+
 fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
     state
         .handles
@@ -849,6 +948,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "state": s.state.name(),
                 "position": s.actual_position,
                 "set_position": s.set.p,
+                "position_offset": s.position_offset,
                 "velocity": s.set.v,
                 "homed": s.bits.homed,
                 "moving": s.bits.moving,
@@ -901,6 +1001,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         "time_s": snap.time_s,
         "cycles": snap.cycle,
         "real_time": state.real_time,
+        "state_dir": state.saved.store().map(|s| s.dir().display().to_string()),
         "ended": snap.ended,
         "overrun_stop": snap.overrun_stop,
         "axes": axes,

@@ -82,7 +82,11 @@ pub struct SdoConfig {
     pub crc: bool,
     /// When receiving a sub-block: how long after the last segment to acknowledge what
     /// arrived in order, if the sub-block's last segment does not come (it was lost).
-    /// Without it a lost last segment ends in a timeout; with it, in a retransmission.
+    /// Without it a lost last segment ends in a timeout (CiA 301 has no early
+    /// acknowledgement); with it, in a retransmission. Off by default: segments are not
+    /// told apart by sub-block, so segments of the old sub-block that were only late (a
+    /// stalled sender) are taken as the new one's and the transfer fails (wrong CRC or an
+    /// overrun). Only for links that lose frames but never delay them.
     pub sub_block_timeout_ns: Option<u64>,
     /// Client, block upload: protocol switch threshold sent to the server (0: none); the
     /// server may answer a smaller object with a normal upload (§7.2.4.3.13).
@@ -97,7 +101,7 @@ impl Default for SdoConfig {
             timeout_ns: 1_000_000_000,
             block_size: command::MAX_BLOCK_SIZE,
             crc: true,
-            sub_block_timeout_ns: Some(100_000_000),
+            sub_block_timeout_ns: None,
             pst: 0,
             indicate_size: true,
         }

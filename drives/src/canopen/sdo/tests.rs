@@ -1125,3 +1125,84 @@ proptest! {
         }
     }
 }
+
+/// Runs a block upload of `len` bytes over a link that delays the server's frames from
+/// its `stall_from`th on by `stall_ns` (a stalled sender: frames late, none lost; each
+/// direction stays in order), returns the client's outcome and data.
+fn upload_through_a_stall(
+    client: SdoConfig,
+    len: usize,
+    stall_from: usize,
+    stall_ns: u64,
+) -> (Option<Outcome>, Vec<u8>) {
+    let mut rig = Rig::new(client, SdoConfig::default());
+    let data = pattern(len);
+    rig.download(DOMAIN, &data, DownloadMode::Segmented);
+    rig.client_outcome = None;
+    rig.client
+        .upload(DOMAIN, UploadMode::Block, rig.now)
+        .unwrap();
+    let mut to_server = std::collections::VecDeque::new();
+    let mut to_client: std::collections::VecDeque<(u64, CanFrame)> = Default::default();
+    let mut from_server = 0usize;
+    let end = rig.now + 20_000_000_000;
+    while rig.now < end {
+        while let Some(f) = rig.client.transmit() {
+            to_server.push_back(f);
+        }
+        while let Some(f) = rig.server.transmit() {
+            from_server += 1;
+            let late = if from_server >= stall_from {
+                stall_ns
+            } else {
+                0
+            };
+            let after = to_client.back().map_or(0, |(at, _)| *at);
+            to_client.push_back(((rig.now + late).max(after), f));
+        }
+        while let Some(f) = to_server.pop_front() {
+            if let Some(o) = rig.server.receive(&f, rig.now, &mut rig.od) {
+                rig.server_outcome = Some(o);
+            }
+        }
+        while to_client.front().is_some_and(|(at, _)| *at <= rig.now) {
+            let (_, f) = to_client.pop_front().unwrap();
+            if let Some(o) = rig.client.receive(&f, rig.now) {
+                rig.client_outcome = Some(o);
+            }
+        }
+        if rig.client.is_idle() && to_client.is_empty() && to_server.is_empty() {
+            break;
+        }
+        rig.now += STEP_NS;
+        if let Some(o) = rig.client.poll(rig.now) {
+            rig.client_outcome = Some(o);
+        }
+        if let Some(o) = rig.server.poll(rig.now) {
+            rig.server_outcome = Some(o);
+        }
+    }
+    (rig.client_outcome, rig.client.data().to_vec())
+}
+
+#[test]
+fn a_stalled_sub_block_is_waited_for_not_acknowledged_early() {
+    // The server stalls 150 ms after its 30th segment of the first sub-block: late, not
+    // lost. The default client waits (its timeout is 1 s) and gets every byte.
+    let len = 127 * 7 * 2;
+    let (outcome, got) = upload_through_a_stall(SdoConfig::default(), len, 30, 150_000_000);
+    assert_eq!(outcome, Some(Outcome::Uploaded { mux: DOMAIN, len }));
+    assert_eq!(got, pattern(len));
+    // An early acknowledgement after 100 ms of silence takes the late segments of the
+    // old sub-block for the new one's: the transfer fails. This is why it is off by
+    // default.
+    let early = SdoConfig {
+        sub_block_timeout_ns: Some(100_000_000),
+        ..SdoConfig::default()
+    };
+    let (outcome, got) = upload_through_a_stall(early, len, 30, 150_000_000);
+    assert!(
+        outcome != Some(Outcome::Uploaded { mux: DOMAIN, len }) || got != pattern(len),
+        "{outcome:?}"
+    );
+}

@@ -9,9 +9,10 @@
 //! [`Controller`](gantry::runtime::controller::Controller), the kernel — through the same
 //! [`runner`](super::runner) as the EtherCAT demo.
 //!
-//! The cycle is 2 ms: four drives' full CSP PDOs and the SYNC take about 1.6 ms of the
-//! bus at 1 Mbit/s, which the configuration's bus-load check accepts for 2 ms and refuses
-//! for 1 ms. The drives judge what reached them ([`crate::drive_records`]): any drive
+//! The cycle is 2 ms: four drives' CSP PDOs (x's with its switches and touch probe) and the
+//! SYNC take about 1.76 ms of the bus at 1 Mbit/s, which the configuration's bus-load check
+//! accepts for 2 ms and refuses for 1 ms. x homes on its reference cam and index pulse
+//! before it moves, as in the EtherCAT demo. The drives judge what reached them ([`crate::drive_records`]): any drive
 //! fault, axis error, bus fault, lost TPDO or broken invariant fails the demo.
 
 use std::io::Write;
@@ -36,6 +37,9 @@ pub const SERVOS_TOML: &str = include_str!("demo-can-servos.toml");
 pub const CONFIG_FILE: &str = "gantry.toml";
 /// File name of the simulated nodes in the output folder (as `[bus] simulator` names it).
 pub const SERVOS_FILE: &str = "demo-can-servos.toml";
+
+/// x's node (it homes on its switch cam and index pulse).
+const X_NODE: u8 = 1;
 
 /// Trace samples the engine's ring holds between two drains (the trace is drained every
 /// 100 cycles).
@@ -156,7 +160,15 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
         cycles: net.cycles() + SCRIPT_LIMIT_CYCLES,
         tail: TAIL_CYCLES,
     };
-    let result = runner.script(&mut net, &mut run, script(), limits, out);
+    let result = runner
+        .script(&mut net, &mut run, script(), limits, out)
+        .and_then(|()| {
+            let s = lock(&sim);
+            match s.node(X_NODE).servo() {
+                Some(x) => ethercat::homing_verdict(x, out),
+                None => Err(DemoError::Fault("x's node is not a servo".into())),
+            }
+        });
     // Whatever happened, the drives are disabled and the nodes go to pre-operational;
     // the drives' records are kept for whoever looks into it.
     let ended = runner.shut_down(
@@ -169,6 +181,8 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     let figures = net.ctl.figures();
     let bus_counters = net.engine.bus.counters();
     let malformed = net.engine.bus.malformed();
+    // The cycle has ended: the bus' time runs on with the shutdown's waits.
+    lock(&sim).free_running();
     let _ = net.engine.into_bus().shut_down(out);
     let (records, frames, bus_ns) = {
         let s = lock(&sim);

@@ -3,7 +3,8 @@
 //! driven by what `gantry run` runs — the configuration file, the bus bring-up, the
 //! [`Engine`](gantry::runtime::engine::Engine), requests through a [`Controller`], the
 //! kernel — with the script's moves sent
-//! as Controller commands: enable, set position, PTP moves buffered and blended, a modulo
+//! as Controller commands: enable, x homed on its reference cam and index pulse (MoveHome,
+//! judged by the simulated drive's own record), set position, PTP moves buffered and blended, a modulo
 //! axis across its wrap both ways and turning several periods, a halt, a stop.
 //!
 //! In [`lockstep`](super::lockstep): each frame passes the simulated chain in the demo's
@@ -26,8 +27,12 @@ use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, MoveDirection, MovePtp, MoveVelocity, PositioningMode,
     PowerCommand,
 };
+use gantry_kernel::homing::{HomingMode, MoveHome, MoveHomeCall, SwitchConfig};
 use gantry_sim::chain::SlaveChain;
 use gantry_sim::plant::record::{write_records, DriveRecord};
+use gantry_sim::plant::servo::crossings::Crossed;
+use gantry_sim::plant::servo::probe::{index_crossing, HOME_INPUT};
+use gantry_sim::plant::servo::ServoDrive;
 
 use super::lockstep::{Advance, Lockstep};
 use super::runner::{Limits, Runner, Watch};
@@ -102,6 +107,64 @@ fn lock(chain: &Mutex<SlaveChain>) -> std::sync::MutexGuard<'_, SlaveChain> {
     chain.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// How the demo homes x (Jetter MoveHome): search negative for the reference cam
+/// (`[slave.switches]` of its servo: 2 mm to 4 mm below where its encoder stands at
+/// power-up), fast; then slowly back off the cam's positive end to the first index pulse
+/// beyond it (the CiA 402 way, methods 1–14); x = 0 there. The limit switches (below
+/// −20 mm, above 410 mm) would reverse the search.
+pub const HOME_X: MoveHome = MoveHome {
+    direction: MoveDirection::Negative,
+    switch_config: SwitchConfig::RefAndLimitSwitch,
+    mode: HomingMode::ZeroPulse2Phase,
+    acceleration: 500.0,
+    jerk: 20_000.0,
+    speed_switch_search: 20.0,
+    max_distance_switch_search: 50.0,
+    speed_reference_search: 2.0,
+    max_distance_reference_search: 10.0,
+    reference_offset: 0.0,
+    normal_position: 0.0,
+};
+
+/// The simulator's verdict on x's homing: x = 0 mm must be the index pulse the drive
+/// crossed last before the reference was set — read from the drive's own record of what
+/// its load crossed (not from the master) — within one count. `x` is its drive at the end
+/// of the script, when x stands at 0 again.
+pub(super) fn homing_verdict(x: &ServoDrive, out: &mut dyn Write) -> Result<(), DemoError> {
+    let log = x.crossings();
+    let index = log
+        .since(0)
+        .filter(|c| c.what == Crossed::Index)
+        .map(|c| c.at)
+        .min_by_key(|&at| (at - x.position_counts()).abs());
+    let at = x.position_counts();
+    // MoveHome's reference: the first index pulse beyond the cam's positive end.
+    let p = &x.params;
+    let expected = p.switches.cam(HOME_INPUT).and_then(|cam| {
+        index_crossing(
+            cam.to,
+            i64::MAX / 4,
+            i64::from(p.index_at),
+            i64::from(p.counts_per_rev),
+        )
+        .map(|e| e.at)
+    });
+    match index {
+        Some(i) if (at - i).abs() <= 1 && Some(i) == expected => {
+            let _ = writeln!(
+                out,
+                ">> x homed: x = 0 mm stands at drive count {at}, the index pulse its drive \
+                 crossed at {i} (the simulator's record)"
+            );
+            Ok(())
+        }
+        _ => Err(DemoError::Fault(format!(
+            "x's homing: x = 0 mm stands at drive count {at}, not on the index pulse beyond \
+             its reference cam ({expected:?}) that its drive crossed (nearest {index:?})"
+        ))),
+    }
+}
+
 /// The script, sent through the [`Controller`] as an application would.
 pub fn script() -> Vec<Step> {
     use PositioningMode::*;
@@ -124,11 +187,19 @@ pub fn script() -> Vec<Step> {
         step(
             Wait::Done("x-on"),
             "x",
-            set(0.0),
+            Command::MoveHome(MoveHomeCall::all(HOME_X)),
             "x-home",
-            "set reference: x = y = 0 mm, c = 300° (the drives' encoders stand elsewhere)",
+            "x: MoveHome on its reference switch and index pulse (negative: onto the cam at \
+             20 mm/s, then slowly back off it to the next index pulse, latched by the drive's \
+             touch probe); x = 0 mm there",
         ),
-        step(Wait::Done("y-on"), "y", set(0.0), "y-home", ""),
+        step(
+            Wait::Done("y-on"),
+            "y",
+            set(0.0),
+            "y-home",
+            "set reference: y = 0 mm, c = 300° (the drives' encoders stand elsewhere)",
+        ),
         step(Wait::Done("c-on"), "c", set(300.0), "c-home", ""),
         step(
             Wait::Done("x-home"),
@@ -308,6 +379,12 @@ pub fn run_on(
             };
             runner.script(&mut net, &mut run, script(), limits, out)
         });
+    let result = result.and_then(
+        |()| match lock(&chain).slaves().first().map(|s| s.device()) {
+            Some(gantry_sim::plant::DeviceModel::Servo(x)) => homing_verdict(x, out),
+            _ => Err(DemoError::Fault("x's drive is not a servo".into())),
+        },
+    );
     // Whatever happened, the drives are disabled, the bus goes down to PreOp (the capture
     // is flushed) and the drives' records are kept for whoever looks into it.
     let ended = runner.shut_down(

@@ -56,6 +56,7 @@
 //! at the drive's SYNC0 edge: [`ServoDrive::take_outputs`], [`ServoDrive::run`],
 //! [`ServoDrive::publish_inputs`] ([`ServoDrive::step`] does all three).
 
+pub mod crossings;
 pub mod homing;
 pub mod motor;
 pub mod params;
@@ -72,10 +73,11 @@ use gantry_drives::cia402::{Controlword, DeviceStateMachine, State, Statusword};
 use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
+use crossings::CrossingLog;
 use homing::Homing;
 use motor::{Commutation, Drive, Gains, Motor};
 pub use params::{ParamError, ServoParams};
-use probe::{Edge, TouchProbe};
+use probe::{Edge, Signal, TouchProbe};
 
 /// Most process data bytes per direction the model handles.
 const MAX_PDO_BYTES: usize = 64;
@@ -177,6 +179,8 @@ struct Settings {
     commutation_current: u16,
     /// 0x2103 (65536 to an electrical revolution).
     commutation_angle: u16,
+    /// 0x60D0:1 and :2.
+    touch_probe_sources: [i16; 2],
 }
 
 impl Settings {
@@ -194,6 +198,7 @@ impl Settings {
             fault_reaction_option_code: p.fault_reaction_option_code,
             commutation_current: 0,
             commutation_angle: 0,
+            touch_probe_sources: probe::source::DEFAULT,
         }
     }
 }
@@ -275,6 +280,9 @@ pub struct ServoDrive {
     /// view the master uses too (`gantry_drives::cia402::image`).
     map: PdoMap,
     record: DriveRecord,
+    /// Every switch edge and index pulse the load crossed (the simulator's truth for
+    /// homing tests).
+    crossings: CrossingLog,
 }
 
 impl ServoDrive {
@@ -336,6 +344,7 @@ impl ServoDrive {
             map: PdoMap::of(&layout),
             layout,
             record: DriveRecord::default(),
+            crossings: CrossingLog::default(),
         }
     }
 
@@ -362,17 +371,20 @@ impl ServoDrive {
         if from == to {
             return;
         }
+        self.crossings.watch(&self.params, from, to);
         let p = &self.params;
         let index =
             probe::index_crossing(from, to, i64::from(p.index_at), i64::from(p.counts_per_rev));
         let [a, b] = p.switches.home_edges(from, to);
-        let mut events = [a, b, index];
+        let [c, d] = p.switches.edges(0, Signal::NegativeLimit, from, to);
+        let [e, f] = p.switches.edges(1, Signal::PositiveLimit, from, to);
+        let mut events = [a, b, c, d, e, f, index];
         // In the order of travel.
         events.sort_by_key(|e| e.map_or(i64::MAX, |e| (e.at - from).abs()));
         for mut e in events.into_iter().flatten() {
             // Latched as the position actual value counts (what homing set).
             e.at += self.shift;
-            self.probe.event(e);
+            self.probe.event(e, self.settings.touch_probe_sources);
         }
     }
 
@@ -519,6 +531,11 @@ impl ServoDrive {
         self.record.disabled();
     }
 
+    /// The switch edges and index pulses the load crossed, where (counts).
+    pub fn crossings(&self) -> &CrossingLog {
+        &self.crossings
+    }
+
     /// What the drive recorded of the setpoints it took.
     pub fn record(&self) -> &DriveRecord {
         &self.record
@@ -592,6 +609,14 @@ impl ServoDrive {
         ];
         for (o, min, max) in ranged {
             od.insert_ranged(o.index, o.sub, &vec![0; o.kind.size()], min, max);
+        }
+        // 0x60D0 touch probe source (ETG.6010): two sub-indices, the values the drive has.
+        od.insert(0x60D0, 0, &[2], false);
+        for (o, v) in [
+            (objects::TOUCH_PROBE_1_SOURCE, probe::source::DEFAULT[0]),
+            (objects::TOUCH_PROBE_2_SOURCE, probe::source::DEFAULT[1]),
+        ] {
+            od.insert_enumerated(o.index, o.sub, &v.to_le_bytes(), &probe::source::ALLOWED);
         }
         // The simulated motor is fixed: its rated torque and pole pairs are read-only here.
         for o in [objects::MOTOR_RATED_TORQUE, objects::MOTOR_POLE_PAIRS] {
@@ -710,6 +735,14 @@ impl ServoDrive {
                 i64::from(tp.value(1, Edge::Negative)),
             ),
             (objects::DIGITAL_INPUTS, i64::from(self.digital_inputs())),
+            (
+                objects::TOUCH_PROBE_1_SOURCE,
+                i64::from(s.touch_probe_sources[0]),
+            ),
+            (
+                objects::TOUCH_PROBE_2_SOURCE,
+                i64::from(s.touch_probe_sources[1]),
+            ),
         ];
         for (o, v) in values
             .into_iter()
@@ -773,6 +806,14 @@ impl ServoDrive {
         }
         if let Some(v) = get(objects::COMMUTATION_ANGLE) {
             s.commutation_angle = v as u16;
+        }
+        for (i, o) in [objects::TOUCH_PROBE_1_SOURCE, objects::TOUCH_PROBE_2_SOURCE]
+            .into_iter()
+            .enumerate()
+        {
+            if let (Some(v), Some(slot)) = (get(o), s.touch_probe_sources.get_mut(i)) {
+                *slot = v as i16;
+            }
         }
         let hs = self.homing.settings_mut();
         if let Some(v) = get(objects::HOMING_METHOD) {
