@@ -687,9 +687,10 @@ pub fn commission(
         let r = &end["result"];
         let line = match end["procedure"].as_str() {
             Some("commutation") => format!(
-                "{axis}: commutation offset {} counts written to the drive; the axis is \
+                "{axis}: commutation offset {} counts written to the drive, {}; the axis is \
                  disabled (enable it to move)",
-                r["offset_counts"]
+                r["offset_counts"],
+                r["saved"].as_str().unwrap_or("not saved")
             ),
             _ => format!("{axis}: reversing done, {} cycles", r["cycles"]),
         };

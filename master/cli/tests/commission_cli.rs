@@ -22,8 +22,20 @@ const COUNTS_PER_REV: u32 = 1 << 17;
 const POLE_PAIRS: u32 = 5;
 const HIDDEN_OFFSET: i64 = 9000;
 
-fn start() -> Service {
-    Service::start_with("commission", |chain| {
+/// The state directory the services of this test share (the measured offset is saved
+/// there and written back at the next start).
+fn state_dir() -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("gantry-state-commission-{}", std::process::id()))
+}
+
+fn start(tag: &str) -> Service {
+    let axes = "# One [[axis]] per drive.";
+    let config = |c: String| {
+        assert!(c.contains(axes));
+        let service = format!("[service]\nstate_dir = {:?}\n\n{axes}", state_dir());
+        c.replacen(axes, &service, 1)
+    };
+    Service::start_edited(tag, config, |chain| {
         let first = "[[slave]]\nkind = \"servo\"\n";
         assert!(chain.contains(first));
         // Not real time (`--no-rt`): the drives ride through the host's stalls.
@@ -81,7 +93,8 @@ fn commutation(svc: &Service) -> String {
 
 #[test]
 fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
-    let svc = start();
+    let _ = std::fs::remove_dir_all(state_dir());
+    let mut svc = start("commission");
     // Uncommissioned (the drive would commutate 123.6° off and run the motor away in a
     // closed loop): measured from disabled, and written.
     assert_eq!(svc.axis("x")["state"], "Disabled");
@@ -93,6 +106,16 @@ fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
         .parse()
         .unwrap();
     assert!(out.contains(&format!("offset {written} counts")), "{out}");
+    let file = state_dir().join("x.params");
+    assert!(
+        out.contains(&format!("saved in {}", file.display())),
+        "{out}"
+    );
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains(&format!("commutation_offset = {written}")),
+        "{text}"
+    );
     let miss = electrical_error_deg(written, HIDDEN_OFFSET, COUNTS_PER_REV, POLE_PAIRS);
     assert!(miss.abs() <= 1.0, "{written} is {miss}° electrical off");
     // Left disabled, in CSP, the current off; enabled, it holds and moves.
@@ -214,4 +237,31 @@ fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
     );
     svc.ok(&["enable", "x"]);
     svc.ok(&["move", "x", "--to", "1", "--speed", "10"]);
+
+    // Master and simulator started again: the simulated drive powers up with its
+    // commutation setting 0 (123.6° electrical off), and gantry writes the saved offset
+    // back before anything enables the axis; enabled, it holds and moves.
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+    drop(svc);
+    let mut svc = start("commission-restart");
+    let back: i64 = svc
+        .ok(&["sdo", "upload", "--axis", "x", "0x2100:0", "--type", "i32"])
+        .trim()
+        .parse()
+        .unwrap();
+    assert_eq!(back, written);
+    svc.ok(&["enable", "x"]);
+    svc.ok(&["set-position", "x", "--position", "0"]);
+    svc.ok(&["move", "x", "--to", "2", "--speed", "10"]);
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+    assert!(
+        out.contains(&format!(
+            "axis x: commutation offset {written} counts written to its drive (0x2100:00) \
+             from the saved parameters"
+        )),
+        "{out}"
+    );
+    let _ = std::fs::remove_dir_all(state_dir());
 }

@@ -22,6 +22,7 @@ use gantry_kernel::axis::command::{Command, CommandError};
 use gantry_kernel::axis::handle::CommandStatus;
 use thiserror::Error;
 
+use crate::persist::Saved;
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::sdo::SdoError;
 
@@ -169,6 +170,8 @@ struct Shared {
     /// of its own, which would abort that one.
     stop_given: AtomicBool,
     outcome: Mutex<Option<Result<ProcedureOutcome, Arc<CommissionError>>>>,
+    /// Where a measured commutation offset was saved, or why it was not.
+    saved: Mutex<Option<String>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -215,6 +218,12 @@ impl ProcedureHandle {
     /// How it ended, once it has.
     pub fn outcome(&self) -> Option<Result<ProcedureOutcome, Arc<CommissionError>>> {
         lock(&self.shared.outcome).clone()
+    }
+
+    /// Where a measured commutation offset was saved (its file), or why it was not; set
+    /// before the outcome.
+    pub fn saved(&self) -> Option<String> {
+        lock(&self.shared.saved).clone()
     }
 
     /// Blocks until it ends or `timeout` passes (`None` then).
@@ -348,11 +357,14 @@ impl Context {
     }
 }
 
-/// Starts `procedure` on axis `axis` on a thread of its own.
+/// Starts `procedure` on axis `axis` on a thread of its own. A measured commutation
+/// offset is saved in `saved` (the axis' parameter file) before the outcome is given, so
+/// the next start writes it back to the drive.
 pub fn start(
     ctl: &Controller,
     axis: usize,
     procedure: Procedure,
+    saved: Arc<Saved>,
 ) -> Result<ProcedureHandle, ControlError> {
     let name = ctl
         .axes()
@@ -367,6 +379,7 @@ pub fn start(
         cancel: AtomicBool::new(false),
         stop_given: AtomicBool::new(false),
         outcome: Mutex::new(None),
+        saved: Mutex::new(None),
     });
     let context = Context {
         ctl: ctl.clone(),
@@ -394,6 +407,17 @@ pub fn start(
                     procedure: context.procedure,
                 })
             });
+            if let Ok(ProcedureOutcome::Commutation { offset_counts }) = &result {
+                let offset_counts = *offset_counts;
+                let note = match saved.save_commutation_offset(axis, offset_counts) {
+                    Ok(Some(path)) => format!("saved in {}", path.display()),
+                    Ok(None) => "not saved: no state directory ([service] state_dir or \
+                                 systemd's StateDirectory=)"
+                        .to_string(),
+                    Err(e) => format!("NOT saved: {}", crate::error_chain::Chain(&e)),
+                };
+                *lock(&context.shared.saved) = Some(note);
+            }
             *lock(&context.shared.outcome) = Some(result.map_err(Arc::new));
         });
     if spawned.is_err() {

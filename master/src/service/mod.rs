@@ -10,18 +10,20 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use thiserror::Error;
 
 use crate::bus::{AnyBus, BusError};
 use crate::config::{Config, ConfigError};
+use crate::error_chain::Chain;
 use crate::ethercat::link::LinkFactory;
 use crate::persist::{self, Saved, StartPosition, Store};
 use crate::runtime::controller::Controller;
 use crate::runtime::cycle::{Cycle, SetupError};
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
+use crate::runtime::sdo::{SdoData, SdoError, SdoRequest};
 use crate::runtime::stats::{CycleCounters, CycleFigures};
 use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
@@ -266,6 +268,55 @@ pub fn restore_positions(
     }
 }
 
+/// Writes each axis' saved commutation offset (`gantry commission AXIS commutation`) back
+/// to its drive (0x2100) before anything can enable it: a drive that lost its setting
+/// would hold the motor with the wrong one. A write that fails is said on `out` with the
+/// drive's reason; the axis keeps what its drive has.
+pub fn restore_commutation(
+    config: &Config,
+    saved: &Saved,
+    controller: &Controller,
+    out: &mut (dyn Write + Send),
+) {
+    let object = gantry_drives::cia402::objects::COMMUTATION_OFFSET;
+    for (i, a) in config.axes.iter().enumerate() {
+        let Some(offset) = saved.commutation_offset(i) else {
+            continue;
+        };
+        let data = SdoData::new(&offset.to_le_bytes()).unwrap_or_default();
+        let request = SdoRequest::download(a.drive, object.index, object.sub, data);
+        let end = Instant::now() + Duration::from_secs(10);
+        let written = loop {
+            let r = controller
+                .sdo(request)
+                .map_err(|e| e.to_string())
+                .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()));
+            match r {
+                Ok(Err(SdoError::Busy)) if Instant::now() < end => {
+                    std::thread::sleep(Duration::from_millis(5))
+                }
+                Ok(r) => break r.map_err(|e| Chain(&e).to_string()),
+                Err(e) => break Err(e),
+            }
+        };
+        let _ = match written {
+            Ok(_) => writeln!(
+                out,
+                "gantry: axis {}: commutation offset {offset} counts written to its drive \
+                 (0x{:04X}:{:02X}) from the saved parameters",
+                a.name, object.index, object.sub
+            ),
+            Err(e) => writeln!(
+                out,
+                "gantry: axis {}: the saved commutation offset {offset} counts could NOT be \
+                 written to its drive (0x{:04X}:{:02X}): {e}; check the drive's commutation \
+                 before enabling it",
+                a.name, object.index, object.sub
+            ),
+        };
+    }
+}
+
 /// Saves the position offsets of absolute axes that changed while homed (a blocking
 /// write, done on a thread of its own so the control socket goes on).
 fn save_offsets(saved: &Arc<Saved>, controller: &Controller) {
@@ -330,6 +381,7 @@ pub fn run(
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
     let controller = Controller::new(ends, names);
     restore_positions(&config, &saved, &controller, out);
+    restore_commutation(&config, &saved, &controller, out);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

@@ -466,7 +466,7 @@ fn commission(
             procedure: p.name(),
         });
     }
-    let handle = crate::commission::start(&state.controller, i, procedure)?;
+    let handle = crate::commission::start(&state.controller, i, procedure, state.saved.clone())?;
     let id = procedures.last().map_or(1, |(id, _)| id + 1);
     if procedures.len() >= 256 {
         procedures.remove(0);
@@ -494,6 +494,7 @@ fn procedure_json(state: &ServerState, p: &ProcedureHandle) -> Value {
             v["result"] = match outcome {
                 ProcedureOutcome::Commutation { offset_counts } => json!({
                     "offset_counts": offset_counts,
+                    "saved": p.saved(),
                 }),
                 ProcedureOutcome::Reversing { cycles } => json!({ "cycles": cycles }),
             };
