@@ -694,15 +694,16 @@ pub fn error_cases(rig: &mut impl MatrixRig) -> Tally {
     for (p, (distance, limit, looking_for)) in [
         // The cam is 4 mm away: the switch search gives up after 1 mm.
         (base, ("MaxDistanceSwitchSearch", 1.0, "reference switch")),
-        // The index pulse is 0.96 mm beyond the cam's low end.
+        // The next index pulse is 3 mm away (5.04 mm): the search gives up after 1 mm.
         (
             MoveHome {
-                mode: HomingMode::ZeroPulse2Phase,
+                switch_config: SwitchConfig::NoSwitch,
+                mode: HomingMode::ZeroPulse1Phase,
                 max_distance_switch_search: 200.0,
-                max_distance_reference_search: 0.3,
+                max_distance_reference_search: 1.0,
                 ..base
             },
-            ("MaxDistanceReferenceSearch", 0.3, "index pulse"),
+            ("MaxDistanceReferenceSearch", 1.0, "index pulse"),
         ),
     ] {
         tally.cases += 1;
