@@ -67,6 +67,7 @@ fn the_cycle_path_of_a_channel_does_not_allocate() {
                 turns: turns as i64,
                 enable: true,
                 reset_fault: false,
+                probe: Default::default(),
             };
             let (cw, target) = ch.drive_outputs(&sp, &inputs);
             encode_outputs(&ch.offsets, &mut outputs[i], cw, target);

@@ -124,6 +124,61 @@ impl Kernel {
         }
     }
 
+    /// Lends axis `axis` to its drive for `procedure` (see [`crate::axis::lend`]): from
+    /// Standstill; `homing`: the axis is in Homing and not homed until the procedure ends
+    /// well. The handle is Active until [`Kernel::end_drive_procedure`], Aborted by power
+    /// off, Stop or QuickStop, Error on a fault.
+    pub fn lend_to_drive(
+        &mut self,
+        axis: usize,
+        procedure: &'static str,
+        homing: bool,
+    ) -> Result<HandleId, CommandError> {
+        let h = self.handles.issue(CommandStatus::Busy);
+        let status = match self.axes.get_mut(axis) {
+            None => Err(CommandError::NoSuchAxis { axis }),
+            Some(a) => {
+                let r = a.lend(procedure, homing, h);
+                a.refresh_status();
+                r
+            }
+        };
+        let status = status.unwrap_or_else(CommandStatus::Error);
+        self.handles.set(h, status);
+        match status {
+            CommandStatus::Error(e) => Err(e),
+            _ => Ok(h),
+        }
+    }
+
+    /// The command (Stop, QuickStop) that asked to cancel axis `axis`' drive procedure, if
+    /// one did: the master halts the drive, hands it back and ends the lending.
+    pub fn cancel_requested(&self, axis: usize) -> Option<&'static str> {
+        self.axes.get(axis).and_then(Axis::cancel_requested)
+    }
+
+    /// Whether axis `axis` is lent to its drive (false for no such axis).
+    pub fn is_lent(&self, axis: usize) -> bool {
+        self.axes.get(axis).is_some_and(Axis::is_lent)
+    }
+
+    /// Ends the lending of axis `axis`: its drive's procedure is done (a homing procedure
+    /// homes the axis on the drive's position) or failed. False when the axis was not lent.
+    pub fn end_drive_procedure(
+        &mut self,
+        axis: usize,
+        outcome: Result<(), crate::axis::lend::DriveProcedureError>,
+    ) -> bool {
+        match self.axes.get_mut(axis) {
+            Some(a) => {
+                let ended = a.end_lending(outcome, &mut self.handles);
+                a.refresh_status();
+                ended
+            }
+            None => false,
+        }
+    }
+
     /// Status of a command.
     pub fn command_status(&self, h: HandleId) -> CommandStatus {
         self.handles.get(h)

@@ -380,8 +380,151 @@ fn saved_parameters_are_used_by_a_call_without_parameters() {
     assert_eq!(rig.k.axes()[0].move_home_parameters().normal_position, 1.0);
 }
 
-/// A drive whose touch probe stays on the home switch (its probe source, vendor object
-/// 0x60D0, not set to the limit switch — the simulated servo's case today): a LimitSwitch
+/// An axis whose drive layer cannot put the touch probe on its limit switches
+/// (`limit_edges_latched` off: no 0x60D0 configured) refuses MoveHome with LimitSwitch in
+/// every mode — its edge (the reference, or where the index search starts) would be
+/// another switch's latch — and still homes on its reference switch.
+#[test]
+fn a_limit_switch_edge_needs_the_probe_on_the_limit_switch() {
+    let mut cfg = axis_config();
+    cfg.limit_edges_latched = false;
+    let mut rig = Rig::new(cfg, Layout::STANDARD, 0.0);
+    for mode in MODES {
+        let call = MoveHomeCall::all(params(
+            MoveDirection::Positive,
+            SwitchConfig::LimitSwitch,
+            mode,
+        ));
+        let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "MoveHome: parameter SwitchConfig = NaN needs the limit switch's edge from the \
+                 drive's touch probe, which this axis cannot route to its limit switches"
+            ),
+            "{e}"
+        );
+        assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Standstill);
+    }
+    let call = MoveHomeCall::all(params(
+        MoveDirection::Positive,
+        SwitchConfig::RefSwitch,
+        HomingMode::SwitchingEdge1Phase,
+    ));
+    let h = rig.k.command(0, Command::MoveHome(call)).unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Busy);
+}
+
+/// A reference switch the probe cannot latch (read from an I/O module): every MoveHome
+/// that looks for its edge is refused — SwitchingEdge (the reference) and ZeroPulse (the
+/// index search starts at the edge) —, StepAbsoluteSwitch on an edge too; a ZeroPulse
+/// run without a switch (the index pulse, latched by probe 2) and a Beckhoff search for
+/// the switch's level (sampled, as TwinCAT's mcOn) still run.
+#[test]
+fn a_reference_switch_the_probe_cannot_latch_refuses_edge_homing_only() {
+    use gantry_kernel::homing::{HomeDirection, StepAbsoluteSwitch, SwitchMode};
+    let mut cfg = axis_config();
+    cfg.reference_edges_latched = false;
+    let mut rig = Rig::new(cfg, Layout::STANDARD, 0.0);
+    for (config, mode) in [
+        (SwitchConfig::RefSwitch, HomingMode::SwitchingEdge1Phase),
+        (
+            SwitchConfig::RefAndLimitSwitch,
+            HomingMode::SwitchingEdge2Phase,
+        ),
+        (SwitchConfig::RefSwitch, HomingMode::ZeroPulse1Phase),
+        (SwitchConfig::RefAndLimitSwitch, HomingMode::ZeroPulse2Phase),
+    ] {
+        let call = MoveHomeCall::all(params(MoveDirection::Positive, config, mode));
+        let e = rig.k.command(0, Command::MoveHome(call)).unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "MoveHome: parameter SwitchConfig = NaN needs the reference switch's edge"
+            ),
+            "{config:?} {mode:?}: {e}"
+        );
+        assert_eq!(rig.k.axis_status(0).unwrap().state, AxisState::Standstill);
+    }
+    let step = |mode| {
+        Command::StepAbsoluteSwitch(StepAbsoluteSwitch {
+            direction: HomeDirection::Positive,
+            switch_mode: mode,
+            position: 0.0,
+            velocity: 10.0,
+            acceleration: 100.0,
+            deceleration: 100.0,
+            jerk: 1_000.0,
+            distance_limit: f64::INFINITY,
+        })
+    };
+    let e = rig.k.command(0, step(SwitchMode::RisingEdge)).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("StepAbsoluteSwitch: parameter SwitchMode = NaN needs the reference"),
+        "{e}"
+    );
+    let h = rig.k.command(0, step(SwitchMode::On)).unwrap();
+    assert_eq!(rig.k.command_status(h), CommandStatus::Busy);
+}
+
+/// The setpoint asks the drive layer for the probe on the limit switch exactly while a
+/// MoveHome with LimitSwitch runs (ZeroPulse too: its index search starts at the switch's
+/// edge), not for one on the reference switch, not after the run.
+#[test]
+fn the_setpoint_routes_the_probe_to_the_limit_switch_for_the_run_only() {
+    for (direction, mode, routed) in [
+        (
+            MoveDirection::Positive,
+            HomingMode::SwitchingEdge1Phase,
+            Some(gantry_kernel::homing::LimitSide::Positive),
+        ),
+        (
+            MoveDirection::Negative,
+            HomingMode::SwitchingEdge2Phase,
+            Some(gantry_kernel::homing::LimitSide::Negative),
+        ),
+        (
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse2Phase,
+            Some(gantry_kernel::homing::LimitSide::Positive),
+        ),
+    ] {
+        let p = params(direction, SwitchConfig::LimitSwitch, mode);
+        let mut rig = rig_for(Layout::STANDARD, &p, 20.0);
+        assert_eq!(rig.sp.probe_on_limit, None);
+        let h = rig
+            .k
+            .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+            .unwrap();
+        assert_eq!(rig.cycle().setpoint.probe_on_limit, routed, "{mode:?}");
+        let mut out = Vec::new();
+        assert_eq!(
+            rig.run_until_final(h, 200_000, &mut out),
+            CommandStatus::Done,
+            "{direction:?} {mode:?}"
+        );
+        assert!(out
+            .iter()
+            .all(|s| s.setpoint.probe_on_limit == routed || s.setpoint.probe_on_limit.is_none()));
+        assert_eq!(rig.cycle().setpoint.probe_on_limit, None, "after the run");
+    }
+    let p = params(
+        MoveDirection::Positive,
+        SwitchConfig::RefAndLimitSwitch,
+        HomingMode::SwitchingEdge1Phase,
+    );
+    let mut rig = rig_for(Layout::STANDARD, &p, 20.0);
+    rig.k
+        .command(0, Command::MoveHome(MoveHomeCall::all(p)))
+        .unwrap();
+    assert_eq!(
+        rig.cycle().setpoint.probe_on_limit,
+        None,
+        "reference switch"
+    );
+}
+
+/// A drive whose touch probe stays on the home switch although the axis says its limit
+/// edges are latched (its probe source 0x60D0 not set to the limit switch): a LimitSwitch
 /// run must never take the home cam's latches for the limit switch's edge (before the fix
 /// it homed on the cam's end, silently). It crosses the limit switch, sees no latch of it,
 /// and fails naming the reference search's distance and the limit switch, in ErrorStop.
@@ -401,6 +544,7 @@ fn limit_switch_homing_never_takes_the_home_switch_latch_for_the_limit_edge() {
                 p.max_distance_switch_search = 180.0;
                 p.max_distance_reference_search = 180.0;
                 let mut rig = rig_for(Layout::STANDARD, &p, x0);
+                rig.probe_routed = false;
                 rig.m.probe_source = ProbeSource::Reference;
                 let h = rig
                     .k

@@ -4,10 +4,11 @@
 //! plain fields (no allocation: this runs in the cycle).
 
 use gantry_drives::cia402::Controlword;
+use gantry_drives::csp::probe::ProbeTarget;
 use gantry_drives::csp::{CspChannel, CspFeedback, CspInputs, CspSetpoint};
 use gantry_drives::scaling::ScalingError;
 use gantry_kernel::axis::{AxisFeedback, AxisSetpoint};
-use gantry_kernel::homing::{Latch, ProbeLatches, SwitchInputs};
+use gantry_kernel::homing::{Latch, LimitSide, ProbeLatches, SwitchInputs};
 use gantry_kernel::mechanics::Modulo;
 
 /// A drive channel driven by a kernel axis.
@@ -31,6 +32,11 @@ pub fn csp_setpoint(sp: &AxisSetpoint) -> CspSetpoint {
         turns: sp.turns,
         enable: sp.enable,
         reset_fault: sp.reset_fault,
+        probe: match sp.probe_on_limit {
+            None => ProbeTarget::Reference,
+            Some(LimitSide::Negative) => ProbeTarget::NegativeLimit,
+            Some(LimitSide::Positive) => ProbeTarget::PositiveLimit,
+        },
     }
 }
 

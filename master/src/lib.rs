@@ -17,6 +17,7 @@ pub mod drive_axis;
 pub mod error_chain;
 pub mod ethercat;
 pub mod pcap;
+pub mod persist;
 pub mod runtime;
 pub mod service;
 pub mod simulated;

@@ -926,6 +926,40 @@ mod tests {
         assert_eq!(al(&mut c)[..2], [0x04, 0x00], "SafeOp after 10 ms");
     }
 
+    /// Two TxPDOs of 10 × 0x6064 (80 bytes): each within the per-PDO limit, together past
+    /// the device's 64-byte buffer; SM3 set to the 80 bytes is refused with 0x001E.
+    #[test]
+    fn safeop_is_refused_when_the_assigned_pdos_exceed_the_devices_buffer() {
+        let mut c = servo_in_preop();
+        let od = c
+            .slave_mut(0)
+            .and_then(Slave::object_dictionary_mut)
+            .expect("CoE");
+        let entry = 0x6064_0020u32.to_le_bytes();
+        od.write(0x1C13, 0, &[0]).unwrap();
+        for pdo in [0x1A00u16, 0x1A01] {
+            od.write(pdo, 0, &[0]).unwrap();
+            for sub in 1..=10 {
+                od.write(pdo, sub, &entry).unwrap();
+            }
+            od.write(pdo, 0, &[10]).unwrap();
+        }
+        od.write(0x1C13, 2, &0x1A01u16.to_le_bytes()).unwrap();
+        od.write(0x1C13, 0, &[2]).unwrap();
+        process_data_sms(&mut c, 6, 80);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[4, 0]);
+        assert_eq!(al(&mut c), [0x12, 0x00, 0, 0, 0x1E, 0x00]);
+        // One PDO of the two (40 bytes) with SM3 at 40: accepted.
+        let od = c
+            .slave_mut(0)
+            .and_then(Slave::object_dictionary_mut)
+            .expect("CoE");
+        od.write(0x1C13, 0, &[1]).unwrap();
+        process_data_sms(&mut c, 6, 40);
+        send(&mut c, Command::Apwr, 0, AL_CONTROL, &[0x14, 0]);
+        assert_eq!(al(&mut c), [0x02, 0x00, 0, 0, 0, 0], "accepted, on its way");
+    }
+
     /// A servo in SafeOp with process data at 0x1100 (outputs) and 0x1400 (inputs).
     fn servo_in_safeop(activation: u8) -> SlaveChain {
         use crate::esc::registers::{DC_ACTIVATION, DC_START_TIME_CYCLIC, DC_SYNC0_CYCLE_TIME};

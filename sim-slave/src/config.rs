@@ -58,6 +58,7 @@ use thiserror::Error;
 use crate::catalog::{self, EncoderOptions, ServoOptions, SwitchesOptions};
 use crate::chain::SlaveChain;
 use crate::esc::al::{Firmware, TransitionTimes};
+use crate::plant::servo::homing::{HomingFaults, MethodSet};
 use crate::plant::servo::probe::DriveSwitches;
 use crate::plant::servo::ServoParams;
 use crate::plant::switches::{check_cams, CamError, SwitchCam};
@@ -199,6 +200,14 @@ pub struct ServoConfig {
     /// reaction). CiA 301 §7.5.2.6 leaves it to the device; 1.5 (CANopenNode's) by
     /// default. A larger one tolerates a master on a host without real time.
     pub sync_timeout_periods: f64,
+    /// On a CAN bus: bytes of the manufacturer DOMAIN 0x2F00 "recorder" (read-only, known
+    /// content, for large SDO uploads; 0: the node has none; at most 1 MiB).
+    pub recorder_bytes: u32,
+    /// On a CAN bus: how long its SDO server waits for the client's next frame before it
+    /// aborts the transfer with 0x05040000 (ms; CiA 301 leaves it to the device; 1000 by
+    /// default). A longer one serves a slow client (a Python master in an emulated VM
+    /// acknowledging a sub-block of 127 segments).
+    pub sdo_timeout_ms: u32,
     /// How fast its distributed clock's oscillator runs against true time (ppm;
     /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
     /// the network's reference, which the master's cycle has to follow.
@@ -255,6 +264,30 @@ pub struct ServoConfig {
     /// Switch cams on its own travel, read by its digital inputs 0x60FD
     /// (`[slave.switches]`).
     pub switches: ServoSwitches,
+    /// Faults of its homing mode, to inject (`[slave.homing]`).
+    pub homing: ServoHoming,
+}
+
+/// `[slave.homing]` of a servo: homing faults real drives are reported to have.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServoHoming {
+    /// The drive homes but never sets "homing attained" (statusword bit 12).
+    pub never_attains: bool,
+    /// Methods it refuses (SDO abort 0x06090030) although CiA 402 defines them, e.g.
+    /// `[0]`.
+    #[serde(deserialize_with = "method_set")]
+    pub refuse_methods: MethodSet,
+}
+
+/// A list of homing methods.
+fn method_set<'de, D: serde::Deserializer<'de>>(d: D) -> Result<MethodSet, D::Error> {
+    let list = Vec::<i8>::deserialize(d)?;
+    let mut set = MethodSet::EMPTY;
+    for m in list {
+        set.insert(m);
+    }
+    Ok(set)
 }
 
 /// `[slave.switches]` of a servo: where on its travel (counts, both ends included) each
@@ -311,6 +344,8 @@ impl Default for ServoConfig {
             node: None,
             start_position: 0,
             sync_timeout_periods: crate::canopen::node::SYNC_TIMEOUT_PERIODS,
+            recorder_bytes: 0,
+            sdo_timeout_ms: 1000,
             dc_drift_ppm: 0.0,
             commutation_offset: p.commutation_offset,
             bandwidth_hz: p.velocity_loop_hz,
@@ -337,6 +372,7 @@ impl Default for ServoConfig {
             fault_reaction_option_code: p.fault_reaction_option_code,
             al: AlConfig::default(),
             switches: ServoSwitches::default(),
+            homing: ServoHoming::default(),
         }
     }
 }
@@ -372,6 +408,10 @@ impl ServoConfig {
             shutdown_option_code: c.shutdown_option_code,
             disable_operation_option_code: c.disable_operation_option_code,
             fault_reaction_option_code: c.fault_reaction_option_code,
+            homing_faults: HomingFaults {
+                never_attains: c.homing.never_attains,
+                refused: c.homing.refuse_methods,
+            },
         }
     }
 }

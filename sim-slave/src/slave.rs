@@ -1040,8 +1040,11 @@ impl Slave {
         let layout = self
             .od
             .as_ref()
-            .and_then(|od| od.pdo_rules().map(|rules| pdo::layout(od, rules)))
-            .map(|l| l.map(|l| (l.output_bytes(), l.input_bytes())).ok());
+            .and_then(|od| {
+                od.pdo_rules()
+                    .map(|rules| (pdo::layout(od, rules), rules.max_bytes))
+            })
+            .map(|(l, max)| l.map(|l| (l.output_bytes(), l.input_bytes(), max)).ok());
         Checks {
             sms,
             mailbox: self.description.mailbox,
@@ -1069,9 +1072,10 @@ struct Checks {
     sms: Vec<SyncManager>,
     /// The mailbox the EEPROM describes: (receive offset, size, send offset, size).
     mailbox: Option<(u16, u16, u16, u16)>,
-    /// The mapped process data (output bytes, input bytes); `Some(None)`: a mapping the
-    /// device cannot run; `None`: no CoE mapping (fixed PDOs).
-    layout: Option<Option<(usize, usize)>>,
+    /// The mapped process data (output bytes, input bytes, the most the device's buffer
+    /// takes each way); `Some(None)`: a mapping the device cannot run; `None`: no CoE
+    /// mapping (fixed PDOs).
+    layout: Option<Option<(usize, usize, usize)>>,
     dc_activation: u8,
     requires_dc: bool,
 }
@@ -1136,14 +1140,21 @@ impl Checks {
         }
     }
 
-    /// 0x001D/0x001E: the process data the master set up must be what the mapped PDOs
-    /// say: the output SyncManager (2) enabled, buffered, written by the master and as
-    /// long as the outputs; the input SyncManager (3) likewise for the inputs.
+    /// 0x001D/0x001E: the process data the master set up must be what the assigned PDOs
+    /// say (all of them, one after the other): the output SyncManager (2) enabled,
+    /// buffered, written by the master and as long as the outputs; the input SyncManager
+    /// (3) likewise for the inputs; neither more than the device's buffer.
     fn check_process_data(&self) -> Result<(), AlStatusCode> {
         let Some(layout) = self.layout else {
             return Ok(());
         };
-        let (outputs, inputs) = layout.ok_or(AlStatusCode::InvalidOutputConfig)?;
+        let (outputs, inputs, max) = layout.ok_or(AlStatusCode::InvalidOutputConfig)?;
+        if outputs > max {
+            return Err(AlStatusCode::InvalidOutputConfig);
+        }
+        if inputs > max {
+            return Err(AlStatusCode::InvalidInputConfig);
+        }
         let fits = |s: Option<&SyncManager>, kind: Kind, bytes: usize| {
             s.is_some_and(|s| {
                 if bytes == 0 {

@@ -139,8 +139,12 @@ impl Rig {
         self.read_inbox();
     }
 
-    fn read_inbox_pub(&mut self) {
-        self.read_inbox();
+    /// When the last frame with COB-ID `id` was put on the bus (ns).
+    fn last_frame_at(&self, id: u16) -> u64 {
+        let frame = self.m.bus.log().iter().rev().find(|d| d.frame.id() == id);
+        frame
+            .unwrap_or_else(|| panic!("no frame 0x{id:03X} on the bus"))
+            .at_ns
     }
 
     fn read_inbox(&mut self) {
@@ -350,14 +354,7 @@ fn heartbeat_consumer_timeout_faults_the_drive() {
     // The node saw the master's last heartbeat when its frame ended; it notices the
     // timeout at its first tick 50 ms after (ticks are 1 ms apart here) and the EMCY
     // takes its 135 µs on the bus.
-    let seen =
-        r.m.bus
-            .log()
-            .iter()
-            .rev()
-            .find(|d| d.frame.id() == 0x701)
-            .unwrap()
-            .at_ns;
+    let seen = r.last_frame_at(0x701);
     assert!(seen >= last);
     assert!(
         at > seen + 50 * MS && at <= seen + 51 * MS + 135_000,
@@ -433,22 +430,14 @@ fn sync_watchdog_0x1006_faults_the_drive_when_sync_stays_away() {
     // SYNC stops (heartbeats go on: no heartbeat consumer here).
     let last = r.m.now;
     for _ in 0..20 {
-        r.m.step(100_000);
-        r.read_inbox_pub();
+        r.idle(100_000);
     }
     assert_eq!(r.emcy.len(), 1, "{:?}", r.emcy);
     let (at, e) = r.emcy[0];
     assert_eq!(e.error_code, 0x8100);
     // The node saw the last SYNC when its frame ended; 1.5 ms after, at the next 0.1 ms
     // tick, it sends the EMCY (135 µs on the bus).
-    let sync =
-        r.m.bus
-            .log()
-            .iter()
-            .rev()
-            .find(|d| d.frame.id() == 0x080)
-            .unwrap()
-            .at_ns;
+    let sync = r.last_frame_at(0x080);
     assert!(sync >= last);
     assert!(
         at > sync + 1_500_000 && at <= sync + 1_600_000 + 135_000,
@@ -485,8 +474,7 @@ fn the_sync_watchdog_margin_is_the_nodes_setting_and_at_least_one_period() {
         r.cycle(&[Some((0x0F, p))]);
     }
     for _ in 0..50 {
-        r.m.step(100_000);
-        r.read_inbox_pub();
+        r.idle(100_000);
     }
     assert!(r.emcy.is_empty(), "5 ms without SYNC: {:?}", r.emcy);
     for _ in 0..20 {
@@ -494,20 +482,12 @@ fn the_sync_watchdog_margin_is_the_nodes_setting_and_at_least_one_period() {
     }
     assert_eq!(r.servo(0).state(), State::OperationEnabled);
     for _ in 0..120 {
-        r.m.step(100_000);
-        r.read_inbox_pub();
+        r.idle(100_000);
     }
     assert_eq!(r.emcy.len(), 1, "{:?}", r.emcy);
     let (at, e) = r.emcy[0];
     assert_eq!(e.error_code, 0x8100);
-    let sync =
-        r.m.bus
-            .log()
-            .iter()
-            .rev()
-            .find(|d| d.frame.id() == 0x080)
-            .unwrap()
-            .at_ns;
+    let sync = r.last_frame_at(0x080);
     assert!(
         at > sync + 10_000_000 && at <= sync + 10_100_000 + 135_000,
         "EMCY {} ns after the last SYNC",
@@ -553,14 +533,7 @@ fn rpdo_event_timer_is_a_deadline() {
     assert_eq!(r.servo(0).state(), State::OperationEnabled);
     // Then none: the timeout 5 ms after the last one.
     r.cycle(&[Some((0x0F, p))]);
-    let last =
-        r.m.bus
-            .log()
-            .iter()
-            .rev()
-            .find(|d| d.frame.id() == 0x209)
-            .unwrap()
-            .at_ns;
+    let last = r.last_frame_at(0x209);
     for _ in 0..10 {
         r.cycle(&[None]);
     }

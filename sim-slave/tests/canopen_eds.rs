@@ -70,9 +70,11 @@ fn agrees_with_the_node(n: &mut CanNode) -> eds::Eds {
             // Size: what the server transfers.
             match (s.data_type.bytes(), info.size) {
                 (Some(a), ObjectSize::Fixed(b)) => assert_eq!(a, b, "{place}"),
-                (None, ObjectSize::Fixed(_)) => {
-                    assert_eq!(s.data_type, DataType::VisibleString, "{place}")
-                }
+                (None, ObjectSize::Fixed(_)) => assert!(
+                    matches!(s.data_type, DataType::VisibleString | DataType::Domain),
+                    "{place}: {:?}",
+                    s.data_type
+                ),
                 (a, b) => panic!("{place}: {a:?} vs {b:?}"),
             }
             // Mappability: the node's own rule, both ways, with the type's length.
@@ -159,6 +161,36 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
     );
     // The limits of the servo's ranged objects.
     assert_eq!(e.entry(0x6007, 0).unwrap().limits(), Some((0, 1)));
+    // Homing mode (CiA 402-2 §10.4): the method within 0…37 (the reserved ones within
+    // that span are refused by the node), the speeds an ARRAY.
+    let method = e.entry(0x6098, 0).unwrap();
+    assert_eq!(
+        (method.data_type, method.limits()),
+        (DataType::Integer8, Some((0, 37)))
+    );
+    assert_eq!(e.object(0x6099).unwrap().object_type, ObjectType::Array);
+    assert_eq!(e.entry(0x6099, 2).unwrap().data_type, DataType::Unsigned32);
+    assert_eq!(e.entry(0x607C, 0).unwrap().data_type, DataType::Integer32);
+    assert_eq!(e.entry(0x609A, 0).unwrap().data_type, DataType::Unsigned32);
+    assert_eq!(e.entry(0x6060, 0).unwrap().limits(), Some((6, 10)));
+}
+
+/// A node with the recorder 0x2F00 (chain `recorder_bytes`) describes it as a read-only
+/// DOMAIN that no PDO maps; one without it does not describe it.
+#[test]
+fn the_recorder_is_a_read_only_domain_in_the_eds() {
+    let mut n = CanNode::new(CanNodeConfig {
+        recorder_bytes: 1000,
+        ..CanNodeConfig::servo(id(5))
+    })
+    .unwrap();
+    let e = agrees_with_the_node(&mut n);
+    let r = e.entry(0x2F00, 0).unwrap();
+    assert_eq!(
+        (r.data_type, r.access, r.pdo_mapping),
+        (DataType::Domain, AccessType::ReadOnly, false)
+    );
+    assert!(read(&mut node(5)).entry(0x2F00, 0).is_none());
 }
 
 #[test]

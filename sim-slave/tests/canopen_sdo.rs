@@ -172,3 +172,48 @@ fn reset_communication_ends_a_transfer_in_progress() {
         DEVICE_TYPE_CIA402_SERVO.to_le_bytes()
     );
 }
+
+/// The recorder 0x2F00 (chain `recorder_bytes`): a read-only DOMAIN of known content that
+/// the SDO benchmark uploads. 64 KiB segmented (9363 segments of 7 bytes) and by block
+/// (sub-blocks of 127 with CRC) arrive byte for byte; it refuses writes and other
+/// sub-indices, a node without it has no object, and one larger than 1 MiB is refused.
+#[test]
+fn the_recorder_uploads_64_kib_segmented_and_by_block() {
+    use gantry_drives::canopen::NodeId;
+    use gantry_sim::canopen::dictionary::{recorder_byte, RECORDER_MAX_BYTES};
+    use gantry_sim::canopen::{CanNode, CanNodeConfig, CanNodeError};
+    const BYTES: usize = 65_536;
+    let node = |id: u8, recorder_bytes| CanNodeConfig {
+        recorder_bytes,
+        ..CanNodeConfig::servo(NodeId::new(id).unwrap())
+    };
+    let mut m = Master::with_nodes(vec![
+        CanNode::new(node(6, BYTES)).unwrap(),
+        CanNode::new(node(7, 0)).unwrap(),
+    ]);
+    m.step(0);
+    let want: Vec<u8> = (0..BYTES).map(recorder_byte).collect();
+    // Not periodic at 256: a segment in the wrong place would show.
+    assert_ne!(want[..256], want[256..512]);
+    for mode in [UploadMode::Normal, UploadMode::Block] {
+        let got = m.upload(6, 0x2F00, 0, mode).unwrap();
+        assert_eq!(got.len(), BYTES, "{mode:?}");
+        let first_bad = got.iter().zip(&want).position(|(a, b)| a != b);
+        assert_eq!(first_bad, None, "{mode:?}");
+    }
+    assert_eq!(m.write(6, 0x2F00, 0, &[1, 2, 3]), Err(AbortCode::READ_ONLY));
+    assert_eq!(
+        m.read(6, 0x2F00, 1),
+        Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST)
+    );
+    assert_eq!(m.read(7, 0x2F00, 0), Err(AbortCode::OBJECT_DOES_NOT_EXIST));
+    let too_big = CanNode::new(node(8, RECORDER_MAX_BYTES + 1)).unwrap_err();
+    assert!(
+        matches!(too_big, CanNodeError::Recorder { .. }),
+        "{too_big}"
+    );
+    assert!(
+        too_big.to_string().contains("recorder_bytes = 1048577"),
+        "{too_big}"
+    );
+}

@@ -17,8 +17,9 @@ use gantry_drives::canopen::sdo::{
 use gantry_drives::canopen::CanFrame;
 use gantry_link::can_socket::{monotonic_ns, CanSocket, Received};
 
-/// The bytes an SDO client holds (the largest object the tests move).
-pub const SDO_BUFFER: usize = 4096;
+/// The bytes an SDO client holds: the largest object the tests move, the simulated
+/// node's 64 KiB recorder 0x2F00 (`tests/tests/sdo_bench_vcan.rs`).
+pub const SDO_BUFFER: usize = 1 << 16;
 
 /// A test's master on one CAN interface.
 pub struct CanMaster {

@@ -199,6 +199,26 @@ impl CanRig {
     pub fn sim(&self) -> MutexGuard<'_, MemBus> {
         lock(&self.bus)
     }
+
+    /// Shuts down as `gantry run` does on SIGTERM: [`Controller::shutdown`], cycles until
+    /// the engine ends (the drives disabled; at most `max` cycles), then the bus'
+    /// shutdown ([`CanopenBus::shut_down`]) with the bus' time running on by the link's
+    /// waits. Returns what the shutdown printed and the simulated bus.
+    pub fn shut_down(mut self, max: usize) -> (String, SharedBus) {
+        self.ctl.shutdown().expect("shutdown queued");
+        let mut ended = false;
+        for _ in 0..max {
+            if !self.engine.cycle(&mut self.clock) {
+                ended = true;
+                break;
+            }
+        }
+        assert!(ended, "the engine did not end in {max} cycles");
+        lock(&self.bus).free_running();
+        let mut out = Vec::new();
+        let _ = self.engine.into_bus().shut_down(&mut out);
+        (String::from_utf8_lossy(&out).into_owned(), self.bus)
+    }
 }
 
 /// Frames [`Nodes`] holds for the master at most.

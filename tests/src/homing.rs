@@ -37,9 +37,32 @@ pub fn servo_switches_toml() -> String {
     )
 }
 
-/// The axis' switches (`[axis.switches]`): all three from the drive.
-pub const AXIS_SWITCHES_TOML: &str =
-    "[axis.switches]\nnegative_limit = \"drive\"\npositive_limit = \"drive\"\nreference = \"drive\"\n";
+/// The axis' switches (`[axis.switches]`): all three from the drive, and the simulated
+/// drive's 0x60D0 values for its limit switch inputs (manufacturer-specific: −1 negative,
+/// −2 positive) so that MoveHome can latch a limit switch's edge.
+pub const AXIS_SWITCHES_TOML: &str = "[axis.switches]\nnegative_limit = \"drive\"\n\
+     positive_limit = \"drive\"\nreference = \"drive\"\n\
+     probe_source = { negative_limit = -1, positive_limit = -2 }\n";
+
+/// A digital-input module (chain position 1, watching the servo at 0) with the same
+/// switches on its inputs: 0 the home cam, 1 the positive and 2 the negative limit
+/// switch, both normally closed (the input drops when actuated).
+pub fn module_switches_toml() -> String {
+    format!(
+        "[[slave]]\nkind = \"switches\"\naxis = 0\n\
+         [[slave.cam]]\ninput = 0\nfrom = {}\nto = {}\n\
+         [[slave.cam]]\ninput = 1\nfrom = {POSITIVE_LIMIT_AT}\nto = 9000000000\nnormally_closed = true\n\
+         [[slave.cam]]\ninput = 2\nfrom = -9000000000\nto = {NEGATIVE_LIMIT_AT}\nnormally_closed = true\n",
+        CAM.0, CAM.1
+    )
+}
+
+/// The axis' switches on the module of [`module_switches_toml`] (`[axis.switches]`); the
+/// drive's touch probe stays mapped for the index pulse.
+pub const AXIS_MODULE_SWITCHES_TOML: &str = "[axis.switches]\n\
+     negative_limit = { from = \"module\", slave = 1, input = 2, normally_closed = true }\n\
+     positive_limit = { from = \"module\", slave = 1, input = 1, normally_closed = true }\n\
+     reference = { from = \"module\", slave = 1, input = 0 }\n";
 
 /// Counts per mm: 2¹⁷ counts per motor revolution, 5 mm per revolution.
 pub const COUNTS_PER_MM: f64 = 131_072.0 / 5.0;
@@ -65,7 +88,12 @@ fn drive_counts(rig: &impl HomingRig) -> i64 {
 }
 
 fn move_home(direction: MoveDirection, mode: HomingMode, fast: f64, slow: f64) -> Command {
-    Command::MoveHome(MoveHomeCall::all(MoveHome {
+    Command::MoveHome(MoveHomeCall::all(home_params(direction, mode, fast, slow)))
+}
+
+/// MoveHome on the reference switch (reversing at the limit switches).
+fn home_params(direction: MoveDirection, mode: HomingMode, fast: f64, slow: f64) -> MoveHome {
+    MoveHome {
         direction,
         switch_config: SwitchConfig::RefAndLimitSwitch,
         mode,
@@ -77,7 +105,7 @@ fn move_home(direction: MoveDirection, mode: HomingMode, fast: f64, slow: f64) -
         max_distance_reference_search: 50.0,
         reference_offset: 0.0,
         normal_position: 0.0,
-    }))
+    }
 }
 
 /// The switches as the axis sees them, through the drive's process data.
@@ -89,6 +117,52 @@ pub fn scenario(rig: &mut impl HomingRig) {
     a_limit_switch_stops_the_axis_and_lets_it_only_move_away(rig);
     move_home_takes_the_edge_from_the_touch_probe_to_the_count(rig);
     move_home_on_the_index_pulse(rig);
+    move_home_on_a_limit_switch_edge(rig);
+    assert_eq!(rig.drive_faults(), 0);
+}
+
+/// The scenario with the switches on an I/O module ([`AXIS_MODULE_SWITCHES_TOML`]): they
+/// reach the axis every cycle and a limit switch stops it as the drive's do; MoveHome on
+/// the reference switch's edge (and ZeroPulse after it, which starts at that edge) is
+/// refused — the probe cannot latch a module input — and the axis goes on; MoveHome on
+/// the index pulse alone runs.
+pub fn module_scenario(rig: &mut impl HomingRig) {
+    the_drive_s_switches_reach_the_axis(rig);
+    a_limit_switch_stops_the_axis_and_lets_it_only_move_away(rig);
+    for mode in [HomingMode::SwitchingEdge1Phase, HomingMode::ZeroPulse1Phase] {
+        let status = run(rig, move_home(MoveDirection::Positive, mode, 10.0, 2.0));
+        let CommandStatus::Error(e) = status else {
+            panic!("{mode:?}: {status:?}, not refused");
+        };
+        assert!(
+            e.to_string()
+                .contains("needs the reference switch's edge from the drive's touch probe"),
+            "{mode:?}: {e}"
+        );
+        assert_eq!(rig.status().state, AxisState::Standstill);
+    }
+    // ZeroPulse without a switch: the index pulse (probe 2) only.
+    let below = axis_frame(rig, -20.0);
+    let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, below).speed(50.0));
+    assert_eq!(run(rig, to), CommandStatus::Done);
+    let params = MoveHome {
+        switch_config: SwitchConfig::NoSwitch,
+        ..home_params(
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse1Phase,
+            5.0,
+            5.0,
+        )
+    };
+    let status = run(rig, Command::MoveHome(MoveHomeCall::all(params)));
+    assert_eq!(status, CommandStatus::Done, "{:?}", rig.status().error);
+    rig.cycles(200);
+    let at = drive_counts(rig);
+    let index = 1000 + (at - 1000 + 65_536).div_euclid(131_072) * 131_072;
+    assert!(
+        (at - index).abs() <= 1,
+        "stands at {at}, nearest index {index}"
+    );
     assert_eq!(rig.drive_faults(), 0);
 }
 
@@ -174,6 +248,74 @@ fn move_home_on_the_index_pulse(rig: &mut impl HomingRig) {
     assert!(
         (at - index).abs() <= 1,
         "stands at {at}, nearest index {index}"
+    );
+}
+
+/// MoveHome with `LimitSwitch` on the limit switch's edge, both ways: the master routes
+/// the drive's touch probe to that switch by 0x60D0 (probe 1 on the negative, probe 2 on
+/// the positive one) for the run, so the reference is the limit cam's first count, exact
+/// at 1 and at 50 mm/s; ReferenceOffset backs the axis 2 mm off the switch.
+fn move_home_on_a_limit_switch_edge(rig: &mut impl HomingRig) {
+    for (direction, edge, speed) in [
+        (MoveDirection::Positive, POSITIVE_LIMIT_AT, 1.0),
+        (MoveDirection::Positive, POSITIVE_LIMIT_AT, 50.0),
+        (MoveDirection::Negative, NEGATIVE_LIMIT_AT, 50.0),
+    ] {
+        let sign = direction.sign();
+        // From 5 mm before the switch.
+        let start = axis_frame(rig, edge as f64 / COUNTS_PER_MM - sign * 5.0);
+        let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, start).speed(50.0));
+        assert_eq!(run(rig, to), CommandStatus::Done, "to {start}");
+        let params = MoveHome {
+            switch_config: SwitchConfig::LimitSwitch,
+            reference_offset: -sign * 2.0,
+            ..home_params(direction, HomingMode::SwitchingEdge1Phase, speed, speed)
+        };
+        let status = run(rig, Command::MoveHome(MoveHomeCall::all(params)));
+        let st = rig.status();
+        assert_eq!(
+            status,
+            CommandStatus::Done,
+            "{direction:?} at {speed} mm/s: {:?}",
+            st.error
+        );
+        assert!(st.homing.reference_set, "{:?}", st.homing);
+        rig.cycles(200);
+        let at = drive_counts(rig);
+        let expected = edge - (sign * 2.0 * COUNTS_PER_MM).round() as i64;
+        assert!(
+            (at - expected).abs() <= 1,
+            "{direction:?} at {speed} mm/s: stands at {at} counts, the limit switch's edge \
+             is at {edge}, 2 mm off it is {expected}"
+        );
+        let st = rig.status();
+        assert!(st.actual_position.abs() <= 1.0 / COUNTS_PER_MM, "{st:?}");
+        assert!(!st.switches.negative_limit && !st.switches.positive_limit);
+        assert_ne!(st.state, AxisState::ErrorStop, "{:?}", st.error);
+    }
+    // ZeroPulse on the positive limit switch: its edge from probe 2 (0x60D0:2), the index
+    // pulse from probe 1 meanwhile; the reference is the first index pulse back from the
+    // edge (at 1000 counts in every revolution: 1 180 648, 5 mm before the switch).
+    let start = axis_frame(rig, POSITIVE_LIMIT_AT as f64 / COUNTS_PER_MM - 8.0);
+    let to = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, start).speed(50.0));
+    assert_eq!(run(rig, to), CommandStatus::Done);
+    let params = MoveHome {
+        switch_config: SwitchConfig::LimitSwitch,
+        ..home_params(
+            MoveDirection::Positive,
+            HomingMode::ZeroPulse1Phase,
+            5.0,
+            5.0,
+        )
+    };
+    let status = run(rig, Command::MoveHome(MoveHomeCall::all(params)));
+    assert_eq!(status, CommandStatus::Done, "{:?}", rig.status().error);
+    rig.cycles(200);
+    let index = 1000 + (POSITIVE_LIMIT_AT - 1001).div_euclid(131_072) * 131_072;
+    let at = drive_counts(rig);
+    assert!(
+        (at - index).abs() <= 1,
+        "stands at {at}, the index before the limit switch is at {index}"
     );
 }
 

@@ -8,6 +8,7 @@ pub mod can_rig;
 pub mod cyclic_frame;
 pub mod dc_phase;
 pub mod drive_counts;
+pub mod drive_homing;
 pub mod homing;
 pub mod homing_matrix;
 pub mod invariant;

@@ -367,7 +367,8 @@ fn a_node_that_is_not_the_device_of_its_eds_stops_the_bring_up() {
 fn the_switches_and_probe_layout_suits_the_simulators_eds_and_comes_up() {
     let d = dir("switches");
     simulated_servo_eds(&d);
-    // The minimal layout with the drive's switches and the touch probe: 1 RPDO, 3 TPDOs.
+    // The minimal layout with the drive's switches, the touch probe and its sources for
+    // the limit switches (0x60BD too): 1 RPDO, 4 TPDOs; the EDS has 0x60D0 writable.
     let text = format!(
         "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\
          [[axis]]\nname = \"x\"\nnode = 3\neds = \"servo.eds\"\npdo = \"csp-minimal\"\n\
@@ -379,9 +380,16 @@ fn the_switches_and_probe_layout_suits_the_simulators_eds_and_comes_up() {
     std::fs::write(&path, text).unwrap();
     let config = Config::load(&path.display().to_string()).unwrap_or_else(|e| panic!("{e}"));
     let setup = gantry::canopen::bring_up::drive_setup(&config, 0).unwrap();
-    assert_eq!((setup.plan.rpdos.len(), setup.plan.tpdos.len()), (1, 3));
+    assert_eq!((setup.plan.rpdos.len(), setup.plan.tpdos.len()), (1, 4));
+    assert!(
+        setup
+            .steps
+            .iter()
+            .any(|s| (s.mux.index, s.mux.sub, s.value()) == (0x60D0, 2, &(-2i16).to_le_bytes()[..])),
+        "0x60D0:2 written"
+    );
     let mut rig = CanRig::new(&config, servos(&[3]));
-    assert!(rig.log.contains("TPDO3"), "{}", rig.log);
+    assert!(rig.log.contains("TPDO4"), "{}", rig.log);
     rig.enable_and_home(0);
     std::fs::remove_dir_all(&d).unwrap();
 }

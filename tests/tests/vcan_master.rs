@@ -5,7 +5,8 @@
 //! enable, set-position, PTP moves of all four axes ending on target, the statusword by
 //! SDO; node 4's simulator is killed mid-move: its axis stops with a fault naming node 4
 //! while the others finish; the simulator comes back, `gantry reset` restores the node
-//! and the axis moves again; SIGTERM ends the service cleanly.
+//! and the axis moves again; SIGTERM ends the service cleanly, and no node reports a lost
+//! SYNC or heartbeat (EMCY) afterwards: the shutdown took both watches back.
 //!
 //! Needs vcan0 and the built `gantry` and `gantry-sim` binaries: deploy/test.sh runs it
 //! with the other `vcan_*` tests (feature `vcan`), in the PREEMPT_RT VM of deploy/vm/ on
@@ -22,6 +23,7 @@
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use gantry_drives::canopen::emcy::Emergency;
 use gantry_drives::canopen::heartbeat::Heartbeat;
 use gantry_tests::can::{CanMaster, CanSim};
 use gantry_tests::netns::{built_binary, Reaped};
@@ -33,6 +35,11 @@ const CYCLE_US: u32 = 20_000;
 
 /// Generous: an emulated VM runs everything some ten times slower than the host.
 const WAIT: Duration = Duration::from_secs(60);
+
+/// How long the bus is watched after gantry's exit for a node reporting a lost SYNC or
+/// heartbeat: twice the nodes' consumer time of gantry's heartbeat (`master_timeout_ms`
+/// 3000 here).
+const AFTER_EXIT: Duration = Duration::from_secs(6);
 
 /// One chain file for `gantry-sim` with servos on `nodes`.
 fn chain(nodes: &[u8]) -> String {
@@ -82,6 +89,10 @@ fn master_config() -> String {
             // The emulated VM stalls for hundreds of ms: heartbeats and TPDOs arrive
             // late there, which a real bus would not do.
             out.push_str("heartbeat_timeout_ms = 3000\n");
+            // And the nodes' consumer of gantry's heartbeat (300 ms by default): a node
+            // that misses it leaves Operational (0x1029:01 = 0), as one did at bring-up
+            // under a loaded host.
+            out.push_str("master_timeout_ms = 3000\n");
             cycle = true;
         } else if line.starts_with("lost_frames_limit =") {
             out.push_str("lost_frames_limit = 20\n");
@@ -298,7 +309,23 @@ fn vcan_master_moves_four_nodes_in_two_simulators_and_restores_a_lost_one() {
         assert_eq!(a["state"], "Standstill", "{a}");
     }
 
-    // SIGTERM: a clean end, the nodes left pre-operational.
+    // SIGTERM: a clean end, the nodes left pre-operational and no longer watching
+    // gantry's SYNC and heartbeat. A listener on the bus from before the signal to
+    // AFTER_EXIT after gantry's exit (its heartbeat consumer time is 300 ms, the
+    // drives' SYNC watchdog 10 periods): no node reports a loss (EMCY).
+    let exited = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let listener = {
+        let exited = exited.clone();
+        let mut bus = CanMaster::open(IFACE);
+        std::thread::spawn(move || {
+            let mut frames = Vec::new();
+            while !exited.load(std::sync::atomic::Ordering::Relaxed) {
+                frames.extend(bus.listen(Duration::from_millis(100)));
+            }
+            frames.extend(bus.listen(AFTER_EXIT));
+            frames
+        })
+    };
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(service.child().id() as i32),
         nix::sys::signal::Signal::SIGTERM,
@@ -315,7 +342,25 @@ fn vcan_master_moves_four_nodes_in_two_simulators_and_restores_a_lost_one() {
         "gantry run ended {}: {text}",
         out.status
     );
+    exited.store(true, std::sync::atomic::Ordering::Relaxed);
+    let frames = listener.join().expect("the listener");
     assert!(text.contains("CANopen: nodes pre-operational"), "{text}");
+    assert!(
+        text.contains("heartbeat consumer taken back on node(s) 1, 2, 3, 4 in"),
+        "{text}"
+    );
+    let emcys: Vec<(u8, u16)> = frames
+        .iter()
+        .filter_map(|f| Emergency::parse(f).ok())
+        .filter(|e| !e.is_reset())
+        .map(|e| (e.node.get(), e.error_code))
+        .collect();
+    eprintln!(
+        "after SIGTERM: {} frames to {} s after gantry's exit, EMCYs {emcys:04X?}",
+        frames.len(),
+        AFTER_EXIT.as_secs()
+    );
+    assert_eq!(emcys, vec![], "EMCYs (node, code) after a clean shutdown");
     for sim in [three, one] {
         let (status, summary) = sim.stop();
         assert!(status.success(), "gantry-sim ended {status}: {summary}");

@@ -2,10 +2,12 @@
 
 pub mod controlword;
 pub mod error_code;
+pub mod homing;
 pub mod image;
 pub mod mode;
 pub mod objects;
 pub mod pdo;
+pub mod procedure;
 pub mod state;
 pub mod statusword;
 

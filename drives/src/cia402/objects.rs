@@ -145,6 +145,29 @@ pub const TOUCH_PROBE_POS2_NEG_VALUE: ObjectId = obj(
     DataType::I32,
     "Touch probe position 2 negative value",
 );
+/// 0x60D0:1 Touch probe source of probe 1 (ETG.6010; used when 0x60B8 bits 2–3 = 10b).
+pub const TOUCH_PROBE_1_SOURCE: ObjectId = obj(0x60D0, 1, DataType::I16, "Touch probe 1 source");
+/// 0x60D0:2 Touch probe source of probe 2 (ETG.6010; used when 0x60B8 bits 10–11 = 10b).
+pub const TOUCH_PROBE_2_SOURCE: ObjectId = obj(0x60D0, 2, DataType::I16, "Touch probe 2 source");
+
+/// Values of 0x60D0 (ETG.6010, as drives implementing it list them): 1–4 the touch probe
+/// inputs, 5 the encoder's hardware zero impulse, 6 a software zero impulse; 0 reserved;
+/// negative values manufacturer-specific (a drive's own inputs, e.g. its limit switches).
+pub mod touch_probe_source {
+    /// Touch probe input 1.
+    pub const PROBE_INPUT_1: i16 = 1;
+    /// Touch probe input 2.
+    pub const PROBE_INPUT_2: i16 = 2;
+    /// Touch probe input 3.
+    pub const PROBE_INPUT_3: i16 = 3;
+    /// Touch probe input 4.
+    pub const PROBE_INPUT_4: i16 = 4;
+    /// Hardware zero impulse signal of the position encoder.
+    pub const HARDWARE_ZERO_IMPULSE: i16 = 5;
+    /// Software zero impulse signal of the position encoder.
+    pub const SOFTWARE_ZERO_IMPULSE: i16 = 6;
+}
+
 /// 0x60F4 Following error actual value.
 pub const FOLLOWING_ERROR_ACTUAL_VALUE: ObjectId =
     obj(0x60F4, 0, DataType::I32, "Following error actual value");
@@ -154,7 +177,7 @@ pub const DIGITAL_INPUTS: ObjectId = obj(0x60FD, 0, DataType::U32, "Digital inpu
 pub const TARGET_VELOCITY: ObjectId = obj(0x60FF, 0, DataType::I32, "Target velocity");
 
 /// Every object above, for tables and lookups.
-pub const ALL: [ObjectId; 35] = [
+pub const ALL: [ObjectId; 37] = [
     ERROR_CODE,
     CONTROLWORD,
     STATUSWORD,
@@ -187,6 +210,8 @@ pub const ALL: [ObjectId; 35] = [
     TOUCH_PROBE_POS1_NEG_VALUE,
     TOUCH_PROBE_POS2_POS_VALUE,
     TOUCH_PROBE_POS2_NEG_VALUE,
+    TOUCH_PROBE_1_SOURCE,
+    TOUCH_PROBE_2_SOURCE,
     FOLLOWING_ERROR_ACTUAL_VALUE,
     DIGITAL_INPUTS,
     TARGET_VELOCITY,

@@ -14,12 +14,20 @@ pub const SM2_PDO_ASSIGNMENT: u16 = 0x1C12;
 /// SyncManager 3 (inputs) PDO assignment.
 pub const SM3_PDO_ASSIGNMENT: u16 = 0x1C13;
 
+/// Entries the master puts into one mapping object before it starts the next (0x1601,
+/// 0x1A01, …). CiA 301 / ETG.1000.6 leave the number of entries per PDO to the device (a
+/// CoE drive's mapping objects commonly hold 8 to 10, the simulated one 10); 8 is the
+/// conservative choice, so every layout of up to 8 objects a direction stays one PDO as
+/// before and a larger one is split instead of refused. A drive that takes fewer refuses
+/// the download with its abort (0x06040042), which names the object.
+pub const ENTRIES_PER_PDO: usize = 8;
+
 /// The objects of both directions.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PdoLayout {
-    /// Outputs (RxPDO 0x1600), in order.
+    /// Outputs (RxPDO 0x1600, then 0x1601… past [`ENTRIES_PER_PDO`]), in order.
     pub outputs: Vec<ObjectId>,
-    /// Inputs (TxPDO 0x1A00), in order.
+    /// Inputs (TxPDO 0x1A00, then 0x1A01… past [`ENTRIES_PER_PDO`]), in order.
     pub inputs: Vec<ObjectId>,
 }
 
@@ -93,29 +101,47 @@ impl PdoLayout {
         offset(&self.inputs, index)
     }
 
-    /// The SDO downloads that put this layout into a drive, in order: clear the
-    /// assignment, clear and fill each mapping, set its count, assign it.
+    /// The SDO downloads that put this layout into a drive, in order (ETG.1000.6
+    /// §5.6.7.4, CiA 301 §7.5.2): clear the SyncManager's assignment; for each PDO of at
+    /// most [`ENTRIES_PER_PDO`] entries (0x1600, 0x1601, … / 0x1A00, 0x1A01, …) clear its
+    /// mapping, fill it, set its count and assign it; then set the assignment's count.
+    /// The process image is the assigned PDOs one after the other, so the objects keep
+    /// the offsets of the flat lists. A direction without objects still gets one empty
+    /// PDO assigned, as before.
     pub fn sdo_writes(&self) -> Vec<SdoWrite> {
         let mut w = Vec::new();
-        for (assign, mapping, objs) in [
+        for (assign, first_mapping, objs) in [
             (SM2_PDO_ASSIGNMENT, RXPDO_MAPPING, &self.outputs),
             (SM3_PDO_ASSIGNMENT, TXPDO_MAPPING, &self.inputs),
         ] {
             let write = |index, sub, value: Vec<u8>| SdoWrite { index, sub, value };
             w.push(write(assign, 0, vec![0]));
-            w.push(write(mapping, 0, vec![0]));
-            for (i, o) in objs.iter().enumerate() {
-                w.push(write(
-                    mapping,
-                    i as u8 + 1,
-                    mapping_entry(o).to_le_bytes().to_vec(),
-                ));
+            let pdos = objs.len().div_ceil(ENTRIES_PER_PDO).max(1);
+            for pdo in 0..pdos {
+                let mapping = first_mapping + pdo as u16;
+                let chunk = objs
+                    .get(pdo * ENTRIES_PER_PDO..)
+                    .unwrap_or_default()
+                    .iter()
+                    .take(ENTRIES_PER_PDO);
+                w.push(write(mapping, 0, vec![0]));
+                let mut n = 0u8;
+                for o in chunk {
+                    n += 1;
+                    w.push(write(mapping, n, mapping_entry(o).to_le_bytes().to_vec()));
+                }
+                w.push(write(mapping, 0, vec![n]));
+                w.push(write(assign, pdo as u8 + 1, mapping.to_le_bytes().to_vec()));
             }
-            w.push(write(mapping, 0, vec![objs.len() as u8]));
-            w.push(write(assign, 1, mapping.to_le_bytes().to_vec()));
-            w.push(write(assign, 0, vec![1]));
+            w.push(write(assign, 0, vec![pdos as u8]));
         }
         w
+    }
+
+    /// The PDOs [`PdoLayout::sdo_writes`] assigns: (outputs, inputs).
+    pub fn pdo_count(&self) -> (usize, usize) {
+        let n = |objs: &Vec<ObjectId>| objs.len().div_ceil(ENTRIES_PER_PDO).max(1);
+        (n(&self.outputs), n(&self.inputs))
     }
 }
 
@@ -161,5 +187,48 @@ mod tests {
         );
         assert_eq!(seq[6], (0x1C12, 0, vec![1]));
         assert_eq!(seq.len(), 14);
+    }
+
+    #[test]
+    fn a_direction_past_eight_entries_takes_a_second_pdo() {
+        let mut l = PdoLayout::csp();
+        // csp with switches and both probe values: 11 inputs, 4 outputs.
+        l.outputs.push(objects::TOUCH_PROBE_FUNCTION);
+        l.inputs.extend([
+            objects::DIGITAL_INPUTS,
+            objects::TOUCH_PROBE_STATUS,
+            objects::TOUCH_PROBE_POS1_POS_VALUE,
+            objects::TOUCH_PROBE_POS1_NEG_VALUE,
+            objects::TOUCH_PROBE_POS2_POS_VALUE,
+        ]);
+        assert_eq!(l.pdo_count(), (1, 2));
+        let seq: Vec<(u16, u8, Vec<u8>)> = l
+            .sdo_writes()
+            .into_iter()
+            .map(|s| (s.index, s.sub, s.value))
+            .collect();
+        let inputs = seq
+            .iter()
+            .position(|w| *w == (0x1C13, 0, vec![0]))
+            .expect("inputs cleared");
+        let tx = &seq[inputs..];
+        // 0x1A00: clear, 8 entries, count 8, assigned as 1.
+        assert_eq!(tx[1], (0x1A00, 0, vec![0]));
+        assert_eq!(tx[2], (0x1A00, 1, 0x6041_0010u32.to_le_bytes().to_vec()));
+        assert_eq!(tx[10], (0x1A00, 0, vec![8]));
+        assert_eq!(tx[11], (0x1C13, 1, vec![0x00, 0x1A]));
+        // 0x1A01: the last 3 (0x60BA, 0x60BB, 0x60BC), assigned as 2.
+        assert_eq!(tx[12], (0x1A01, 0, vec![0]));
+        assert_eq!(tx[13], (0x1A01, 1, 0x60BA_0020u32.to_le_bytes().to_vec()));
+        assert_eq!(tx[15], (0x1A01, 3, 0x60BC_0020u32.to_le_bytes().to_vec()));
+        assert_eq!(tx[16], (0x1A01, 0, vec![3]));
+        assert_eq!(tx[17], (0x1C13, 2, vec![0x01, 0x1A]));
+        assert_eq!(tx[18], (0x1C13, 0, vec![2]));
+        assert_eq!(tx.len(), 19);
+        // Offsets are those of the flat list.
+        assert_eq!(l.input_offset(0x60BC), Some(l.input_bytes() - 4));
+        // The outputs stay one PDO.
+        assert!(seq.contains(&(0x1C12, 0, vec![1])));
+        assert!(!seq.iter().any(|w| w.0 == 0x1601));
     }
 }

@@ -3,10 +3,11 @@
 use thiserror::Error;
 
 use crate::cia402::pdo::PdoLayout;
+use crate::cia402::procedure::{ProcedureOutputs, MODE_BITS};
 use crate::cia402::{next_command, Controlword, State, Target};
 use crate::scaling::{CountExtender, ModuloCounts, Scaling, ScalingError};
 
-use super::probe::{DriveSwitches, ProbeArming, SwitchWiring};
+use super::probe::{DriveSwitches, ProbeArming, ProbeTarget, SwitchWiring};
 use super::{CspInputs, CspOffsets, LayoutError, COUNT_RANGE_FAULT, FAULT_CODE_NOT_MAPPED};
 use crate::cia402::objects;
 
@@ -23,6 +24,9 @@ pub struct CspSetpoint {
     pub enable: bool,
     /// Send a fault reset (the axis' Reset asks for it).
     pub reset_fault: bool,
+    /// Which switch the touch probe latches (a homing run on a limit switch's edge asks
+    /// for that limit switch).
+    pub probe: ProbeTarget,
 }
 
 /// Actual values of one drive in user units.
@@ -298,6 +302,7 @@ impl CspChannel {
     /// drive is enabled, its actual position otherwise, so that enabling never jumps. The
     /// target is the low 32 bits of the 64-bit count (the drive's counter wraps).
     pub fn drive_outputs(&mut self, sp: &CspSetpoint, inputs: &CspInputs) -> (Controlword, i32) {
+        self.probe.set_target(sp.probe);
         let state = inputs
             .statusword
             .state()
@@ -331,6 +336,37 @@ impl CspChannel {
         }
         // The low half, as the drive counts (its counter wraps, see the module doc).
         (self.last_cw, self.last_target as i32)
+    }
+}
+
+impl CspChannel {
+    /// The outputs for a cycle in which the drive is lent to a procedure
+    /// ([`crate::cia402::procedure`]): one step of the power state machine towards
+    /// Operation enabled with the procedure's mode-specific bits, and the drive's own
+    /// actual position as the target (ignored outside CSP; a drive that switches back to
+    /// CSP finds it where it stands). The channel lets go of the drive: when the
+    /// procedure ends, it takes the drive over again as at enabling (the first CSP target
+    /// is the set position the kernel tracked the drive with, its actual position).
+    pub fn procedure_outputs(
+        &mut self,
+        p: &ProcedureOutputs,
+        inputs: &CspInputs,
+    ) -> (Controlword, i32) {
+        let state = inputs
+            .statusword
+            .state()
+            .unwrap_or(State::NotReadyToSwitchOn);
+        let cmd = next_command(state, Target::Enabled, false, self.last_cw);
+        self.last_cw = Controlword::of(cmd);
+        self.driving = false;
+        self.count_error = None;
+        self.last_target = self.actual;
+        let bits = if state == State::OperationEnabled {
+            p.mode_bits & MODE_BITS
+        } else {
+            0
+        };
+        (Controlword(self.last_cw.0 | bits), inputs.position)
     }
 }
 

@@ -2,7 +2,7 @@
 //! ([`crate::cia402::image`]).
 
 use crate::cia402::image::{ImageError, InputImage, OutputImage};
-use crate::cia402::{Controlword, Statusword};
+use crate::cia402::{Controlword, ModeOfOperation, Statusword};
 
 use super::probe::ProbeInputs;
 use super::{CspOffsets, MODE_CSP};
@@ -22,6 +22,8 @@ pub struct CspInputs {
     pub digital_inputs: Option<u32>,
     /// Touch probe status and values, when 0x60B9 is mapped.
     pub probe: Option<ProbeInputs>,
+    /// Modes of operation display 0x6061, when mapped.
+    pub mode_display: Option<i8>,
 }
 
 impl CspInputs {
@@ -36,12 +38,14 @@ impl CspInputs {
             velocity: img.velocity_actual_value(),
             error_code: img.error_code(),
             digital_inputs: img.digital_inputs(),
+            mode_display: img.modes_of_operation_display(),
             probe: img.touch_probe_status().map(|status| ProbeInputs {
                 status,
                 values: [
                     img.touch_probe_pos1_pos_value(),
                     img.touch_probe_pos1_neg_value(),
                     img.touch_probe_pos2_pos_value(),
+                    img.touch_probe_pos2_neg_value(),
                 ],
             }),
         })
@@ -56,6 +60,23 @@ pub fn encode_outputs(at: &CspOffsets, bytes: &mut [u8], cw: Controlword, target
         img.set_controlword(cw);
         img.set_target_position(target);
         img.set_modes_of_operation(MODE_CSP);
+    }
+}
+
+/// Encodes the outputs of a drive lent to a procedure
+/// ([`crate::cia402::procedure::ProcedureOutputs`]): controlword, target position (the
+/// drive's own position) and the procedure's mode where 0x6060 is mapped.
+pub fn encode_procedure_outputs(
+    at: &CspOffsets,
+    bytes: &mut [u8],
+    cw: Controlword,
+    target: i32,
+    mode: ModeOfOperation,
+) {
+    if let Ok(mut img) = OutputImage::new_checked(bytes, at.map()) {
+        img.set_controlword(cw);
+        img.set_target_position(target);
+        img.set_modes_of_operation(mode.raw());
     }
 }
 

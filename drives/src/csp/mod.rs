@@ -31,7 +31,7 @@ mod offsets;
 pub mod probe;
 
 pub use channel::{CountError, CspChannel, CspFeedback, CspLatches, CspSetpoint};
-pub use codec::{encode_outputs, encode_touch_probe, CspInputs};
+pub use codec::{encode_outputs, encode_procedure_outputs, encode_touch_probe, CspInputs};
 pub use offsets::{CspOffsets, LayoutError};
 
 use crate::cia402::ModeOfOperation;

@@ -13,12 +13,25 @@
 //! the channel then waits [`ARM_WAIT_CYCLES`] for the status to show it (outputs reach a
 //! drive and its status comes back a few cycles later) before it tries again — whatever
 //! the status says meanwhile: a status without the enable may still be the echo of the 0.
+//!
+//! Homing on a limit switch's edge ([`ProbeTarget`]): a probe's source bits 2–3 = 10b
+//! take the source from 0x60D0 (CiA 402-2 / ETG.6010; sub 1 for probe 1, sub 2 for probe
+//! 2), which the bring-up set to the drive's code for its negative (sub 1) and positive
+//! (sub 2) limit switch input — manufacturer-specific values (ETG.6010 gives 1–4 the
+//! probe inputs and 5/6 the zero impulse; negative values are the manufacturer's). The
+//! negative limit takes probe 1 (0x60BA/0x60BB, probe 2 stays on the index pulse), the
+//! positive one probe 2 (0x60BC/0x60BD) with probe 1 on the index pulse meanwhile (bits
+//! 2–3 = 01b, the zero impulse, which either probe takes; 0x60BA then holds the index). A change of target disables both probes until
+//! the drive shows them disabled (so no value stored under the old source is taken for a
+//! new one), then arms them afresh.
 
 use crate::cia402::objects::digital_inputs;
 
 /// Function bits (probe 2 at bit 8).
 const ENABLE: u16 = 1 << 0;
 const ZERO_IMPULSE: u16 = 0b01 << 2;
+/// Source bits 2–3 = 10b: the source in 0x60D0 (sub 1 probe 1, sub 2 probe 2).
+const SOURCE_60D0: u16 = 0b10 << 2;
 const POSITIVE: u16 = 1 << 4;
 const NEGATIVE: u16 = 1 << 5;
 /// Status bits (probe 2 at bit 8).
@@ -31,29 +44,93 @@ const NEGATIVE_STORED: u16 = 1 << 2;
 pub const PROBE_FUNCTION: u16 =
     ENABLE | POSITIVE | NEGATIVE | (ENABLE | ZERO_IMPULSE | POSITIVE) << 8;
 
+/// 0x60B8 with probe 1 on 0x60D0:01 (the negative limit switch), both edges; probe 2 on
+/// the zero impulse.
+pub const PROBE_FUNCTION_NEGATIVE_LIMIT: u16 =
+    ENABLE | SOURCE_60D0 | POSITIVE | NEGATIVE | (ENABLE | ZERO_IMPULSE | POSITIVE) << 8;
+
+/// 0x60B8 with probe 1 on the zero impulse, positive edge; probe 2 on 0x60D0:02 (the
+/// positive limit switch), both edges.
+pub const PROBE_FUNCTION_POSITIVE_LIMIT: u16 =
+    ENABLE | ZERO_IMPULSE | POSITIVE | (ENABLE | SOURCE_60D0 | POSITIVE | NEGATIVE) << 8;
+
 /// Cycles an arming may take to show in the status before it is tried again.
 pub const ARM_WAIT_CYCLES: u8 = 16;
 
-/// The three edges the channel latches.
+/// Which switch's edges the channel reports as the rising and falling latches.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ProbeTarget {
+    /// Probe 1's input (the home switch); probe 2 on the index pulse.
+    #[default]
+    Reference,
+    /// The negative limit switch (probe 1 on 0x60D0:01); probe 2 on the index pulse.
+    NegativeLimit,
+    /// The positive limit switch (probe 2 on 0x60D0:02); probe 1 on the index pulse.
+    PositiveLimit,
+}
+
+impl ProbeTarget {
+    /// 0x60B8 armed for this target.
+    pub const fn function(self) -> u16 {
+        match self {
+            ProbeTarget::Reference => PROBE_FUNCTION,
+            ProbeTarget::NegativeLimit => PROBE_FUNCTION_NEGATIVE_LIMIT,
+            ProbeTarget::PositiveLimit => PROBE_FUNCTION_POSITIVE_LIMIT,
+        }
+    }
+
+    /// The channels this target reports.
+    const fn channels(self) -> [Option<Channel>; 3] {
+        const P1_RISING: Channel = Channel::new(POSITIVE, 0, Latched::Rising);
+        const P1_FALLING: Channel = Channel::new(NEGATIVE, 1, Latched::Falling);
+        const P2_INDEX: Channel = Channel::new(POSITIVE << 8, 2, Latched::Index);
+        match self {
+            ProbeTarget::Reference | ProbeTarget::NegativeLimit => {
+                [Some(P1_RISING), Some(P1_FALLING), Some(P2_INDEX)]
+            }
+            ProbeTarget::PositiveLimit => [
+                Some(Channel::new(POSITIVE << 8, 2, Latched::Rising)),
+                Some(Channel::new(NEGATIVE << 8, 3, Latched::Falling)),
+                Some(Channel::new(POSITIVE, 0, Latched::Index)),
+            ],
+        }
+    }
+}
+
+/// What a channel's latch means to the axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Channel {
-    /// Probe 1 positive edge (0x60BA): the home switch becomes active.
+enum Latched {
+    /// The switch became active.
     Rising,
-    /// Probe 1 negative edge (0x60BB): the home switch becomes inactive.
+    /// The switch became inactive.
     Falling,
-    /// Probe 2 positive edge (0x60BC): the index pulse.
+    /// The index pulse.
     Index,
 }
 
-impl Channel {
-    const ALL: [Channel; 3] = [Channel::Rising, Channel::Falling, Channel::Index];
+/// One edge of one probe the channel latches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Channel {
+    /// Its sample-enable bit in 0x60B8.
+    sample: u16,
+    /// Its stored bit in 0x60B9.
+    stored: u16,
+    /// Which of 0x60BA, 0x60BB, 0x60BC, 0x60BD holds its value.
+    value: usize,
+    latched: Latched,
+}
 
-    /// Its sample-enable bit in 0x60B8 and stored bit in 0x60B9.
-    const fn bits(self) -> (u16, u16) {
-        match self {
-            Channel::Rising => (POSITIVE, POSITIVE_STORED),
-            Channel::Falling => (NEGATIVE, NEGATIVE_STORED),
-            Channel::Index => (POSITIVE << 8, POSITIVE_STORED << 8),
+// The status has the function's edge bits three places lower.
+const _: () = assert!(POSITIVE >> 3 == POSITIVE_STORED && NEGATIVE >> 3 == NEGATIVE_STORED);
+
+impl Channel {
+    const fn new(sample: u16, value: usize, latched: Latched) -> Self {
+        Self {
+            sample,
+            // Sample bit 4 (5) ↔ stored bit 1 (2), probe 2 eight bits up.
+            stored: sample >> 3,
+            value,
+            latched,
         }
     }
 }
@@ -61,9 +138,9 @@ impl Channel {
 /// Values the drive latched this cycle (32-bit counts), new ones only.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NewLatches {
-    /// The home switch became active here.
+    /// The switch the probe watches became active here.
     pub rising: Option<i32>,
-    /// The home switch became inactive here.
+    /// The switch the probe watches became inactive here.
     pub falling: Option<i32>,
     /// The index pulse passed here.
     pub index: Option<i32>,
@@ -74,8 +151,8 @@ pub struct NewLatches {
 pub struct ProbeInputs {
     /// 0x60B9.
     pub status: u16,
-    /// 0x60BA, 0x60BB, 0x60BC (`None` where not mapped).
-    pub values: [Option<i32>; 3],
+    /// 0x60BA, 0x60BB, 0x60BC, 0x60BD (`None` where not mapped).
+    pub values: [Option<i32>; 4],
 }
 
 /// The arming of one drive's probes.
@@ -87,6 +164,12 @@ pub struct ProbeArming {
     function: u16,
     /// Cycles left for an arming to show in the status.
     waiting: u8,
+    /// What the probes are armed for.
+    target: ProbeTarget,
+    /// What the axis wants them on.
+    wanted: ProbeTarget,
+    /// A change of target: disabled, waiting for the drive to show it.
+    switching: bool,
 }
 
 impl ProbeArming {
@@ -95,21 +178,51 @@ impl ProbeArming {
         self.function
     }
 
+    /// What the probes should latch from the next update on.
+    pub fn set_target(&mut self, target: ProbeTarget) {
+        self.wanted = target;
+    }
+
+    /// What the probes are armed for (or being switched to).
+    pub fn target(&self) -> ProbeTarget {
+        self.target
+    }
+
     /// Takes the drive's probe objects; returns the new latches and sets the function to
     /// send.
     pub fn update(&mut self, inputs: &ProbeInputs) -> NewLatches {
         let st = inputs.status;
         let mut new = NewLatches::default();
-        if self.function == 0 {
-            // 0 went out last cycle (power-up, or so that the enable gets a rising edge):
-            // arm now, whatever this cycle's status says — it answers what was sent
-            // cycles ago, and an "enabled" there is not this arming.
+        let both = ENABLED | ENABLED << 8;
+        if self.wanted != self.target {
+            // Disable both; arm for the new target once the drive shows them off.
+            self.target = self.wanted;
+            self.switching = true;
             self.clearing = [false; 3];
-            self.function = PROBE_FUNCTION;
+            self.function = 0;
             self.waiting = ARM_WAIT_CYCLES;
             return new;
         }
-        if st & ENABLED == 0 || st & (ENABLED << 8) == 0 {
+        if self.switching {
+            if st & both != 0 && self.waiting > 0 {
+                self.waiting -= 1;
+                return new;
+            }
+            // Off (or the drive never shows it: arm anyway after the wait).
+            self.switching = false;
+            self.waiting = 0;
+        }
+        let base = self.target.function();
+        if self.function == 0 {
+            // 0 went out last cycle (power-up, a change of target, or so that the enable
+            // gets a rising edge): arm now, whatever this cycle's status says — it answers
+            // what was sent cycles ago, and an "enabled" there is not this arming.
+            self.clearing = [false; 3];
+            self.function = base;
+            self.waiting = ARM_WAIT_CYCLES;
+            return new;
+        }
+        if st & both != both {
             // Not armed (power-up, reset): the enable's rising edge arms it — once the
             // arming's wait is over (until then the status may still be on its way).
             self.clearing = [false; 3];
@@ -125,28 +238,27 @@ impl ProbeArming {
         // arming (the status comes back cycles after the function went out); taken for a
         // reset, it would disarm the probe again and again.
         self.waiting = self.waiting.saturating_sub(1);
-        let mut f = PROBE_FUNCTION;
-        for (i, ch) in Channel::ALL.into_iter().enumerate() {
-            let (sample, stored) = ch.bits();
-            let Some(clearing) = self.clearing.get_mut(i) else {
+        let mut f = base;
+        for (i, ch) in self.target.channels().into_iter().enumerate() {
+            let (Some(ch), Some(clearing)) = (ch, self.clearing.get_mut(i)) else {
                 continue;
             };
             if *clearing {
-                if st & stored == 0 {
+                if st & ch.stored == 0 {
                     // The drive took the cleared sample bit: arm the edge again.
                     *clearing = false;
                 } else {
-                    f &= !sample;
+                    f &= !ch.sample;
                 }
-            } else if st & stored != 0 {
-                let value = inputs.values.get(i).copied().flatten();
-                match ch {
-                    Channel::Rising => new.rising = value,
-                    Channel::Falling => new.falling = value,
-                    Channel::Index => new.index = value,
+            } else if st & ch.stored != 0 {
+                let value = inputs.values.get(ch.value).copied().flatten();
+                match ch.latched {
+                    Latched::Rising => new.rising = value,
+                    Latched::Falling => new.falling = value,
+                    Latched::Index => new.index = value,
                 }
                 *clearing = true;
-                f &= !sample;
+                f &= !ch.sample;
             }
         }
         self.function = f;
@@ -192,10 +304,99 @@ mod tests {
     use super::*;
 
     fn inputs(status: u16, values: [i32; 3]) -> ProbeInputs {
+        let [a, b, c] = values;
         ProbeInputs {
             status,
-            values: values.map(Some),
+            values: [Some(a), Some(b), Some(c), Some(0)],
         }
+    }
+
+    #[test]
+    fn channels_have_their_stored_bits() {
+        let [r, f, i] = ProbeTarget::Reference.channels().map(Option::unwrap);
+        assert_eq!(
+            (r.sample, r.stored, r.value),
+            (POSITIVE, POSITIVE_STORED, 0)
+        );
+        assert_eq!(
+            (f.sample, f.stored, f.value),
+            (NEGATIVE, NEGATIVE_STORED, 1)
+        );
+        assert_eq!(
+            (i.sample, i.stored, i.value),
+            (POSITIVE << 8, POSITIVE_STORED << 8, 2)
+        );
+        let [r, f, i] = ProbeTarget::PositiveLimit.channels();
+        assert_eq!(
+            r.map(|c| (c.stored, c.value)),
+            Some((POSITIVE_STORED << 8, 2))
+        );
+        assert_eq!(
+            f.map(|c| (c.stored, c.value)),
+            Some((NEGATIVE_STORED << 8, 3))
+        );
+        assert_eq!(i.map(|c| (c.stored, c.value)), Some((POSITIVE_STORED, 0)));
+        // 0x60B8 per target (CiA 402-2: bits 2–3 = 10b the source in 0x60D0).
+        assert_eq!(PROBE_FUNCTION, 0x1531);
+        assert_eq!(PROBE_FUNCTION_NEGATIVE_LIMIT, 0x1539);
+        assert_eq!(PROBE_FUNCTION_POSITIVE_LIMIT, 0x3915);
+    }
+
+    /// Homing on the positive limit: both probes off until the drive shows it, then
+    /// armed with probe 2 on 0x60D0:02 and probe 1 on the index pulse; probe 2's edges
+    /// (0x60BC/0x60BD) are the rising and falling latches, probe 1's positive edge
+    /// (0x60BA) the index; a value stored before the change is never reported.
+    #[test]
+    fn a_change_of_target_disarms_first_then_reports_the_new_source() {
+        let mut p = ProbeArming::default();
+        p.update(&inputs(0, [0; 3]));
+        p.update(&inputs(ARMED, [0; 3]));
+        assert_eq!(p.function(), PROBE_FUNCTION);
+        p.set_target(ProbeTarget::PositiveLimit);
+        // A home edge stored under the old arming, still shown: not reported.
+        let stale = ARMED | POSITIVE_STORED | POSITIVE_STORED << 8;
+        assert_eq!(p.update(&inputs(stale, [11, 0, 22])), NewLatches::default());
+        assert_eq!(p.function(), 0);
+        assert_eq!(p.update(&inputs(stale, [11, 0, 22])), NewLatches::default());
+        assert_eq!(p.function(), 0, "off until the drive shows it");
+        // Off: armed for the positive limit.
+        assert_eq!(p.update(&inputs(0, [11, 0, 22])), NewLatches::default());
+        assert_eq!(p.function(), PROBE_FUNCTION_POSITIVE_LIMIT);
+        p.update(&inputs(ARMED, [11, 0, 22]));
+        // Probe 2's negative edge (0x60BD) is the falling latch.
+        let mut i = inputs(ARMED | NEGATIVE_STORED << 8, [11, 0, 22]);
+        i.values[3] = Some(-500);
+        let new = p.update(&i);
+        assert_eq!(
+            new,
+            NewLatches {
+                rising: None,
+                falling: Some(-500),
+                index: None
+            }
+        );
+        assert_eq!(
+            p.function(),
+            PROBE_FUNCTION_POSITIVE_LIMIT & !(NEGATIVE << 8)
+        );
+        // Probe 1's positive edge is now the index pulse.
+        let new = p.update(&inputs(
+            ARMED | POSITIVE_STORED | NEGATIVE_STORED << 8,
+            [9, 0, 0],
+        ));
+        assert_eq!(
+            new,
+            NewLatches {
+                index: Some(9),
+                ..NewLatches::default()
+            }
+        );
+        // Back to the reference: off, then armed as before.
+        p.set_target(ProbeTarget::Reference);
+        p.update(&inputs(ARMED, [0; 3]));
+        assert_eq!(p.function(), 0);
+        p.update(&inputs(0, [0; 3]));
+        assert_eq!(p.function(), PROBE_FUNCTION);
     }
 
     const ARMED: u16 = ENABLED | ENABLED << 8;

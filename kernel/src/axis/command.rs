@@ -519,6 +519,19 @@ impl core::fmt::Display for RangeProblem {
 /// Why a command was refused or ended in error. `Copy`, so it can live in the RT status.
 #[derive(Clone, Copy, Debug, Error, PartialEq)]
 pub enum CommandError {
+    /// The axis is lent to a procedure its drive runs by itself (see
+    /// [`crate::Kernel::lend_to_drive`]): only power off, Stop and QuickStop reach it, and
+    /// they end the procedure first.
+    #[error("{command}: the axis is lent to its drive for {procedure}; stop it first")]
+    LentToDrive {
+        /// Command name.
+        command: &'static str,
+        /// What the drive is doing ("drive homing").
+        procedure: &'static str,
+    },
+    /// A procedure the drive ran by itself failed (the master's sequence says why).
+    #[error("{0}")]
+    DriveProcedure(crate::axis::lend::DriveProcedureError),
     /// Reset: the drive kept its fault through the fault reset.
     #[error("Reset: the drive still reports fault {code:#06x} after the fault reset")]
     DriveResetFailed {
@@ -775,8 +788,10 @@ impl CommandError {
             | CommandError::LimitSwitch { command, .. }
             | CommandError::NothingToHomeOn { command, .. }
             | CommandError::TowardsLimitSwitch { command, .. }
-            | CommandError::AxisFault { command } => command,
+            | CommandError::AxisFault { command }
+            | CommandError::LentToDrive { command, .. } => command,
             CommandError::Homing(e) => e.command(),
+            CommandError::DriveProcedure(e) => e.procedure,
             CommandError::DriveResetFailed { .. }
             | CommandError::SlaveNotOperational { .. }
             | CommandError::DriveNotOperational { .. } => "Reset",

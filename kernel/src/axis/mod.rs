@@ -7,6 +7,7 @@
 
 pub mod command;
 pub mod handle;
+pub mod lend;
 pub mod motion;
 pub mod state;
 pub mod status;
@@ -153,6 +154,17 @@ pub struct AxisConfig {
     ///
     /// [`MoveHome::defaults`]: crate::homing::MoveHome::defaults
     pub move_home: Option<crate::homing::MoveHome>,
+    /// The drive layer can latch a limit switch's edges with the touch probe (it routes
+    /// the probe to [`AxisSetpoint::probe_on_limit`]). Without it a homing run that looks
+    /// for a limit switch's edge (MoveHome with `LimitSwitch`) is refused: the latches
+    /// would be another switch's. On in [`AxisConfig::new`]; the master turns it off
+    /// unless the drive's touch-probe source (0x60D0) is configured.
+    pub limit_edges_latched: bool,
+    /// The touch probe latches the reference switch's edges (the switch is wired to the
+    /// drive's probe input). Without it a homing run that looks for the reference
+    /// switch's edge is refused. On in [`AxisConfig::new`]; the master turns it off for a
+    /// reference switch read from an I/O module.
+    pub reference_edges_latched: bool,
 }
 
 impl AxisConfig {
@@ -184,6 +196,8 @@ impl AxisConfig {
             initial_position: 0.0,
             target_monitoring: TargetMonitoring::new(matches!(kind, AxisKind::Real)),
             move_home: None,
+            limit_edges_latched: true,
+            reference_edges_latched: true,
         }
     }
 
@@ -391,6 +405,10 @@ pub struct AxisSetpoint {
     pub enable: bool,
     /// A Reset asks the drive to clear its fault (the drive layer sends the fault reset).
     pub reset_fault: bool,
+    /// A homing run looks for this limit switch's edge: the drive layer routes the touch
+    /// probe to it (CiA 402 0x60D0) until the run ends, so the rising and falling latches
+    /// are that switch's. `None`: the probe on the reference switch.
+    pub probe_on_limit: Option<crate::homing::LimitSide>,
 }
 
 /// One axis.
@@ -451,6 +469,11 @@ pub struct Axis {
     home_status: crate::homing::HomingStatus,
     /// MoveHome parameters last used (a call leaves out what it keeps).
     move_home: crate::homing::MoveHome,
+    /// The drive runs a procedure by itself (see [`lend`]): its handle and what it is.
+    lent: Option<lend::Lent>,
+    /// The lending ended since the last cycle: the set position takes the drive's actual
+    /// position once more (the drive may have moved since the last feedback).
+    rejoin: bool,
 }
 
 /// Dynamics of the moves of a homing run.
@@ -510,6 +533,8 @@ impl Axis {
             move_home: cfg.move_home.unwrap_or_else(|| {
                 crate::homing::MoveHome::defaults(cfg.max.vmax, cfg.max.amax, cfg.max.jmax)
             }),
+            lent: None,
+            rejoin: false,
             cfg,
         };
         axis.normalise_frame();
@@ -617,6 +642,7 @@ impl Axis {
         if self.cfg.kind.has_feedback() {
             self.take_switches(fb);
             self.take_feedback(fb, handles);
+            self.track_lent_drive();
         }
         self.advance(now, dt, handles);
         if let Some(o) = self.overlay {
@@ -641,6 +667,10 @@ impl Axis {
             acceleration: self.status.set.a,
             enable: self.powered,
             reset_fault: self.reset_pending.is_some(),
+            probe_on_limit: self
+                .homing
+                .as_ref()
+                .and_then(|(seq, _)| seq.plan().latched_limit()),
         }
     }
 
@@ -988,6 +1018,9 @@ impl Axis {
             },
         };
         self.homing = None;
+        if let Some(l) = self.lent.take() {
+            handles.set(l.handle, CommandStatus::Error(err));
+        }
         if let Some(m) = self.motion.take() {
             handles.set(m.handle, CommandStatus::Error(err));
         }
@@ -1145,6 +1178,7 @@ impl Axis {
             },
             homing: self.home_status,
             switches: self.switches,
+            position_offset: self.position_offset,
         };
     }
 

@@ -100,6 +100,10 @@ pub struct AxisStatus {
     pub homing: crate::homing::HomingStatus,
     /// The switches as the axis saw them this cycle.
     pub switches: crate::homing::SwitchInputs,
+    /// Axis position minus drive position (units): what SetPosition and homing set. An
+    /// absolute-encoder axis is where it was homed again at the next start when this is
+    /// restored (SPEC §1), so the service saves it.
+    pub position_offset: f64,
 }
 
 /// Why an axis went to ErrorStop.

@@ -198,6 +198,21 @@ pub struct Plan {
     pub direction: f64,
 }
 
+impl Plan {
+    /// The limit switch whose edge a search of this plan looks for (MoveHome with
+    /// `LimitSwitch` in a SwitchingEdge mode): its position comes from the touch probe,
+    /// so the drive layer must route the probe to that switch while the run lasts.
+    pub fn latched_limit(&self) -> Option<LimitSide> {
+        self.searches.iter().flatten().find_map(|s| match s.goal {
+            Goal::Edge {
+                signal: Signal::Limit(side),
+                ..
+            } => Some(side),
+            _ => None,
+        })
+    }
+}
+
 /// What the axis gives the sequencer each cycle (axis frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Observation {
@@ -403,6 +418,11 @@ impl Sequencer {
             }
         }
         self.velocity(self.dir * s.speed)
+    }
+
+    /// The plan this run follows.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
     }
 
     /// The limit switch the plan uses as its reference switch, if any: braking into it

@@ -8,7 +8,7 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::status::AxisFault;
 use gantry_kernel::homing::{
-    HomingMode, HomingStatus, LimitSide, MoveHome, MoveHomeCall, StepAbsoluteSwitch, SwitchConfig,
+    HomingMode, HomingStatus, MoveHome, MoveHomeCall, StepAbsoluteSwitch, SwitchConfig,
 };
 
 /// Runs one case; returns the samples or a description of what went wrong.
@@ -111,13 +111,11 @@ pub fn rig_for(layout: Layout, p: &MoveHome, x0: f64) -> Rig {
 }
 
 /// [`rig_for`] at cycle time `dt`.
-pub fn rig_for_at(layout: Layout, p: &MoveHome, x0: f64, dt: f64) -> Rig {
+pub fn rig_for_at(layout: Layout, _p: &MoveHome, x0: f64, dt: f64) -> Rig {
     let mut rig = Rig::with_cycle(axis_config(), layout, x0, dt);
     rig.m.lag_s = DEFAULT_LAG_S;
-    if p.switch_config == SwitchConfig::LimitSwitch {
-        // The drive's touch probe is set to the limit switch used as the reference.
-        rig.m.probe_source = ProbeSource::Limit(LimitSide::towards(p.direction.sign()));
-    }
+    // The probe follows the kernel's routing (`AxisSetpoint::probe_on_limit`, see
+    // `Rig::cycle`): a LimitSwitch run gets the limit switch's edges only if it asks.
     rig
 }
 

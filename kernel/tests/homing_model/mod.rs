@@ -254,6 +254,9 @@ pub struct Rig {
     pub m: AxisModel,
     /// The last setpoint.
     pub sp: AxisSetpoint,
+    /// The model's probe follows the setpoint's routing (on); off: it stays on
+    /// `m.probe_source` (a drive whose probe source was never set to the limit switch).
+    pub probe_routed: bool,
 }
 
 impl Rig {
@@ -273,6 +276,7 @@ impl Rig {
             k,
             m,
             sp: AxisSetpoint::default(),
+            probe_routed: true,
         };
         rig.k
             .command(0, Command::Power(PowerCommand::Enable))
@@ -283,10 +287,18 @@ impl Rig {
         rig
     }
 
-    /// One lockstep cycle.
+    /// One lockstep cycle. The model's probe follows the setpoint's routing (a drive
+    /// layer that puts the probe on the limit switch the kernel asks for): the limit's
+    /// edges are latched only while the kernel asks for them.
     pub fn cycle(&mut self) -> Sample {
         let fb = self.m.feedback();
         let sp = self.k.step(&[fb])[0];
+        if self.probe_routed {
+            self.m.probe_source = match sp.probe_on_limit {
+                Some(side) => ProbeSource::Limit(side),
+                None => ProbeSource::Reference,
+            };
+        }
         self.m.advance(&sp);
         self.sp = sp;
         Sample {

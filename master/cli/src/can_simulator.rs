@@ -88,6 +88,12 @@ impl MemBus {
         self.stepped = Some((self.clock_ns, reply_window_ns(period_ns)));
     }
 
+    /// The engine's clock no longer moves the bus (its cycle ended): the link's waits do
+    /// again, as during the bring-up (the bus' shutdown, [`gantry::canopen::CanopenBus::shut_down`]).
+    pub fn free_running(&mut self) {
+        self.stepped = None;
+    }
+
     /// A new cycle starts at `to_ns` (the step clock's advance).
     pub fn cycle_at(&mut self, to_ns: u64) {
         if let Some((start, _)) = self.stepped.as_mut() {

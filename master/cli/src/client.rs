@@ -214,10 +214,22 @@ pub fn status(
     )
     .map_err(io)?;
     for d in s["drives"].as_array().into_iter().flatten() {
+        // A procedure the drive runs by itself shows where the fault would.
+        let procedure = d["procedure"].is_object().then(|| {
+            let p = &d["procedure"];
+            format!(
+                "{} method {}: {}",
+                p["name"].as_str().unwrap_or("?"),
+                p["method"],
+                p["phase"].as_str().unwrap_or("?")
+            )
+        });
         let fault = d["bus_fault"]
             .as_str()
             .or(d["error_code"].as_str())
-            .unwrap_or("");
+            .map(str::to_string)
+            .or(procedure)
+            .unwrap_or_default();
         writeln!(
             out,
             "{:<6} {:<6} {:<22} {:<10} {}",
@@ -353,7 +365,10 @@ pub fn command(
         _ => (None, false),
     };
     let cmd = request.cmd();
-    let request_is_move = matches!(request, Request::Move { .. } | Request::Home { .. });
+    let request_is_move = matches!(
+        request,
+        Request::Move { .. } | Request::Home { .. } | Request::DriveHome { .. }
+    );
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
     if no_wait {
@@ -390,6 +405,10 @@ pub fn command(
             _ if cmd == "home" => format!(
                 "{axis} {p:10.3} {units} homing: {}",
                 homing_phase(&a["homing"])
+            ),
+            _ if cmd == "drive_home" => format!(
+                "{axis} {p:10.3} {units} drive homing: {}",
+                drive_phase(&s, axis)
             ),
             Some((from, to)) if (to - from).abs() > 1e-9 => {
                 let frac = ((p - from) / (to - from)).clamp(0.0, 1.0);
@@ -510,6 +529,24 @@ fn homing_phase(h: &Value) -> &'static str {
     }
 }
 
+/// What the axis' drive is doing in its procedure, from the status ("homing", "switching
+/// back to CSP", …), with its method.
+fn drive_phase(s: &Value, axis: &str) -> String {
+    let drive = s["drives"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|d| d["axis"].as_str() == Some(axis));
+    match drive.map(|d| &d["procedure"]) {
+        Some(p) if p.is_object() => format!(
+            "method {}: {}",
+            p["method"],
+            p["phase"].as_str().unwrap_or("?")
+        ),
+        _ => "starting".into(),
+    }
+}
+
 fn outcome(cmd: &str) -> &'static str {
     match cmd {
         "enable" => "enabled at",
@@ -520,6 +557,7 @@ fn outcome(cmd: &str) -> &'static str {
         "set_position" => "position set to",
         "reset" => "reset at",
         "home" => "homed; stands at",
+        "drive_home" => "homed by its drive; stands at",
         _ => "done at",
     }
 }

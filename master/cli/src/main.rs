@@ -7,7 +7,8 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
-    BufferMode, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request as Line,
+    BufferMode, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode,
+    Request as Line,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -46,8 +47,8 @@ struct AxisCommand {
 }
 
 impl AxisCommand {
-    /// The request of a one-axis command.
-    fn of(cmd: AxisCmd) -> Self {
+    /// The request of a one-axis command; options that do not go together refused.
+    fn of(cmd: AxisCmd) -> Result<Self, String> {
         let (request, no_wait, opts) = match cmd {
             AxisCmd::Enable { axis, client } => (Line::Enable { axis }, false, client),
             AxisCmd::Disable { axis, client } => (Line::Disable { axis }, false, client),
@@ -82,9 +83,16 @@ impl AxisCommand {
                 no_wait,
                 client,
             } => (
-                Line::Home {
-                    axis,
-                    params: params.into(),
+                if params.drive {
+                    Line::DriveHome {
+                        params: params.drive_params()?,
+                        axis,
+                    }
+                } else {
+                    Line::Home {
+                        axis,
+                        params: params.into(),
+                    }
                 },
                 no_wait,
                 client,
@@ -114,11 +122,11 @@ impl AxisCommand {
             } => (Line::SetPosition { axis, position }, false, client),
             AxisCmd::Reset { axis, client } => (Line::Reset { axis }, false, client),
         };
-        Self {
+        Ok(Self {
             request,
             no_wait,
             opts,
-        }
+        })
     }
 
     /// Sends the command and waits for it (or not).
@@ -285,7 +293,7 @@ enum Cmd {
     },
 }
 
-/// `gantry home`'s parameters (each left out keeps the axis' last-used one).
+/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept across restarts when the service has a state directory).
 #[derive(clap::Args, Debug)]
 struct HomeArgs {
     /// Search direction: + or - (or positive, negative).
@@ -321,6 +329,59 @@ struct HomeArgs {
     /// Where the axis goes after homing (units).
     #[arg(long, allow_negative_numbers = true, value_parser = finite)]
     normal_position: Option<f64>,
+    /// Let the drive home itself (CiA 402 homing mode) with `[axis.drive_homing]`; the
+    /// options below (and --speed-switch, --acceleration) replace its values.
+    #[arg(long)]
+    drive: bool,
+    /// --drive: the CiA 402 homing method (0x6098).
+    #[arg(long, allow_negative_numbers = true)]
+    method: Option<i8>,
+    /// --drive: speed during search for zero (units/s).
+    #[arg(long, value_parser = finite)]
+    speed_zero: Option<f64>,
+    /// --drive: home offset (units; the home position reads as minus this).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    home_offset: Option<f64>,
+    /// --drive: how long the drive may take to report homing attained (s).
+    #[arg(long, value_parser = finite)]
+    timeout: Option<f64>,
+    /// --drive: skip the drive's homing run (an absolute drive): homed where it stands.
+    #[arg(long)]
+    skip: bool,
+}
+
+impl HomeArgs {
+    /// The drive homing request's parameters; MoveHome's own options are refused by name.
+    fn drive_params(&self) -> Result<DriveHomeParams, String> {
+        let movehome_only = [
+            ("--direction", self.direction.is_some()),
+            ("--switches", self.switches.is_some()),
+            ("--mode", self.mode.is_some()),
+            ("--max-distance-switch", self.max_distance_switch.is_some()),
+            ("--speed-reference", self.speed_reference.is_some()),
+            (
+                "--max-distance-reference",
+                self.max_distance_reference.is_some(),
+            ),
+            ("--jerk", self.jerk.is_some()),
+            ("--reference-offset", self.reference_offset.is_some()),
+            ("--normal-position", self.normal_position.is_some()),
+        ];
+        if let Some((name, _)) = movehome_only.iter().find(|(_, given)| *given) {
+            return Err(format!(
+                "{name} is a MoveHome option; the drive homes by its method (--method)"
+            ));
+        }
+        Ok(DriveHomeParams {
+            method: self.method,
+            speed_switch: self.speed_switch,
+            speed_zero: self.speed_zero,
+            acceleration: self.acceleration,
+            home_offset: self.home_offset,
+            timeout_s: self.timeout,
+            skip: self.skip.then_some(true),
+        })
+    }
 }
 
 impl From<HomeArgs> for HomeParams {
@@ -391,7 +452,9 @@ enum AxisCmd {
         client: ClientOpts,
     },
     /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
-    /// the phases; what is left out keeps the axis' last-used parameters.
+    /// the phases; what is left out is the axis' saved parameters (the last call's, kept
+    /// across restarts in the state directory). With --drive the drive homes itself (CiA
+    /// 402 homing mode, `[axis.drive_homing]`) and is handed back in CSP.
     Home {
         /// Axis name.
         axis: String,
@@ -616,7 +679,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut c = opts.connect()?;
             client::status(&mut c, opts.json, &mut std::io::stdout())?;
         }
-        Cmd::Axis(command) => AxisCommand::of(command).send()?,
+        Cmd::Axis(command) => AxisCommand::of(command)
+            .map_err(anyhow::Error::msg)?
+            .send()?,
         Cmd::Sdo { op } => {
             let (target, object, value, ty, timeout, opts) = match op {
                 SdoOp::Upload {
@@ -775,7 +840,7 @@ mod tests {
         let Cmd::Axis(cmd) = cli.command else {
             panic!("{args:?} is not a one-axis command");
         };
-        let command = AxisCommand::of(cmd);
+        let command = AxisCommand::of(cmd).unwrap_or_else(|e| panic!("{args:?}: {e}"));
         let line = command.request.to_line().unwrap();
         let parsed = protocol::parse(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
         assert_eq!(parsed, command.request, "{line}");
@@ -880,9 +945,59 @@ mod tests {
                 },
                 true,
             ),
+            (
+                &[
+                    "home",
+                    "x",
+                    "--drive",
+                    "--method",
+                    "19",
+                    "--speed-switch",
+                    "20",
+                    "--home-offset",
+                    "-1.5",
+                    "--timeout",
+                    "5",
+                ],
+                Line::DriveHome {
+                    axis: x(),
+                    params: DriveHomeParams {
+                        method: Some(19),
+                        speed_switch: Some(20.0),
+                        home_offset: Some(-1.5),
+                        timeout_s: Some(5.0),
+                        ..DriveHomeParams::default()
+                    },
+                },
+                false,
+            ),
+            (
+                &["home", "x", "--drive", "--skip", "--no-wait"],
+                Line::DriveHome {
+                    axis: x(),
+                    params: DriveHomeParams {
+                        skip: Some(true),
+                        ..DriveHomeParams::default()
+                    },
+                },
+                true,
+            ),
         ] {
             assert_eq!(sent(args), (request, no_wait), "{args:?}");
         }
+    }
+
+    #[test]
+    fn drive_homing_refuses_movehome_options_by_name() {
+        let cli = Cli::try_parse_from(["gantry", "home", "x", "--drive", "--jerk", "5"]).unwrap();
+        let Cmd::Axis(cmd) = cli.command else {
+            panic!("a one-axis command");
+        };
+        let e = AxisCommand::of(cmd).err().unwrap();
+        assert_eq!(
+            e,
+            "--jerk is a MoveHome option; the drive homes by its method (--method)"
+        );
     }
 
     #[test]

@@ -136,6 +136,11 @@ fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
     assert!(status.success(), "{out}");
     assert!(out.contains("CANopen: 4 nodes operational"), "{out}");
     assert!(out.contains("CANopen: nodes pre-operational"), "{out}");
+    // The nodes no longer watch gantry's SYNC and heartbeat (canopen_shutdown.rs).
+    assert!(
+        out.contains("heartbeat consumer taken back on node(s) 1, 2, 3, 4 in"),
+        "{out}"
+    );
     assert!(out.contains("gantry: drive records written to "), "{out}");
     let records = read_records(&svc.dir.join("drive-records.json")).unwrap();
     assert!(

@@ -515,6 +515,19 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
     });
     let comm = CommSettings::of(config)?;
     let mut steps = config_steps_for(node, &plan, &layout, &comm, pdos);
+    // What the switches need of the drive: 0x60D0 for homing on a limit switch's edge.
+    let switch_writes = a
+        .switches
+        .sdo_writes()
+        .map_err(|(_, reason)| LoadError::Pdo {
+            axis: a.name.clone(),
+            reason,
+        })?;
+    steps.extend(
+        switch_writes
+            .iter()
+            .map(|w| SdoStep::new(w.index, w.sub, &w.value, "touch probe source (0x60D0)")),
+    );
     // 0x1006 and 0x1016 are optional (CiA 301 §7.5.2.6, §7.5.2.16): a device whose EDS
     // has no communication cycle period is not told one, one with no heartbeat consumer
     // does not watch gantry's heartbeat (the writes would be aborted, no object); every

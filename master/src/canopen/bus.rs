@@ -47,6 +47,50 @@ pub const MAX_IMAGE: usize = 32;
 /// How long a reset may take to bring a node back (NMT reset, boot-up, ~30 SDO writes
 /// at one per cycle, NMT start, the first TPDOs).
 pub const RESTORE_TIMEOUT_NS: u64 = 5_000_000_000;
+/// How long [`CanopenBus::shut_down`] may take to take its watches back from the nodes
+/// (two expedited SDO writes per node, all nodes at once; each write times out after
+/// [`bring_up::SDO_TIMEOUT_NS`]).
+pub const RELEASE_TIMEOUT_NS: u64 = 2 * bring_up::SDO_TIMEOUT_NS + 100_000_000;
+/// The shutdown's longest wait between looks at its SDO timers, SYNC and heartbeat.
+const RELEASE_POLL_NS: u64 = 1_000_000;
+/// Rounds of the shutdown's loop at most (a lockstep link whose clock stands still).
+const RELEASE_MAX_ROUNDS: u32 = 100_000;
+
+/// A watch the bring-up gave a node, taken back at shutdown.
+#[derive(Clone, Copy, Debug)]
+struct ReleaseStep {
+    mux: Multiplexer,
+    what: &'static str,
+}
+
+/// What [`CanopenBus::shut_down`] writes 0 to on each node, in order, if the bring-up
+/// wrote it: the SYNC watchdog first (the SYNC stops once it is off), then the
+/// heartbeat consumer (gantry's heartbeat goes on until then).
+const RELEASE_STEPS: [ReleaseStep; 2] = [
+    ReleaseStep {
+        mux: Multiplexer::new(bring_up::COMMUNICATION_CYCLE_PERIOD, 0),
+        what: "the SYNC watchdog (0x1006)",
+    },
+    ReleaseStep {
+        mux: Multiplexer::new(bring_up::CONSUMER_HEARTBEAT_TIME, 1),
+        what: "the heartbeat consumer (0x1016:01)",
+    },
+];
+
+/// How one node's release at shutdown ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Release {
+    /// Every watch taken back.
+    Done,
+    /// [`RELEASE_STEPS`]`[step]` and those after it were not.
+    Failed {
+        /// The step that failed.
+        step: usize,
+        /// Why.
+        why: &'static str,
+    },
+}
+
 /// Most receives one exchange makes (bounded work: a babbling node cannot hold the cycle
 /// past this; the rest waits for the next exchange).
 const MAX_FRAMES_PER_EXCHANGE: usize = 512;
@@ -265,6 +309,8 @@ pub struct CanopenBus {
     heartbeat_ns: u64,
     heartbeat_due_ns: u64,
     heartbeats_sent: u64,
+    /// The cycle's period (the SYNC's, kept up while the nodes are released at shutdown).
+    period_ns: u64,
     lost_limit: u32,
     consumer_ns: u64,
     counters: BusCounters,
@@ -359,6 +405,7 @@ impl CanopenBus {
             // The first with the first exchange: the nodes' monitoring starts with it.
             heartbeat_due_ns: 0,
             heartbeats_sent: 0,
+            period_ns: u64::from(config.bus.cycle_us) * 1000,
             lost_limit: config.bus.faults.lost_frames_limit.max(1),
             consumer_ns: u64::from(config.bus.heartbeat_consumer_ms()) * 1_000_000,
             counters: BusCounters::default(),
@@ -438,9 +485,30 @@ impl CanopenBus {
         &*self.link
     }
 
-    /// Takes the nodes to Pre-operational (their PDOs stop; SDO stays) and hands the link
-    /// back.
+    /// Takes the nodes out of the cycle the way an NMT master leaves them (after the
+    /// drives were disabled), and hands the link back:
+    ///
+    /// 1. NMT enter pre-operational to each node: its PDOs stop (CiA 301 §7.3.2.2.1,
+    ///    Table 41); SDO, SYNC and heartbeat go on.
+    /// 2. The watches the bring-up gave each node are taken back by SDO, on every node at
+    ///    once: 0x1006 = 0 (the SYNC consumer's watchdog unused, §7.5.2.6) and 0x1016:01
+    ///    = 0 (a consumer entry with time 0 is not used, §7.5.2.16). Meanwhile gantry goes
+    ///    on sending the SYNC at the cycle's period (until no node watches it) and its
+    ///    heartbeat, so no watch fires before it is taken back.
+    /// 3. gantry's heartbeat stops.
+    ///
+    /// Bounded by [`RELEASE_TIMEOUT_NS`] on the link's clock. A node that did not confirm
+    /// is named with what it may still watch: it reports the loss (EMCY 0x8100 or 0x8130)
+    /// when that watch's time runs out. Each step is printed to `out`. Returns the link.
     pub fn shut_down(mut self, out: &mut (dyn Write + Send)) -> Box<dyn CanLink> {
+        let started = self.link.now_ns();
+        // An application transfer still running is cut short: the channel is needed.
+        if let Some(mut t) = self.sdo.take() {
+            let _ = t.client.abort(AbortCode::GENERAL_ERROR);
+            while let Some(f) = t.client.transmit() {
+                let _ = self.link.send(&f);
+            }
+        }
         for d in &self.drives {
             let f = bring_up::nmt(NmtCommand::EnterPreOperational, NmtTarget::Node(d.node));
             if let Err(e) = self.link.send(&f) {
@@ -451,8 +519,185 @@ impl CanopenBus {
                 );
             }
         }
-        let _ = writeln!(out, "CANopen: nodes pre-operational");
+        let released = self.release_nodes();
+        let took_ms = self.link.now_ns().saturating_sub(started) / 1_000_000;
+        let mut ok = Vec::new();
+        for (d, r) in self.drives.iter().zip(&released) {
+            match r {
+                Release::Done => ok.push(d.node.get().to_string()),
+                Release::Failed { step, why } => {
+                    let _ = writeln!(
+                        out,
+                        "CANopen node {}: {} not taken back ({why}): it may still watch {}",
+                        d.node.get(),
+                        RELEASE_STEPS.get(*step).map_or("?", |r| r.what),
+                        if *step == 0 {
+                            "gantry's SYNC (EMCY 0x8100 when it stays away) and heartbeat \
+                             (EMCY 0x8130)"
+                        } else {
+                            "gantry's heartbeat (EMCY 0x8130 when it stays away)"
+                        },
+                    );
+                }
+            }
+        }
+        let _ = writeln!(
+            out,
+            "CANopen: nodes pre-operational; SYNC watchdog and heartbeat consumer taken back \
+             on node(s) {} in {took_ms} ms",
+            if ok.is_empty() {
+                "none".to_string()
+            } else {
+                ok.join(", ")
+            }
+        );
         self.link
+    }
+
+    /// Step 2 of [`CanopenBus::shut_down`]: each drive's SDO writes of
+    /// [`RELEASE_STEPS`] that its bring-up made (a node without 0x1006 in its EDS was
+    /// never given it), every node at once, the SYNC and gantry's heartbeat going on
+    /// meanwhile.
+    fn release_nodes(&mut self) -> Vec<Release> {
+        let start = self.link.now_ns();
+        let deadline = start.saturating_add(RELEASE_TIMEOUT_NS);
+        let n = self.drives.len();
+        // Per drive: the step in progress (index into RELEASE_STEPS), or how it ended.
+        let mut at = vec![0usize; n];
+        let mut ended: Vec<Option<Release>> = vec![None; n];
+        for d in &mut self.drives {
+            // A restore's transfer in progress ends here.
+            if !d.sdo.is_idle() {
+                let _ = d.sdo.abort(AbortCode::GENERAL_ERROR);
+                while let Some(f) = d.sdo.transmit() {
+                    let _ = self.link.send(&f);
+                }
+            }
+        }
+        let mut next_sync = start;
+        // A link whose clock does not move while it waits (a lockstep bus stepped by a
+        // cycle that has ended) cannot run out the deadline: bounded by rounds too.
+        let mut rounds = 0u32;
+        loop {
+            let now = self.link.now_ns();
+            // Start each drive's next write that its bring-up made.
+            for (i, d) in self.drives.iter_mut().enumerate() {
+                let Some(slot) = ended.get_mut(i) else {
+                    continue;
+                };
+                let Some(k) = at.get_mut(i) else {
+                    continue;
+                };
+                if slot.is_some() || !d.sdo.is_idle() {
+                    continue;
+                }
+                while RELEASE_STEPS
+                    .get(*k)
+                    .is_some_and(|r| !d.steps.iter().any(|s| s.mux == r.mux))
+                {
+                    *k += 1;
+                }
+                match RELEASE_STEPS.get(*k) {
+                    Some(r) => {
+                        if d.sdo
+                            .download(r.mux, &[0; 4], DownloadMode::Expedited, now)
+                            .is_err()
+                        {
+                            *slot = Some(Release::Failed {
+                                step: *k,
+                                why: "the SDO client was busy",
+                            });
+                        }
+                    }
+                    None => *slot = Some(Release::Done),
+                }
+                while let Some(f) = d.sdo.transmit() {
+                    let _ = self.link.send(&f);
+                }
+            }
+            if ended.iter().all(Option::is_some) {
+                break;
+            }
+            if now >= deadline || rounds >= RELEASE_MAX_ROUNDS {
+                for (i, slot) in ended.iter_mut().enumerate() {
+                    if slot.is_none() {
+                        *slot = Some(Release::Failed {
+                            step: at.get(i).copied().unwrap_or(0),
+                            why: "no answer in time",
+                        });
+                    }
+                }
+                break;
+            }
+            rounds += 1;
+            // The SYNC while a node may still watch it (0x1006 not yet 0).
+            let sync_watched = self.drives.iter().zip(&at).zip(&ended).any(|((d, k), e)| {
+                e.is_none()
+                    && *k == 0
+                    && d.steps
+                        .iter()
+                        .any(|s| s.mux.index == bring_up::COMMUNICATION_CYCLE_PERIOD)
+            });
+            if sync_watched && now >= next_sync {
+                let f = self.next_sync();
+                let _ = self.link.send(&f);
+                next_sync = next_sync.saturating_add(self.period_ns).max(now);
+            }
+            self.produce_heartbeat(now);
+            let wake = deadline
+                .min(now.saturating_add(RELEASE_POLL_NS))
+                .min(if sync_watched { next_sync } else { u64::MAX });
+            let outcome = match self.link.receive(wake) {
+                Ok(Some(r)) => match CobId::classify(r.frame.id()) {
+                    Ok(CobId::SdoTx(node)) => self.drive_of(node).and_then(|i| {
+                        let now = self.link.now_ns();
+                        let o = self.drives.get_mut(i)?.sdo.receive(&r.frame, now)?;
+                        Some((i, o))
+                    }),
+                    _ => None,
+                },
+                Ok(None) | Err(_) => None,
+            };
+            let now = self.link.now_ns();
+            let timed_out = self
+                .drives
+                .iter_mut()
+                .enumerate()
+                .find_map(|(i, d)| d.sdo.poll(now).map(|o| (i, o)));
+            for (i, o) in outcome.into_iter().chain(timed_out) {
+                let (Some(k), Some(slot)) = (at.get_mut(i), ended.get_mut(i)) else {
+                    continue;
+                };
+                match o {
+                    Outcome::Downloaded { .. } => *k += 1,
+                    Outcome::Aborted { code, by, .. } => {
+                        if let Some(d) = self.drives.get_mut(i) {
+                            while let Some(f) = d.sdo.transmit() {
+                                let _ = self.link.send(&f);
+                            }
+                        }
+                        *slot = Some(Release::Failed {
+                            step: *k,
+                            why: match (by, code) {
+                                (_, AbortCode::TIMED_OUT) => "no answer in time",
+                                (Side::Server, _) => "the node refused the write",
+                                (Side::Client, _) => "the node's answer broke the protocol",
+                            },
+                        });
+                    }
+                    Outcome::Uploaded { .. } => {}
+                }
+            }
+        }
+        ended
+            .into_iter()
+            .map(|e| {
+                e.unwrap_or(Release::Failed {
+                    step: 0,
+                    why: "no answer in time",
+                })
+            })
+            .collect()
     }
 
     fn drive_of(&self, node: NodeId) -> Option<usize> {

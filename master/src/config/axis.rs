@@ -70,6 +70,30 @@ pub struct AxisSection {
     /// Limit and reference switches and the touch probe (`[axis.switches]`).
     #[serde(default)]
     pub switches: super::switches::SwitchesSection,
+    /// Homing done by the drive itself (`[axis.drive_homing]`).
+    #[serde(default)]
+    pub drive_homing: Option<super::drive_homing::DriveHomingSection>,
+    /// What the drive's position counts from: `"incremental"` (default: from where the
+    /// drive was switched on) or `"absolute"` (a multi-turn absolute encoder: the same
+    /// place reads the same after power-off). An absolute axis' position offset is saved
+    /// whenever it is homed and restored at start (SPEC §1: restored, not homed).
+    #[serde(default)]
+    pub encoder: Encoder,
+    /// An absolute axis is homed at start from its saved position offset (SPEC §1: "homed
+    /// only when told so"). Refused for an incremental encoder.
+    #[serde(default)]
+    pub homed_at_start: bool,
+}
+
+/// `encoder` of `[[axis]]`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Encoder {
+    /// Counts from where the drive was switched on.
+    #[default]
+    Incremental,
+    /// Reads the same at the same place after a power-off (multi-turn absolute).
+    Absolute,
 }
 
 /// `drive` as read when the file does not give it.
@@ -195,10 +219,30 @@ impl AxisSection {
         Ok(layout)
     }
 
+    /// The drive homing parameters of `[axis.drive_homing]` in the drive's counts, if
+    /// the axis has them.
+    pub fn drive_homing_params(
+        &self,
+    ) -> Result<Option<gantry_drives::cia402::homing::DriveHomingParams>, (String, String)> {
+        self.drive_homing
+            .map(|d| d.params(&self.scaling()?, self.max.speed))
+            .transpose()
+    }
+
     /// The kernel's configuration of this axis (checked by the kernel's own rules).
     pub fn kernel_config(&self) -> Result<AxisConfig, (String, String)> {
+        if self.homed_at_start && self.encoder != Encoder::Absolute {
+            return Err((
+                "homed_at_start".into(),
+                "needs an absolute encoder (encoder = \"absolute\"): an incremental \
+                 encoder's position is lost when the drive is switched off, so a saved \
+                 offset would home the axis at the wrong place"
+                    .into(),
+            ));
+        }
         self.scaling()?;
         self.pdo_layout()?;
+        self.drive_homing_params()?;
         let mut c = AxisConfig::new(&self.name, AxisKind::Real);
         let kind = match self.kind.as_str() {
             "linear" => MotionKind::Linear,
@@ -256,6 +300,8 @@ impl AxisSection {
         }
         c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
         c.homing_required = self.homing_required;
+        c.limit_edges_latched = self.switches.probe_source()?.is_some();
+        c.reference_edges_latched = self.switches.reference_latched()?;
         let tm = self.target_monitoring;
         c.target_monitoring.enabled = tm.enabled.unwrap_or(c.target_monitoring.enabled);
         c.target_monitoring.dwell_s = tm.dwell_s.unwrap_or(c.target_monitoring.dwell_s);

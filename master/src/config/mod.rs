@@ -6,16 +6,20 @@
 
 mod axis;
 mod bus;
+mod drive_homing;
 mod error;
+mod service;
 mod switches;
 
-pub use axis::{AxisSection, DefaultsSection, MaxSection, ScalingSection, DRIVE_UNSET};
+pub use axis::{AxisSection, DefaultsSection, Encoder, MaxSection, ScalingSection, DRIVE_UNSET};
 pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE,
 };
+pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
-pub use switches::{SwitchSource, SwitchesSection};
+pub use service::ServiceSection;
+pub use switches::{ModuleInput, ProbeSource, SwitchSource, SwitchesSection};
 
 use std::path::Path;
 use std::sync::Arc;
@@ -32,6 +36,8 @@ struct File {
     bus: Spanned<BusSection>,
     #[serde(default)]
     rt: RtSection,
+    #[serde(default)]
+    service: ServiceSection,
     #[serde(rename = "axis", default)]
     axes: Vec<Spanned<AxisSection>>,
 }
@@ -45,6 +51,8 @@ pub struct Config {
     pub bus: BusSection,
     /// Real-time settings.
     pub rt: RtSection,
+    /// How the service keeps its state (`[service]`).
+    pub service: ServiceSection,
     /// The axes, in order.
     pub axes: Vec<AxisSection>,
     /// The kernel's view of each axis.
@@ -74,6 +82,7 @@ impl Config {
             &mut config.bus.simulator,
             &mut config.bus.simulator_record,
             &mut config.bus.pcap,
+            &mut config.service.state_dir,
         ]
         .into_iter()
         .flatten()
@@ -99,6 +108,9 @@ impl Config {
         file.rt
             .check()
             .map_err(|(key, reason)| at(0..0, format!("rt.{key}"), reason))?;
+        file.service
+            .check()
+            .map_err(|(key, reason)| at(0..0, format!("service.{key}"), reason))?;
         if file.axes.is_empty() {
             return Err(at(0..0, "axis".into(), "no axis is configured".into()));
         }
@@ -197,6 +209,22 @@ impl Config {
             let k = a
                 .kernel_config()
                 .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+            if kind == BusKind::Canopen {
+                let modules = a
+                    .switches
+                    .module_inputs()
+                    .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+                let names = ["negative_limit", "positive_limit", "reference"];
+                if let Some((name, _)) = names.iter().zip(modules).find(|(_, m)| m.is_some()) {
+                    return Err(at(
+                        span,
+                        key(&format!("switches.{name}")),
+                        "a module input is read on EtherCAT only; on CANopen the bus does not \
+                         read a CiA 401 node's inputs yet (use the drive's 0x60FD)"
+                            .into(),
+                    ));
+                }
+            }
             let sheet = match (&a.eds, kind) {
                 (None, _) => None,
                 (Some(_), BusKind::Ethercat) => {
@@ -226,6 +254,7 @@ impl Config {
             path: path.into(),
             bus,
             rt: file.rt,
+            service: file.service,
             axes,
             kernel_axes,
             eds,

@@ -202,9 +202,223 @@ fn switches_add_their_objects_to_the_layout_and_name_their_mistakes() {
         .to_string();
     assert_eq!(
         e,
-        "g.toml:33: axis[0].switches.reference: \"io\": only \"drive\" (the drive's digital \
-         inputs 0x60FD) is read; switches on an I/O module are not supported yet"
+        "g.toml:33: axis[0].switches.reference: \"io\": \"drive\" (the drive's digital \
+         inputs 0x60FD) or \"module\" (an input of an I/O module on the bus)"
     );
+}
+
+/// Switches on an I/O module: resolved with their polarity, not in the drive's 0x60FD
+/// wiring; a module reference switch tells the kernel the probe cannot latch it; the
+/// mistakes named; refused on CANopen.
+#[test]
+fn module_switches_are_resolved_and_refused_where_not_read() {
+    let with = |switches: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp-minimal\"\nswitches = {{ {switches} }}"),
+            1,
+        )
+    };
+    let c = Config::parse(
+        &with(
+            "negative_limit = \"drive\", \
+             positive_limit = { from = \"module\", slave = 3, input = 5, normally_closed = true }, \
+             reference = { from = \"module\", slave = 3, input = 0 }",
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    let x = &c.axes[0];
+    assert_eq!(
+        x.switches.wiring().unwrap().used,
+        0b001,
+        "only the drive's bit 0"
+    );
+    let [neg, pos, reference] = x.switches.module_inputs().unwrap();
+    assert_eq!(neg, None);
+    assert_eq!(
+        pos,
+        Some(ModuleInput {
+            slave: 3,
+            input: 5,
+            normally_closed: true
+        })
+    );
+    assert_eq!(pos.unwrap().active(&[0b10_0000]), Some(false));
+    assert_eq!(pos.unwrap().active(&[0]), Some(true));
+    assert_eq!(pos.unwrap().active(&[]), None);
+    assert_eq!(
+        reference.map(|r| (r.input, r.normally_closed)),
+        Some((0, false))
+    );
+    let k = x.kernel_config().unwrap();
+    assert!(!k.reference_edges_latched && !k.limit_edges_latched);
+    for (switches, why) in [
+        (
+            "reference = { from = \"module\", slave = 3 }",
+            "axis[0].switches.reference: a module input needs its module and input",
+        ),
+        (
+            "reference = { from = \"drive\", input = 2 }",
+            "axis[0].switches.reference: slave and input are for from = \"module\"",
+        ),
+        (
+            "positive_limit = { from = \"module\", slave = 1, input = 1 }, reference = \"drive\", \
+             probe_source = { negative_limit = -1, positive_limit = -2 }",
+            "axis[0].switches.probe_source: needs negative_limit and positive_limit from the \
+             drive",
+        ),
+    ] {
+        let e = Config::parse(&with(switches), "g.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(why), "{e}");
+    }
+    let canopen = "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 1000000\n\
+         cycle_us = 2000\n\
+         [[axis]]\nname = \"x\"\nnode = 1\npdo = \"csp-minimal\"\n\
+         scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+         max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n\
+         [axis.switches]\nreference = { from = \"module\", slave = 2, input = 0 }\n";
+    let e = Config::parse(canopen, "c.toml").unwrap_err().to_string();
+    assert!(
+        e.contains(
+            "axis[0].switches.reference: a module input is read on EtherCAT only; on CANopen \
+             the bus does not read a CiA 401 node's inputs yet"
+        ),
+        "{e}"
+    );
+}
+
+/// `probe_source`: 0x60D0:1/:2 written at bring-up, 0x60BD mapped, MoveHome on a limit
+/// switch allowed; its mistakes named; without it the kernel refuses that MoveHome.
+#[test]
+fn the_probe_source_for_the_limit_switches_is_checked_and_written() {
+    let with = |switches: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp-minimal\"\nswitches = {{ {switches} }}"),
+            1,
+        )
+    };
+    let limits = "negative_limit = \"drive\", positive_limit = \"drive\", reference = \"drive\"";
+    let c = Config::parse(
+        &with(&format!(
+            "{limits}, probe_source = {{ negative_limit = -1, positive_limit = -2 }}"
+        )),
+        "g.toml",
+    )
+    .unwrap();
+    let x = &c.axes[0];
+    assert_eq!(
+        x.pdo_layout().unwrap().inputs.last().map(|o| o.index),
+        Some(0x60BD)
+    );
+    let w: Vec<(u16, u8, Vec<u8>)> = x
+        .switches
+        .sdo_writes()
+        .unwrap()
+        .into_iter()
+        .map(|w| (w.index, w.sub, w.value))
+        .collect();
+    assert_eq!(
+        w,
+        [
+            (0x60D0, 1, (-1i16).to_le_bytes().to_vec()),
+            (0x60D0, 2, (-2i16).to_le_bytes().to_vec())
+        ]
+    );
+    assert!(x.kernel_config().unwrap().limit_edges_latched);
+    // Without it: nothing written, no 0x60BD, the kernel told.
+    let c = Config::parse(&with(limits), "g.toml").unwrap();
+    assert!(c.axes[0].switches.sdo_writes().unwrap().is_empty());
+    assert!(!c.axes[0].kernel_config().unwrap().limit_edges_latched);
+    for (switches, why) in [
+        (
+            "positive_limit = \"drive\", reference = \"drive\", \
+             probe_source = { negative_limit = -1, positive_limit = -2 }",
+            "needs negative_limit and positive_limit from the drive",
+        ),
+        (
+            &*format!("{limits}, probe_source = {{ negative_limit = 0, positive_limit = -2 }}"),
+            "0 is reserved in 0x60D0 (ETG.6010); give the drive's values",
+        ),
+        (
+            &*format!("{limits}, probe_source = {{ negative_limit = -3, positive_limit = -3 }}"),
+            "negative_limit and positive_limit name the same source",
+        ),
+        (
+            &*format!(
+                "{limits}, touch_probe = false, \
+                 probe_source = {{ negative_limit = -1, positive_limit = -2 }}"
+            ),
+            "needs the touch probe (a reference switch, or touch_probe = true)",
+        ),
+    ] {
+        let e = Config::parse(&with(switches), "g.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with(&format!("axis[0].switches.probe_source: {why}")),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn drive_homing_converts_to_counts_and_names_its_mistakes() {
+    let with = |section: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp\"\ndrive_homing = {{ {section} }}"),
+            1,
+        )
+    };
+    let ok = "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+              home_offset = -1.5, timeout = 12.0";
+    let c = Config::parse(&with(ok), "g.toml").unwrap();
+    // 131 072 counts per 5 mm.
+    let p = c.axes[0].drive_homing_params().unwrap().unwrap();
+    assert_eq!(
+        (
+            p.method,
+            p.speed_switch,
+            p.speed_zero,
+            p.acceleration,
+            p.home_offset
+        ),
+        (19, 524_288, 52_429, 5_242_880, -39_322)
+    );
+    assert_eq!((p.timeout_s, p.skip), (12.0, false));
+    assert_eq!(
+        c.axes[1].drive_homing_params().unwrap(),
+        None,
+        "not configured"
+    );
+    let e = |section: &str| {
+        Config::parse(&with(section), "g.toml")
+            .unwrap_err()
+            .to_string()
+    };
+    assert_eq!(
+        e("method = 19, speed_switch = 0.0, speed_zero = 2.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_switch: 0 must be a finite number > 0"
+    );
+    assert_eq!(
+        e("method = 19, speed_switch = 20.0, speed_zero = 900.0, acceleration = 200.0"),
+        "g.toml:33: axis[0].drive_homing.speed_zero: 900 exceeds max.speed 250"
+    );
+    assert_eq!(
+        e(
+            "method = 19, speed_switch = 20.0, speed_zero = 2.0, acceleration = 200.0, \
+           home_offset = 1e9"
+        ),
+        "g.toml:33: axis[0].drive_homing.home_offset: 1000000000 is beyond what the drive's \
+         32 bits count"
+    );
+    let big = e("method = 300, speed_switch = 1.0, speed_zero = 1.0, acceleration = 1.0");
+    assert!(big.starts_with("g.toml:33:"), "{big}");
+    assert!(big.contains("300"), "{big}");
 }
 
 /// A CANopen configuration of `nodes` (one axis each, the minimal layout) with `bus`
@@ -254,7 +468,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `encoder`, `homed_at_start`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -602,5 +816,59 @@ fn canopen_cycles_may_be_longer_than_ethercat_ones() {
     assert!(
         e.ends_with("bus.cycle_us: 20000 µs is outside 250 to 4000 µs"),
         "{e}"
+    );
+}
+
+#[test]
+fn homed_at_start_needs_an_absolute_encoder() {
+    let x = "software_limits = [-10.0, 400.0]   # active once homed";
+    let e = mistake(x, &format!("{x}\nhomed_at_start = true"));
+    assert!(e.starts_with("g.toml:"), "{e}");
+    assert!(
+        e.ends_with(
+            "axis[0].homed_at_start: needs an absolute encoder (encoder = \"absolute\"): an \
+             incremental encoder's position is lost when the drive is switched off, so a saved \
+             offset would home the axis at the wrong place"
+        ),
+        "{e}"
+    );
+    let e = mistake(x, &format!("{x}\nencoder = \"optical\""));
+    assert!(e.contains("encoder") && e.contains("absolute"), "{e}");
+    let ok = Config::parse(
+        &EXAMPLE.replacen(
+            x,
+            &format!("{x}\nencoder = \"absolute\"\nhomed_at_start = true"),
+            1,
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    assert_eq!(ok.axes[0].encoder, Encoder::Absolute);
+    assert!(ok.axes[0].homed_at_start);
+    assert_eq!(ok.axes[1].encoder, Encoder::Incremental);
+}
+
+#[test]
+fn the_state_directory_is_relative_to_the_configuration() {
+    let rt = "overrun_limit = 10            # overruns in a row before every axis stops";
+    let e = mistake(rt, &format!("{rt}\n\n[service]\nstate_dir = \" \""));
+    assert!(e.contains("service.state_dir: is empty"), "{e}");
+    let dir = std::env::temp_dir().join(format!("gantry-config-state-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g.toml");
+    let with = |d: &str| EXAMPLE.replacen(rt, &format!("{rt}\n\n[service]\nstate_dir = {d:?}"), 1);
+    std::fs::write(&path, with("state")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(
+        c.service.state_dir,
+        Some(dir.join("state").display().to_string())
+    );
+    std::fs::write(&path, with("/var/lib/g")).unwrap();
+    let c = Config::load(&path.display().to_string()).unwrap();
+    assert_eq!(c.service.state_dir.as_deref(), Some("/var/lib/g"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        Config::parse(EXAMPLE, "g.toml").unwrap().service.state_dir,
+        None
     );
 }

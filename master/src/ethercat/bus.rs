@@ -21,7 +21,7 @@ use super::doorbell::BlockOn;
 use super::frame::{self, ProcessImage};
 use super::health::{BusFault, BusHealth, Exchange, HealthConfig, States};
 use super::link::{Capture, FrameIo, InterfaceOnly, Link, LinkFactory};
-use super::mapping::map_pdos;
+use super::mapping::{download, map_pdos};
 use super::raw::RawLink;
 use super::recovery::{self, access, Answer, Recovered, Recovery, RecoveryError, RegisterAccess};
 use crate::config::Config;
@@ -655,12 +655,23 @@ fn map_axes_pdos(
             key,
             reason,
         })?;
+        let settings = a
+            .switches
+            .sdo_writes()
+            .map_err(|(key, reason)| SetupError::Axis {
+                axis: a.name.clone(),
+                key,
+                reason,
+            })?;
         let sd = group
             .subdevice(md, a.drive)
             .map_err(|e| step_error("addressing", e))?;
         runner
             .run_step(
-                || map_pdos(&sd, &layout),
+                || async {
+                    map_pdos(&sd, &layout).await?;
+                    download(&sd, settings.clone()).await
+                },
                 replies,
                 BRING_UP_SILENCE_NS,
                 STEP_LIMIT_NS,

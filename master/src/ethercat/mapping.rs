@@ -29,7 +29,18 @@ pub async fn map_pdos<S>(sd: &SubDeviceRef<'_, S>, layout: &PdoLayout) -> Result
 where
     S: Deref<Target = SubDevice>,
 {
-    for SdoWrite { index, sub, value } in layout.sdo_writes() {
+    download(sd, layout.sdo_writes()).await
+}
+
+/// Downloads `writes` in order (values of 1, 2 or 4 bytes); the first refusal ends it.
+pub async fn download<S>(
+    sd: &SubDeviceRef<'_, S>,
+    writes: Vec<SdoWrite>,
+) -> Result<(), MappingError>
+where
+    S: Deref<Target = SubDevice>,
+{
+    for SdoWrite { index, sub, value } in writes {
         let result = match value.as_slice() {
             [a] => sd.sdo_write(index, sub, *a).await,
             [a, b] => sd.sdo_write(index, sub, u16::from_le_bytes([*a, *b])).await,

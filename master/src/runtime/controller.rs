@@ -115,6 +115,21 @@ impl Controller {
         self.send(|id| Request::Axis { id, axis, command })
     }
 
+    /// Runs `procedure` on axis `axis`' drive, out of CSP ([`super::procedure`]): the
+    /// handle is Active while it runs, Done when the drive is back in CSP (drive homing:
+    /// the axis is homed), Error naming what failed, Aborted by power off.
+    pub fn drive_procedure(
+        &self,
+        axis: usize,
+        procedure: super::procedure::DriveProcedure,
+    ) -> Result<CommandHandle, ControlError> {
+        self.send(|id| Request::Procedure {
+            id,
+            axis,
+            procedure,
+        })
+    }
+
     /// Resets axis `axis` (its slave back to OP if needed, then the axis' Reset).
     pub fn reset(&self, axis: usize) -> Result<CommandHandle, ControlError> {
         self.send(|id| Request::Reset { id, axis })

@@ -10,9 +10,12 @@ use thiserror::Error;
 
 use super::bus::{CycleBus, DriveError};
 use crate::config::Config;
+use crate::config::ModuleInput;
 use crate::drive_axis::AxisChannel;
+use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::csp::{
-    encode_outputs, encode_touch_probe, CspChannel, CspInputs, FAULT_CODE_NOT_MAPPED,
+    encode_outputs, encode_procedure_outputs, encode_touch_probe, CspChannel, CspInputs,
+    FAULT_CODE_NOT_MAPPED,
 };
 
 /// Error code fed to the kernel for an axis whose drive the bus cannot reach (CiA 301
@@ -115,6 +118,21 @@ pub struct Cycle {
     setpoints: Vec<AxisSetpoint>,
     /// The bus position of each axis' drive.
     drives: Vec<usize>,
+    /// Drives lent to a procedure: what they get instead of their CSP outputs (see
+    /// [`Cycle::set_procedure_outputs`]).
+    procedures: Vec<Option<ProcedureOutputs>>,
+    /// Per axis, the switches read from I/O modules (negative limit, positive limit,
+    /// reference) and their last levels.
+    modules: Vec<ModuleSwitches>,
+}
+
+/// An axis' switches read from I/O modules on the bus, and what they read last.
+#[derive(Clone, Copy, Debug, Default)]
+struct ModuleSwitches {
+    /// Negative limit, positive limit, reference.
+    inputs: [Option<ModuleInput>; 3],
+    /// Their last levels (active), kept through a cycle whose inputs did not come.
+    active: [bool; 3],
 }
 
 impl Cycle {
@@ -136,6 +154,8 @@ impl Cycle {
             feedback: vec![AxisFeedback::default(); n],
             setpoints: vec![AxisSetpoint::default(); n],
             drives: (0..n).collect(),
+            modules: vec![ModuleSwitches::default(); n],
+            procedures: vec![None; n],
         }
     }
 
@@ -145,6 +165,7 @@ impl Cycle {
     /// bus carries for that drive. Allocates; build it before the drives go operational.
     pub fn from_config(config: &Config, bus: &impl CycleBus) -> Result<Self, SetupError> {
         let mut channels = Vec::with_capacity(config.axes.len());
+        let mut modules = Vec::with_capacity(config.axes.len());
         for a in &config.axes {
             if a.drive >= bus.drives() {
                 return Err(SetupError::MissingDrive {
@@ -189,6 +210,32 @@ impl Cycle {
                 return Err(short("output", outputs, need));
             }
             channels.push(channel);
+            // Switches on I/O modules: the module there, its input in its process data.
+            let inputs = a.switches.module_inputs().map_err(axis_error)?;
+            let names = ["negative_limit", "positive_limit", "reference"];
+            for (name, m) in names.iter().zip(inputs) {
+                let Some(m) = m else { continue };
+                let bytes = bus.inputs(m.slave).len();
+                if m.slave >= bus.drives() || m.active(bus.inputs(m.slave)).is_none() {
+                    return Err(SetupError::Axis {
+                        axis: a.name.clone(),
+                        key: format!("switches.{name}"),
+                        reason: format!(
+                            "input {} of slave {}: the bus has {} slaves, slave {} {} input \
+                             bytes",
+                            m.input,
+                            m.slave,
+                            bus.drives(),
+                            m.slave,
+                            bytes
+                        ),
+                    });
+                }
+            }
+            modules.push(ModuleSwitches {
+                inputs,
+                active: [false; 3],
+            });
         }
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
         let kernel =
@@ -198,6 +245,7 @@ impl Cycle {
             })?;
         let mut cycle = Self::new(kernel, channels);
         cycle.drives = config.axes.iter().map(|a| a.drive).collect();
+        cycle.modules = modules;
         Ok(cycle)
     }
 
@@ -225,6 +273,50 @@ impl Cycle {
             self.read_inputs(axis, bus.inputs(drive))?;
             if let Some(e) = bus.drive_error(drive) {
                 self.drive_error(axis, e)?;
+            }
+        }
+        for axis in 0..self.drives.len() {
+            self.read_module_switches(axis, bus)?;
+        }
+        Ok(())
+    }
+
+    /// Axis `axis`' switches on I/O modules: each module input's level this cycle (the
+    /// last one when the module's inputs did not come), into the axis' feedback; a module
+    /// the bus cannot reach gives the axis a communication fault (its limit switches are
+    /// not watched any more).
+    fn read_module_switches(&mut self, axis: usize, bus: &impl CycleBus) -> Result<(), CycleError> {
+        let m = self
+            .modules
+            .get_mut(axis)
+            .ok_or(CycleError::NoDrive(axis))?;
+        let mut unreachable = false;
+        for (input, active) in m.inputs.iter().zip(m.active.iter_mut()) {
+            let Some(input) = input else { continue };
+            if bus.fault(input.slave).is_some() {
+                unreachable = true;
+            } else if bus.inputs_fresh(input.slave) {
+                if let Some(a) = input.active(bus.inputs(input.slave)) {
+                    *active = a;
+                }
+            }
+        }
+        let (inputs, [neg, pos, reference]) = (m.inputs, m.active);
+        if unreachable {
+            return self.comm_fault(axis);
+        }
+        let feedback = self
+            .feedback
+            .get_mut(axis)
+            .ok_or(CycleError::NoDrive(axis))?;
+        let sw = &mut feedback.switches;
+        for (input, (slot, level)) in inputs.iter().zip([
+            (&mut sw.negative_limit, neg),
+            (&mut sw.positive_limit, pos),
+            (&mut sw.reference, reference),
+        ]) {
+            if input.is_some() {
+                *slot = level;
             }
         }
         Ok(())
@@ -325,6 +417,25 @@ impl Cycle {
         Ok(())
     }
 
+    /// Sends axis `i`'s drive `outputs` instead of its CSP outputs from the next write on
+    /// (`None`: CSP again), for a procedure the drive runs by itself
+    /// ([`gantry_drives::cia402::procedure`] says how to use it). The axis must be lent to
+    /// the drive in the kernel meanwhile (`Kernel::lend_to_drive`), so that its set
+    /// position tracks the drive.
+    pub fn set_procedure_outputs(
+        &mut self,
+        i: usize,
+        outputs: Option<ProcedureOutputs>,
+    ) -> Result<(), CycleError> {
+        *self.procedures.get_mut(i).ok_or(CycleError::NoDrive(i))? = outputs;
+        Ok(())
+    }
+
+    /// What axis `i`'s drive is sent in place of its CSP outputs, if it is lent.
+    pub fn procedure_outputs(&self, i: usize) -> Option<ProcedureOutputs> {
+        self.procedures.get(i).copied().flatten()
+    }
+
     /// Runs the kernel on the feedback read so far.
     pub fn step(&mut self) {
         let sps = self.kernel.step(&self.feedback);
@@ -353,8 +464,16 @@ impl Cycle {
             self.setpoints.get(i).ok_or(CycleError::NoDrive(i))?,
             self.inputs.get(i).ok_or(CycleError::NoDrive(i))?,
         );
-        let (cw, target) = channel.outputs(sp, inputs);
-        encode_outputs(&channel.offsets, bytes, cw, target);
+        match self.procedures.get(i).copied().flatten() {
+            Some(p) => {
+                let (cw, target) = channel.procedure_outputs(&p, inputs);
+                encode_procedure_outputs(&channel.offsets, bytes, cw, target, p.mode);
+            }
+            None => {
+                let (cw, target) = channel.outputs(sp, inputs);
+                encode_outputs(&channel.offsets, bytes, cw, target);
+            }
+        }
         if let Some(f) = channel.probe_function() {
             encode_touch_probe(&channel.offsets, bytes, f);
         }
@@ -368,6 +487,7 @@ mod tests {
     use gantry_drives::csp::COUNT_RANGE_FAULT;
     use gantry_drives::scaling::{Scaling, ScalingConfig};
     use gantry_kernel::axis::command::{Command, MoveDirection, MoveVelocity, PowerCommand};
+    use gantry_kernel::axis::handle::CommandStatus;
     use gantry_kernel::axis::state::AxisState;
     use gantry_kernel::axis::status::AxisFault;
     use gantry_kernel::{AxisConfig, AxisKind};
@@ -444,6 +564,74 @@ mod tests {
         let n = sent.len();
         assert!(n > 10, "moved a while first: {n} cycles");
         assert_eq!(sent[n - 2], sent[n - 3], "held, not substituted");
+    }
+
+    /// A drive lent to a procedure (homing mode, bit 4 set) moves by itself: it gets the
+    /// procedure's controlword bits and its own position as the target, the kernel's set
+    /// position tracks it, and the first CSP target after the hand-back is where the
+    /// drive stands (no jump), on the drive's own position (homing done).
+    #[test]
+    fn a_drive_lent_to_a_procedure_is_handed_back_where_it_stands() {
+        use gantry_drives::cia402::procedure::ProcedureOutputs;
+        use gantry_drives::cia402::ModeOfOperation;
+        let mut cfg = AxisConfig::new("x", AxisKind::Real);
+        cfg.homing_required = false;
+        let kernel = Kernel::new(1e-3, vec![cfg]).unwrap();
+        let scaling = Scaling::new(ScalingConfig {
+            counts_per_motor_rev: 10_000,
+            motor_revs: 1,
+            load_revs: 1,
+            units_per_load_rev: 10.0,
+            invert: false,
+        })
+        .unwrap();
+        let mut c = Cycle::new(kernel, vec![CspChannel::new(scaling)]);
+        c.kernel
+            .command(0, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        let mut out = [0u8; 6];
+        let mut cycle = |c: &mut Cycle, at: i32| {
+            c.read_inputs(0, &enabled_at(at)).unwrap();
+            c.step();
+            c.write_outputs(0, &mut out).unwrap();
+            (
+                u16::from_le_bytes([out[0], out[1]]),
+                i32::from_le_bytes([out[2], out[3], out[4], out[5]]),
+            )
+        };
+        for _ in 0..3 {
+            assert_eq!(cycle(&mut c, 700), (0x0F, 700));
+        }
+        let h = c.kernel.lend_to_drive(0, "drive homing", true).unwrap();
+        let homing = ProcedureOutputs::idle(ModeOfOperation::Homing).with(0x10);
+        c.set_procedure_outputs(0, Some(homing)).unwrap();
+        for k in 0..50 {
+            let at = 700 - 100 * k;
+            assert_eq!(
+                cycle(&mut c, at),
+                (0x1F, at),
+                "bit 4 set, the target is the drive's"
+            );
+        }
+        // Homing done: the drive stands at -4300 counts (its new reference frame).
+        c.set_procedure_outputs(0, None).unwrap();
+        assert!(c.kernel.end_drive_procedure(0, Ok(())));
+        assert_eq!(c.kernel.command_status(h), CommandStatus::Done);
+        for _ in 0..3 {
+            assert_eq!(
+                cycle(&mut c, -4300),
+                (0x0F, -4300),
+                "no jump at the hand-back"
+            );
+        }
+        let st = c.kernel.axis_status(0).unwrap();
+        assert_eq!(st.state, AxisState::Standstill);
+        assert!(st.bits.homed);
+        assert!(
+            (st.actual_position + 4.3).abs() < 1e-9,
+            "{}",
+            st.actual_position
+        );
     }
 
     /// Replies lost while an axis runs at full speed (a stall of the slave's host: the
@@ -689,6 +877,66 @@ mod on_a_bus {
             })
         );
         assert_eq!(error(1), None, "the other drive is reachable");
+    }
+
+    /// Axis "a" (drive 0) with its positive limit switch on input 11 of the module at
+    /// position 1 (normally closed) and its reference on input 0.
+    fn module_config() -> Config {
+        let text = "[bus]\nkind = \"ethercat\"\ninterface = \"none\"\ncycle_us = 1000\n\
+             [[axis]]\nname = \"a\"\ndrive = 0\npdo = \"csp-minimal\"\n\
+             homing_required = false\n\
+             scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
+             max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n\
+             [axis.switches]\ntouch_probe = false\n\
+             positive_limit = { from = \"module\", slave = 1, input = 11, normally_closed = true }\n\
+             reference = { from = \"module\", slave = 1, input = 0 }\n";
+        Config::parse(text, "g.toml").unwrap()
+    }
+
+    #[test]
+    fn switches_on_a_module_reach_the_axis_with_their_polarity() {
+        let mut bus = Image::new(2, 6);
+        let mut cycle = Cycle::from_config(&module_config(), &bus).unwrap();
+        bus.inputs[0] = enabled_at(0);
+        let switches = |c: &Cycle| c.kernel.axis_status(0).unwrap().switches;
+        // Input 11 (byte 1, bit 3) high: the closed contact, not actuated; input 0 low.
+        bus.inputs[1] = vec![0, 0b1000, 0, 0, 0, 0];
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        let s = switches(&cycle);
+        assert!(
+            !s.positive_limit && !s.reference && !s.negative_limit,
+            "{s:?}"
+        );
+        // Input 11 drops (actuated), input 0 high.
+        bus.inputs[1] = vec![1, 0, 0, 0, 0, 0];
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        let s = switches(&cycle);
+        assert!(
+            s.positive_limit && s.reference && !s.negative_limit,
+            "{s:?}"
+        );
+        // The module unreachable: its axis stops with the communication fault.
+        bus.faults[1] = Some(Unreachable::new(&"gone"));
+        cycle.read_from(&bus).unwrap();
+        cycle.step();
+        assert_eq!(
+            cycle.kernel.axis_status(0).unwrap().error,
+            Some(AxisFault::Drive {
+                code: COMMUNICATION_FAULT
+            })
+        );
+        // An input the module does not have, a module the bus does not have.
+        let mut short = Image::new(2, 6);
+        short.inputs[1] = vec![0];
+        let e = Cycle::from_config(&module_config(), &short).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "axis \"a\": switches.positive_limit: input 11 of slave 1: the bus has 2 slaves, \
+             slave 1 1 input bytes"
+        );
+        assert!(Cycle::from_config(&module_config(), &Image::new(1, 6)).is_err());
     }
 
     #[test]

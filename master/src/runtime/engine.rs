@@ -12,11 +12,16 @@ use super::bus::{CycleBus, Reply, Restored};
 use super::clock::{now_ns, Clock, CycleClock, Wake};
 use super::cycle::{Cycle, COMMUNICATION_FAULT};
 use super::phase::PhaseLock;
+use super::procedure::{self, DriveProcedure, Running};
 use super::protocol::{
-    DriveStatus, Request, SdoDone, SdoJob, Snapshot, TraceSample, Tracked, TRACE_AXES,
-    TRACKED_COMMANDS,
+    DriveStatus, ProcedureStatus, Request, SdoDone, SdoJob, Snapshot, TraceSample, Tracked,
+    TRACE_AXES, TRACKED_COMMANDS,
 };
+use super::sdo::SdoError;
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
+use gantry_drives::cia402::objects;
+use gantry_drives::cia402::procedure::{ModeSwitch, ProcedureInputs};
+use gantry_drives::cia402::ModeOfOperation;
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
 const REQUESTS_PER_CYCLE: usize = 32;
@@ -172,8 +177,19 @@ pub struct Engine<B: CycleBus> {
     held_before_op: Option<u32>,
     sdo_jobs: rtrb::Consumer<SdoJob>,
     sdo_done: rtrb::Producer<SdoDone>,
-    /// The id of the SDO transfer the bus is carrying.
-    sdo_active: Option<u64>,
+    /// Who the SDO transfer the bus is carrying is for.
+    sdo_active: Option<SdoOwner>,
+    /// Procedures running on the axes' drives (see [`super::procedure`]).
+    procedures: Vec<Option<Running>>,
+}
+
+/// Who an SDO transfer is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SdoOwner {
+    /// The application's job with this id.
+    App(u64),
+    /// The procedure on this axis' drive.
+    Procedure(usize),
 }
 
 /// A restore the bus finished for a reset ([`Engine::last_restore`]).
@@ -257,6 +273,7 @@ impl<B: CycleBus> Engine<B> {
             sdo_jobs: sdo_rx,
             sdo_done: done_tx,
             sdo_active: None,
+            procedures: vec![None; axes],
         };
         let app = AppEnds {
             requests: req_tx,
@@ -342,6 +359,7 @@ impl<B: CycleBus> Engine<B> {
                 let _ = self.cycle.force_fault(axis, OVERRUN_FAULT);
             }
         }
+        self.run_procedures();
         self.cycle.step();
         let _ = self.cycle.write_to(&mut self.bus);
         let t1 = now_ns();
@@ -395,6 +413,14 @@ impl<B: CycleBus> Engine<B> {
                     self.track(entry);
                 }
                 Request::Shutdown => self.begin_shutdown(),
+                Request::Procedure {
+                    id,
+                    axis,
+                    procedure,
+                } => {
+                    let entry = self.start_procedure(id, axis, procedure);
+                    self.track(entry);
+                }
             }
         }
     }
@@ -601,17 +627,40 @@ impl<B: CycleBus> Engine<B> {
         }
     }
 
-    /// Hands the next SDO transfer to the bus when none runs; one the bus refuses at
-    /// once (no such drive, not supported) ends here.
+    /// Hands the next SDO transfer to the bus when none runs — a procedure's first (it
+    /// holds a drive out of CSP while it waits), then the application's; one the bus
+    /// refuses at once (no such drive, not supported) ends here.
     fn start_sdo(&mut self, now_ns: u64) {
         if self.sdo_active.is_some() {
             return;
+        }
+        for axis in 0..self.procedures.len() {
+            let drive = self.cycle.drive_of(axis);
+            let Some(r) = self.procedures.get_mut(axis).and_then(Option::as_mut) else {
+                continue;
+            };
+            let Some(access) = r.wanted.take() else {
+                continue;
+            };
+            match self
+                .bus
+                .start_sdo(&procedure::request(drive, &access), now_ns)
+            {
+                Ok(()) => {
+                    r.active = Some(access);
+                    self.sdo_active = Some(SdoOwner::Procedure(axis));
+                    return;
+                }
+                // Asked again next cycle.
+                Err(SdoError::Busy) => r.wanted = Some(access),
+                Err(e) => r.outcome = Some(procedure::failure(&e)),
+            }
         }
         let Ok(job) = self.sdo_jobs.pop() else {
             return;
         };
         match self.bus.start_sdo(&job.request, now_ns) {
-            Ok(()) => self.sdo_active = Some(job.id),
+            Ok(()) => self.sdo_active = Some(SdoOwner::App(job.id)),
             Err(e) => {
                 // The application gave up on it if its queue is full: dropped.
                 let _ = self.sdo_done.push(SdoDone {
@@ -622,13 +671,121 @@ impl<B: CycleBus> Engine<B> {
         }
     }
 
-    /// Hands a finished SDO transfer's outcome to the application.
+    /// Hands a finished SDO transfer's outcome to the application or the procedure.
     fn finish_sdo(&mut self) {
         let Some(result) = self.bus.take_sdo() else {
             return;
         };
-        if let Some(id) = self.sdo_active.take() {
-            let _ = self.sdo_done.push(SdoDone { id, result });
+        match self.sdo_active.take() {
+            Some(SdoOwner::App(id)) => {
+                let _ = self.sdo_done.push(SdoDone { id, result });
+            }
+            Some(SdoOwner::Procedure(axis)) => {
+                if let Some(r) = self.procedures.get_mut(axis).and_then(Option::as_mut) {
+                    if let Some(access) = r.active.take() {
+                        r.outcome = Some(procedure::outcome(&access, &result));
+                    }
+                }
+            }
+            None => {}
+        }
+    }
+
+    /// Starts `procedure` on `axis`' drive for request `id`: the axis is lent to it.
+    fn start_procedure(&mut self, id: u64, axis: usize, procedure: DriveProcedure) -> Entry {
+        let busy = self.procedures.get(axis).is_some_and(Option::is_some);
+        let lent = if busy {
+            // Still returning a drive to CSP after the last one.
+            Err(CommandError::LentToDrive {
+                command: procedure.name(),
+                procedure: "the return to CSP",
+            })
+        } else {
+            self.cycle
+                .kernel
+                .lend_to_drive(axis, procedure.name(), procedure.homes())
+        };
+        match lent {
+            Ok(h) => {
+                if let Some(slot) = self.procedures.get_mut(axis) {
+                    *slot = Some(Running::new(procedure));
+                }
+                Entry {
+                    id,
+                    handle: Some(h),
+                    status: self.cycle.kernel.command_status(h),
+                }
+            }
+            Err(e) => Entry {
+                id,
+                handle: None,
+                status: CommandStatus::Error(e),
+            },
+        }
+    }
+
+    /// One cycle of every running procedure, on the inputs just read (before the kernel
+    /// steps, so that an ended lending has the kernel take the drive back this cycle).
+    fn run_procedures(&mut self) {
+        let now_s = self.cycle.kernel.time();
+        for axis in 0..self.procedures.len() {
+            let Some(mut r) = self.procedures.get(axis).copied().flatten() else {
+                continue;
+            };
+            let inputs = self.cycle.inputs(axis).copied().unwrap_or_default();
+            let mode_mapped = self.cycle.channel(axis).is_some_and(|c| {
+                c.offsets
+                    .map()
+                    .output_offset(objects::MODES_OF_OPERATION)
+                    .is_some()
+            });
+            let io = ProcedureInputs {
+                statusword: inputs.statusword,
+                mode_display: inputs.mode_display,
+                mode_mapped,
+                position: inputs.position,
+                now_s,
+                sdo: if r.active.is_some() {
+                    None
+                } else {
+                    r.outcome.take()
+                },
+            };
+            if r.active.is_some() {
+                // One access at a time: wait for its outcome (`r` is unchanged).
+                continue;
+            }
+            let keep = if !self.cycle.kernel.is_lent(axis) && r.restore.is_none() && !r.ended {
+                // Power off or a fault ended the lending: the drive is the kernel's again
+                // at once; where 0x6060 is not in the process data it is set back by SDO.
+                let _ = self.cycle.set_procedure_outputs(axis, None);
+                r.ended = true;
+                r.wanted = None;
+                if !mode_mapped {
+                    r.restore = Some(ModeSwitch::to(ModeOfOperation::CyclicSyncPosition));
+                    !r.restore_step(&io)
+                } else {
+                    false
+                }
+            } else if r.ended {
+                !r.restore_step(&io)
+            } else {
+                let cancel = self.cycle.kernel.cancel_requested(axis);
+                let step = r.step(&io, cancel);
+                let _ = self.cycle.set_procedure_outputs(axis, step.outputs);
+                match step.end {
+                    Some(result) => {
+                        let _ = self.cycle.set_procedure_outputs(axis, None);
+                        let outcome = result.map_err(|f| r.procedure.error(f));
+                        self.cycle.kernel.end_drive_procedure(axis, outcome);
+                        false
+                    }
+                    None => true,
+                }
+            };
+            if let Some(slot) = self.procedures.get_mut(axis) {
+                *slot = keep.then_some(r);
+            }
         }
     }
 
@@ -728,16 +885,29 @@ impl<B: CycleBus> Engine<B> {
             if let Some(d) = snap.drives.get_mut(i) {
                 let inputs = self.cycle.inputs(i).copied().unwrap_or_default();
                 let drive = self.cycle.drive_of(i);
-                *d = DriveStatus {
-                    state: inputs.statusword.state(),
-                    statusword: inputs.statusword.0,
-                    // A layout without 0x603F: the code the drive reported by EMCY.
-                    error_code: inputs
-                        .error_code
-                        .or(self.bus.drive_error(drive).map(|e| e.code)),
-                    bus_fault: self.bus.fault(drive).copied(),
-                    can_node: self.bus.can_node(drive),
-                };
+                *d =
+                    DriveStatus {
+                        state: inputs.statusword.state(),
+                        statusword: inputs.statusword.0,
+                        // A layout without 0x603F: the code the drive reported by EMCY.
+                        error_code: inputs
+                            .error_code
+                            .or(self.bus.drive_error(drive).map(|e| e.code)),
+                        bus_fault: self.bus.fault(drive).copied(),
+                        can_node: self.bus.can_node(drive),
+                        procedure: self.procedures.get(i).copied().flatten().map(|r| {
+                            ProcedureStatus {
+                                name: r.procedure.name(),
+                                method: r.procedure.method(),
+                                phase: if r.ended {
+                                    "returning to CSP"
+                                } else {
+                                    r.procedure.phase_name()
+                                },
+                            }
+                        }),
+                        mode_display: inputs.mode_display,
+                    };
             }
         }
         let counters = self.bus.counters();

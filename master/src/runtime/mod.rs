@@ -9,6 +9,7 @@ pub mod cycle;
 pub mod engine;
 pub mod histogram;
 pub mod phase;
+pub mod procedure;
 pub mod protocol;
 pub mod rt;
 pub mod sdo;

@@ -38,6 +38,27 @@ pub enum Request {
     },
     /// Stop moving axes, disable the drives, end the cycle.
     Shutdown,
+    /// Run a procedure on an axis' drive, out of CSP (see [`super::procedure`]); the
+    /// handle follows it (Active until it ends).
+    Procedure {
+        /// Request id.
+        id: u64,
+        /// Axis index.
+        axis: usize,
+        /// The procedure.
+        procedure: super::procedure::DriveProcedure,
+    },
+}
+
+/// A procedure running on a drive, for the status.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ProcedureStatus {
+    /// Its name ("drive homing").
+    pub name: &'static str,
+    /// Its method, where it has one.
+    pub method: Option<i16>,
+    /// What it is doing ("homing").
+    pub phase: &'static str,
 }
 
 /// An SDO transfer for the cycle thread to hand to the bus.
@@ -80,6 +101,10 @@ pub struct DriveStatus {
     pub bus_fault: Option<Unreachable>,
     /// On CANopen: its node as the bus sees it.
     pub can_node: Option<CanNodeStatus>,
+    /// A procedure it runs by itself, out of CSP.
+    pub procedure: Option<ProcedureStatus>,
+    /// 0x6061 Modes of operation display, where mapped.
+    pub mode_display: Option<i8>,
 }
 
 /// Everything the application can see, replaced as a whole every few cycles.

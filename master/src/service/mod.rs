@@ -17,11 +17,14 @@ use thiserror::Error;
 use crate::bus::{AnyBus, BusError};
 use crate::config::{Config, ConfigError};
 use crate::ethercat::link::LinkFactory;
+use crate::persist::{self, Saved, StartPosition, Store};
 use crate::runtime::controller::Controller;
 use crate::runtime::cycle::{Cycle, SetupError};
 use crate::runtime::engine::{AppEnds, Channels, Engine, LateReply};
 use crate::runtime::rt::{self, RtError};
 use crate::runtime::stats::{CycleCounters, CycleFigures};
+use gantry_kernel::axis::command::Command;
+use gantry_kernel::axis::handle::CommandStatus;
 
 /// How `gantry run` was asked to run.
 #[derive(Clone, Debug)]
@@ -61,6 +64,10 @@ pub enum ServiceError {
     /// The cycle thread ended without saying why (it panicked).
     #[error("the cycle thread {0}")]
     CycleThread(&'static str),
+    /// A saved parameter file is damaged, or the state directory is unusable: the
+    /// service does not start on it.
+    #[error("saved axis parameters")]
+    Persist(#[from] crate::persist::PersistError),
     /// The control socket could not be opened.
     #[error("control socket {path}")]
     Socket {
@@ -159,6 +166,128 @@ pub fn spawn_cycle_thread(
         })
 }
 
+/// The state directory's saved parameters of every axis (nothing saved without a state
+/// directory, said on `out`). A damaged file or an unusable directory is an error.
+pub fn open_saved(config: &Config, out: &mut (dyn Write + Send)) -> Result<Saved, ServiceError> {
+    let env = std::env::var_os(persist::STATE_DIRECTORY_ENV);
+    let Some((dir, source)) =
+        persist::state_dir(config.service.state_dir.as_deref(), env.as_deref())
+    else {
+        let _ = writeln!(
+            out,
+            "gantry: no state directory ([service] state_dir, or systemd's \
+             StateDirectory=): homing and PTP parameters and position offsets are not saved"
+        );
+        return Ok(Saved::none(config));
+    };
+    let store = Arc::new(Store::open(&dir)?);
+    let saved = Saved::load(Some(store), config)?;
+    let _ = writeln!(
+        out,
+        "gantry: saved axis parameters in {} (from {})",
+        dir.display(),
+        source.describe()
+    );
+    Ok(saved)
+}
+
+/// Restores each absolute axis' position from its saved offset and marks it homed when
+/// `homed_at_start` says so (SPEC §1), saying what it did on `out`; an absolute axis it
+/// cannot restore is left unhomed with the reason.
+pub fn restore_positions(
+    config: &Config,
+    saved: &Saved,
+    controller: &Controller,
+    out: &mut (dyn Write + Send),
+) {
+    for (i, a) in config.axes.iter().enumerate() {
+        let restored = match saved.start_position(i) {
+            StartPosition::Incremental => continue,
+            StartPosition::NotRestored {
+                reason,
+                homed_at_start,
+            } => {
+                let _ = writeln!(
+                    out,
+                    "gantry: axis {}: position not restored{}: {reason}",
+                    a.name,
+                    if homed_at_start {
+                        ", not homed at start"
+                    } else {
+                        ""
+                    }
+                );
+                continue;
+            }
+            StartPosition::Restore { offset, homed } => {
+                let shift = Command::SetPosition {
+                    position: offset,
+                    relative: true,
+                };
+                let done = |c: Command| {
+                    controller
+                        .command(i, c)
+                        .map_err(|e| e.to_string())
+                        .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()))
+                        .and_then(|s| match s {
+                            CommandStatus::Done => Ok(()),
+                            other => Err(format!("{other:?}")),
+                        })
+                };
+                done(shift)
+                    .and_then(|()| {
+                        if homed {
+                            done(Command::SetHomed(true))
+                        } else {
+                            Ok(())
+                        }
+                    })
+                    .map(|()| (offset, homed))
+            }
+        };
+        let _ = match restored {
+            Ok((offset, homed)) => writeln!(
+                out,
+                "gantry: axis {}: position restored from the saved offset {offset} {}{}",
+                a.name,
+                a.units,
+                if homed {
+                    "; homed (homed_at_start)"
+                } else {
+                    "; not homed (homed_at_start is off)"
+                }
+            ),
+            Err(e) => writeln!(
+                out,
+                "gantry: axis {}: position not restored, not homed: the axis refused: {e}",
+                a.name
+            ),
+        };
+    }
+}
+
+/// Saves the position offsets of absolute axes that changed while homed (a blocking
+/// write, done on a thread of its own so the control socket goes on).
+fn save_offsets(saved: &Arc<Saved>, controller: &Controller) {
+    if !saved.has_absolute() || saved.store().is_none() {
+        return;
+    }
+    let snap = controller.snapshot();
+    for (axis, offset) in saved.offsets_to_save(&snap) {
+        let saved = saved.clone();
+        let name = controller.axes().get(axis).cloned().unwrap_or_default();
+        tokio::task::spawn_blocking(move || {
+            if let Err(e) = saved.save_offset(axis, offset) {
+                let _ = writeln!(
+                    std::io::stdout(),
+                    "gantry: axis {name}: position offset not saved: {}",
+                    crate::error_chain::Chain(&e)
+                );
+            }
+        });
+    }
+}
+
 /// Runs the service until shut down, its bus on `[bus] interface` or on the link `links`
 /// opens (the `gantry` binary hands it its in-process simulator's).
 pub fn run(
@@ -166,7 +295,10 @@ pub fn run(
     links: Arc<dyn LinkFactory>,
     out: &mut (dyn Write + Send),
 ) -> Result<CycleFigures, ServiceError> {
-    let config = Config::load(&args.config)?;
+    let mut config = Config::load(&args.config)?;
+    // The saved parameters first: a damaged file stops the start before the bus moves.
+    let saved = Arc::new(open_saved(&config, out)?);
+    saved.apply_to(&mut config);
     let real_time = !args.no_rt;
     if real_time {
         rt::check(&config.rt, config.bus.interface.is_some())?;
@@ -197,6 +329,7 @@ pub fn run(
     };
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
     let controller = Controller::new(ends, names);
+    restore_positions(&config, &saved, &controller, out);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -232,7 +365,8 @@ pub fn run(
              deploy/gantry.service does)"
         );
     }
-    let state = server::ServerState::new(controller.clone(), config, real_time);
+    let state =
+        server::ServerState::with_saved(controller.clone(), config, real_time, saved.clone());
     runtime.block_on(async {
         let server = tokio::spawn(server::serve(listener, state.clone()));
         let mut sigint = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt()).ok();
@@ -245,6 +379,7 @@ pub fn run(
                 _ = async { match sigterm.as_mut() { Some(s) => { s.recv().await; } None => std::future::pending().await } } => signals += 1,
                 _ = tick.tick() => {
                     state.collect_trace();
+                    save_offsets(&saved, &controller);
                     if controller.snapshot().ended || cycle_thread.is_finished() {
                         break;
                     }

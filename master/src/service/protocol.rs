@@ -126,7 +126,8 @@ macro_rules! word_impls {
 }
 
 /// MoveHome's parameters as a `home` request carries them (`"params": {…}`); each one
-/// left out keeps the axis' last-used value.
+/// left out is the axis' saved value (the last call's; the service keeps the whole set in
+/// the axis' parameter file, `persist`, so it holds across restarts).
 #[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct HomeParams {
@@ -163,6 +164,34 @@ pub struct HomeParams {
     /// Where the axis goes after homing (units).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal_position: Option<f64>,
+}
+
+/// Drive homing's parameters as a `drive_home` request carries them (`"params": {…}`);
+/// each one left out is the axis' `[axis.drive_homing]` value.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DriveHomeParams {
+    /// CiA 402 homing method (0x6098).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<i8>,
+    /// Speed during search for switch (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_switch: Option<f64>,
+    /// Speed during search for zero (units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_zero: Option<f64>,
+    /// Homing acceleration (units/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Home offset (units; the home position reads as minus this).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub home_offset: Option<f64>,
+    /// How long the drive may take to report homing attained (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timeout_s: Option<f64>,
+    /// Skip the drive's homing run (an absolute drive): homed where it stands.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skip: Option<bool>,
 }
 
 /// How a move's `to` is meant. What `absolute` means depends on the axis: on a modulo axis
@@ -392,13 +421,22 @@ pub enum Request {
         position: f64,
     },
     /// A homing run (Jetter MoveHome) on the axis' switches and its drive's touch probe;
-    /// every parameter left out keeps the axis' last-used one.
+    /// every parameter left out is the axis' saved one (see [`HomeParams`]).
     Home {
         /// Axis name.
         axis: String,
         /// The run's parameters.
         #[serde(default)]
         params: HomeParams,
+    },
+    /// Homing done by the axis' drive itself (CiA 402 homing mode), then back in CSP;
+    /// every parameter left out is the axis' `[axis.drive_homing]` one.
+    DriveHome {
+        /// Axis name.
+        axis: String,
+        /// The parameters.
+        #[serde(default)]
+        params: DriveHomeParams,
     },
     /// Leave ErrorStop: the slave back to OP if needed, the drive's fault reset.
     Reset {
@@ -480,6 +518,7 @@ impl Request {
             Self::SetPosition { .. } => "set_position",
             Self::Reset { .. } => "reset",
             Self::Home { .. } => "home",
+            Self::DriveHome { .. } => "drive_home",
             Self::Command { .. } => "command",
             Self::Wait { .. } => "wait",
             Self::Trace { .. } => "trace",
@@ -501,6 +540,7 @@ impl Request {
             | Self::Release { axis }
             | Self::SetPosition { axis, .. }
             | Self::Home { axis, .. }
+            | Self::DriveHome { axis, .. }
             | Self::Reset { axis } => Some(axis),
             Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
@@ -656,6 +696,18 @@ mod tests {
                     normal_position: Some(5.0),
                 },
             },
+            Request::DriveHome {
+                axis: axis(),
+                params: DriveHomeParams {
+                    method: Some(19),
+                    speed_switch: Some(20.0),
+                    speed_zero: Some(2.0),
+                    acceleration: Some(200.0),
+                    home_offset: Some(-1.5),
+                    timeout_s: Some(30.0),
+                    skip: Some(false),
+                },
+            },
             Request::Shutdown,
         ]
     }
@@ -683,11 +735,12 @@ mod tests {
             Request::Sdo { .. } => 14,
             Request::Object { .. } => 15,
             Request::Home { .. } => 16,
+            Request::DriveHome { .. } => 17,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..17).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..18).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 17, "{words:?}");
+        assert_eq!(words.len(), 18, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

@@ -22,14 +22,17 @@ use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
-    self, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request, SdoDirection,
-    MAX_LINE,
+    self, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection, MoveMode, Request,
+    SdoDirection, MAX_LINE,
 };
-use crate::config::Config;
+use crate::config::{Config, DriveHomingSection};
 use crate::error_chain::Chain;
+use crate::persist::{PersistError, PtpParams, Saved};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
+use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::protocol::{Snapshot, TraceSample};
 use crate::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_DATA, SDO_TIMEOUT_NS};
+use gantry_drives::cia402::homing::{DriveHoming, DriveHomingParams};
 use gantry_kernel::homing::{HomingMode, MoveHomeCall, SwitchConfig};
 
 /// Trace samples kept for `trace` requests (60 s at 1 kHz).
@@ -47,11 +50,24 @@ pub struct ServerState {
     handles: Mutex<Vec<CommandHandle>>,
     /// Set when the service ends: recordings in progress answer with what they have.
     ending: tokio::sync::watch::Sender<bool>,
+    /// Each axis' saved parameters (homing, PTP, position and commutation offsets).
+    pub saved: Arc<Saved>,
 }
 
 impl ServerState {
-    /// Shared state for a server.
+    /// Shared state for a server that saves nothing.
     pub fn new(controller: Controller, config: Config, real_time: bool) -> Arc<Self> {
+        let saved = Arc::new(Saved::none(&config));
+        Self::with_saved(controller, config, real_time, saved)
+    }
+
+    /// Shared state for a server that saves the axes' parameters in `saved`.
+    pub fn with_saved(
+        controller: Controller,
+        config: Config,
+        real_time: bool,
+        saved: Arc<Saved>,
+    ) -> Arc<Self> {
         Arc::new(Self {
             controller,
             config,
@@ -59,6 +75,7 @@ impl ServerState {
             trace: Mutex::new(VecDeque::with_capacity(TRACE_KEEP)),
             handles: Mutex::new(Vec::new()),
             ending: tokio::sync::watch::Sender::new(false),
+            saved,
         })
     }
 
@@ -202,6 +219,14 @@ pub enum Refused {
     /// disagree: a bug).
     #[error("axis {0:?} has no configuration")]
     NoConfig(String),
+    /// A drive homing parameter is missing or wrong.
+    #[error("{key}: {reason}")]
+    DriveHoming {
+        /// The parameter (as the configuration names it).
+        key: String,
+        /// Why.
+        reason: String,
+    },
     /// No such handle.
     #[error("no handle {0} (handles are per service run)")]
     NoHandle(u64),
@@ -414,11 +439,27 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
                 }
             };
             let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer.into());
-            m.speed = speed;
-            m.acceleration = acceleration;
-            m.deceleration = deceleration;
-            m.jerk = jerk;
-            sent(ctl.command(i, Command::MovePtp(m)))
+            // What the move leaves out: the saved dynamics of the last moves (Jetter's
+            // rule, across restarts), then the axis' own.
+            let given = PtpParams {
+                speed,
+                acceleration,
+                deceleration,
+                jerk,
+            };
+            let used = state.saved.ptp_used(i, given);
+            m.speed = used.speed;
+            m.acceleration = used.acceleration;
+            m.deceleration = used.deceleration;
+            m.jerk = used.jerk;
+            let h = ctl.command(i, Command::MovePtp(m))?;
+            if given != PtpParams::default() {
+                let saved = state.saved.clone();
+                save_if_accepted(h.clone(), a, "point-to-point parameters", move || {
+                    saved.ptp_accepted(i, used)
+                });
+            }
+            sent(Ok(h))
         }
         Request::Jog {
             axis: a,
@@ -460,8 +501,32 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
         )),
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
         // The kernel checks every operand (finite, > 0 where it must be) and says which.
+        // What the call leaves out are the saved parameters (seed 000 §6.3.2, across
+        // restarts); a call that gives some saves the whole set once the axis took it.
         Request::Home { axis: a, params } => {
-            sent(ctl.command(axis(&a)?, Command::MoveHome(params.into())))
+            let i = axis(&a)?;
+            let call = MoveHomeCall::from(params);
+            let Some(run) = state.saved.home_run(i, &call) else {
+                return sent(ctl.command(i, Command::MoveHome(call)));
+            };
+            let h = ctl.command(i, Command::MoveHome(MoveHomeCall::all(run)))?;
+            if params != HomeParams::default() {
+                let saved = state.saved.clone();
+                save_if_accepted(h.clone(), a, "homing parameters", move || {
+                    saved.home_accepted(i, run)
+                });
+            }
+            sent(Ok(h))
+        }
+        Request::DriveHome { axis: a, params } => {
+            let i = axis(&a)?;
+            let cfg = state
+                .config
+                .axes
+                .get(i)
+                .ok_or(Refused::NoConfig(a.clone()))?;
+            let params = drive_home_params(cfg, &params)?;
+            sent(ctl.drive_procedure(i, DriveProcedure::Homing(DriveHoming::new(params))))
         }
         Request::Sdo {
             axis: a,
@@ -535,6 +600,52 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
     }
 }
 
+/// The axis' `[axis.drive_homing]` with the request's values in place of its own, in the
+/// drive's counts; what is missing or wrong is refused by its key.
+fn drive_home_params(
+    cfg: &crate::config::AxisSection,
+    p: &DriveHomeParams,
+) -> Result<DriveHomingParams, Refused> {
+    let base = cfg.drive_homing;
+    let missing = |key: &'static str| Refused::DriveHoming {
+        key: key.into(),
+        reason: format!(
+            "not given, and axis {:?} has no [axis.drive_homing] to take it from",
+            cfg.name
+        ),
+    };
+    let section = DriveHomingSection {
+        method: p
+            .method
+            .or(base.map(|b| b.method))
+            .ok_or_else(|| missing("method"))?,
+        speed_switch: p
+            .speed_switch
+            .or(base.map(|b| b.speed_switch))
+            .ok_or_else(|| missing("speed_switch"))?,
+        speed_zero: p
+            .speed_zero
+            .or(base.map(|b| b.speed_zero))
+            .ok_or_else(|| missing("speed_zero"))?,
+        acceleration: p
+            .acceleration
+            .or(base.map(|b| b.acceleration))
+            .ok_or_else(|| missing("acceleration"))?,
+        home_offset: p.home_offset.or(base.map(|b| b.home_offset)).unwrap_or(0.0),
+        timeout: p
+            .timeout_s
+            .or(base.map(|b| b.timeout))
+            .unwrap_or(crate::config::DRIVE_HOMING_TIMEOUT_S),
+        skip: p.skip.or(base.map(|b| b.skip)).unwrap_or(false),
+    };
+    let scaling = cfg
+        .scaling()
+        .map_err(|(key, reason)| Refused::DriveHoming { key, reason })?;
+    section
+        .params(&scaling, cfg.max.speed)
+        .map_err(|(key, reason)| Refused::DriveHoming { key, reason })
+}
+
 impl From<protocol::BufferMode> for BufferMode {
     fn from(b: protocol::BufferMode) -> Self {
         match b {
@@ -597,6 +708,60 @@ impl From<HomeParams> for MoveHomeCall {
     }
 }
 
+/// Once the cycle has taken command `h` for axis `axis`: unless the axis refused it (its
+/// parameters are then not the axis' and must not be saved), runs `save` — a blocking
+/// file write — off the runtime's threads; a failure is reported on the service's
+/// output (the command itself goes on).
+fn save_if_accepted(
+    h: CommandHandle,
+    axis: String,
+    what: &'static str,
+    save: impl FnOnce() -> Result<Option<PathBuf>, PersistError> + Send + 'static,
+) {
+    tokio::spawn(async move {
+        let end = tokio::time::Instant::now() + Duration::from_secs(10);
+        let status = loop {
+            if let Some(s) = h.status() {
+                break s;
+            }
+            if tokio::time::Instant::now() >= end {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        };
+        match status {
+            CommandStatus::Error(e) if !failed_after_start(&e) => return,
+            CommandStatus::Expired => return,
+            _ => {}
+        }
+        match tokio::task::spawn_blocking(save).await {
+            Ok(Ok(_)) => {}
+            Ok(Err(e)) => {
+                use std::io::Write;
+                let _ = writeln!(
+                    std::io::stdout(),
+                    "gantry: axis {axis}: {what} not saved: {}",
+                    Chain(&e)
+                );
+            }
+            Err(_) => {}
+        }
+    });
+}
+
+/// Whether a command's error came after the axis took it (its parameters were then the
+/// axis', and are saved): the run failed — a homing search, a limit switch, a fault, the
+/// target not reached — as opposed to the command being refused at once.
+fn failed_after_start(e: &CommandError) -> bool {
+    matches!(
+        e,
+        CommandError::Homing(_)
+            | CommandError::LimitSwitch { .. }
+            | CommandError::AxisFault { .. }
+            | CommandError::TargetNotReached { .. }
+    )
+}
+
 fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
     state
         .handles
@@ -622,6 +787,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "state": s.state.name(),
                 "position": s.actual_position,
                 "set_position": s.set.p,
+                "position_offset": s.position_offset,
                 "velocity": s.set.v,
                 "homed": s.bits.homed,
                 "moving": s.bits.moving,
@@ -653,6 +819,12 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 "statusword": format!("{:#06x}", d.statusword),
                 "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),
                 "bus_fault": d.bus_fault.map(|f| f.to_string()),
+                "mode": d.mode_display,
+                "procedure": d.procedure.map(|p| json!({
+                    "name": p.name,
+                    "method": p.method,
+                    "phase": p.phase,
+                })),
                 "canopen": d.can_node.map(|n| json!({
                     "node": n.node,
                     "nmt": n.nmt,
@@ -668,6 +840,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         "time_s": snap.time_s,
         "cycles": snap.cycle,
         "real_time": state.real_time,
+        "state_dir": state.saved.store().map(|s| s.dir().display().to_string()),
         "ended": snap.ended,
         "overrun_stop": snap.overrun_stop,
         "axes": axes,

@@ -150,6 +150,8 @@ pub fn profile_object(kind: DeviceKind, index: u16, sub: u8) -> Option<(&'static
             ("Number of polarity 8-bit groups", DataType::U8)
         }
         (DeviceKind::Switches, POLARITY_INPUT_8, 1) => ("Polarity input 8-bit", DataType::U8),
+        // CiA 402-2 0x6099 Homing speeds: an ARRAY, sub 0 its highest sub-index.
+        (DeviceKind::Servo, 0x6099, 0) => ("Highest sub-index supported", DataType::U8),
         _ => return None,
     })
 }
@@ -159,6 +161,7 @@ pub fn profile_array(kind: DeviceKind, index: u16) -> Option<&'static str> {
     match (kind, index) {
         (DeviceKind::Switches, 0x6000) => Some("Read input 8-bit"),
         (DeviceKind::Switches, POLARITY_INPUT_8) => Some("Polarity input 8-bit"),
+        (DeviceKind::Servo, 0x6099) => Some("Homing speeds"),
         _ => None,
     }
 }

@@ -22,6 +22,7 @@
 //! | 0x1400–0x1403, 0x1600–0x1603 | rw | RPDO communication / mapping ([`super::pdo`]) |
 //! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping |
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
+//! | 0x2F00 | ro | recorder: a manufacturer DOMAIN of `recorder_bytes` (chain file; absent when 0) whose byte `i` is [`recorder_byte`]`(i)`, for large SDO uploads (segmented, block) |
 //! | 0x6007 | rw | abort connection option code (CiA 402-2): 0 none, 1 fault |
 //! | 0x6000… | | the device's objects (`CanDevice::install_objects`) and every mappable one |
 
@@ -77,6 +78,22 @@ pub const ERROR_BEHAVIOUR: u16 = 0x1029;
 /// (time, not count); a count in a row is what EtherCAT drives configure (ETG.1020 0x10F1:02
 /// "sync error counter limit"), so the CANopen drive is judged like the EtherCAT one.
 pub const MISSED_SETPOINT_LIMIT: u16 = 0x2010;
+/// Manufacturer-specific 0x2F00: the recorder, a read-only DOMAIN (CiA 301 §7.4.7.1
+/// data type 0x000F: any length, uploaded segmented or by block, never expedited unless
+/// 4 bytes or less) whose content is known ([`recorder_byte`]) so a client's upload can be
+/// checked byte for byte. Present only with a length (chain file `recorder_bytes`).
+pub const RECORDER: u16 = 0x2F00;
+/// Largest recorder (bytes): a 64 KiB trace is what the SDO benchmark moves; 1 MiB
+/// leaves room without letting a chain file ask for gigabytes.
+pub const RECORDER_MAX_BYTES: usize = 1 << 20;
+
+/// Byte `i` of the recorder 0x2F00: the top byte of a multiplicative hash of `i`
+/// (Knuth's 2654435761), so that no 256-byte period hides a segment delivered in the
+/// wrong place. Python: `((i * 2654435761) & 0xFFFFFFFF) >> 24`.
+pub const fn recorder_byte(i: usize) -> u8 {
+    ((i as u32).wrapping_mul(2_654_435_761) >> 24) as u8
+}
+
 /// CiA 402-2 0x6007 abort connection option code.
 pub const ABORT_CONNECTION_OPTION_CODE: u16 = 0x6007;
 /// Power-on value of 0x2010.
@@ -212,6 +229,8 @@ pub struct NodeDictionary {
     pub tx_image: [u8; IMAGE_BYTES],
     /// What the last SDO writes changed (the node takes and clears it).
     pub changed: Changed,
+    /// 0x2F00's content (empty: no recorder).
+    recorder: Box<[u8]>,
 }
 
 fn od_abort(e: OdError) -> AbortCode {
@@ -224,6 +243,7 @@ fn od_abort(e: OdError) -> AbortCode {
         OdError::NotMappable => AbortCode::NOT_MAPPABLE,
         OdError::PdoTooLong => AbortCode::PDO_LENGTH_EXCEEDED,
         OdError::ValueRange => AbortCode::INVALID_VALUE,
+        OdError::ValueTooHigh => AbortCode::VALUE_TOO_HIGH,
     }
 }
 
@@ -309,11 +329,23 @@ impl NodeDictionary {
             rx_image: [0; IMAGE_BYTES],
             tx_image: [0; IMAGE_BYTES],
             changed: Changed::default(),
+            recorder: Box::default(),
         };
         d.refresh_objects();
         d.od_power_on = d.od.clone();
         d.sync_rx_image();
         d
+    }
+
+    /// Gives the node the recorder 0x2F00 of `bytes` bytes ([`recorder_byte`]; 0: none).
+    /// Allocates: call it before the node runs.
+    pub fn set_recorder(&mut self, bytes: usize) {
+        self.recorder = (0..bytes).map(recorder_byte).collect();
+    }
+
+    /// Bytes of the recorder 0x2F00 (0: the node has none).
+    pub fn recorder_len(&self) -> usize {
+        self.recorder.len()
     }
 
     /// The device's profile objects (0x6000…): index, sub-index, in the order installed.
@@ -484,6 +516,12 @@ impl NodeDictionary {
 
 impl SdoDictionary for NodeDictionary {
     fn entry(&self, mux: Multiplexer) -> Result<EntryInfo, AbortCode> {
+        if mux.index == RECORDER && !self.recorder.is_empty() {
+            return match mux.sub {
+                0 => Ok(fixed(Access::ReadOnly, self.recorder.len())),
+                _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
+            };
+        }
         if mux.index < 0x2000 || mux.index == MISSED_SETPOINT_LIMIT {
             return self.comm_entry(mux);
         }
@@ -535,6 +573,7 @@ impl SdoDictionary for NodeDictionary {
             (ERROR_BEHAVIOUR, 1) => put(out, &[self.comm.error_behaviour]),
             (SYNC_COUNTER_OVERFLOW, 0) => put(out, &[self.comm.sync_overflow]),
             (MISSED_SETPOINT_LIMIT, 0) => put(out, &self.missed_setpoint_limit.to_le_bytes()),
+            (RECORDER, 0) if !self.recorder.is_empty() => put(out, &self.recorder),
             (index, sub) if index < 0x2000 => {
                 let (dir, n, mapping) = pdo_of(index).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
                 let p = self.pdo(dir, n)?;

@@ -92,8 +92,11 @@ pub struct CanNodeConfig {
     pub start_counts: i32,
     /// SDO server timing and block size.
     pub sdo: SdoConfig,
-    /// Largest object served segmented or by block (bytes).
+    /// Largest object served segmented or by block (bytes); at least the recorder's.
     pub sdo_buffer: usize,
+    /// Bytes of the recorder DOMAIN 0x2F00 (0: none; see
+    /// [`super::dictionary::RECORDER`]).
+    pub recorder_bytes: usize,
     /// The SYNC watchdog's margin (periods of 0x1006; at least 1).
     pub sync_timeout_periods: f64,
 }
@@ -116,6 +119,7 @@ impl CanNodeConfig {
             start_counts: 0,
             sdo: SdoConfig::default(),
             sdo_buffer: 1024,
+            recorder_bytes: 0,
             sync_timeout_periods: SYNC_TIMEOUT_PERIODS,
         }
     }
@@ -129,6 +133,11 @@ impl CanNodeConfig {
             params: servo.params(),
             start_counts: servo.start_position,
             sync_timeout_periods: servo.sync_timeout_periods,
+            recorder_bytes: servo.recorder_bytes as usize,
+            sdo: SdoConfig {
+                timeout_ns: u64::from(servo.sdo_timeout_ms) * 1_000_000,
+                ..SdoConfig::default()
+            },
             ..Self::servo(node)
         }
     }
@@ -267,6 +276,18 @@ pub enum CanNodeError {
         /// The margin given.
         periods: f64,
     },
+    /// A recorder larger than the simulator holds.
+    #[error(
+        "CANopen node {node}: recorder_bytes = {bytes}: the recorder 0x2F00 holds at most \
+         {max} bytes",
+        max = super::dictionary::RECORDER_MAX_BYTES
+    )]
+    Recorder {
+        /// The node.
+        node: NodeId,
+        /// The size asked for.
+        bytes: usize,
+    },
     /// The servo's parameters.
     #[error("CANopen node {node}: servo parameters: {source}")]
     Params {
@@ -399,12 +420,16 @@ impl CanNode {
             .params
             .check()
             .map_err(|source| CanNodeError::Params { node, source })?;
-        let sdo = SdoServer::new(
-            node,
-            config.sdo,
-            vec![0u8; config.sdo_buffer].into_boxed_slice(),
-        )
-        .map_err(|source| CanNodeError::Sdo { node, source })?;
+        if config.recorder_bytes > super::dictionary::RECORDER_MAX_BYTES {
+            return Err(CanNodeError::Recorder {
+                node,
+                bytes: config.recorder_bytes,
+            });
+        }
+        // The SDO server holds an object whole: the recorder must fit.
+        let sdo_buffer = config.sdo_buffer.max(config.recorder_bytes);
+        let sdo = SdoServer::new(node, config.sdo, vec![0u8; sdo_buffer].into_boxed_slice())
+            .map_err(|source| CanNodeError::Sdo { node, source })?;
         let device = match config.device {
             CanDeviceConfig::Servo => CanDevice::Servo(ServoDrive::with_params(
                 0,
@@ -424,11 +449,13 @@ impl CanNode {
                 )
             }
         };
+        let mut dict = NodeDictionary::new(node, config.identity, config.heartbeat_ms, device);
+        dict.set_recorder(config.recorder_bytes);
         Ok(Self {
             node,
             nmt: NmtSlaveState::Initialisation,
             sdo,
-            dict: NodeDictionary::new(node, config.identity, config.heartbeat_ms, device),
+            dict,
             out: Outbox::new(),
             rpdo: [PdoRun::default(); PDO_COUNT],
             tpdo: [PdoRun::default(); PDO_COUNT],

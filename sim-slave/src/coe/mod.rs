@@ -43,6 +43,8 @@ pub mod abort {
     pub const DEVICE_STATE: u32 = 0x0800_0022;
     /// Value range of parameter exceeded (download only).
     pub const VALUE_RANGE: u32 = 0x0609_0030;
+    /// Value of parameter written too high (download only).
+    pub const VALUE_TOO_HIGH: u32 = 0x0609_0031;
 }
 
 fn abort_code(e: OdError) -> u32 {
@@ -55,6 +57,7 @@ fn abort_code(e: OdError) -> u32 {
         OdError::NotMappable => abort::NOT_MAPPABLE,
         OdError::PdoTooLong => abort::PDO_TOO_LONG,
         OdError::ValueRange => abort::VALUE_RANGE,
+        OdError::ValueTooHigh => abort::VALUE_TOO_HIGH,
     }
 }
 

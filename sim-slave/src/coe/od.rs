@@ -14,6 +14,10 @@ pub fn servo_pdo_rules() -> PdoRules {
         outputs: image::OUTPUT_OBJECTS.to_vec(),
         inputs: image::INPUT_OBJECTS.to_vec(),
         max_entries: 10,
+        // 0x1600–0x1603 / 0x1A00–0x1A03, as CiA 402 drives commonly offer.
+        pdos: 4,
+        // The servo's process data buffer each way.
+        max_bytes: 64,
     }
 }
 
@@ -31,6 +35,13 @@ pub struct Entry {
     /// The values a download may write (inclusive, as a signed or unsigned integer of
     /// the entry's size); `None`: any.
     pub range: Option<(i64, i64)>,
+    /// Within the range, only these values (an enumeration with gaps, e.g. 0x60D0's
+    /// sources); `None`: the whole range.
+    pub allowed: Option<&'static [i64]>,
+    /// One-byte entries whose valid values depend on the device's configuration (0x6060
+    /// modes it has, 0x6098 methods, less those a fault knob refuses): bit `v as u8` set
+    /// for each value a download may write.
+    pub allowed_bytes: Option<[u64; 4]>,
 }
 
 /// An object dictionary.
@@ -63,6 +74,9 @@ pub enum OdError {
     PdoTooLong,
     /// The value is outside the object's range (abort 0x06090030).
     ValueRange,
+    /// The value is above the object's maximum (abort 0x06090031): more PDOs assigned
+    /// than the device has.
+    ValueTooHigh,
 }
 
 impl ObjectDictionary {
@@ -83,6 +97,8 @@ impl ObjectDictionary {
                 value: value.to_vec(),
                 writable,
                 range: None,
+                allowed: None,
+                allowed_bytes: None,
             }),
         }
     }
@@ -97,6 +113,51 @@ impl ObjectDictionary {
             .find(|e| e.index == index && e.sub == sub)
         {
             e.range = Some((min, max));
+        }
+    }
+
+    /// Adds or replaces a one-byte entry that downloads may only set to the values in
+    /// `allowed` (each value `v` as bit `v as u8`; CiA 301 §7.2.4.3.17: abort 0x06090030
+    /// otherwise); its range (for the EDS) spans them as signed values.
+    pub fn insert_set(&mut self, index: u16, sub: u8, value: u8, allowed: [u64; 4]) {
+        self.insert(index, sub, &[value], true);
+        let values = (i8::MIN..=i8::MAX).filter(|v| {
+            let i = (*v as u8) as usize;
+            allowed
+                .get(i / 64)
+                .is_some_and(|w| w & (1 << (i % 64)) != 0)
+        });
+        let (lo, hi) = values.fold((i64::MAX, i64::MIN), |(lo, hi), v| {
+            (lo.min(i64::from(v)), hi.max(i64::from(v)))
+        });
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.range = (lo <= hi).then_some((lo, hi));
+            e.allowed_bytes = Some(allowed);
+        }
+    }
+
+    /// Adds or replaces an entry that downloads may only set to one of `allowed` (abort
+    /// 0x06090030 otherwise, as for a range).
+    pub fn insert_enumerated(
+        &mut self,
+        index: u16,
+        sub: u8,
+        value: &[u8],
+        allowed: &'static [i64],
+    ) {
+        let min = allowed.iter().copied().min().unwrap_or(0);
+        let max = allowed.iter().copied().max().unwrap_or(0);
+        self.insert_ranged(index, sub, value, min, max);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.index == index && e.sub == sub)
+        {
+            e.allowed = Some(allowed);
         }
     }
 
@@ -213,7 +274,13 @@ impl ObjectDictionary {
             } else {
                 raw
             };
-            if v < min || v > max {
+            if v < min || v > max || e.allowed.is_some_and(|a| !a.contains(&v)) {
+                return Err(OdError::ValueRange);
+            }
+        }
+        if let (Some(allowed), [b]) = (e.allowed_bytes, value) {
+            let i = usize::from(*b);
+            if allowed.get(i / 64).is_none_or(|w| w & (1 << (i % 64)) == 0) {
                 return Err(OdError::ValueRange);
             }
         }

@@ -1,8 +1,11 @@
 //! The PDO mapping (0x1600…, 0x1A00…) and assignment (0x1C12, 0x1C13) objects with the
-//! rules a real device enforces (CiA 301 §7.5.2, ETG.1000.6): writable only in PreOp; a
-//! mapping's entries only while its count (sub 0) is 0; only mappable objects, in the
-//! right direction; no more than the device's maximum. The master's downloads pass
-//! through [`check`]; at PreOp → SafeOp the device reads the result with [`layout`].
+//! rules a real device enforces (CiA 301 §7.5.2, ETG.1000.6 §5.6.7.4): writable only in
+//! PreOp; a mapping's entries only while its count (sub 0) is 0, an assignment's only
+//! while its count is 0; only mappable objects, in the right direction; no more entries
+//! per PDO and no more PDOs per SyncManager than the device has; each assigned PDO one of
+//! the device's mapping objects of that direction, at most once. The master's downloads
+//! pass through [`check`]; at PreOp → SafeOp the device reads the result with [`layout`]
+//! (the assigned PDOs one after the other) and the SyncManagers' lengths must be its size.
 
 use gantry_drives::cia402::objects::{lookup, ObjectId};
 use gantry_drives::cia402::pdo::{
@@ -21,6 +24,29 @@ pub struct PdoRules {
     pub inputs: Vec<ObjectId>,
     /// Most entries one mapping object holds.
     pub max_entries: u8,
+    /// Mapping objects per direction (0x1600… and 0x1A00…), hence also the most PDOs one
+    /// SyncManager's assignment (0x1C12 / 0x1C13) takes.
+    pub pdos: u8,
+    /// Most bytes of process data per direction (the device's SyncManager buffer):
+    /// more is refused at PreOp → SafeOp (AL status 0x001D / 0x001E).
+    pub max_bytes: usize,
+}
+
+/// The mapping objects `rules` gives the assignment `assign`.
+fn mappings_of(rules: &PdoRules, assign: u16) -> core::ops::Range<u16> {
+    let first = if assign == SM2_PDO_ASSIGNMENT {
+        RXPDO_MAPPING
+    } else {
+        TXPDO_MAPPING
+    };
+    first..first + u16::from(rules.pdos)
+}
+
+fn le_u16(v: &[u8]) -> u16 {
+    u16::from_le_bytes([
+        v.first().copied().unwrap_or(0),
+        v.get(1).copied().unwrap_or(0),
+    ])
 }
 
 /// Whether `index` is a mapping or assignment object.
@@ -46,28 +72,35 @@ pub fn check(
     let is_rx = matches!(index, 0x1600..=0x17FF);
     let is_tx = matches!(index, 0x1A00..=0x1BFF);
     if !(is_rx || is_tx) {
-        // Assignment: entries while the count is 0, and only mapping objects that exist.
+        let allowed = mappings_of(rules, index);
         if sub == 0 {
+            // ETG.1000.6 Table 73/74: sub 0 is the number of assigned PDOs; each one a
+            // mapping object of this direction the device has, none twice.
             let n = value.first().copied().unwrap_or(0);
-            return if (1..=n).all(|s| od.read(index, s).is_ok()) {
-                Ok(())
-            } else {
-                Err(OdError::NotMappable)
-            };
+            if n > rules.pdos {
+                return Err(OdError::ValueTooHigh);
+            }
+            let mut seen: u64 = 0;
+            for s in 1..=n {
+                let mapping = le_u16(od.read(index, s)?);
+                let bit = 1u64 << (mapping.wrapping_sub(allowed.start) % 64);
+                if !allowed.contains(&mapping) || seen & bit != 0 {
+                    return Err(OdError::NotMappable);
+                }
+                seen |= bit;
+            }
+            return Ok(());
         }
+        // Entries only while the assignment is off (count 0), as the mappings.
         if count != Some(0) {
             return Err(OdError::WrongState);
         }
-        let mapping = u16::from_le_bytes([
-            value.first().copied().unwrap_or(0),
-            value.get(1).copied().unwrap_or(0),
-        ]);
-        let expected = if index == SM2_PDO_ASSIGNMENT {
-            0x1600..=0x17FF
-        } else {
-            0x1A00..=0x1BFF
-        };
-        return if expected.contains(&mapping) && od.read(mapping, 0).is_ok() {
+        if sub > rules.pdos {
+            return Err(OdError::NoSubIndex);
+        }
+        // 0 clears an entry; it may not be counted (checked at sub 0).
+        let mapping = le_u16(value);
+        return if mapping == 0 || (allowed.contains(&mapping) && od.read(mapping, 0).is_ok()) {
             Ok(())
         } else {
             Err(OdError::NotMappable)
@@ -120,10 +153,7 @@ pub fn layout(od: &ObjectDictionary, rules: &PdoRules) -> Result<PdoLayout, OdEr
         let n = od.read(assign, 0)?.first().copied().unwrap_or(0);
         for s in 1..=n {
             let v = od.read(assign, s)?;
-            let mapping = u16::from_le_bytes([
-                v.first().copied().unwrap_or(0),
-                v.get(1).copied().unwrap_or(0),
-            ]);
+            let mapping = le_u16(v);
             let count = od.read(mapping, 0)?.first().copied().unwrap_or(0);
             for e in 1..=count {
                 let o = mappable(rules, output, od.read(mapping, e)?)?;
@@ -138,21 +168,30 @@ pub fn layout(od: &ObjectDictionary, rules: &PdoRules) -> Result<PdoLayout, OdEr
     })
 }
 
-/// Puts `layout` into the dictionary as the power-up mapping (entry 1…n of 0x1600 and
-/// 0x1A00, with spare sub-indices up to `max_entries` for the master to fill).
+/// Puts `layout` into the dictionary as the power-up mapping: entries 1…n of 0x1600 and
+/// 0x1A00, assigned alone; every mapping object of `rules` (0x1600… and 0x1A00…, empty
+/// past the first) with spare sub-indices up to `max_entries`, and the assignments'
+/// sub-indices up to `pdos`, for the master to fill.
 pub fn install(od: &mut ObjectDictionary, rules: &PdoRules, layout: &PdoLayout) {
-    for (assign, mapping, objs) in [
-        (SM2_PDO_ASSIGNMENT, RXPDO_MAPPING, &layout.outputs),
-        (SM3_PDO_ASSIGNMENT, TXPDO_MAPPING, &layout.inputs),
+    for (assign, objs) in [
+        (SM2_PDO_ASSIGNMENT, &layout.outputs),
+        (SM3_PDO_ASSIGNMENT, &layout.inputs),
     ] {
+        let mappings = mappings_of(rules, assign);
         od.insert(assign, 0, &[1], true);
-        od.insert(assign, 1, &mapping.to_le_bytes(), true);
-        od.insert(mapping, 0, &[objs.len() as u8], true);
-        for s in 1..=rules.max_entries {
-            let entry = objs
-                .get(usize::from(s) - 1)
-                .map_or(0, gantry_drives::cia402::pdo::mapping_entry);
-            od.insert(mapping, s, &entry.to_le_bytes(), true);
+        for (s, mapping) in (1..=rules.pdos).zip(mappings.clone()) {
+            let assigned = if s == 1 { mapping } else { 0 };
+            od.insert(assign, s, &assigned.to_le_bytes(), true);
+        }
+        for mapping in mappings.clone() {
+            let objs: &[ObjectId] = if mapping == mappings.start { objs } else { &[] };
+            od.insert(mapping, 0, &[objs.len() as u8], true);
+            for s in 1..=rules.max_entries {
+                let entry = objs
+                    .get(usize::from(s) - 1)
+                    .map_or(0, gantry_drives::cia402::pdo::mapping_entry);
+                od.insert(mapping, s, &entry.to_le_bytes(), true);
+            }
         }
     }
 }
@@ -213,5 +252,80 @@ mod tests {
         // Outside PreOp nothing changes.
         od.set_pre_op(false);
         assert_eq!(write(&mut od, 0x1C12, 0, &[1]), Err(OdError::WrongState));
+    }
+
+    /// A layout past [`gantry_drives::cia402::pdo::ENTRIES_PER_PDO`] inputs goes into
+    /// 0x1A00 and 0x1A01, both assigned to SM3; the device reads them back in order.
+    #[test]
+    fn a_second_pdo_is_mapped_and_assigned() {
+        use gantry_drives::cia402::objects;
+        let mut od = servo();
+        let mut layout = PdoLayout::csp();
+        layout.outputs.push(objects::TOUCH_PROBE_FUNCTION);
+        layout.inputs.extend([
+            objects::DIGITAL_INPUTS,
+            objects::TOUCH_PROBE_STATUS,
+            objects::TOUCH_PROBE_POS1_POS_VALUE,
+            objects::TOUCH_PROBE_POS1_NEG_VALUE,
+            objects::TOUCH_PROBE_POS2_POS_VALUE,
+        ]);
+        for w in layout.sdo_writes() {
+            write(&mut od, w.index, w.sub, &w.value).unwrap();
+        }
+        assert_eq!(od.read(0x1C13, 0), Ok(&[2u8][..]));
+        assert_eq!(od.read(0x1C13, 2), Ok(&0x1A01u16.to_le_bytes()[..]));
+        let rules = od.pdo_rules().unwrap().clone();
+        assert_eq!(super::layout(&od, &rules).unwrap(), layout);
+    }
+
+    /// ETG.1000.6 §5.6.7.4: what the assignment objects refuse.
+    #[test]
+    fn the_assignment_takes_the_devices_pdos_only_while_off_and_in_preop() {
+        let mut od = servo();
+        let rules = od.pdo_rules().unwrap().clone();
+        // Entries only while the count is 0.
+        assert_eq!(
+            write(&mut od, 0x1C13, 2, &0x1A01u16.to_le_bytes()),
+            Err(OdError::WrongState)
+        );
+        write(&mut od, 0x1C13, 0, &[0]).unwrap();
+        // Past the device's mapping objects, the other direction, an index past the
+        // assignment's sub-indices.
+        let past = 0x1A00 + u16::from(rules.pdos);
+        for bad in [past, 0x1601, 0x2000] {
+            assert_eq!(
+                write(&mut od, 0x1C13, 2, &bad.to_le_bytes()),
+                Err(OdError::NotMappable),
+                "{bad:#x}"
+            );
+        }
+        assert_eq!(
+            write(&mut od, 0x1C13, rules.pdos + 1, &0x1A01u16.to_le_bytes()),
+            Err(OdError::NoSubIndex)
+        );
+        // More PDOs than the device has; one twice; an empty (0) entry.
+        assert_eq!(
+            write(&mut od, 0x1C13, 0, &[rules.pdos + 1]),
+            Err(OdError::ValueTooHigh)
+        );
+        write(&mut od, 0x1C13, 2, &0x1A00u16.to_le_bytes()).unwrap();
+        assert_eq!(write(&mut od, 0x1C13, 0, &[2]), Err(OdError::NotMappable));
+        write(&mut od, 0x1C13, 2, &0u16.to_le_bytes()).unwrap();
+        assert_eq!(write(&mut od, 0x1C13, 0, &[2]), Err(OdError::NotMappable));
+        // The second PDO, with more entries than the device's limit refused.
+        write(&mut od, 0x1C13, 2, &0x1A01u16.to_le_bytes()).unwrap();
+        assert_eq!(
+            write(&mut od, 0x1A01, 0, &[rules.max_entries + 1]),
+            Err(OdError::PdoTooLong)
+        );
+        write(&mut od, 0x1A01, 1, &0x6077_0010u32.to_le_bytes()).unwrap();
+        write(&mut od, 0x1A01, 0, &[1]).unwrap();
+        write(&mut od, 0x1C13, 0, &[2]).unwrap();
+        let l = super::layout(&od, &rules).unwrap();
+        assert_eq!(l.inputs.len(), 3, "0x1A00's two, then 0x1A01's one");
+        assert_eq!(l.inputs[2].index, 0x6077);
+        // Outside PreOp the assignment is frozen.
+        od.set_pre_op(false);
+        assert_eq!(write(&mut od, 0x1C13, 0, &[0]), Err(OdError::WrongState));
     }
 }

@@ -207,7 +207,8 @@ pub fn client(node: u8) -> SdoClient<Vec<u8>> {
         timeout_ns: 50 * MS,
         ..SdoConfig::default()
     };
-    SdoClient::new(id(node), config, vec![0; 4096]).unwrap()
+    // The recorder 0x2F00 of the large-upload tests is 64 KiB.
+    SdoClient::new(id(node), config, vec![0; 1 << 16]).unwrap()
 }
 
 /// Heartbeats (boot-up included) of `node` among `frames`.

@@ -184,6 +184,44 @@ impl Axis {
         }
     }
 
+    /// A search for a switch's edge takes the edge's position from the drive's touch
+    /// probe only (never from the cycle-sampled position): a plan that needs the edge of
+    /// a switch the probe cannot latch — a limit switch without the drive's probe source
+    /// (0x60D0), a switch read from an I/O module — is refused before anything moves.
+    fn check_latchable(&self, plan: &Plan, command: &'static str) -> Result<(), CommandError> {
+        use crate::homing::sequence::{Goal, Signal};
+        let parameter = if command == "MoveHome" {
+            "SwitchConfig"
+        } else {
+            "SwitchMode"
+        };
+        for s in plan.searches.iter().flatten() {
+            let Goal::Edge { signal, .. } = s.goal else {
+                continue;
+            };
+            let problem = match signal {
+                Signal::Limit(_) if !self.cfg.limit_edges_latched => {
+                    "needs the limit switch's edge from the drive's touch probe, which this \
+                     axis cannot route to its limit switches (configure [axis.switches] \
+                     probe_source, 0x60D0)"
+                }
+                Signal::Reference if !self.cfg.reference_edges_latched => {
+                    "needs the reference switch's edge from the drive's touch probe, which \
+                     cannot latch this axis' reference switch (read from an I/O module, or \
+                     the probe not mapped): wire it to the drive's probe input"
+                }
+                _ => continue,
+            };
+            return Err(CommandError::HomingParameter {
+                command,
+                parameter,
+                value: f64::NAN,
+                problem,
+            });
+        }
+        Ok(())
+    }
+
     fn start_homing(
         &mut self,
         plan: Plan,
@@ -192,6 +230,7 @@ impl Axis {
         h: HandleId,
         handles: &mut HandleTable,
     ) -> Result<CommandStatus, CommandError> {
+        self.check_latchable(&plan, command)?;
         if !self.cfg.kind.has_feedback() {
             // Without feedback there are no switches or latches: the run would search forever.
             return Err(CommandError::NothingToHomeOn {
@@ -292,7 +331,10 @@ impl Axis {
     /// Outside homing: moving into an active limit switch is a quick stop into ErrorStop.
     pub(in crate::axis) fn check_limit_switches(&mut self, handles: &mut HandleTable) {
         use crate::axis::state::AxisState;
-        if self.homing.is_some() || matches!(self.state, AxisState::ErrorStop | AxisState::Disabled)
+        // A drive homing by itself reverses at the switches as its method says.
+        if self.homing.is_some()
+            || self.lent.is_some()
+            || matches!(self.state, AxisState::ErrorStop | AxisState::Disabled)
         {
             return;
         }

@@ -64,6 +64,9 @@ impl Axis {
                 state: self.state,
             });
         }
+        if let Some(r) = self.lent_command(cmd, handles) {
+            return r;
+        }
         self.check_towards_limit(cmd)?;
         match *cmd {
             Command::MoveHome(ref c) => self.move_home(c, h, handles),

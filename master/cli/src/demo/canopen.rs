@@ -181,6 +181,8 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     let figures = net.ctl.figures();
     let bus_counters = net.engine.bus.counters();
     let malformed = net.engine.bus.malformed();
+    // The cycle has ended: the bus' time runs on with the shutdown's waits.
+    lock(&sim).free_running();
     let _ = net.engine.into_bus().shut_down(out);
     let (records, frames, bus_ns) = {
         let s = lock(&sim);

@@ -259,6 +259,9 @@ fn axis(
         target_monitoring: Default::default(),
         pdo: "csp".into(),
         switches: Default::default(),
+        encoder: Default::default(),
+        homed_at_start: false,
+        drive_homing: None,
     }
 }
 
@@ -326,6 +329,8 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             sync_counter: None,
         },
         rt: RtSection::default(),
+        // The demo saves nothing.
+        service: Default::default(),
         eds: vec![None; axes.len()],
         axes,
         kernel_axes,

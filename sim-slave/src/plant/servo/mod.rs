@@ -45,6 +45,7 @@
 //! [`ServoDrive::publish_inputs`] ([`ServoDrive::step`] does all three).
 
 pub mod crossings;
+pub mod homing;
 pub mod motor;
 pub mod params;
 pub mod probe;
@@ -61,9 +62,10 @@ use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
 use crate::plant::record::DriveRecord;
 use crossings::CrossingLog;
+use homing::Homing;
 use motor::{Drive, Gains, Motor};
 pub use params::{ParamError, ServoParams};
-use probe::{Edge, TouchProbe};
+use probe::{Edge, Signal, TouchProbe};
 
 /// Most process data bytes per direction the model handles.
 const MAX_PDO_BYTES: usize = 64;
@@ -81,7 +83,12 @@ pub const ERROR_SETPOINT_STEP: u16 = 0xFF01;
 /// application period the simulator allows. A longer run takes longer substeps.
 const MAX_SUBSTEPS: usize = 1600;
 
-/// Modes of operation: cyclic synchronous position, velocity, torque.
+/// Speed below which a homing drive counts as standing on its home position (counts/s).
+const HOMING_STANDSTILL: f64 = 1000.0;
+
+/// Modes of operation: homing (CiA 402-2 §10.4, see [`homing`]), cyclic synchronous
+/// position, velocity, torque.
+const HM: i8 = 6;
 const CSP: i8 = 8;
 const CSV: i8 = 9;
 const CST: i8 = 10;
@@ -133,6 +140,8 @@ struct Settings {
     shutdown_option_code: i16,
     disable_operation_option_code: i16,
     fault_reaction_option_code: i16,
+    /// 0x60D0:1 and :2.
+    touch_probe_sources: [i16; 2],
 }
 
 impl Settings {
@@ -148,6 +157,7 @@ impl Settings {
             shutdown_option_code: p.shutdown_option_code,
             disable_operation_option_code: p.disable_operation_option_code,
             fault_reaction_option_code: p.fault_reaction_option_code,
+            touch_probe_sources: probe::source::DEFAULT,
         }
     }
 }
@@ -212,6 +222,18 @@ pub struct ServoDrive {
     hold: f64,
     /// Touch probes 1 and 2 (0x60B8–0x60BD).
     probe: TouchProbe,
+    /// Homing mode (0x6098–0x609A, 0x607C).
+    homing: Homing,
+    /// The first CSP target of the last sequence (after enabling or a change of mode)
+    /// and the position actual value when it was taken.
+    takeover: Option<(i32, i32)>,
+    /// The position actual value minus the load's raw position (counts): what homing
+    /// set (0 until a homing attains; lost at a power-on reset, as an incremental
+    /// encoder's reference is).
+    shift: i64,
+    /// The mode and the controlword's bits 4 and 8 at the last run (for their edges).
+    last_mode: i8,
+    last_start: bool,
     layout: PdoLayout,
     /// Where `layout` puts each object: the process data is read and written through the
     /// view the master uses too (`gantry_drives::cia402::image`).
@@ -273,6 +295,11 @@ impl ServoDrive {
             braking: None,
             hold: p,
             probe: TouchProbe::default(),
+            homing: Homing::idle(p, params.homing_faults),
+            takeover: None,
+            shift: 0,
+            last_mode: CSP,
+            last_start: false,
             map: PdoMap::of(&layout),
             layout,
             record: DriveRecord::default(),
@@ -302,11 +329,15 @@ impl ServoDrive {
         let index =
             probe::index_crossing(from, to, i64::from(p.index_at), i64::from(p.counts_per_rev));
         let [a, b] = p.switches.home_edges(from, to);
-        let mut events = [a, b, index];
+        let [c, d] = p.switches.edges(0, Signal::NegativeLimit, from, to);
+        let [e, f] = p.switches.edges(1, Signal::PositiveLimit, from, to);
+        let mut events = [a, b, c, d, e, f, index];
         // In the order of travel.
         events.sort_by_key(|e| e.map_or(i64::MAX, |e| (e.at - from).abs()));
-        for e in events.into_iter().flatten() {
-            self.probe.event(e);
+        for mut e in events.into_iter().flatten() {
+            // Latched as the position actual value counts (what homing set).
+            e.at += self.shift;
+            self.probe.event(e, self.settings.touch_probe_sources);
         }
     }
 
@@ -360,7 +391,30 @@ impl ServoDrive {
     /// Position actual value (0x6064): the load position rounded to whole counts, its
     /// low 32 bits (the value wraps, as CSP drives count).
     pub fn actual_counts(&self) -> i32 {
-        wrap32(self.motor.position)
+        round_i64(self.motor.position).wrapping_add(self.shift) as i32
+    }
+
+    /// The position actual value minus the raw position (counts): what the last homing
+    /// set (0 before any).
+    pub fn position_shift(&self) -> i64 {
+        self.shift
+    }
+
+    /// The mode of operation it is in (0x6061).
+    pub fn mode(&self) -> i8 {
+        self.mode
+    }
+
+    /// The first CSP target the drive took after it was last enabled or switched to CSP,
+    /// and its position actual value then (counts): a master that takes a drive over
+    /// without a jump sends the latter.
+    pub fn takeover(&self) -> Option<(i32, i32)> {
+        self.takeover
+    }
+
+    /// The homing mode's state and objects.
+    pub fn homing(&self) -> &Homing {
+        &self.homing
     }
 
     /// The load position rounded to whole counts, not wrapped (what switch cams on this
@@ -424,6 +478,9 @@ impl ServoDrive {
         self.hold = p;
         self.pending_touch_probe = None;
         self.probe = TouchProbe::default();
+        self.homing = Homing::idle(p, self.params.homing_faults);
+        self.shift = 0;
+        self.last_start = false;
         self.record.disabled();
     }
 
@@ -454,8 +511,35 @@ impl ServoDrive {
     pub fn install_objects(&self, od: &mut ObjectDictionary) {
         let max_speed = self.params.max_speed_counts().min(f64::from(u32::MAX)) as i64;
         let u32_max = i64::from(u32::MAX);
-        let ranged: [(ObjectId, i64, i64); 11] = [
-            (objects::MODES_OF_OPERATION, i64::from(CSP), i64::from(CST)),
+        // The modes the drive has, and the homing methods (CiA 402-2 Table 32, §10.4.3):
+        // anything else is refused with abort 0x06090030.
+        let mut modes = homing::MethodSet::EMPTY;
+        for m in [HM, CSP, CSV, CST] {
+            modes.insert(m);
+        }
+        let mut methods = homing::MethodSet::EMPTY;
+        for m in i8::MIN..=i8::MAX {
+            if self.params.homing_faults.accepts(m) {
+                methods.insert(m);
+            }
+        }
+        let o = objects::MODES_OF_OPERATION;
+        od.insert_set(o.index, o.sub, CSP as u8, modes.bits());
+        let o = objects::HOMING_METHOD;
+        od.insert_set(o.index, o.sub, 0, methods.bits());
+        // 0x6099 is an ARRAY: sub 0 its highest sub-index.
+        od.insert(objects::HOMING_SPEED_SWITCH.index, 0, &[2], false);
+        let ranged: [(ObjectId, i64, i64); 14] = [
+            // A speed of 0 never finds anything; above the motor's top speed it would
+            // promise what the motor cannot do.
+            (objects::HOMING_SPEED_SWITCH, 1, max_speed),
+            (objects::HOMING_SPEED_ZERO, 1, max_speed),
+            (objects::HOMING_ACCELERATION, 1, u32_max),
+            (
+                objects::HOME_OFFSET,
+                i64::from(i32::MIN),
+                i64::from(i32::MAX),
+            ),
             (objects::FOLLOWING_ERROR_WINDOW, 0, u32_max),
             (objects::FOLLOWING_ERROR_TIME_OUT, 0, i64::from(u16::MAX)),
             (objects::MAX_TORQUE, 0, i64::from(u16::MAX)),
@@ -471,6 +555,14 @@ impl ServoDrive {
         ];
         for (o, min, max) in ranged {
             od.insert_ranged(o.index, o.sub, &vec![0; o.kind.size()], min, max);
+        }
+        // 0x60D0 touch probe source (ETG.6010): two sub-indices, the values the drive has.
+        od.insert(0x60D0, 0, &[2], false);
+        for (o, v) in [
+            (objects::TOUCH_PROBE_1_SOURCE, probe::source::DEFAULT[0]),
+            (objects::TOUCH_PROBE_2_SOURCE, probe::source::DEFAULT[1]),
+        ] {
+            od.insert_enumerated(o.index, o.sub, &v.to_le_bytes(), &probe::source::ALLOWED);
         }
         // The simulated motor is fixed: its rated torque is read-only here.
         let o = objects::MOTOR_RATED_TORQUE;
@@ -544,6 +636,14 @@ impl ServoDrive {
             objects::FAULT_REACTION_OPTION_CODE,
             i64::from(s.fault_reaction_option_code),
         );
+        let hs = self.homing.settings();
+        let homing_objects = [
+            (objects::HOMING_METHOD, i64::from(hs.method)),
+            (objects::HOMING_SPEED_SWITCH, i64::from(hs.speed_switch)),
+            (objects::HOMING_SPEED_ZERO, i64::from(hs.speed_zero)),
+            (objects::HOMING_ACCELERATION, i64::from(hs.acceleration)),
+            (objects::HOME_OFFSET, i64::from(hs.home_offset)),
+        ];
         let tp = &self.probe;
         let io = [
             (objects::TOUCH_PROBE_FUNCTION, i64::from(tp.function())),
@@ -565,8 +665,21 @@ impl ServoDrive {
                 i64::from(tp.value(1, Edge::Negative)),
             ),
             (objects::DIGITAL_INPUTS, i64::from(self.digital_inputs())),
+            (
+                objects::TOUCH_PROBE_1_SOURCE,
+                i64::from(s.touch_probe_sources[0]),
+            ),
+            (
+                objects::TOUCH_PROBE_2_SOURCE,
+                i64::from(s.touch_probe_sources[1]),
+            ),
         ];
-        for (o, v) in values.into_iter().chain([fault_reaction]).chain(io) {
+        for (o, v) in values
+            .into_iter()
+            .chain([fault_reaction])
+            .chain(io)
+            .chain(homing_objects)
+        {
             let bytes = v.to_le_bytes();
             if let Some(b) = bytes.get(..o.kind.size()) {
                 // An object the dictionary does not carry is not the drive's to add.
@@ -612,9 +725,33 @@ impl ServoDrive {
             }
         }
         if let Some(v) = get(objects::MODES_OF_OPERATION) {
-            if matches!(v as i8, CSP | CSV | CST) {
+            if matches!(v as i8, HM | CSP | CSV | CST) {
                 self.mode = v as i8;
             }
+        }
+        for (i, o) in [objects::TOUCH_PROBE_1_SOURCE, objects::TOUCH_PROBE_2_SOURCE]
+            .into_iter()
+            .enumerate()
+        {
+            if let (Some(v), Some(slot)) = (get(o), s.touch_probe_sources.get_mut(i)) {
+                *slot = v as i16;
+            }
+        }
+        let hs = self.homing.settings_mut();
+        if let Some(v) = get(objects::HOMING_METHOD) {
+            hs.method = v as i8;
+        }
+        if let Some(v) = get(objects::HOMING_SPEED_SWITCH) {
+            hs.speed_switch = v as u32;
+        }
+        if let Some(v) = get(objects::HOMING_SPEED_ZERO) {
+            hs.speed_zero = v as u32;
+        }
+        if let Some(v) = get(objects::HOMING_ACCELERATION) {
+            hs.acceleration = (v as u32).max(1);
+        }
+        if let Some(v) = get(objects::HOME_OFFSET) {
+            hs.home_offset = v as i32;
         }
         if let Some(v) = get(objects::FOLLOWING_ERROR_WINDOW) {
             s.following_error_window = v as u32;
@@ -717,7 +854,7 @@ impl ServoDrive {
             // A mode the drive does not have is not taken (the display keeps the old).
             if let Some(m) = img
                 .modes_of_operation()
-                .filter(|m| matches!(*m, CSP | CSV | CST))
+                .filter(|m| matches!(*m, HM | CSP | CSV | CST))
             {
                 self.mode = m;
             }
@@ -774,6 +911,7 @@ impl ServoDrive {
         ) {
             self.error_code = 0;
         }
+        self.apply_mode();
         let fresh = core::mem::take(&mut self.fresh);
         if fresh && self.following() && self.mode == CSP {
             self.new_setpoint(dt);
@@ -788,11 +926,27 @@ impl ServoDrive {
             let limit = self.torque_limit();
             let efficiency = self.torque_efficiency();
             let mut torque = 0.0;
+            let homing = self.mode == HM && self.following();
             for _ in 0..n {
                 let from = self.position_counts();
                 self.substep(&g, limit, efficiency);
-                self.watch_travel(from, self.position_counts());
+                let to = self.position_counts();
+                self.watch_travel(from, to);
+                if homing {
+                    let p = &self.params;
+                    let (index_at, rev) = (i64::from(p.index_at), i64::from(p.counts_per_rev));
+                    self.homing.observe(from, to, &p.switches, index_at, rev);
+                }
                 torque += self.motor.torque;
+            }
+            if homing {
+                // On the home position and still: within a count, slower than a count per
+                // millisecond (the loops have settled, friction holds nothing off it).
+                let standing = self.motor.velocity.abs() < HOMING_STANDSTILL;
+                if let Some(set) = self.homing.take_position_set(self.motor.position, standing) {
+                    // The home position reads as minus the home offset from now on.
+                    self.shift = set.value - set.home;
+                }
             }
             self.torque_mean = torque / n as f64;
             self.velocity_mean = (self.motor.position - before) / dt;
@@ -863,9 +1017,43 @@ impl ServoDrive {
         }
     }
 
+    /// The mode of operation and the homing bits taken (CiA 402-2 §10.4.1): a change of
+    /// mode in Operation enabled starts the new one where the load is (CSP: the next
+    /// target is judged from there; HM: holding, not started); bit 4's rising edge starts
+    /// homing, its falling edge or the halt bit interrupt it.
+    fn apply_mode(&mut self) {
+        let cw = self.controlword.0;
+        let start = cw & (1 << 4) != 0;
+        let halt = cw & (1 << 8) != 0;
+        let mode_changed = self.mode != self.last_mode;
+        self.last_mode = self.mode;
+        if mode_changed {
+            // Targets in another mode are no CSP setpoints: a new sequence starts.
+            self.record.disabled();
+        }
+        if mode_changed && self.following() {
+            self.on_enable();
+        }
+        if self.mode != HM || !self.following() {
+            if self.homing.running() {
+                self.homing.interrupt();
+            }
+            self.last_start = start;
+            return;
+        }
+        if start && !self.last_start && !halt {
+            let (p, v) = (self.motor.position, self.motor.velocity);
+            self.homing.start(p, v, &self.params.switches);
+        } else if (!start || halt) && self.homing.running() {
+            self.homing.interrupt();
+        }
+        self.last_start = start;
+    }
+
     /// Operation enabled was entered: the demand starts where the load is.
     fn on_enable(&mut self) {
         let p = self.motor.position;
+        self.homing.hold(p);
         self.demand = p;
         self.seg_start = p;
         self.slope = 0.0;
@@ -951,9 +1139,14 @@ impl ServoDrive {
                 .max(period * (1.0 + self.missed_periods as f64)),
             None => period,
         };
+        if self.target_abs.is_none() {
+            self.takeover = Some((self.target, self.actual_counts()));
+        }
         let reference = self.target_abs.unwrap_or(self.demand);
-        let r = round_i64(reference);
-        let t = r as f64 + f64::from(self.target.wrapping_sub(r as i32));
+        // The target counts as the position actual value does (raw + what homing set).
+        let shift = self.shift as f64;
+        let r = round_i64(reference + shift);
+        let t = r as f64 + f64::from(self.target.wrapping_sub(r as i32)) - shift;
         let step = (t - reference).abs();
         let limit = f64::from(self.settings.max_profile_velocity) * interval + 1.0;
         if step > limit {
@@ -1036,6 +1229,7 @@ impl ServoDrive {
                     CST => Drive::Torque(
                         f64::from(self.target_torque) / 1000.0 * self.params.rated_torque_nm,
                     ),
+                    HM => Drive::Velocity(self.homing.command(g.h, kp, self.motor.position, vmax)),
                     _ => Drive::Off,
                 },
                 State::QuickStopActive => {
@@ -1113,7 +1307,12 @@ impl ServoDrive {
     /// following error).
     fn statusword(&self) -> u16 {
         let mut sw = self.state.statusword().0 | statusword::REMOTE;
-        if self.following() {
+        if self.mode == HM {
+            // Bits 10, 12, 13 as the homing mode says (CiA 402-2 §10.4.2).
+            let standing = self.motor.velocity.abs() < HOMING_STANDSTILL;
+            let halted = self.controlword.0 & (1 << 8) != 0;
+            sw |= self.homing.status_bits(standing, halted);
+        } else if self.following() {
             sw |= statusword::MODE_SPECIFIC_12;
         }
         if self.motor.limited && self.state.state() != State::SwitchOnDisabled {

@@ -61,6 +61,8 @@ pub struct ServoParams {
     pub disable_operation_option_code: i16,
     /// 0x605E Fault reaction option code.
     pub fault_reaction_option_code: i16,
+    /// Homing faults real drives are reported to have, to inject.
+    pub homing_faults: super::homing::HomingFaults,
 }
 
 impl Default for ServoParams {
@@ -100,6 +102,7 @@ impl Default for ServoParams {
             shutdown_option_code: 0,
             disable_operation_option_code: 1,
             fault_reaction_option_code: 2,
+            homing_faults: super::homing::HomingFaults::default(),
         }
     }
 }

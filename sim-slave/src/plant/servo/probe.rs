@@ -16,11 +16,43 @@
 //! edge, or by clearing that edge's sample-enable bit and setting it again; in continuous
 //! mode every event overwrites the value. Status bits 6/7 (probe 2: 14/15, user-defined in
 //! the profile) toggle with each positive/negative latch, so a master sees every new
-//! value in continuous mode too. A source the simulated drive does not have (bits 2–3 =
-//! 10: the source in 0x60D0; 11: reserved) never triggers. The zero impulse is a mark, not
-//! a level: it latches on the positive-edge sample only.
+//! value in continuous mode too. Bits 2–3 = 11b (reserved) never trigger. The zero
+//! impulse is a mark, not a level: it latches on the positive-edge sample only.
+//!
+//! Source 10b takes the probe's source from 0x60D0 (sub 1 probe 1, sub 2 probe 2;
+//! ETG.6010). The simulated drive has the values [`source::ALLOWED`]: its probe inputs 1
+//! and 2 (both the home switch), the hardware zero impulse, and — manufacturer-specific,
+//! negative as ETG.6010 reserves them — its negative and positive limit switch inputs, so
+//! that a master homing on a limit switch's edge latches it; 3, 4 (inputs it does not
+//! have) and 6 (a software zero impulse it does not make) are refused (abort 0x06090030).
 
 use crate::plant::switches::SwitchCam;
+
+/// 0x60D0 values the simulated drive has.
+pub mod source {
+    use gantry_drives::cia402::objects::touch_probe_source as etg;
+
+    /// Touch probe input 1 (the home switch).
+    pub const INPUT_1: i16 = etg::PROBE_INPUT_1;
+    /// Touch probe input 2 (the home switch too).
+    pub const INPUT_2: i16 = etg::PROBE_INPUT_2;
+    /// The encoder's hardware zero impulse.
+    pub const ZERO_IMPULSE: i16 = etg::HARDWARE_ZERO_IMPULSE;
+    /// Manufacturer-specific: the negative limit switch input (0x60FD bit 0).
+    pub const NEGATIVE_LIMIT: i16 = -1;
+    /// Manufacturer-specific: the positive limit switch input (0x60FD bit 1).
+    pub const POSITIVE_LIMIT: i16 = -2;
+    /// Every value 0x60D0:1 and :2 take.
+    pub const ALLOWED: [i64; 5] = [
+        NEGATIVE_LIMIT as i64,
+        POSITIVE_LIMIT as i64,
+        INPUT_1 as i64,
+        INPUT_2 as i64,
+        ZERO_IMPULSE as i64,
+    ];
+    /// Power-up values of 0x60D0:1 and :2: each probe on its own input.
+    pub const DEFAULT: [i16; 2] = [INPUT_1, INPUT_2];
+}
 
 /// Function bits of one probe (probe `n` at bit `8·n`).
 pub mod function {
@@ -32,6 +64,8 @@ pub mod function {
     pub const SOURCE_MASK: u16 = 0b11 << 2;
     /// Source: the encoder's zero impulse.
     pub const SOURCE_ZERO_IMPULSE: u16 = 0b01 << 2;
+    /// Source: as 0x60D0 says (sub 1 for probe 1, sub 2 for probe 2).
+    pub const SOURCE_60D0: u16 = 0b10 << 2;
     /// Sample the positive edge.
     pub const POSITIVE_EDGE: u16 = 1 << 4;
     /// Sample the negative edge.
@@ -71,6 +105,23 @@ pub enum Signal {
     Input,
     /// The encoder's zero impulse (index pulse).
     ZeroImpulse,
+    /// The negative limit switch input.
+    NegativeLimit,
+    /// The positive limit switch input.
+    PositiveLimit,
+}
+
+impl Signal {
+    /// The signal a 0x60D0 value selects.
+    fn of_source(value: i16) -> Option<Self> {
+        match value {
+            source::INPUT_1 | source::INPUT_2 => Some(Signal::Input),
+            source::ZERO_IMPULSE => Some(Signal::ZeroImpulse),
+            source::NEGATIVE_LIMIT => Some(Signal::NegativeLimit),
+            source::POSITIVE_LIMIT => Some(Signal::PositiveLimit),
+            _ => None,
+        }
+    }
 }
 
 /// An edge of a signal at a position (counts): the first count of the new state.
@@ -140,21 +191,24 @@ impl TouchProbe {
         self.function = f;
     }
 
-    /// An event happened: every probe armed for it latches its position.
-    pub fn event(&mut self, e: Event) {
+    /// An event happened: every probe armed for it latches its position; `sources` is
+    /// 0x60D0:1 and :2 (for a probe whose source bits say 10b).
+    pub fn event(&mut self, e: Event, sources: [i16; 2]) {
         for n in 0..PROBES {
             let shift = 8 * n;
             let f = (self.function >> shift) & 0xFF;
             if f & function::ENABLE == 0 {
                 continue;
             }
-            let source = f & function::SOURCE_MASK;
-            let wanted = match e.signal {
-                Signal::Input => source == 0,
-                Signal::ZeroImpulse => {
-                    source == function::SOURCE_ZERO_IMPULSE && e.edge == Edge::Positive
-                }
+            let signal = match f & function::SOURCE_MASK {
+                0 => Some(Signal::Input),
+                function::SOURCE_ZERO_IMPULSE => Some(Signal::ZeroImpulse),
+                function::SOURCE_60D0 => sources.get(n).copied().and_then(Signal::of_source),
+                _ => None,
             };
+            // The zero impulse is a mark: positive edge only.
+            let wanted = signal == Some(e.signal)
+                && (e.signal != Signal::ZeroImpulse || e.edge == Edge::Positive);
             let (sample, stored, toggle) = match e.edge {
                 Edge::Positive => (
                     function::POSITIVE_EDGE,
@@ -240,17 +294,17 @@ impl DriveSwitches {
     /// The home switch's edges on the way from count `from` to count `to`, in the order
     /// of travel (at most two: on and off a narrow cam in one step).
     pub fn home_edges(&self, from: i64, to: i64) -> [Option<Event>; 2] {
+        self.edges(HOME_INPUT, Signal::Input, from, to)
+    }
+
+    /// The edges of the cam on 0x60FD bit `input` on the way from count `from` to count
+    /// `to`, as events of `signal`, in the order of travel.
+    pub fn edges(&self, input: u8, signal: Signal, from: i64, to: i64) -> [Option<Event>; 2] {
         let mut out = [None; 2];
-        let Some(Some(cam)) = self.cams.get(usize::from(HOME_INPUT)) else {
+        let Some(Some(cam)) = self.cams.get(usize::from(input)) else {
             return out;
         };
-        let event = |edge, at| {
-            Some(Event {
-                signal: Signal::Input,
-                edge,
-                at,
-            })
-        };
+        let event = |edge, at| Some(Event { signal, edge, at });
         if to > from {
             if from < cam.from && cam.from <= to {
                 out[0] = event(Edge::Positive, cam.from);
@@ -310,26 +364,26 @@ mod tests {
         let mut tp = TouchProbe::default();
         tp.set_function(P1_INPUT_BOTH);
         assert_eq!(tp.status(), status::ENABLED);
-        tp.event(home(100, Edge::Positive));
-        tp.event(home(200, Edge::Positive));
+        tp.event(home(100, Edge::Positive), source::DEFAULT);
+        tp.event(home(200, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.value(0, Edge::Positive), 100);
         assert_eq!(
             tp.status(),
             status::ENABLED | status::POSITIVE_STORED | status::POSITIVE_TOGGLE
         );
-        tp.event(home(150, Edge::Negative));
+        tp.event(home(150, Edge::Negative), source::DEFAULT);
         assert_eq!(tp.value(0, Edge::Negative), 150);
         // Clearing the positive sample bit re-arms that edge only.
         tp.set_function(function::ENABLE | function::NEGATIVE_EDGE);
         tp.set_function(P1_INPUT_BOTH);
         assert_eq!(tp.status() & status::POSITIVE_STORED, 0);
         assert_ne!(tp.status() & status::NEGATIVE_STORED, 0);
-        tp.event(home(300, Edge::Positive));
+        tp.event(home(300, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.value(0, Edge::Positive), 300);
         // Disabling clears the status; the enable's rising edge arms again.
         tp.set_function(0);
         assert_eq!(tp.status(), 0);
-        tp.event(home(400, Edge::Positive));
+        tp.event(home(400, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.value(0, Edge::Positive), 300);
     }
 
@@ -337,13 +391,13 @@ mod tests {
     fn continuous_mode_overwrites_and_toggles() {
         let mut tp = TouchProbe::default();
         tp.set_function(function::ENABLE | function::CONTINUOUS | function::POSITIVE_EDGE);
-        tp.event(home(1, Edge::Positive));
+        tp.event(home(1, Edge::Positive), source::DEFAULT);
         let t1 = tp.status() & status::POSITIVE_TOGGLE;
-        tp.event(home(2, Edge::Positive));
+        tp.event(home(2, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.value(0, Edge::Positive), 2);
         assert_ne!(tp.status() & status::POSITIVE_TOGGLE, t1);
         // The negative edge is not sampled.
-        tp.event(home(3, Edge::Negative));
+        tp.event(home(3, Edge::Negative), source::DEFAULT);
         assert_eq!(tp.status() & status::NEGATIVE_STORED, 0);
     }
 
@@ -352,12 +406,15 @@ mod tests {
         let mut tp = TouchProbe::default();
         let p2 = (function::ENABLE | function::SOURCE_ZERO_IMPULSE | function::POSITIVE_EDGE) << 8;
         tp.set_function(function::ENABLE | function::POSITIVE_EDGE | p2);
-        tp.event(Event {
-            signal: Signal::ZeroImpulse,
-            edge: Edge::Positive,
-            at: 4096,
-        });
-        tp.event(home(5000, Edge::Positive));
+        tp.event(
+            Event {
+                signal: Signal::ZeroImpulse,
+                edge: Edge::Positive,
+                at: 4096,
+            },
+            source::DEFAULT,
+        );
+        tp.event(home(5000, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.value(1, Edge::Positive), 4096);
         assert_eq!(tp.value(0, Edge::Positive), 5000);
         assert_eq!(
@@ -372,16 +429,79 @@ mod tests {
     #[test]
     fn a_source_the_drive_does_not_have_never_triggers() {
         let mut tp = TouchProbe::default();
-        tp.set_function(function::ENABLE | 0b10 << 2 | function::POSITIVE_EDGE);
-        tp.event(home(1, Edge::Positive));
+        // Bits 2–3 = 11b: reserved.
+        tp.set_function(function::ENABLE | 0b11 << 2 | function::POSITIVE_EDGE);
+        tp.event(home(1, Edge::Positive), source::DEFAULT);
         assert_eq!(tp.status(), status::ENABLED);
+        // 10b with a 0x60D0 value it has not (0: reserved).
+        tp.set_function(0);
+        tp.set_function(function::ENABLE | function::SOURCE_60D0 | function::POSITIVE_EDGE);
+        tp.event(home(1, Edge::Positive), [0, 0]);
+        assert_eq!(tp.status(), status::ENABLED);
+    }
+
+    /// 0x60B8 source 10b: probe 1 on 0x60D0:1 = the negative limit, probe 2 on 0x60D0:2
+    /// = the positive limit; each latches its own switch's edges and nothing else.
+    #[test]
+    fn the_source_in_0x60d0_routes_a_probe_to_a_limit_switch() {
+        let mut tp = TouchProbe::default();
+        let both = function::ENABLE
+            | function::SOURCE_60D0
+            | function::POSITIVE_EDGE
+            | function::NEGATIVE_EDGE;
+        tp.set_function(both | both << 8);
+        let sources = [source::NEGATIVE_LIMIT, source::POSITIVE_LIMIT];
+        let ev = |signal, edge, at| Event { signal, edge, at };
+        tp.event(home(10, Edge::Positive), sources);
+        tp.event(ev(Signal::ZeroImpulse, Edge::Positive, 20), sources);
+        assert_eq!(tp.status(), status::ENABLED | status::ENABLED << 8);
+        tp.event(ev(Signal::NegativeLimit, Edge::Positive, -1000), sources);
+        tp.event(ev(Signal::PositiveLimit, Edge::Negative, 9000), sources);
+        assert_eq!(tp.value(0, Edge::Positive), -1000);
+        assert_eq!(tp.value(1, Edge::Negative), 9000);
+        assert_eq!(tp.value(0, Edge::Negative), 0);
+        assert_eq!(tp.value(1, Edge::Positive), 0);
+        // 0x60D0 = 5: the zero impulse, as bits 2–3 = 01b would.
+        tp.set_function(0);
+        tp.set_function(both);
+        tp.event(
+            ev(Signal::ZeroImpulse, Edge::Positive, 4096),
+            [source::ZERO_IMPULSE, 2],
+        );
+        assert_eq!(tp.value(0, Edge::Positive), 4096);
+    }
+
+    #[test]
+    fn limit_cams_give_edges_of_their_signal() {
+        let s = DriveSwitches::new(&[SwitchCam {
+            input: 1,
+            from: 5000,
+            to: i64::MAX,
+            normally_closed: false,
+        }]);
+        assert_eq!(s.home_edges(0, 6000), [None, None]);
+        let [on, off] = s.edges(1, Signal::PositiveLimit, 4000, 6000);
+        assert_eq!(
+            on,
+            Some(Event {
+                signal: Signal::PositiveLimit,
+                edge: Edge::Positive,
+                at: 5000
+            })
+        );
+        assert_eq!(off, None);
+        let [_, off] = s.edges(1, Signal::PositiveLimit, 6000, 4000);
+        assert_eq!(off.map(|e| (e.edge, e.at)), Some((Edge::Negative, 4999)));
     }
 
     #[test]
     fn latched_values_are_the_32_bit_position() {
         let mut tp = TouchProbe::default();
         tp.set_function(P1_INPUT_BOTH);
-        tp.event(home(i64::from(i32::MAX) + 1, Edge::Positive));
+        tp.event(
+            home(i64::from(i32::MAX) + 1, Edge::Positive),
+            source::DEFAULT,
+        );
         assert_eq!(tp.value(0, Edge::Positive), i32::MIN);
     }
 

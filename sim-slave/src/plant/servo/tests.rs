@@ -623,8 +623,8 @@ fn csv_follows_the_target_velocity_and_cst_accelerates_with_torque() {
     let pos = r.d.position();
     assert!((9_980.0..10_000.0).contains(&pos), "CSV: {pos}");
     assert_eq!(i.mode, CSV, "mode display");
-    // An unsupported mode (homing, 6) is not taken.
-    r.mode = 6;
+    // An unsupported mode (interpolated position, 7) is not taken.
+    r.mode = 7;
     assert_eq!(r.cycle().mode, CSV);
     // CST: 10 % torque accelerates; a = (T − Tc)/J.
     r.mode = CST;
@@ -851,10 +851,12 @@ fn sdo_reads_live_values_and_writes_settings_within_their_ranges() {
         Err(OdError::ValueRange)
     );
     assert_eq!(
-        od.write(0x6060, 0, &[6]),
+        od.write(0x6060, 0, &[7]),
         Err(OdError::ValueRange),
-        "no homing"
+        "no interpolated position"
     );
+    od.write(0x6060, 0, &[6]).unwrap();
+    od.write(0x6060, 0, &[8]).unwrap();
     let too_fast = p().max_speed_counts() as u32 + 1;
     assert_eq!(
         od.write(0x607F, 0, &too_fast.to_le_bytes()),
@@ -998,4 +1000,287 @@ fn a_pause_between_setpoints_is_not_taken_for_the_period() {
     let i = r.cycles(100);
     assert!((i.position - r.target).abs() <= 1, "{i:?}");
     assert_eq!(r.d.record().faults, 0);
+}
+
+/// Drive-side homing (CiA 402-2 §10.4) on the drive's own cams and index pulse: limit
+/// switches beyond ±10 revolutions, the home cam from 2 to 2.4 revolutions, the index at
+/// 1000 counts in every revolution. Each expected home position is worked out here from
+/// that geometry and the method's diagram (not from the drive's plan): the first count of
+/// the new state in the direction of the final approach, or the index count.
+mod homing_mode {
+    use super::*;
+    use crate::plant::switches::SwitchCam;
+
+    const REV: i64 = 131_072;
+    const LIMIT: i64 = 10 * REV;
+    /// The home cam: B (first count) and F (last count).
+    const B: i64 = 262_144;
+    const F: i64 = 314_572;
+    const HM_MODE: i8 = 6;
+
+    fn params() -> ServoParams {
+        let cam = |input, from, to| SwitchCam {
+            input,
+            from,
+            to,
+            normally_closed: false,
+        };
+        ServoParams {
+            switches: probe::DriveSwitches::new(&[
+                cam(0, -100 * LIMIT, -LIMIT),
+                cam(1, LIMIT, 100 * LIMIT),
+                cam(2, B, F),
+            ]),
+            ..p()
+        }
+    }
+
+    /// Index counts: 1000 + k·REV.
+    fn index_at_or_below(x: i64) -> i64 {
+        1000 + (x - 1000).div_euclid(REV) * REV
+    }
+    fn index_at_or_above(x: i64) -> i64 {
+        index_at_or_below(x - 1) + REV
+    }
+
+    /// The home position of `method` from `start`, by the method's diagram; `None`:
+    /// the method must end in a homing error from there.
+    fn expected(method: i8, start: i64) -> Option<i64> {
+        let on = (B..=F).contains(&start);
+        let below = start < B;
+        let above = start > F;
+        Some(match method {
+            1 => index_at_or_above(-LIMIT + 1),
+            2 => index_at_or_below(LIMIT - 1),
+            17 => -LIMIT + 1,
+            18 => LIMIT - 1,
+            // Positive home switch (edge B), index below / above it.
+            3 if !above => index_at_or_below(B - 1),
+            4 if !above => index_at_or_above(B),
+            19 if !above => B - 1,
+            20 if !above => B,
+            // Negative home switch (edge F), index above / below it.
+            5 if !below => index_at_or_above(F + 1),
+            6 if !below => index_at_or_below(F),
+            21 if !below => F + 1,
+            22 if !below => F,
+            3 | 4 | 5 | 6 | 19 | 20 | 21 | 22 => return None,
+            // The cam between the limits: the index or edge on either side of B or F,
+            // from any start.
+            7 | 14 => index_at_or_below(B - 1),
+            8 | 13 => index_at_or_above(B),
+            9 | 12 => index_at_or_below(F),
+            10 | 11 => index_at_or_above(F + 1),
+            23 | 30 => B - 1,
+            24 | 29 => B,
+            25 | 28 => F,
+            26 | 27 => F + 1,
+            33 => index_at_or_below(start - 1),
+            34 => index_at_or_above(start + 1),
+            35 | 37 => start,
+            _ => unreachable!("method {method}"),
+        })
+        .filter(|_| on || below || above)
+    }
+
+    /// Homing rig: enabled in HM at `start` with the method's objects set.
+    fn rig(method: i8, start: i32, offset: i32) -> Rig {
+        let mut r = Rig::enabled(start, params(), HM_MODE);
+        let s = r.d.homing.settings_mut();
+        s.method = method;
+        s.speed_switch = 10 * REV as u32;
+        s.speed_zero = REV as u32;
+        s.acceleration = 100 * REV as u32;
+        s.home_offset = offset;
+        r
+    }
+
+    /// Starts homing (bit 4's rising edge) and cycles until bit 12, or 13 with 10 (the
+    /// drive stopped after an error), or `max` cycles.
+    fn home(r: &mut Rig, max: usize) -> Inputs {
+        r.cw = 0x1F;
+        for _ in 0..max {
+            let sw = r.cycle().sw.0;
+            if sw & (1 << 12) != 0 || sw & (1 << 13 | 1 << 10) == (1 << 13 | 1 << 10) {
+                break;
+            }
+        }
+        // Let it settle, then read.
+        r.cycles(20)
+    }
+
+    #[test]
+    fn every_method_homes_on_its_switch_edge_or_index_from_each_start() {
+        let methods = (1..=14).chain(17..=30).chain(33..=35).chain([37]);
+        let mut runs = 0;
+        for method in methods {
+            for start in [0i64, 290_000, 600_000] {
+                let offset = 12_345;
+                let mut r = rig(method, start as i32, offset);
+                let i = home(&mut r, 8000);
+                let sw = i.sw.0;
+                let ctx = format!("method {method} from {start}: statusword {sw:#06x}");
+                match expected(method, start) {
+                    Some(home) => {
+                        assert_eq!(sw & (1 << 13), 0, "{ctx}: homing error");
+                        assert_ne!(sw & (1 << 12), 0, "{ctx}: not attained");
+                        assert_ne!(sw & (1 << 10), 0, "{ctx}: target not reached");
+                        let at = r.d.position_counts();
+                        assert!((at - home).abs() <= 1, "{ctx}: stands at {at}, home {home}");
+                        // The home position reads as minus the home offset.
+                        let reads = i64::from(i.position) + (home - at);
+                        assert_eq!(reads, -i64::from(offset), "{ctx}");
+                        assert_eq!(i.mode, HM_MODE);
+                    }
+                    None => {
+                        assert_ne!(sw & (1 << 13), 0, "{ctx}: no homing error");
+                        assert_eq!(sw & (1 << 12), 0, "{ctx}");
+                        assert_ne!(sw & (1 << 10), 0, "{ctx}: stands");
+                        assert_eq!(r.d.position_shift(), 0, "{ctx}: position not set");
+                    }
+                }
+                assert_eq!(r.d.error_code(), 0, "{ctx}: no drive fault");
+                runs += 1;
+            }
+        }
+        assert_eq!(runs, 32 * 3, "32 methods, 3 starts each");
+    }
+
+    /// 7–14 and 23–30 with no home cam between the limits: the reversal switch reached
+    /// again is a homing error (the switch is never found).
+    #[test]
+    fn a_missing_home_switch_ends_in_a_homing_error_at_the_second_limit() {
+        for method in [7, 11, 23, 30] {
+            let cams = [
+                SwitchCam {
+                    input: 0,
+                    from: -100 * LIMIT,
+                    to: -LIMIT,
+                    normally_closed: false,
+                },
+                SwitchCam {
+                    input: 1,
+                    from: LIMIT,
+                    to: 100 * LIMIT,
+                    normally_closed: false,
+                },
+            ];
+            let params = ServoParams {
+                switches: probe::DriveSwitches::new(&cams),
+                ..params()
+            };
+            let mut r = Rig::enabled(0, params, HM_MODE);
+            let s = r.d.homing.settings_mut();
+            (s.method, s.speed_switch, s.acceleration) =
+                (method, 10 * REV as u32, 100 * REV as u32);
+            let i = home(&mut r, 10_000);
+            assert_eq!(
+                i.sw.0 & (1 << 13 | 1 << 12 | 1 << 10),
+                1 << 13 | 1 << 10,
+                "method {method}"
+            );
+            // It went to both limits.
+            assert!(
+                r.d.position_counts().abs() >= LIMIT - REV,
+                "method {method}"
+            );
+        }
+    }
+
+    /// Bit 4 falling interrupts (bit 10 set, 12 clear once stopped); halt stops; a new
+    /// rising edge starts over; the position is set only when attained.
+    #[test]
+    fn bit_4_falling_and_halt_interrupt_homing() {
+        let mut r = rig(34, 0, 0);
+        r.cw = 0x1F;
+        let i = r.cycles(5);
+        assert_eq!(i.sw.0 & (1 << 10 | 1 << 12 | 1 << 13), 0, "in progress");
+        r.cw = 0x0F;
+        let i = r.cycles(200);
+        assert_eq!(
+            i.sw.0 & (1 << 10 | 1 << 12 | 1 << 13),
+            1 << 10,
+            "interrupted"
+        );
+        assert_eq!(r.d.position_shift(), 0);
+        let stood = r.d.position_counts();
+        assert!(
+            stood > 0 && stood < 1000,
+            "stopped before the index: {stood}"
+        );
+        r.cw = 0x11F;
+        let i = r.cycles(200);
+        assert_eq!(i.sw.0 & (1 << 12), 0, "bit 4 with halt does not start");
+        r.cw = 0x0F;
+        r.cycle();
+        let i = home(&mut r, 2000);
+        assert_ne!(i.sw.0 & (1 << 12), 0);
+        assert!((r.d.position_counts() - 1000).abs() <= 1);
+    }
+
+    /// The faults the field reports, injected: a drive that never sets homing attained
+    /// (it homes, its statusword stays "in progress"), and one that refuses method 0.
+    #[test]
+    fn injected_faults_never_attain_and_refuse_method_0() {
+        use crate::coe::od::OdError;
+        let mut faults = homing::HomingFaults {
+            never_attains: true,
+            ..Default::default()
+        };
+        faults.refused.insert(0);
+        let params = ServoParams {
+            homing_faults: faults,
+            ..params()
+        };
+        let mut r = Rig::enabled(0, params, HM_MODE);
+        r.d.homing.settings_mut().method = 34;
+        r.cw = 0x1F;
+        let i = r.cycles(3000);
+        assert_eq!(
+            i.sw.0 & (1 << 10 | 1 << 12 | 1 << 13),
+            0,
+            "in progress forever"
+        );
+        assert!((r.d.position_counts() - 1000).abs() <= 1, "it did home");
+        let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+        r.d.install_objects(&mut od);
+        assert_eq!(od.write(0x6098, 0, &[0]), Err(OdError::ValueRange));
+        od.write(0x6098, 0, &[19]).unwrap();
+        // Reserved and manufacturer-specific methods, on the plain drive too.
+        let mut od = ObjectDictionary::cia402_servo(1, 2, 3, 4);
+        Rig::new(0, p()).d.install_objects(&mut od);
+        od.write(0x6098, 0, &[0]).unwrap();
+        for m in [15i8, 16, 31, 32, 36, 38, -1] {
+            assert_eq!(
+                od.write(0x6098, 0, &[m as u8]),
+                Err(OdError::ValueRange),
+                "{m}"
+            );
+        }
+        od.write(0x6099, 1, &1000u32.to_le_bytes()).unwrap();
+        assert_eq!(
+            od.write(0x6099, 2, &0u32.to_le_bytes()),
+            Err(OdError::ValueRange)
+        );
+        assert_eq!(od.read(0x6099, 0).unwrap(), &[2]);
+    }
+
+    /// Back to CSP after homing: the first target the master sends is the position actual
+    /// value now (the homed frame), and the drive does not move or fault.
+    #[test]
+    fn back_in_csp_the_targets_count_in_the_homed_frame() {
+        let mut r = rig(34, 0, -5000);
+        let i = home(&mut r, 2000);
+        assert_eq!(i.position, 5000);
+        r.cw = 0x0F;
+        r.mode = CSP;
+        r.target = i.position;
+        r.cycles(50);
+        r.target = i.position + 1000;
+        let i = r.cycles(300);
+        assert_eq!(i.mode, CSP);
+        assert_eq!(i.position, 6000);
+        assert!((r.d.position_counts() - 2000).abs() <= 1);
+        assert_eq!(r.d.error_code(), 0);
+    }
 }
