@@ -41,20 +41,27 @@ use crate::homing::{HomingRig, COUNTS_PER_MM};
 /// command followed cycle by cycle.
 pub trait MatrixRig: HomingRig {
     /// Sends `command` to the axis; the handle's id.
-    fn send(&mut self, command: Command) -> u64;
-    /// The command's status as of the last cycle.
-    fn command_status(&self, id: u64) -> Option<CommandStatus>;
+    fn send(&mut self, command: Command) -> u64 {
+        self.ctl().command(0, command).expect("queued").id()
+    }
     /// The number the drive's next crossing gets.
-    fn next_crossing(&self) -> u64;
+    fn next_crossing(&self) -> u64 {
+        self.with_servo(|s| s.crossings().next_seq())
+    }
     /// The drive's crossings numbered `seq` or later, and whether some were dropped.
-    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool);
+    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool) {
+        self.with_servo(|s| {
+            let log = s.crossings();
+            (log.since(seq).collect(), log.lost_since(seq))
+        })
+    }
     /// The drive's record of the setpoints it took.
-    fn drive_record(&self) -> DriveRecord;
-    /// The cycle time (s).
-    fn cycle_s(&self) -> f64;
-    /// Frames (cycles of process data) the bus lost so far.
-    fn lost_frames(&self) -> u64;
+    fn drive_record(&self) -> DriveRecord {
+        self.with_servo(|s| *s.record())
+    }
 }
+
+impl<T: HomingRig> MatrixRig for T {}
 
 const MM: f64 = COUNTS_PER_MM;
 /// The home cam (counts, both ends included): 6 mm to just under 8 mm.

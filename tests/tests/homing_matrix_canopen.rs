@@ -7,89 +7,24 @@
 
 use std::time::Instant;
 
-use gantry::runtime::bus::CycleBus;
-
 use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
 use gantry_sim::canopen::{CanNode, CanNodeConfig};
 use gantry_sim::config::{SimConfig, SlaveConfig};
-use gantry_sim::plant::record::DriveRecord;
-use gantry_sim::plant::servo::crossings::Crossing;
-use gantry_sim::plant::servo::ServoDrive;
 use gantry_tests::can_rig::CanRig;
 use gantry_tests::homing::{HomingRig, AXIS_SWITCHES_TOML};
-use gantry_tests::homing_matrix::{self as matrix, MatrixRig, Tally, AXIS_MAX_TOML};
+use gantry_tests::homing_matrix::{self as matrix, Tally, AXIS_MAX_TOML};
+use gantry_tests::servo_rig::CanopenServo;
 
 const NODE: u8 = 5;
 /// The cycle times the matrix runs at (µs): 2 ms is the shortest the layout with the
 /// switches and the probe fits at 1 Mbit/s.
 const CYCLES_US: [u32; 2] = [4000, 2000];
 
-struct CanopenMatrix(CanRig, u32);
-
-impl CanopenMatrix {
-    fn servo<R>(&self, f: impl FnOnce(&ServoDrive) -> R) -> R {
-        f(self.0.sim().node(NODE).servo().expect("a servo"))
-    }
-}
-
-impl HomingRig for CanopenMatrix {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.servo(|s| s.position_counts())
-    }
-    fn drive_faults(&self) -> u32 {
-        self.servo(|s| s.record().faults)
-    }
-}
-
-impl MatrixRig for CanopenMatrix {
-    fn send(&mut self, command: Command) -> u64 {
-        self.0.ctl.command(0, command).expect("queued").id()
-    }
-    fn command_status(&self, id: u64) -> Option<CommandStatus> {
-        self.0.engine.command_status(id)
-    }
-    fn next_crossing(&self) -> u64 {
-        self.servo(|s| s.crossings().next_seq())
-    }
-    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool) {
-        self.servo(|s| {
-            let log = s.crossings();
-            (log.since(seq).collect(), log.lost_since(seq))
-        })
-    }
-    fn drive_record(&self) -> DriveRecord {
-        self.servo(|s| *s.record())
-    }
-    fn cycle_s(&self) -> f64 {
-        f64::from(self.1) * 1e-6
-    }
-    fn lost_frames(&self) -> u64 {
-        self.0.engine.bus.counters().lost
-    }
-}
-
 /// An enabled axis on a simulated CANopen servo with the matrix' switch cams (`home`:
 /// with the home cam), cycling every `cycle_us`.
-fn rig(home: bool, cycle_us: u32) -> CanopenMatrix {
+fn rig(home: bool, cycle_us: u32) -> CanopenServo {
     let chain = SimConfig::parse(
         &format!(
             "[[slave]]\nkind = \"servo\"\nnode = {NODE}\n{}",
@@ -116,7 +51,11 @@ fn rig(home: bool, cycle_us: u32) -> CanopenMatrix {
         "can.toml",
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    let mut rig = CanopenMatrix(CanRig::new(&config, vec![node]), cycle_us);
+    let mut rig = CanopenServo {
+        rig: CanRig::new(&config, vec![node]),
+        node: NODE,
+        cycle_s: f64::from(cycle_us) * 1e-6,
+    };
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),
         CommandStatus::Done

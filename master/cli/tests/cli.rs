@@ -531,7 +531,10 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
     assert!(load.contains("of 2000 µs at 1000 kbit/s"), "{load}");
     // x with its switches and touch probe: 1757 bits, 90 % of the reply window.
     assert!(load.contains("TPDOs — 1757 bits of 2000 µs"), "{load}");
-    assert!(load.contains("(90 % of the cycle's reply window)"), "{load}");
+    assert!(
+        load.contains("(90 % of the cycle's reply window)"),
+        "{load}"
+    );
     // Nothing lost on a lockstep bus; 14 frames a cycle: 4 RPDOs, the SYNC, 9 TPDOs.
     let cycles = line(&text, ">> cycles: ");
     assert!(
