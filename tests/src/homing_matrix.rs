@@ -35,7 +35,12 @@ use gantry_kernel::homing::{
 use gantry_sim::plant::record::{max_step_counts, DriveRecord};
 use gantry_sim::plant::servo::crossings::{Crossed, Crossing};
 
-use crate::homing::{HomingRig, COUNTS_PER_MM};
+use std::time::Instant;
+
+use crate::homing::{HomingRig, AXIS_SWITCHES_TOML, COUNTS_PER_MM};
+use crate::rig::Rig;
+use crate::servo_rig::EthercatServo;
+use crate::{sim_config_text, DEFAULT_SYNC_ERROR_LIMIT};
 
 /// What the matrix needs of a rig beyond [`HomingRig`]: the simulator's truth and a
 /// command followed cycle by cycle.
@@ -828,4 +833,70 @@ fn assert_stopped(rig: &mut impl MatrixRig, what: &str) {
     rig.cycles(20);
     assert_eq!(rig.drive_counts(), at, "{what}: the axis still moves");
     assert_eq!(rig.status().set.v, 0.0, "{what}: set velocity");
+}
+
+/// Prints a part's figures.
+pub fn report(part: &str, t: &Tally, since: Instant) {
+    eprintln!(
+        "{part}: {} cases, {} cycles, {:.1} s",
+        t.cases,
+        t.cycles,
+        since.elapsed().as_secs_f64()
+    );
+}
+
+/// The whole matrix over EtherCAT at a `cycle_us` cycle (once per process: the EtherCAT
+/// bus starts once per process).
+pub fn over_ethercat(cycle_us: u32) {
+    let slaves = format!(
+        "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = {DEFAULT_SYNC_ERROR_LIMIT}\n{}",
+        servo_switches_toml(true)
+    );
+    let axes = format!(
+        "[[axis]]\nname = \"x\"\ndrive = 0\npdo = \"csp-minimal\"\n\
+         scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+         {AXIS_MAX_TOML}\n{AXIS_SWITCHES_TOML}"
+    );
+    let config = sim_config_text(cycle_us, &slaves, "", &axes);
+    let mut rig = EthercatServo {
+        rig: Rig::new(&config),
+        cycle_s: f64::from(cycle_us) * 1e-6,
+    };
+    assert_eq!(
+        rig.run_command(
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+            5000
+        ),
+        CommandStatus::Done
+    );
+    let only = std::env::var("HOMING_MATRIX_ONLY").unwrap_or_default();
+    let mut failures = Vec::new();
+    let mut cases = 0;
+    let t = Instant::now();
+    let m = move_home_matrix(&mut rig, &only, true);
+    report("MoveHome", &m, t);
+    let t = Instant::now();
+    let mut s = step_switch_matrix(&mut rig, 1000.0, &only, true);
+    let small = step_switch_matrix(&mut rig, 40.0, &only, true);
+    s.cases += small.cases;
+    s.cycles += small.cycles;
+    s.failures.extend(small.failures);
+    report("StepAbsoluteSwitch", &s, t);
+    for tally in [m, s] {
+        cases += tally.cases;
+        failures.extend(tally.failures);
+    }
+    if only.is_empty() {
+        let t = Instant::now();
+        let e = error_cases(&mut rig);
+        report("errors", &e, t);
+        cases += e.cases;
+    }
+    assert!(cases > 0, "no case matches {only:?}");
+    assert!(
+        failures.is_empty(),
+        "{} of {cases} cases failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
