@@ -135,6 +135,20 @@ pub enum StartError {
         /// Its 0x1000.
         device_type: u32,
     },
+    /// A node an axis' switches read as an I/O module is not a CiA 401 device.
+    #[error(
+        "CANopen node {node} ({module}): device type 0x{device_type:08X} is profile {}, not \
+         a CiA 401 I/O module (0x1000 bits 0–15 = 401)",
+        device_type & 0xFFFF
+    )]
+    NotCia401 {
+        /// The node.
+        node: u8,
+        /// What reads it.
+        module: String,
+        /// Its 0x1000.
+        device_type: u32,
+    },
     /// A node's heartbeat did not report Operational after NMT start.
     #[error(
         "CANopen node {node}: not Operational {waited_ms} ms after NMT start (its last \
@@ -429,6 +443,9 @@ pub struct DriveSetup {
     pub axis: String,
     /// The node.
     pub node: NodeId,
+    /// Its device profile (0x1000 bits 0–15): [`PROFILE_CIA402`] for a drive,
+    /// [`super::io_module::PROFILE_CIA401`] for an I/O module.
+    pub profile: u16,
     /// The layout.
     pub layout: PdoLayout,
     /// Its PDOs.
@@ -476,13 +493,17 @@ impl ExpectedIdentity {
     }
 }
 
-/// The drives of `config`, in axis order (bus position `i` = axis `i`), after the load
-/// check.
+/// The drives of `config`, in axis order (bus position `i` = axis `i`), then the I/O
+/// modules its switches read (their positions after the drives'), after the load check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    (0..config.axes.len())
+    let mut setups = (0..config.axes.len())
         .map(|i| drive_setup(config, i))
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    for m in config.module_nodes() {
+        setups.push(super::io_module::setup(config, &m)?);
+    }
+    Ok(setups)
 }
 
 /// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
@@ -546,6 +567,7 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
     Ok(DriveSetup {
         axis: a.name.clone(),
         node,
+        profile: PROFILE_CIA402,
         layout,
         plan,
         steps,
@@ -739,8 +761,16 @@ pub fn run(
             Multiplexer::new(DEVICE_TYPE, 0),
             "device type",
         )?;
-        if device_type & 0xFFFF != u32::from(PROFILE_CIA402) {
-            return Err(StartError::NotCia402 { node, device_type });
+        if device_type & 0xFFFF != u32::from(d.profile) {
+            return Err(if d.profile == PROFILE_CIA402 {
+                StartError::NotCia402 { node, device_type }
+            } else {
+                StartError::NotCia401 {
+                    node,
+                    module: d.axis.clone(),
+                    device_type,
+                }
+            });
         }
         let mut identity = [None; 4];
         for (sub, slot) in (1u8..=4).zip(identity.iter_mut()) {
@@ -759,9 +789,14 @@ pub fn run(
         }
         let _ = writeln!(
             out,
-            "  node {node} (axis {:?}): CiA 402 device type 0x{device_type:08X}, vendor \
+            "  node {node} ({}): CiA {} device type 0x{device_type:08X}, vendor \
              0x{:08X}, product 0x{:08X}, revision 0x{:08X}, serial {}",
-            d.axis,
+            if d.profile == PROFILE_CIA402 {
+                format!("axis {:?}", d.axis)
+            } else {
+                d.axis.clone()
+            },
+            d.profile,
             identity[0].unwrap_or(0),
             identity[1].unwrap_or(0),
             identity[2].unwrap_or(0),

@@ -61,7 +61,7 @@ pub enum LoadError {
 pub struct BusLoad {
     /// Drives (nodes).
     pub drives: usize,
-    /// PDOs of each drive (RPDOs + TPDOs), in axis order.
+    /// PDOs of each drive (RPDOs + TPDOs), in axis order, then of each I/O module.
     pub pdos: Vec<usize>,
     /// Bits a cycle's frames take at worst: SYNC, PDOs, heartbeats averaged.
     pub bits: u64,
@@ -76,7 +76,8 @@ pub struct BusLoad {
 }
 
 impl BusLoad {
-    /// The load of `config`'s axes on its bus (CANopen: `bitrate` given).
+    /// The load of `config`'s axes and the I/O modules their switches read on its bus
+    /// (CANopen: `bitrate` given).
     pub fn of_config(config: &Config) -> Result<Self, LoadError> {
         let mut plans = Vec::with_capacity(config.axes.len());
         for a in &config.axes {
@@ -90,6 +91,10 @@ impl BusLoad {
                 source,
             })?;
             plans.push(plan);
+        }
+        // The I/O modules the switches read: their TPDO and heartbeat are on the bus too.
+        for m in config.module_nodes() {
+            plans.push(super::io_module::plan(&m)?);
         }
         let load = Self::of(
             &plans,
