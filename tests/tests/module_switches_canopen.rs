@@ -49,18 +49,19 @@ fn nodes() -> Vec<CanNode> {
 /// The axis on node 5, its switches on module node 9 (inputs 2 and 1 the normally closed
 /// limit switches, 0 the home cam).
 fn config() -> gantry::config::Config {
+    gantry::config::Config::parse(&config_text(), "can.toml").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// [`config`]'s text.
+fn config_text() -> String {
     let switches = AXIS_MODULE_SWITCHES_TOML.replace("slave = 1", &format!("node = {MODULE}"));
     assert_ne!(switches, AXIS_MODULE_SWITCHES_TOML);
-    gantry::config::Config::parse(
-        &format!(
-            "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\
+    format!(
+        "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\
              [[axis]]\nname = \"x\"\nnode = {SERVO}\npdo = \"csp-minimal\"\n\
              scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
              max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n{switches}"
-        ),
-        "can.toml",
     )
-    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 struct CanopenModule(CanRig);
@@ -116,6 +117,11 @@ fn switches_on_a_canopen_io_module_reach_the_axis_and_stop_it() {
     let log = rig.0.log.clone();
     assert!(
         log.contains("node 9 (I/O module of x): CiA 401 device type 0x00010191"),
+        "{log}"
+    );
+    // Its TPDO1 maps 0x6000:01 from power-on (CiA 401's default): taken as it is.
+    assert!(
+        log.contains("node 9: TPDO1 taken as its CiA 401 default mapping (0x6000:01..=01)"),
         "{log}"
     );
     assert!(log.contains("node 9: , TPDO1 1 bytes"), "{log}");

@@ -691,12 +691,51 @@ fn upload_u32(
     Ok(u32::from_le_bytes(b))
 }
 
+/// An I/O module whose TPDO1 maps, as CiA 401 §6 has it by default, 0x6000:01..=n with
+/// n at least the input groups the switches need: that mapping is taken as it is (a
+/// module may have a static one that refuses to be written, CiA 301 §7.5.2.38) — its
+/// mapping writes leave `d.steps`, which keep the transmission type, and its layout and
+/// plan become the n groups the TPDO carries. Any other mapping is written by SDO.
+fn take_default_mapping(
+    link: &mut dyn CanLink,
+    client: &mut Client,
+    d: &mut DriveSetup,
+    out: &mut (dyn Write + Send),
+) -> Result<(), StartError> {
+    let mapping = |sub| Multiplexer::new(TPDO_MAPPING, sub);
+    let n = upload_u32(link, client, mapping(0), "TPDO1 mapping count")?;
+    let needed = d.layout.inputs.len() as u32;
+    if !(needed..=8).contains(&n) {
+        return Ok(());
+    }
+    for k in 1..=n as u8 {
+        let entry = upload_u32(link, client, mapping(k), "TPDO1 mapping entry")?;
+        let want = gantry_drives::cia402::pdo::mapping_entry(&super::io_module::read_input_8(k));
+        if entry != want {
+            return Ok(());
+        }
+    }
+    let layout = super::io_module::layout(n as u8);
+    let Ok(plan) = DrivePlan::of(&layout) else {
+        return Ok(());
+    };
+    d.steps.retain(|s| s.mux.index != TPDO_MAPPING);
+    d.layout = layout;
+    d.plan = plan;
+    let _ = writeln!(
+        out,
+        "  node {}: TPDO1 taken as its CiA 401 default mapping (0x6000:01..={n:02X})",
+        d.node.get()
+    );
+    Ok(())
+}
+
 /// Bring-up: every step in order on `link`, printing them to `out`. Returns what each
 /// node said of itself; the nodes are Operational (each said so in a heartbeat within
 /// `consumer_ns` of NMT start), their PDOs synchronous.
 pub fn run(
     link: &mut dyn CanLink,
-    drives: &[DriveSetup],
+    drives: &mut [DriveSetup],
     consumer_ns: u64,
     out: &mut (dyn Write + Send),
 ) -> Result<Vec<NodeInfo>, StartError> {
@@ -752,7 +791,7 @@ pub fn run(
         drives.len()
     );
     let mut infos = Vec::with_capacity(drives.len());
-    for d in drives {
+    for d in drives.iter_mut() {
         let mut c = client(d.node)?;
         let node = d.node.get();
         let device_type = upload_u32(
@@ -802,6 +841,9 @@ pub fn run(
             identity[2].unwrap_or(0),
             identity[3].map_or("-".to_string(), |s| s.to_string()),
         );
+        if d.profile == super::io_module::PROFILE_CIA401 {
+            take_default_mapping(link, &mut c, d, out)?;
+        }
         for step in &d.steps {
             transfer(
                 link,
@@ -831,7 +873,7 @@ pub fn run(
             identity,
         });
     }
-    for d in drives {
+    for d in drives.iter() {
         send(
             link,
             &nmt(NmtCommand::Start, NmtTarget::Node(d.node)),

@@ -342,9 +342,9 @@ impl CanopenBus {
         mut link: Box<dyn CanLink>,
         out: &mut (dyn Write + Send),
     ) -> Result<Self, StartError> {
-        let setups = bring_up::drive_setups(config)?;
+        let mut setups = bring_up::drive_setups(config)?;
         let consumer_ns = u64::from(config.bus.heartbeat_consumer_ms()) * 1_000_000;
-        let infos = bring_up::run(&mut *link, &setups, consumer_ns, out)?;
+        let infos = bring_up::run(&mut *link, &mut setups, consumer_ns, out)?;
         let now = link.now_ns();
         let mut node_drive = [0u8; 128];
         let mut drives = Vec::with_capacity(setups.len());
