@@ -154,8 +154,15 @@ fn switches_on_a_canopen_io_module_reach_the_axis_and_stop_it() {
     let snap = rig.0.snapshot();
     assert!(!snap.axes[0].switches.positive_limit);
     module_scenario(&mut rig);
-    // The scenario's limit switch stop reached the snapshot too.
     assert_eq!(rig.0.engine.bus.malformed(), 0);
+    // At shutdown the module leaves the cycle with the drive: pre-operational, its
+    // watches of gantry's SYNC and heartbeat taken back.
+    let (out, bus) = rig.0.shut_down(5000);
+    assert!(out.contains("taken back on node(s) 5, 9 in"), "{out}");
+    assert_eq!(
+        gantry_tests::can_rig::lock(&bus).node(MODULE).nmt_state(),
+        NmtSlaveState::PreOperational
+    );
 }
 
 /// Module loss: its heartbeat silent past the consumer time stops the axis (ErrorStop,
@@ -254,7 +261,35 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     assert_eq!(rig.status().state, AxisState::ErrorStop);
     rig.0.sim().drop_frames(0x180 + u16::from(MODULE), false);
     reset_enable_move(&mut rig, 5.0);
-    assert_eq!(rig.drive_faults(), 0);
+    assert_eq!(rig.drive_faults(), 0, "the drive never faulted: only its axis stopped");
+
+    // The drive and the module both reset by another tool: one reset brings both back,
+    // the drive first, then the module.
+    for node in [SERVO, MODULE] {
+        let reset_node = NmtFrame {
+            command: NmtCommand::ResetNode,
+            target: NmtTarget::Node(NodeId::new(node).expect("id")),
+        }
+        .emit();
+        rig.0.sim().inject(reset_node);
+    }
+    rig.cycles(20);
+    assert_eq!(rig.status().state, AxisState::ErrorStop);
+    let faulted = |rig: &CanopenModule, i| {
+        gantry::runtime::bus::CycleBus::fault(&rig.0.engine.bus, i).map(|f| f.to_string())
+    };
+    let drive = faulted(&rig, 0).expect("the drive's own fault");
+    assert!(drive.starts_with("CANopen node 5: "), "{drive}");
+    let module = faulted(&rig, 1).expect("the module's fault");
+    assert!(
+        module.starts_with("switch module: CANopen node 9: "),
+        "{module}"
+    );
+    reset_enable_move(&mut rig, 0.0);
+    assert_eq!(
+        rig.0.sim().node(SERVO).nmt_state(),
+        NmtSlaveState::Operational
+    );
 }
 
 /// Reset (bringing the module back), enable when the reset left the axis disabled, and

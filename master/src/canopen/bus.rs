@@ -250,7 +250,11 @@ impl Transfer {
 
 #[derive(Clone, Copy, Debug)]
 struct Restore {
+    /// The node being brought back (a drive, or an I/O module `origin`'s axis reads).
     drive: usize,
+    /// The drive whose reset asked for it: once `drive` is back, the I/O modules its axis
+    /// reads that are out are brought back too, under the same deadline.
+    origin: usize,
     deadline_ns: u64,
     step: Step,
 }
@@ -1029,8 +1033,24 @@ impl CanopenBus {
         }
         if let Some(d) = self.drives.get(r.drive) {
             if d.got == d.all_tpdos() {
-                self.restore = None;
-                self.restored = Some(Ok(Restored::BackInOperation));
+                // Next, an I/O module the axis reads that is out too.
+                let next = self.drives.get(r.origin).and_then(|o| {
+                    o.reads.iter().flatten().copied().find(|m| {
+                        *m != r.drive
+                            && self
+                                .drives
+                                .get(*m)
+                                .is_some_and(|m| m.fault.is_some() || m.left.is_some())
+                    })
+                });
+                self.restore = next.map(|m| Restore {
+                    drive: m,
+                    step: Step::Reset,
+                    ..r
+                });
+                if self.restore.is_none() {
+                    self.restored = Some(Ok(Restored::BackInOperation));
+                }
             }
         }
     }
@@ -1275,7 +1295,8 @@ impl CycleBus for CanopenBus {
             return true;
         };
         let out = |d: &Drive| d.fault.is_some() || d.left.is_some();
-        // The drive first, then an I/O module its axis reads (one node per restore).
+        let origin = drive;
+        // The drive first, then the I/O modules its axis reads (`finish_restore`).
         let drive = if out(d) {
             drive
         } else {
@@ -1295,6 +1316,7 @@ impl CycleBus for CanopenBus {
         };
         self.restore = Some(Restore {
             drive,
+            origin,
             deadline_ns: now.saturating_add(timeout_ns),
             step: Step::Reset,
         });
