@@ -261,7 +261,11 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     assert_eq!(rig.status().state, AxisState::ErrorStop);
     rig.0.sim().drop_frames(0x180 + u16::from(MODULE), false);
     reset_enable_move(&mut rig, 5.0);
-    assert_eq!(rig.drive_faults(), 0, "the drive never faulted: only its axis stopped");
+    assert_eq!(
+        rig.drive_faults(),
+        0,
+        "the drive never faulted: only its axis stopped"
+    );
 
     // The drive and the module both reset by another tool: one reset brings both back,
     // the drive first, then the module.

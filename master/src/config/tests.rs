@@ -353,6 +353,12 @@ fn canopen_module_switches_are_placed_after_the_drives_and_checked() {
     // touch probe stays mapped for the index pulse), y's 2, a 2-byte and a 1-byte TPDO.
     let load = crate::canopen::load::BusLoad::of_config(&c).unwrap();
     assert_eq!(load.pdos, [4, 2, 1, 1]);
+    assert_eq!((load.drives, load.modules), (4, 2));
+    assert!(
+        load.to_string()
+            .starts_with("2 drives + 2 I/O modules with 8 PDOs"),
+        "{load}"
+    );
     let no_modules = Config::parse(&canopen_modules("touch_probe = true", ""), "c.toml").unwrap();
     let plain = crate::canopen::load::BusLoad::of_config(&no_modules).unwrap();
     use gantry_drives::canopen::frame::frame_bits;
