@@ -354,3 +354,72 @@ fn the_bring_up_refuses_a_module_node_that_is_not_a_cia_401_module_or_is_missing
         "{e}"
     );
 }
+
+/// A module without 0x1016 (the heartbeat consumer is optional, CiA 301 §7.5.2.16):
+/// its refusal (abort 0x06020000, object does not exist) is taken — an input module has
+/// no outputs to make safe when gantry stops — and the bus comes up without it; any other
+/// refusal stops the bring-up (the tests above).
+#[test]
+fn a_module_without_a_heartbeat_consumer_comes_up_without_it() {
+    use gantry::canopen::{CanLink, CanopenBus, Received};
+    use gantry_drives::canopen::CanFrame;
+    use gantry_tests::can_rig::MemLink;
+
+    /// The module's SDO server as one without 0x1016: a download to it is aborted.
+    struct No1016 {
+        inner: MemLink,
+        abort: Option<CanFrame>,
+    }
+    impl CanLink for No1016 {
+        fn send(&mut self, frame: &CanFrame) -> std::io::Result<()> {
+            let d = frame.data();
+            // Client command specifier 1: initiate download (CiA 301 §7.2.4.3.3).
+            if frame.id() == 0x600 + u16::from(MODULE)
+                && d.first().is_some_and(|b| b >> 5 == 1)
+                && d.get(1..3) == Some(&[0x16, 0x10][..])
+            {
+                let mut abort = [0x80, 0x16, 0x10, d[3], 0, 0, 0, 0];
+                abort[4..].copy_from_slice(&0x0602_0000u32.to_le_bytes());
+                self.abort = CanFrame::new(0x580 + u32::from(MODULE), &abort).ok();
+                return Ok(());
+            }
+            self.inner.send(frame)
+        }
+        fn receive(&mut self, deadline_ns: u64) -> std::io::Result<Option<Received>> {
+            if let Some(frame) = self.abort.take() {
+                return Ok(Some(Received {
+                    frame,
+                    at_ns: Some(self.inner.now_ns()),
+                }));
+            }
+            self.inner.receive(deadline_ns)
+        }
+        fn now_ns(&self) -> u64 {
+            self.inner.now_ns()
+        }
+    }
+    let (inner, sim) = MemLink::new(nodes(), Some(1_000_000));
+    let link = No1016 { inner, abort: None };
+    let mut log = Vec::new();
+    let bus = CanopenBus::bring_up_on(&config(), Box::new(link), &mut log)
+        .unwrap_or_else(|e| panic!("{}", gantry::error_chain::Chain(&e)));
+    let log = String::from_utf8_lossy(&log);
+    assert!(
+        log.contains("node 9: has no 0x1016 (optional): not set"),
+        "{log}"
+    );
+    assert!(log.contains("2 nodes operational"), "{log}");
+    // The drive took its consumer of gantry's heartbeat; the module was not given one.
+    let mut s = gantry_tests::can_rig::lock(&sim);
+    let mut consumer = [0u8; 4];
+    s.node_mut(SERVO)
+        .read_object(0x1016, 1, &mut consumer)
+        .expect("0x1016:01");
+    assert_eq!(u32::from_le_bytes(consumer) >> 16, 127, "gantry's node id");
+    s.node_mut(MODULE)
+        .read_object(0x1016, 1, &mut consumer)
+        .expect("0x1016:01");
+    assert_eq!(u32::from_le_bytes(consumer), 0);
+    drop(s);
+    assert_eq!(gantry::runtime::bus::CycleBus::drives(&bus), 2);
+}

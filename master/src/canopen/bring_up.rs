@@ -844,16 +844,44 @@ pub fn run(
         if d.profile == super::io_module::PROFILE_CIA401 {
             take_default_mapping(link, &mut c, d, out)?;
         }
+        let mut absent: Vec<u16> = Vec::new();
         for step in &d.steps {
-            transfer(
+            if absent.contains(&step.mux.index) {
+                continue;
+            }
+            match transfer(
                 link,
                 &mut c,
                 step.mux,
                 Some(step.value()),
                 step.what,
                 &mut |_| {},
-            )?;
+            ) {
+                Ok(()) => {}
+                // An I/O module has no EDS that says which optional objects it has:
+                // without 0x1006 it does not watch the SYNC, without 0x1016 gantry's
+                // heartbeat (CiA 301 §7.5.2.6, §7.5.2.16: optional) — harmless for an input
+                // module, which has no outputs to make safe; its heartbeat (0x1017) and
+                // its TPDO are still watched by gantry.
+                Err(StartError::Sdo {
+                    failure: SdoFailure::Refused(AbortCode::OBJECT_DOES_NOT_EXIST),
+                    ..
+                }) if d.profile != PROFILE_CIA402
+                    && [COMMUNICATION_CYCLE_PERIOD, CONSUMER_HEARTBEAT_TIME]
+                        .contains(&step.mux.index) =>
+                {
+                    absent.push(step.mux.index);
+                    let _ = writeln!(
+                        out,
+                        "  node {node}: has no 0x{:04X} (optional): not set",
+                        step.mux.index
+                    );
+                }
+                Err(e) => return Err(e),
+            }
         }
+        // Its restores and the shutdown do not write them either.
+        d.steps.retain(|s| !absent.contains(&s.mux.index));
         let pdos = |what: &str, pdos: &[PdoPlan]| {
             pdos.iter()
                 .map(|p| format!("{what}{} {} bytes", p.number, p.len))
