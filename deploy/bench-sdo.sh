@@ -4,7 +4,7 @@
 # vcan, in one run (tests/tests/sdo_bench_vcan.rs). Prints the "SDO bench:" figures.
 # Runs in a network namespace where the host kernel has vcan, else in the VM of deploy/vm/
 # (the build machines' kernels have no CAN; there the figures are an emulator's).
-# Usage: bash deploy/bench-sdo.sh        (deploy/test.sh runs the same test with the others)
+# Usage: bash deploy/bench-sdo.sh   (not part of deploy/test.sh: minutes in an emulated VM)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

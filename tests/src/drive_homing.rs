@@ -9,32 +9,15 @@
 //! every revolution. Each expected home position is worked out here from that geometry and
 //! the method's diagram in CiA 402-2 §10.4.3, independently of the simulator's plan.
 
-use gantry::runtime::controller::{CommandHandle, Controller};
+use gantry::runtime::controller::CommandHandle;
 use gantry::runtime::procedure::DriveProcedure;
 use gantry_drives::cia402::homing::{DriveHoming, DriveHomingParams};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::axis::status::AxisStatus;
-use gantry_sim::plant::servo::ServoDrive;
 
 use crate::homing::COUNTS_PER_MM;
-
-/// What the scenario needs of a rig with one axis (axis 0) on a simulated servo.
-pub trait DriveHomingRig {
-    /// The application's controller.
-    fn ctl(&self) -> &Controller;
-    /// Cycles until `h` is final (at most `max` cycles).
-    fn finish(&mut self, h: &CommandHandle, max: usize) -> CommandStatus;
-    /// `n` cycles.
-    fn cycles(&mut self, n: usize);
-    /// The axis' status now.
-    fn status(&self) -> AxisStatus;
-    /// `f` of the simulated servo.
-    fn with_servo<R>(&self, f: impl FnOnce(&ServoDrive) -> R) -> R;
-    /// The cycle time (s).
-    fn cycle_s(&self) -> f64;
-}
+use crate::servo_rig::ServoRig;
 
 const REV: i64 = 131_072;
 const LIMIT: i64 = 10 * REV;
@@ -88,7 +71,7 @@ fn start_mm(method: i8) -> f64 {
 }
 
 /// Runs drive homing with `params` and cycles until it ends.
-pub fn drive_home(rig: &mut impl DriveHomingRig, params: DriveHomingParams) -> CommandStatus {
+pub fn drive_home(rig: &mut impl ServoRig, params: DriveHomingParams) -> CommandStatus {
     let h = rig
         .ctl()
         .drive_procedure(0, DriveProcedure::Homing(DriveHoming::new(params)))
@@ -97,7 +80,7 @@ pub fn drive_home(rig: &mut impl DriveHomingRig, params: DriveHomingParams) -> C
     rig.finish(&h, max)
 }
 
-fn move_to(rig: &mut impl DriveHomingRig, mm: f64) {
+fn move_to(rig: &mut impl ServoRig, mm: f64) {
     let cmd = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, mm).speed(100.0));
     let h = rig.ctl().command(0, cmd).expect("queued");
     assert_eq!(rig.finish(&h, 20_000), CommandStatus::Done, "move to {mm}");
@@ -107,7 +90,7 @@ fn move_to(rig: &mut impl DriveHomingRig, mm: f64) {
 /// the cams and index (±1 count), the axis is homed and reads minus the home offset
 /// there, it is back in CSP, and the first CSP target after the hand-back was the drive's
 /// position actual value (no setpoint jump; no drive fault anywhere).
-pub fn every_method(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
+pub fn every_method(rig: &mut impl ServoRig, base: DriveHomingParams) {
     let offset_mm = f64::from(base.home_offset) / COUNTS_PER_MM;
     for method in methods() {
         // Start in the axis' frame: before the first homing it is the drive's.
@@ -168,7 +151,7 @@ pub fn every_method(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
 /// A drive that never reports homing attained: the error names the method and what was
 /// missing after the timeout; the drive was halted and handed back in CSP; the axis is in
 /// Standstill, not homed.
-pub fn timeout_path(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
+pub fn timeout_path(rig: &mut impl ServoRig, base: DriveHomingParams) {
     let params = DriveHomingParams {
         method: 34,
         timeout_s: 2.0,
@@ -193,7 +176,7 @@ pub fn timeout_path(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
 
 /// A method the drive refuses (SDO abort 0x06090030 on 0x6098): the error says so, the
 /// drive never left CSP.
-pub fn refused_method(rig: &mut impl DriveHomingRig, base: DriveHomingParams, method: i8) {
+pub fn refused_method(rig: &mut impl ServoRig, base: DriveHomingParams, method: i8) {
     let status = drive_home(rig, DriveHomingParams { method, ..base });
     let CommandStatus::Error(e) = status else {
         panic!("expected the refusal, got {status:?}");
@@ -212,7 +195,7 @@ pub fn refused_method(rig: &mut impl DriveHomingRig, base: DriveHomingParams, me
 }
 
 /// Skip (an absolute drive): homed at once on the drive's position, nothing moves.
-pub fn skip(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
+pub fn skip(rig: &mut impl ServoRig, base: DriveHomingParams) {
     let before = rig.with_servo(|s| s.position_counts());
     let status = drive_home(rig, DriveHomingParams { skip: true, ..base });
     assert_eq!(status, CommandStatus::Done);
@@ -225,7 +208,7 @@ pub fn skip(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
 }
 
 /// Starts drive homing with `params` without waiting.
-fn start(rig: &mut impl DriveHomingRig, params: DriveHomingParams) -> CommandHandle {
+fn start(rig: &mut impl ServoRig, params: DriveHomingParams) -> CommandHandle {
     rig.ctl()
         .drive_procedure(0, DriveProcedure::Homing(DriveHoming::new(params)))
         .expect("queued")
@@ -237,7 +220,7 @@ fn start(rig: &mut impl DriveHomingRig, params: DriveHomingParams) -> CommandHan
 /// off while the drive homes: the lending ends at once (Aborted), the drive is switched
 /// off and set back to CSP (by SDO where the layout has no 0x6060), and enables and moves
 /// again.
-pub fn cancel_and_power_off(rig: &mut impl DriveHomingRig, base: DriveHomingParams) {
+pub fn cancel_and_power_off(rig: &mut impl ServoRig, base: DriveHomingParams) {
     // Method 1: a long way to the negative limit switch.
     let params = DriveHomingParams { method: 1, ..base };
     let h = start(rig, params);

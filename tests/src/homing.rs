@@ -8,22 +8,30 @@
 use gantry_kernel::axis::command::{Command, MoveDirection, MovePtp, PositioningMode};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::axis::status::{AxisFault, AxisStatus};
+use gantry_kernel::axis::status::AxisFault;
 use gantry_kernel::homing::{HomingMode, LimitSide, MoveHome, MoveHomeCall, SwitchConfig};
 
-/// What the scenario needs of a rig with one axis (axis 0) on a simulated servo.
-pub trait HomingRig {
+pub use crate::servo_rig::ServoRig;
+
+/// What the scenario needs of a rig with one axis (axis 0) on a simulated servo, on top of
+/// [`ServoRig`] (every servo rig has it).
+pub trait HomingRig: ServoRig {
     /// Sends `command` to the axis and cycles until it is final (at most `max` cycles).
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus;
-    /// `n` cycles.
-    fn cycles(&mut self, n: usize);
-    /// The axis' status now.
-    fn status(&self) -> AxisStatus;
+    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
+        let h = self.ctl().command(0, command).expect("queued");
+        self.finish(&h, max)
+    }
     /// The simulated drive's load position (counts, not wrapped).
-    fn drive_counts(&self) -> i64;
+    fn drive_counts(&self) -> i64 {
+        self.with_servo(|s| s.position_counts())
+    }
     /// Faults the simulated drive recorded.
-    fn drive_faults(&self) -> u32;
+    fn drive_faults(&self) -> u32 {
+        self.with_servo(|s| s.record().faults)
+    }
 }
+
+impl<T: ServoRig> HomingRig for T {}
 
 /// The simulated servo's switches (`[slave.switches]`, counts): limit switches beyond
 /// ±50 mm, the home cam from 10 mm to just under 12 mm.

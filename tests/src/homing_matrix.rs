@@ -41,20 +41,27 @@ use crate::homing::{HomingRig, COUNTS_PER_MM};
 /// command followed cycle by cycle.
 pub trait MatrixRig: HomingRig {
     /// Sends `command` to the axis; the handle's id.
-    fn send(&mut self, command: Command) -> u64;
-    /// The command's status as of the last cycle.
-    fn command_status(&self, id: u64) -> Option<CommandStatus>;
+    fn send(&mut self, command: Command) -> u64 {
+        self.ctl().command(0, command).expect("queued").id()
+    }
     /// The number the drive's next crossing gets.
-    fn next_crossing(&self) -> u64;
+    fn next_crossing(&self) -> u64 {
+        self.with_servo(|s| s.crossings().next_seq())
+    }
     /// The drive's crossings numbered `seq` or later, and whether some were dropped.
-    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool);
+    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool) {
+        self.with_servo(|s| {
+            let log = s.crossings();
+            (log.since(seq).collect(), log.lost_since(seq))
+        })
+    }
     /// The drive's record of the setpoints it took.
-    fn drive_record(&self) -> DriveRecord;
-    /// The cycle time (s).
-    fn cycle_s(&self) -> f64;
-    /// Frames (cycles of process data) the bus lost so far.
-    fn lost_frames(&self) -> u64;
+    fn drive_record(&self) -> DriveRecord {
+        self.with_servo(|s| *s.record())
+    }
 }
+
+impl<T: HomingRig> MatrixRig for T {}
 
 const MM: f64 = COUNTS_PER_MM;
 /// The home cam (counts, both ends included): 6 mm to just under 8 mm.
@@ -139,15 +146,15 @@ enum Expect {
     FailsDistance(&'static str, &'static str),
 }
 
-/// Whether the simulated drive's touch probe can latch a limit switch (the probe source in
-/// vendor object 0x60D0, which MoveHome's `LimitSwitch` needs). **Today it cannot**: probe 1
-/// is wired to the home switch only. The kernel then takes no home-switch latch for the
-/// limit's edge (a latch only counts when the limit's level changes in its cycle), so a
-/// `LimitSwitch` run crosses the limit switch, finds no edge, and ends with its reference
-/// search distance exceeded — a clear error, never a wrong reference. When the drive layer
-/// routes the probe to the limit switch, set this to `true`: the matrix then expects the
-/// limit's edge (and the index pulse beyond it) like every other configuration.
-pub const PROBE_ON_LIMIT_SWITCH: bool = false;
+/// Whether the drive's touch probe latches the limit switch a `LimitSwitch` run homes on:
+/// the master sets the probe's source to 0x60D0 (its limit switch input) for such a run,
+/// and the simulated servo follows it. The matrix then expects the limit's edge (and the
+/// index pulse beyond it) like every other configuration. `false` is for a drive whose
+/// probe stays on the home switch: the kernel then takes no home-switch latch for the
+/// limit's edge (a latch counts only when the limit's level changes in its cycle), so the
+/// run crosses the limit switch, finds no edge and ends with its reference search
+/// distance exceeded — a clear error, never a wrong reference.
+pub const PROBE_ON_LIMIT_SWITCH: bool = true;
 
 /// MoveHome's search distances (mm): far beyond the travel, except `LimitSwitch` today
 /// (see [`PROBE_ON_LIMIT_SWITCH`]), which runs that far into the limit switch before it
@@ -694,15 +701,16 @@ pub fn error_cases(rig: &mut impl MatrixRig) -> Tally {
     for (p, (distance, limit, looking_for)) in [
         // The cam is 4 mm away: the switch search gives up after 1 mm.
         (base, ("MaxDistanceSwitchSearch", 1.0, "reference switch")),
-        // The index pulse is 0.96 mm beyond the cam's low end.
+        // The next index pulse is 3 mm away (5.04 mm): the search gives up after 1 mm.
         (
             MoveHome {
-                mode: HomingMode::ZeroPulse2Phase,
+                switch_config: SwitchConfig::NoSwitch,
+                mode: HomingMode::ZeroPulse1Phase,
                 max_distance_switch_search: 200.0,
-                max_distance_reference_search: 0.3,
+                max_distance_reference_search: 1.0,
                 ..base
             },
-            ("MaxDistanceReferenceSearch", 0.3, "index pulse"),
+            ("MaxDistanceReferenceSearch", 1.0, "index pulse"),
         ),
     ] {
         tally.cases += 1;

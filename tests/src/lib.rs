@@ -16,6 +16,7 @@ pub mod lockstep;
 pub mod netns;
 pub mod rig;
 pub mod seccomp;
+pub mod servo_rig;
 pub mod slave_loss;
 pub mod threads;
 

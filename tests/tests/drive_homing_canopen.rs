@@ -4,44 +4,21 @@
 //! attained and refuses methods 0 and 21 on the "csp" layout (the mode by PDO) — the same
 //! code as on EtherCAT (`gantry_tests::drive_homing`).
 
-use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
 use gantry_sim::canopen::{CanNode, CanNodeConfig};
 use gantry_sim::config::{SimConfig, SlaveConfig};
-use gantry_sim::plant::servo::ServoDrive;
 use gantry_tests::can_rig::CanRig;
-use gantry_tests::drive_homing::{self, DriveHomingRig};
+use gantry_tests::drive_homing;
 use gantry_tests::homing::servo_switches_toml;
+use gantry_tests::servo_rig::CanopenServo;
 
 const NODE: u8 = 5;
+/// The cycle time (`cycle_us = 2000`).
+const CYCLE_S: f64 = 2e-3;
 
-struct CanopenDriveHoming(CanRig);
-
-impl DriveHomingRig for CanopenDriveHoming {
-    fn ctl(&self) -> &Controller {
-        &self.0.ctl
-    }
-    fn finish(&mut self, h: &CommandHandle, max: usize) -> CommandStatus {
-        self.0.finish(h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        *self.0.engine.cycle.kernel.axis_status(0).expect("axis 0")
-    }
-    fn with_servo<R>(&self, f: impl FnOnce(&ServoDrive) -> R) -> R {
-        f(self.0.sim().node(NODE).servo().expect("a servo"))
-    }
-    fn cycle_s(&self) -> f64 {
-        2e-3
-    }
-}
-
-fn rig(homing: &str, pdo: &str) -> (CanopenDriveHoming, gantry::config::Config) {
+fn rig(homing: &str, pdo: &str) -> (CanopenServo, gantry::config::Config) {
     let chain = SimConfig::parse(
         &format!(
             "[[slave]]\nkind = \"servo\"\nnode = {NODE}\n{}[slave.homing]\n{homing}\n",
@@ -70,13 +47,17 @@ fn rig(homing: &str, pdo: &str) -> (CanopenDriveHoming, gantry::config::Config) 
         "can.toml",
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    let mut rig = CanopenDriveHoming(CanRig::new(&config, vec![node]));
+    let mut rig = CanopenServo {
+        rig: CanRig::new(&config, vec![node]),
+        node: NODE,
+        cycle_s: CYCLE_S,
+    };
     let h = rig
-        .0
+        .rig
         .ctl
         .command(0, Command::Power(PowerCommand::Enable))
         .expect("queued");
-    assert_eq!(rig.0.finish(&h, 5000), CommandStatus::Done);
+    assert_eq!(rig.rig.finish(&h, 5000), CommandStatus::Done);
     (rig, config)
 }
 

@@ -3,42 +3,17 @@
 //! attained, a refused method and skip (`gantry_tests::drive_homing`). The "csp" layout
 //! maps 0x6060/0x6061: the mode goes by PDO. One test per process (the bus starts once).
 
-use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
-use gantry_sim::plant::servo::ServoDrive;
-use gantry_tests::drive_homing::{self, DriveHomingRig};
+use gantry_tests::drive_homing;
 use gantry_tests::homing::servo_switches_toml;
 use gantry_tests::rig::Rig;
+use gantry_tests::servo_rig::EthercatServo;
 use gantry_tests::{sim_config_text, DEFAULT_SYNC_ERROR_LIMIT};
-
-struct EthercatDriveHoming(Rig, f64);
-
-impl DriveHomingRig for EthercatDriveHoming {
-    fn ctl(&self) -> &Controller {
-        &self.0.ctl
-    }
-    fn finish(&mut self, h: &CommandHandle, max: usize) -> CommandStatus {
-        self.0.finish(h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        *self.0.engine.cycle.kernel.axis_status(0).expect("axis 0")
-    }
-    fn with_servo<R>(&self, f: impl FnOnce(&ServoDrive) -> R) -> R {
-        self.0.servo(0, f)
-    }
-    fn cycle_s(&self) -> f64 {
-        self.1
-    }
-}
 
 /// A rig whose servo has the switch cams and `homing` in `[slave.homing]`, the axis
 /// mapped `pdo`, with `[axis.drive_homing]`.
-fn rig(homing: &str, pdo: &str) -> (EthercatDriveHoming, gantry::config::Config) {
+fn rig(homing: &str, pdo: &str) -> (EthercatServo, gantry::config::Config) {
     let slaves = format!(
         "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = {DEFAULT_SYNC_ERROR_LIMIT}\n{}\
          [slave.homing]\n{homing}\n",
@@ -52,13 +27,16 @@ fn rig(homing: &str, pdo: &str) -> (EthercatDriveHoming, gantry::config::Config)
          acceleration = 500.0\nhome_offset = 2.0\ntimeout = 10.0\n"
     );
     let config = sim_config_text(1000, &slaves, "", &axes);
-    let mut rig = EthercatDriveHoming(Rig::new(&config), 1e-3);
+    let mut rig = EthercatServo {
+        rig: Rig::new(&config),
+        cycle_s: 1e-3,
+    };
     let h = rig
-        .0
+        .rig
         .ctl
         .command(0, Command::Power(PowerCommand::Enable))
         .expect("queued");
-    assert_eq!(rig.0.finish(&h, 5000), CommandStatus::Done);
+    assert_eq!(rig.rig.finish(&h, 5000), CommandStatus::Done);
     (rig, config)
 }
 

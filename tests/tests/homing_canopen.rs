@@ -5,51 +5,15 @@
 use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
 use gantry_sim::canopen::{CanNode, CanNodeConfig};
 use gantry_sim::config::{SimConfig, SlaveConfig};
 use gantry_tests::can_rig::CanRig;
 use gantry_tests::homing::{scenario, servo_switches_toml, HomingRig, AXIS_SWITCHES_TOML};
+use gantry_tests::servo_rig::CanopenServo;
 
 const NODE: u8 = 5;
-
-struct CanopenHoming(CanRig);
-
-impl HomingRig for CanopenHoming {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.0
-            .sim()
-            .node(NODE)
-            .servo()
-            .expect("a servo")
-            .position_counts()
-    }
-    fn drive_faults(&self) -> u32 {
-        self.0
-            .sim()
-            .node(NODE)
-            .servo()
-            .expect("a servo")
-            .record()
-            .faults
-    }
-}
+/// The cycle time (`cycle_us = 2000`).
+const CYCLE_S: f64 = 2e-3;
 
 #[test]
 fn switches_limit_switches_and_move_home_over_canopen() {
@@ -82,7 +46,11 @@ fn switches_limit_switches_and_move_home_over_canopen() {
         "can.toml",
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    let mut rig = CanopenHoming(CanRig::new(&config, vec![node]));
+    let mut rig = CanopenServo {
+        rig: CanRig::new(&config, vec![node]),
+        node: NODE,
+        cycle_s: CYCLE_S,
+    };
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),
         CommandStatus::Done

@@ -4,37 +4,10 @@
 
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
 use gantry_tests::homing::{scenario, servo_switches_toml, HomingRig, AXIS_SWITCHES_TOML};
 use gantry_tests::rig::Rig;
+use gantry_tests::servo_rig::EthercatServo;
 use gantry_tests::{sim_config_text, DEFAULT_SYNC_ERROR_LIMIT};
-
-struct EthercatHoming(Rig);
-
-impl HomingRig for EthercatHoming {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.0.servo(0, |s| s.position_counts())
-    }
-    fn drive_faults(&self) -> u32 {
-        self.0.servo(0, |s| s.record().faults)
-    }
-}
 
 #[test]
 fn switches_limit_switches_and_move_home_over_ethercat() {
@@ -52,10 +25,13 @@ fn switches_limit_switches_and_move_home_over_ethercat() {
          max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n{AXIS_SWITCHES_TOML}"
     );
     let config = sim_config_text(1000, &slaves, "", &axes);
-    let mut rig = EthercatHoming(Rig::new(&config));
+    let mut rig = EthercatServo {
+        rig: Rig::new(&config),
+        cycle_s: 1e-3,
+    };
     {
         // What the drive was left with: two TxPDOs on SM3, one RxPDO on SM2.
-        let chain = rig.0.chain.lock().expect("the chain");
+        let chain = rig.rig.chain.lock().expect("the chain");
         let od = chain.slaves()[0].object_dictionary().expect("CoE");
         assert_eq!(od.read(0x1C13, 0), Ok(&[2u8][..]));
         assert_eq!(od.read(0x1C13, 2), Ok(&0x1A01u16.to_le_bytes()[..]));

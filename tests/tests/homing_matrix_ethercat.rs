@@ -6,73 +6,15 @@
 
 use std::time::Instant;
 
-use gantry::runtime::bus::CycleBus;
-
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
-use gantry_sim::plant::record::DriveRecord;
-use gantry_sim::plant::servo::crossings::Crossing;
 use gantry_tests::homing::{HomingRig, AXIS_SWITCHES_TOML};
-use gantry_tests::homing_matrix::{self as matrix, MatrixRig, Tally, AXIS_MAX_TOML};
+use gantry_tests::homing_matrix::{self as matrix, Tally, AXIS_MAX_TOML};
 use gantry_tests::rig::Rig;
+use gantry_tests::servo_rig::EthercatServo;
 use gantry_tests::{sim_config_text, DEFAULT_SYNC_ERROR_LIMIT};
 
 const CYCLE_US: u32 = 1000;
-
-struct EthercatMatrix(Rig);
-
-impl HomingRig for EthercatMatrix {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.0.servo(0, |s| s.position_counts())
-    }
-    fn drive_faults(&self) -> u32 {
-        self.0.servo(0, |s| s.record().faults)
-    }
-}
-
-impl MatrixRig for EthercatMatrix {
-    fn send(&mut self, command: Command) -> u64 {
-        self.0.ctl.command(0, command).expect("queued").id()
-    }
-    fn command_status(&self, id: u64) -> Option<CommandStatus> {
-        self.0.engine.command_status(id)
-    }
-    fn next_crossing(&self) -> u64 {
-        self.0.servo(0, |s| s.crossings().next_seq())
-    }
-    fn crossings_since(&self, seq: u64) -> (Vec<Crossing>, bool) {
-        self.0.servo(0, |s| {
-            let log = s.crossings();
-            (log.since(seq).collect(), log.lost_since(seq))
-        })
-    }
-    fn drive_record(&self) -> DriveRecord {
-        self.0.servo(0, |s| *s.record())
-    }
-    fn cycle_s(&self) -> f64 {
-        f64::from(CYCLE_US) * 1e-6
-    }
-    fn lost_frames(&self) -> u64 {
-        self.0.engine.bus.counters().lost
-    }
-}
 
 fn report(part: &str, t: &Tally, since: Instant) {
     eprintln!(
@@ -95,7 +37,10 @@ fn homing_matrix_over_ethercat_at_1_ms() {
          {AXIS_MAX_TOML}\n{AXIS_SWITCHES_TOML}"
     );
     let config = sim_config_text(CYCLE_US, &slaves, "", &axes);
-    let mut rig = EthercatMatrix(Rig::new(&config));
+    let mut rig = EthercatServo {
+        rig: Rig::new(&config),
+        cycle_s: f64::from(CYCLE_US) * 1e-6,
+    };
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),
         CommandStatus::Done

@@ -6,39 +6,12 @@
 
 use gantry_kernel::axis::command::{Command, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
-use gantry_kernel::axis::status::AxisStatus;
 use gantry_tests::homing::{
     module_scenario, module_switches_toml, HomingRig, AXIS_MODULE_SWITCHES_TOML,
 };
 use gantry_tests::rig::Rig;
+use gantry_tests::servo_rig::{EthercatServo, ServoRig};
 use gantry_tests::{sim_config_text, DEFAULT_SYNC_ERROR_LIMIT};
-
-struct ModuleHoming(Rig);
-
-impl HomingRig for ModuleHoming {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.0.servo(0, |s| s.position_counts())
-    }
-    fn drive_faults(&self) -> u32 {
-        self.0.servo(0, |s| s.record().faults)
-    }
-}
 
 #[test]
 fn switches_on_an_io_module_reach_the_axis_and_stop_it() {
@@ -60,7 +33,10 @@ fn switches_on_an_io_module_reach_the_axis_and_stop_it() {
         .inputs
         .iter()
         .any(|o| o.index == 0x60FD));
-    let mut rig = ModuleHoming(Rig::new(&config));
+    let mut rig = EthercatServo {
+        rig: Rig::new(&config),
+        cycle_s: 1e-3,
+    };
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),
         CommandStatus::Done

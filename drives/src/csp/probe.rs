@@ -11,7 +11,8 @@
 //! per phase, far apart. A drive whose probe is not enabled (after power-up or a reset)
 //! sees the enable bit's rising edge: the function is sent as 0 for one cycle, then armed;
 //! the channel then waits [`ARM_WAIT_CYCLES`] for the status to show it (outputs reach a
-//! drive and its status comes back a few cycles later) before it tries again.
+//! drive and its status comes back a few cycles later) before it tries again — whatever
+//! the status says meanwhile: a status without the enable may still be the echo of the 0.
 //!
 //! Homing on a limit switch's edge ([`ProbeTarget`]): a probe's source bits 2–3 = 10b
 //! take the source from 0x60D0 (CiA 402-2 / ETG.6010; sub 1 for probe 1, sub 2 for probe
@@ -212,21 +213,31 @@ impl ProbeArming {
             self.waiting = 0;
         }
         let base = self.target.function();
-        if st & both != both {
-            // Not armed (power-up, reset, a change of target): the enable's rising edge
-            // arms it.
+        if self.function == 0 {
+            // 0 went out last cycle (power-up, a change of target, or so that the enable
+            // gets a rising edge): arm now, whatever this cycle's status says — it answers
+            // what was sent cycles ago, and an "enabled" there is not this arming.
             self.clearing = [false; 3];
-            if self.function == 0 {
-                self.function = base;
-                self.waiting = ARM_WAIT_CYCLES;
-            } else if self.waiting > 0 {
+            self.function = base;
+            self.waiting = ARM_WAIT_CYCLES;
+            return new;
+        }
+        if st & both != both {
+            // Not armed (power-up, reset): the enable's rising edge arms it — once the
+            // arming's wait is over (until then the status may still be on its way).
+            self.clearing = [false; 3];
+            if self.waiting > 0 {
                 self.waiting -= 1;
             } else {
                 self.function = 0;
             }
             return new;
         }
-        self.waiting = 0;
+        // An arming's wait runs out whatever the status says meanwhile: a status without
+        // the enable right after one with it may be the echo of the 0 sent before the
+        // arming (the status comes back cycles after the function went out); taken for a
+        // reset, it would disarm the probe again and again.
+        self.waiting = self.waiting.saturating_sub(1);
         let mut f = base;
         for (i, ch) in self.target.channels().into_iter().enumerate() {
             let (Some(ch), Some(clearing)) = (ch, self.clearing.get_mut(i)) else {
@@ -439,8 +450,14 @@ mod tests {
         let mut p = ProbeArming::default();
         p.update(&inputs(0, [0; 3]));
         p.update(&inputs(ARMED | POSITIVE_STORED, [5, 0, 0]));
-        // The drive reset: enable bits gone. Armed before, so no wait: 0 for one cycle,
-        // then the enable's rising edge.
+        // Within the arming's wait a status without the enable may still be the echo of
+        // what was sent before the arming: the function stays.
+        for _ in 1..ARM_WAIT_CYCLES {
+            p.update(&inputs(0, [0; 3]));
+            assert_ne!(p.function() & ENABLE, 0, "armed while the wait runs");
+        }
+        // The drive reset: enable bits gone after the wait. 0 for one cycle, then the
+        // enable's rising edge.
         p.update(&inputs(0, [0; 3]));
         assert_eq!(p.function(), 0, "enable low for one cycle");
         p.update(&inputs(0, [0; 3]));
@@ -448,6 +465,63 @@ mod tests {
         // Armed afresh: a stored edge is new.
         let new = p.update(&inputs(ARMED | POSITIVE_STORED, [7, 0, 0]));
         assert_eq!(new.rising, Some(7));
+    }
+
+    /// A drive whose status answers the function `latency` cycles after the master sent
+    /// it (outputs reach the drive and its status comes back later: 2 to 3 cycles on
+    /// EtherCAT with DC, by the frame's phase to SYNC0). Whatever is in flight when the
+    /// channel starts — an arming and a disarming in either order — it settles armed and
+    /// stays so: a status without the enable that is only the echo of an earlier 0 must not
+    /// disarm the probe again. (It did: with a 0 in flight behind an arming, each stale
+    /// "not enabled" after an "enabled" sent 0 again, a period-3 oscillation during which
+    /// the drive latched nothing — homing found a later index pulse, seen by the homing
+    /// matrix on the simulated servo over EtherCAT.)
+    #[test]
+    fn settles_armed_whatever_the_status_latency_and_what_is_in_flight() {
+        for latency in 1..=4usize {
+            for pattern in 0..(1u32 << latency) {
+                for glitch in [false, true] {
+                    let what = format!("latency {latency}, in flight {pattern:b}, glitch {glitch}");
+                    let mut p = ProbeArming::default();
+                    let sent = |i: usize| {
+                        if pattern >> i & 1 == 1 {
+                            PROBE_FUNCTION
+                        } else {
+                            0
+                        }
+                    };
+                    // What the master sent before, oldest first.
+                    let mut in_flight: std::collections::VecDeque<u16> =
+                        (0..latency).map(sent).collect();
+                    // The drive: the enable's rising edge arms a probe, a 0 disarms it.
+                    let (mut last, mut status) = (0u16, 0u16);
+                    let mut zeros_late = 0;
+                    let cycles = 300;
+                    for cycle in 0..cycles {
+                        if glitch && cycle == 100 {
+                            // Armed and settled, then the drive resets (its probes are
+                            // disarmed) with this in flight.
+                            assert_eq!(status, ARMED, "{what}: armed before the glitch");
+                            in_flight = (0..latency).map(sent).collect();
+                            (last, status) = (0, 0);
+                        }
+                        p.update(&inputs(status, [0; 3]));
+                        in_flight.push_back(p.function());
+                        let f = in_flight.pop_front().unwrap_or(0);
+                        status = match (f & ENABLE != 0, last & ENABLE != 0) {
+                            (false, _) => 0,
+                            (true, false) => ARMED,
+                            (true, true) => status,
+                        };
+                        last = f;
+                        if cycle >= cycles - 100 && p.function() == 0 {
+                            zeros_late += 1;
+                        }
+                    }
+                    assert_eq!((zeros_late, status), (0, ARMED), "{what}: still disarming");
+                }
+            }
+        }
     }
 
     #[test]

@@ -77,6 +77,12 @@ impl SyncLog {
         self.recording.store(true, Ordering::Relaxed);
     }
 
+    /// SYNCs from now on are not recorded (the shutdown's, which keep the nodes' SYNC
+    /// watchdog fed while they are released, belong to no measured cycle).
+    pub fn stop(&self) {
+        self.recording.store(false, Ordering::Relaxed);
+    }
+
     /// The cycle that just woke has this deadline.
     fn deadline(&self, ns: u64) {
         self.deadline_ns.store(ns, Ordering::Relaxed);
@@ -343,6 +349,7 @@ fn run(
         engine.cycle(&mut clock);
     }
     let lost = engine.bus.counters().lost - lost_before;
+    log.stop();
     engine.into_bus().shut_down(&mut io::sink());
     Ok((real_time, lost))
 }

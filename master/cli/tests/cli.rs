@@ -529,6 +529,12 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
         ">> every node Operational; each cycle: RPDOs, SYNC, TPDOs — ",
     );
     assert!(load.contains("of 2000 µs at 1000 kbit/s"), "{load}");
+    // x with its switches and touch probe: 1757 bits, 90 % of the reply window.
+    assert!(load.contains("TPDOs — 1757 bits of 2000 µs"), "{load}");
+    assert!(
+        load.contains("(90 % of the cycle's reply window)"),
+        "{load}"
+    );
     // Nothing lost on a lockstep bus; 14 frames a cycle: 4 RPDOs, the SYNC, 9 TPDOs.
     let cycles = line(&text, ">> cycles: ");
     assert!(
@@ -542,6 +548,12 @@ fn demo_moves_simulated_canopen_drives_over_the_in_memory_can_bus() {
     line(
         &text,
         ">> x homed: x = 0 mm stands at drive count 1000, the index pulse its drive crossed at 1000",
+    );
+    // The clean shutdown: every node released from watching gantry's SYNC and heartbeat.
+    line(
+        &text,
+        "CANopen: nodes pre-operational; SYNC watchdog and heartbeat consumer taken back on \
+         node(s) 1, 2, 3, 4 in",
     );
     line(&text, ">> the axes at the end:");
     for axis in ["x", "y", "z", "c"] {

@@ -37,6 +37,8 @@ use gantry_tests::seccomp::forbid_futex_in_this_thread;
 const AXES: usize = 4;
 /// Rounds of the application's scenario, 60 ms each.
 const ROUNDS: u32 = 50;
+/// Bus time of a CANopen round: 200 cycles of 2 ms (a move of the round ends in it).
+const ROUND_NS: u64 = 400_000_000;
 
 static FILTERED: AtomicBool = AtomicBool::new(false);
 static FINISHED: AtomicBool = AtomicBool::new(false);
@@ -345,8 +347,16 @@ fn canopen() {
             9 => enable(&ctl),
             _ => {}
         }
-        let until = std::time::Instant::now() + Duration::from_millis(60);
-        while std::time::Instant::now() < until {
+        // Each round lasts the same bus time whatever the host's load (the cycles run
+        // as fast as the host lets them; a wall-clock round made the moves' outcome
+        // depend on it).
+        let round_end = control.clock_ns.load(Ordering::Acquire) + ROUND_NS;
+        let give_up = std::time::Instant::now() + Duration::from_secs(60);
+        while control.clock_ns.load(Ordering::Acquire) < round_end {
+            if FINISHED.load(Ordering::Acquire) || std::time::Instant::now() > give_up {
+                eprintln!("the cycle thread stopped cycling in round {round}");
+                std::process::exit(6);
+            }
             std::hint::black_box(ctl.snapshot());
             snapshots += 1;
             ctl.drain_trace(&mut trace);
