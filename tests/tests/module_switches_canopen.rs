@@ -13,7 +13,7 @@ use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_kernel::axis::status::{AxisFault, AxisStatus};
+use gantry_kernel::axis::status::AxisFault;
 use gantry_sim::canopen::nmt::NmtSlaveState;
 use gantry_sim::canopen::{CanNode, CanNodeConfig};
 use gantry_sim::config::SimConfig;
@@ -21,6 +21,7 @@ use gantry_tests::can_rig::{servos, CanRig};
 use gantry_tests::homing::{
     module_scenario, module_switches_toml, HomingRig, AXIS_MODULE_SWITCHES_TOML,
 };
+use gantry_tests::servo_rig::{CanopenServo, ServoRig};
 
 const SERVO: u8 = 5;
 const MODULE: u8 = 9;
@@ -64,46 +65,15 @@ fn config_text() -> String {
     )
 }
 
-struct CanopenModule(CanRig);
-
-impl HomingRig for CanopenModule {
-    fn run_command(&mut self, command: Command, max: usize) -> CommandStatus {
-        let h = self.0.ctl.command(0, command).expect("queued");
-        self.0.finish(&h, max)
-    }
-    fn cycles(&mut self, n: usize) {
-        self.0.run(n);
-    }
-    fn status(&self) -> AxisStatus {
-        self.0
-            .engine
-            .cycle
-            .kernel
-            .axis_status(0)
-            .cloned()
-            .expect("axis 0")
-    }
-    fn drive_counts(&self) -> i64 {
-        self.0
-            .sim()
-            .node(SERVO)
-            .servo()
-            .expect("a servo")
-            .position_counts()
-    }
-    fn drive_faults(&self) -> u32 {
-        self.0
-            .sim()
-            .node(SERVO)
-            .servo()
-            .expect("a servo")
-            .record()
-            .faults
-    }
-}
+/// The servo's rig; its module is node [`MODULE`] on the same bus.
+type CanopenModule = CanopenServo;
 
 fn enabled() -> CanopenModule {
-    let mut rig = CanopenModule(CanRig::new(&config(), nodes()));
+    let mut rig = CanopenServo {
+        rig: CanRig::new(&config(), nodes()),
+        node: SERVO,
+        cycle_s: 2e-3,
+    };
     assert_eq!(
         rig.run_command(Command::Power(PowerCommand::Enable), 5000),
         CommandStatus::Done
@@ -114,7 +84,7 @@ fn enabled() -> CanopenModule {
 #[test]
 fn switches_on_a_canopen_io_module_reach_the_axis_and_stop_it() {
     let mut rig = enabled();
-    let log = rig.0.log.clone();
+    let log = rig.rig.log.clone();
     assert!(
         log.contains("node 9 (I/O module of x): CiA 401 device type 0x00010191"),
         "{log}"
@@ -128,7 +98,7 @@ fn switches_on_a_canopen_io_module_reach_the_axis_and_stop_it() {
     assert!(log.contains("2 nodes operational"), "{log}");
     // The module is Operational, its TPDO1 the inputs on SYNC (transmission type 1).
     {
-        let mut sim = rig.0.sim();
+        let mut sim = rig.rig.sim();
         let mut tt = [0u8; 1];
         sim.node_mut(MODULE)
             .read_object(0x1800, 2, &mut tt)
@@ -147,17 +117,17 @@ fn switches_on_a_canopen_io_module_reach_the_axis_and_stop_it() {
     // the module's raw inputs say both contacts are closed (bits 1 and 2 high).
     let sw = rig.status().switches;
     assert!(!sw.negative_limit && !sw.positive_limit && !sw.reference);
-    let raw = gantry::runtime::bus::CycleBus::inputs(&rig.0.engine.bus, 1).to_vec();
+    let raw = gantry::runtime::bus::CycleBus::inputs(&rig.rig.engine.bus, 1).to_vec();
     assert_eq!(raw, [0b110], "module inputs at 0 mm");
     // The status shows it (the snapshot the CLI's `gantry status` prints).
     rig.cycles(2);
-    let snap = rig.0.snapshot();
+    let snap = rig.rig.snapshot();
     assert!(!snap.axes[0].switches.positive_limit);
     module_scenario(&mut rig);
-    assert_eq!(rig.0.engine.bus.malformed(), 0);
+    assert_eq!(rig.rig.engine.bus.malformed(), 0);
     // At shutdown the module leaves the cycle with the drive: pre-operational, its
     // watches of gantry's SYNC and heartbeat taken back.
-    let (out, bus) = rig.0.shut_down(5000);
+    let (out, bus) = rig.rig.shut_down(5000);
     assert!(out.contains("taken back on node(s) 5, 9 in"), "{out}");
     assert_eq!(
         gantry_tests::can_rig::lock(&bus).node(MODULE).nmt_state(),
@@ -179,17 +149,17 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     };
     assert_eq!(rig.run_command(here, 100), CommandStatus::Done);
     let to = |p: f64| Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, p).speed(20.0));
-    let h = rig.0.ctl.command(0, to(30.0)).expect("queued");
+    let h = rig.rig.ctl.command(0, to(30.0)).expect("queued");
     rig.cycles(50);
     // The module's heartbeats (0x709) no longer reach gantry.
-    rig.0.sim().drop_frames(0x700 + u16::from(MODULE), true);
+    rig.rig.sim().drop_frames(0x700 + u16::from(MODULE), true);
     let mut cycles = 0;
-    while rig.0.bus_fault(0).is_none() {
-        rig.0.cycle();
+    while rig.rig.bus_fault(0).is_none() {
+        rig.rig.cycle();
         cycles += 1;
         assert!(cycles < 300, "no fault after {cycles} cycles");
     }
-    let reason = rig.0.bus_fault(0).expect("fault");
+    let reason = rig.rig.bus_fault(0).expect("fault");
     assert!(
         reason.starts_with("switch module: CANopen node 9: no heartbeat for ")
             && reason.ends_with(" ms (limit 300 ms)"),
@@ -204,12 +174,12 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
         })
     );
     assert!(matches!(
-        rig.0.engine.command_status(h.id()),
+        rig.rig.engine.command_status(h.id()),
         Some(CommandStatus::Aborted | CommandStatus::Error(_))
     ));
     // The status names the module (the snapshot is published every few cycles).
     rig.cycles(20);
-    let snap = rig.0.snapshot();
+    let snap = rig.rig.snapshot();
     let shown = snap.drives[0]
         .bus_fault
         .map(|f| f.to_string())
@@ -217,11 +187,11 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     assert!(shown.contains("switch module: CANopen node 9"), "{shown}");
     // Not the drive's own fault: its node is fine.
     assert!(
-        gantry::runtime::bus::CycleBus::can_node(&rig.0.engine.bus, 0)
+        gantry::runtime::bus::CycleBus::can_node(&rig.rig.engine.bus, 0)
             .is_some_and(|n| n.lost_in_a_row == 0 && n.nmt == Some("Operational"))
     );
     // Heard again, a reset brings the module back and the axis runs.
-    rig.0.sim().drop_frames(0x700 + u16::from(MODULE), false);
+    rig.rig.sim().drop_frames(0x700 + u16::from(MODULE), false);
     reset_enable_move(&mut rig, 5.0);
 
     // The module resets itself (NMT reset node from another tool): its boot-up faults
@@ -231,14 +201,14 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
         target: NmtTarget::Node(NodeId::new(MODULE).expect("id")),
     }
     .emit();
-    rig.0.sim().inject(reset_node);
+    rig.rig.sim().inject(reset_node);
     let mut cycles = 0;
-    while rig.0.bus_fault(0).is_none() {
-        rig.0.cycle();
+    while rig.rig.bus_fault(0).is_none() {
+        rig.rig.cycle();
         cycles += 1;
         assert!(cycles < 50, "no fault after {cycles} cycles");
     }
-    let reason = rig.0.bus_fault(0).expect("fault");
+    let reason = rig.rig.bus_fault(0).expect("fault");
     assert!(
         reason.starts_with("switch module: CANopen node 9: ")
             && (reason.contains("boot-up") || reason.contains("no TPDO")),
@@ -249,17 +219,17 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     reset_enable_move(&mut rig, 0.0);
 
     // Its TPDO lost three cycles in a row ([bus.faults] lost_frames_limit).
-    rig.0.sim().drop_frames(0x180 + u16::from(MODULE), true);
+    rig.rig.sim().drop_frames(0x180 + u16::from(MODULE), true);
     rig.cycles(2);
-    assert_eq!(rig.0.bus_fault(0), None, "two lost: ridden through");
-    rig.0.cycle();
+    assert_eq!(rig.rig.bus_fault(0), None, "two lost: ridden through");
+    rig.rig.cycle();
     assert_eq!(
-        rig.0.bus_fault(0).as_deref(),
+        rig.rig.bus_fault(0).as_deref(),
         Some("switch module: CANopen node 9: no TPDO for 3 cycles in a row")
     );
     rig.cycles(3);
     assert_eq!(rig.status().state, AxisState::ErrorStop);
-    rig.0.sim().drop_frames(0x180 + u16::from(MODULE), false);
+    rig.rig.sim().drop_frames(0x180 + u16::from(MODULE), false);
     reset_enable_move(&mut rig, 5.0);
     assert_eq!(
         rig.drive_faults(),
@@ -275,12 +245,12 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
             target: NmtTarget::Node(NodeId::new(node).expect("id")),
         }
         .emit();
-        rig.0.sim().inject(reset_node);
+        rig.rig.sim().inject(reset_node);
     }
     rig.cycles(20);
     assert_eq!(rig.status().state, AxisState::ErrorStop);
     let faulted = |rig: &CanopenModule, i| {
-        gantry::runtime::bus::CycleBus::fault(&rig.0.engine.bus, i).map(|f| f.to_string())
+        gantry::runtime::bus::CycleBus::fault(&rig.rig.engine.bus, i).map(|f| f.to_string())
     };
     let drive = faulted(&rig, 0).expect("the drive's own fault");
     assert!(drive.starts_with("CANopen node 5: "), "{drive}");
@@ -291,7 +261,7 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
     );
     reset_enable_move(&mut rig, 0.0);
     assert_eq!(
-        rig.0.sim().node(SERVO).nmt_state(),
+        rig.rig.sim().node(SERVO).nmt_state(),
         NmtSlaveState::Operational
     );
 }
@@ -299,12 +269,12 @@ fn a_lost_or_silent_io_module_stops_its_axis_naming_the_module() {
 /// Reset (bringing the module back), enable when the reset left the axis disabled, and
 /// a move to `to` that ends Done.
 fn reset_enable_move(rig: &mut CanopenModule, to: f64) {
-    let h = rig.0.ctl.reset(0).expect("queued");
-    let status = rig.0.finish(&h, 5000);
-    assert_eq!(status, CommandStatus::Done, "{:?}", rig.0.bus_fault(0));
-    assert_eq!(rig.0.bus_fault(0), None);
+    let h = rig.rig.ctl.reset(0).expect("queued");
+    let status = rig.rig.finish(&h, 5000);
+    assert_eq!(status, CommandStatus::Done, "{:?}", rig.rig.bus_fault(0));
+    assert_eq!(rig.rig.bus_fault(0), None);
     // The module was brought back by the bus (its drive was fine).
-    let restore = rig.0.engine.last_restore().expect("a restore");
+    let restore = rig.rig.engine.last_restore().expect("a restore");
     assert_eq!(
         restore.outcome,
         Ok(Restored::BackInOperation),
@@ -315,7 +285,7 @@ fn reset_enable_move(rig: &mut CanopenModule, to: f64) {
         "NMT reset, boot-up, SDO writes: {restore:?}"
     );
     assert_eq!(
-        rig.0.sim().node(MODULE).nmt_state(),
+        rig.rig.sim().node(MODULE).nmt_state(),
         NmtSlaveState::Operational
     );
     if rig.status().state == AxisState::Disabled {
