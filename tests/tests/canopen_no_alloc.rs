@@ -202,3 +202,134 @@ fn the_canopen_cycle_does_not_allocate() {
     assert!(watched > 500, "{watched} cycles");
     assert_eq!(allocations, 0);
 }
+
+/// The same with an I/O module (CiA 401, node 9) whose input is the axis' reference
+/// switch: its TPDO read and routed every cycle, its heartbeat lost until the axis stops
+/// ("switch module: ..."), and the reset that brings the module back (NMT reset
+/// communication, its SDO configuration, NMT start) — all inside the watched cycles.
+#[test]
+fn the_canopen_cycle_with_a_switch_module_does_not_allocate() {
+    use gantry_sim::canopen::{CanNode, CanNodeConfig};
+    use gantry_sim::plant::switches::SwitchCam;
+    let config = gantry::config::Config::parse(
+        "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\
+         [[axis]]\nname = \"a0\"\nnode = 1\npdo = \"csp-minimal\"\n\
+         scaling = { counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }\n\
+         max = { speed = 200.0, acceleration = 2000.0, jerk = 20000.0 }\n\
+         [axis.switches]\nreference = { from = \"module\", node = 9, input = 0 }\n",
+        "can.toml",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut nodes = servos(&[1]);
+    let cam = SwitchCam {
+        input: 0,
+        from: 100_000_000,
+        to: 100_100_000,
+        normally_closed: false,
+    };
+    let module = CanNodeConfig::switches(NodeId::new(9).unwrap(), NodeId::new(1).unwrap(), &[cam])
+        .expect("cams");
+    nodes.push(CanNode::new(module).expect("module"));
+    let shared = Arc::new(Mutex::new(Nodes::new(nodes)));
+    let bus = CanopenBus::bring_up_on(
+        &config,
+        Box::new(NodesLink(shared.clone())),
+        &mut std::io::sink(),
+    )
+    .unwrap_or_else(|e| panic!("{}", gantry::error_chain::Chain(&e)));
+    assert_eq!(bus.drives(), 2, "the drive and the module");
+    let cycle = Cycle::from_config(&config, &bus).unwrap();
+    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
+    let ctl = Controller::new(ends, vec!["a0".into()]);
+    let start = {
+        let mut s = shared.lock().unwrap();
+        s.stepped = true;
+        s.clock_ns
+    };
+    let stepped = shared.clone();
+    let mut clock = StepClock::new(2_000_000, start, move |to| stepped.lock().unwrap().tick(to));
+    let mut watched = 0u64;
+    let mut run = |engine: &mut Engine<CanopenBus>, h: Option<&CommandHandle>, n: usize| {
+        for _ in 0..n {
+            counting::watch(true);
+            let running = engine.cycle(&mut clock);
+            counting::watch(false);
+            assert!(running);
+            watched += 1;
+            if let Some(s) = h.and_then(|h| engine.command_status(h.id())) {
+                if s.is_final() {
+                    return Some(s);
+                }
+            }
+        }
+        None
+    };
+    for command in [
+        Command::Power(PowerCommand::Enable),
+        Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        },
+        Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 20.0)),
+    ] {
+        let h = ctl.command(0, command).unwrap();
+        assert_eq!(
+            run(&mut engine, Some(&h), 10_000),
+            Some(CommandStatus::Done)
+        );
+    }
+    // The module's heartbeat stays away: the axis stops, naming the module.
+    shared.lock().unwrap().drop = Some(0x709);
+    let h = ctl
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 0.0)),
+        )
+        .unwrap();
+    run(&mut engine, None, 250);
+    let why = engine
+        .bus
+        .fault(0)
+        .map(|f| f.to_string())
+        .unwrap_or_default();
+    assert!(why.starts_with("switch module: CANopen node 9"), "{why}");
+    assert_eq!(
+        engine.cycle.kernel.axis_status(0).unwrap().state,
+        AxisState::ErrorStop
+    );
+    assert!(engine.command_status(h.id()).is_some_and(|s| s.is_final()));
+    shared.lock().unwrap().drop = None;
+    // The reset brings the module back by SDO inside the watched cycles.
+    let h = ctl.reset(0).unwrap();
+    assert_eq!(
+        run(&mut engine, Some(&h), 10_000),
+        Some(CommandStatus::Done)
+    );
+    assert!(!engine.bus.any_fault());
+    // The drive stayed enabled through it or the reset left it disabled (it stopped by
+    // its own 0x6007 reaction): enabled either way, the axis moves again.
+    if engine.cycle.kernel.axis_status(0).unwrap().state == AxisState::Disabled {
+        let e = ctl
+            .command(0, Command::Power(PowerCommand::Enable))
+            .unwrap();
+        assert_eq!(
+            run(&mut engine, Some(&e), 10_000),
+            Some(CommandStatus::Done)
+        );
+    }
+    let h = ctl
+        .command(
+            0,
+            Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 0.0)),
+        )
+        .unwrap();
+    assert_eq!(
+        run(&mut engine, Some(&h), 10_000),
+        Some(CommandStatus::Done)
+    );
+    let allocations = counting::take_count();
+    assert_eq!(shared.lock().unwrap().overflow, 0);
+    eprintln!("{allocations} allocations in {watched} watched cycles");
+    assert!(watched > 500, "{watched} cycles");
+    assert_eq!(allocations, 0);
+}

@@ -135,6 +135,20 @@ pub enum StartError {
         /// Its 0x1000.
         device_type: u32,
     },
+    /// A node an axis' switches read as an I/O module is not a CiA 401 device.
+    #[error(
+        "CANopen node {node} ({module}): device type 0x{device_type:08X} is profile {}, not \
+         a CiA 401 I/O module (0x1000 bits 0–15 = 401)",
+        device_type & 0xFFFF
+    )]
+    NotCia401 {
+        /// The node.
+        node: u8,
+        /// What reads it.
+        module: String,
+        /// Its 0x1000.
+        device_type: u32,
+    },
     /// A node's heartbeat did not report Operational after NMT start.
     #[error(
         "CANopen node {node}: not Operational {waited_ms} ms after NMT start (its last \
@@ -429,6 +443,9 @@ pub struct DriveSetup {
     pub axis: String,
     /// The node.
     pub node: NodeId,
+    /// Its device profile (0x1000 bits 0–15): [`PROFILE_CIA402`] for a drive,
+    /// [`super::io_module::PROFILE_CIA401`] for an I/O module.
+    pub profile: u16,
     /// The layout.
     pub layout: PdoLayout,
     /// Its PDOs.
@@ -476,13 +493,17 @@ impl ExpectedIdentity {
     }
 }
 
-/// The drives of `config`, in axis order (bus position `i` = axis `i`), after the load
-/// check.
+/// The drives of `config`, in axis order (bus position `i` = axis `i`), then the I/O
+/// modules its switches read (their positions after the drives'), after the load check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    (0..config.axes.len())
+    let mut setups = (0..config.axes.len())
         .map(|i| drive_setup(config, i))
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    for m in config.module_nodes() {
+        setups.push(super::io_module::setup(config, &m)?);
+    }
+    Ok(setups)
 }
 
 /// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
@@ -546,6 +567,7 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
     Ok(DriveSetup {
         axis: a.name.clone(),
         node,
+        profile: PROFILE_CIA402,
         layout,
         plan,
         steps,
@@ -669,12 +691,51 @@ fn upload_u32(
     Ok(u32::from_le_bytes(b))
 }
 
+/// An I/O module whose TPDO1 maps, as CiA 401 §6 has it by default, 0x6000:01..=n with
+/// n at least the input groups the switches need: that mapping is taken as it is (a
+/// module may have a static one that refuses to be written, CiA 301 §7.5.2.38) — its
+/// mapping writes leave `d.steps`, which keep the transmission type, and its layout and
+/// plan become the n groups the TPDO carries. Any other mapping is written by SDO.
+fn take_default_mapping(
+    link: &mut dyn CanLink,
+    client: &mut Client,
+    d: &mut DriveSetup,
+    out: &mut (dyn Write + Send),
+) -> Result<(), StartError> {
+    let mapping = |sub| Multiplexer::new(TPDO_MAPPING, sub);
+    let n = upload_u32(link, client, mapping(0), "TPDO1 mapping count")?;
+    let needed = d.layout.inputs.len() as u32;
+    if !(needed..=8).contains(&n) {
+        return Ok(());
+    }
+    for k in 1..=n as u8 {
+        let entry = upload_u32(link, client, mapping(k), "TPDO1 mapping entry")?;
+        let want = gantry_drives::cia402::pdo::mapping_entry(&super::io_module::read_input_8(k));
+        if entry != want {
+            return Ok(());
+        }
+    }
+    let layout = super::io_module::layout(n as u8);
+    let Ok(plan) = DrivePlan::of(&layout) else {
+        return Ok(());
+    };
+    d.steps.retain(|s| s.mux.index != TPDO_MAPPING);
+    d.layout = layout;
+    d.plan = plan;
+    let _ = writeln!(
+        out,
+        "  node {}: TPDO1 taken as its CiA 401 default mapping (0x6000:01..={n:02X})",
+        d.node.get()
+    );
+    Ok(())
+}
+
 /// Bring-up: every step in order on `link`, printing them to `out`. Returns what each
 /// node said of itself; the nodes are Operational (each said so in a heartbeat within
 /// `consumer_ns` of NMT start), their PDOs synchronous.
 pub fn run(
     link: &mut dyn CanLink,
-    drives: &[DriveSetup],
+    drives: &mut [DriveSetup],
     consumer_ns: u64,
     out: &mut (dyn Write + Send),
 ) -> Result<Vec<NodeInfo>, StartError> {
@@ -730,7 +791,7 @@ pub fn run(
         drives.len()
     );
     let mut infos = Vec::with_capacity(drives.len());
-    for d in drives {
+    for d in drives.iter_mut() {
         let mut c = client(d.node)?;
         let node = d.node.get();
         let device_type = upload_u32(
@@ -739,8 +800,16 @@ pub fn run(
             Multiplexer::new(DEVICE_TYPE, 0),
             "device type",
         )?;
-        if device_type & 0xFFFF != u32::from(PROFILE_CIA402) {
-            return Err(StartError::NotCia402 { node, device_type });
+        if device_type & 0xFFFF != u32::from(d.profile) {
+            return Err(if d.profile == PROFILE_CIA402 {
+                StartError::NotCia402 { node, device_type }
+            } else {
+                StartError::NotCia401 {
+                    node,
+                    module: d.axis.clone(),
+                    device_type,
+                }
+            });
         }
         let mut identity = [None; 4];
         for (sub, slot) in (1u8..=4).zip(identity.iter_mut()) {
@@ -759,24 +828,60 @@ pub fn run(
         }
         let _ = writeln!(
             out,
-            "  node {node} (axis {:?}): CiA 402 device type 0x{device_type:08X}, vendor \
+            "  node {node} ({}): CiA {} device type 0x{device_type:08X}, vendor \
              0x{:08X}, product 0x{:08X}, revision 0x{:08X}, serial {}",
-            d.axis,
+            if d.profile == PROFILE_CIA402 {
+                format!("axis {:?}", d.axis)
+            } else {
+                d.axis.clone()
+            },
+            d.profile,
             identity[0].unwrap_or(0),
             identity[1].unwrap_or(0),
             identity[2].unwrap_or(0),
             identity[3].map_or("-".to_string(), |s| s.to_string()),
         );
+        if d.profile == super::io_module::PROFILE_CIA401 {
+            take_default_mapping(link, &mut c, d, out)?;
+        }
+        let mut absent: Vec<u16> = Vec::new();
         for step in &d.steps {
-            transfer(
+            if absent.contains(&step.mux.index) {
+                continue;
+            }
+            match transfer(
                 link,
                 &mut c,
                 step.mux,
                 Some(step.value()),
                 step.what,
                 &mut |_| {},
-            )?;
+            ) {
+                Ok(()) => {}
+                // An I/O module has no EDS that says which optional objects it has:
+                // without 0x1006 it does not watch the SYNC, without 0x1016 gantry's
+                // heartbeat (CiA 301 §7.5.2.6, §7.5.2.16: optional) — harmless for an input
+                // module, which has no outputs to make safe; its heartbeat (0x1017) and
+                // its TPDO are still watched by gantry.
+                Err(StartError::Sdo {
+                    failure: SdoFailure::Refused(AbortCode::OBJECT_DOES_NOT_EXIST),
+                    ..
+                }) if d.profile != PROFILE_CIA402
+                    && [COMMUNICATION_CYCLE_PERIOD, CONSUMER_HEARTBEAT_TIME]
+                        .contains(&step.mux.index) =>
+                {
+                    absent.push(step.mux.index);
+                    let _ = writeln!(
+                        out,
+                        "  node {node}: has no 0x{:04X} (optional): not set",
+                        step.mux.index
+                    );
+                }
+                Err(e) => return Err(e),
+            }
         }
+        // Its restores and the shutdown do not write them either.
+        d.steps.retain(|s| !absent.contains(&s.mux.index));
         let pdos = |what: &str, pdos: &[PdoPlan]| {
             pdos.iter()
                 .map(|p| format!("{what}{} {} bytes", p.number, p.len))
@@ -796,7 +901,7 @@ pub fn run(
             identity,
         });
     }
-    for d in drives {
+    for d in drives.iter() {
         send(
             link,
             &nmt(NmtCommand::Start, NmtTarget::Node(d.node)),

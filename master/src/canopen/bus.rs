@@ -250,14 +250,24 @@ impl Transfer {
 
 #[derive(Clone, Copy, Debug)]
 struct Restore {
+    /// The node being brought back (a drive, or an I/O module `origin`'s axis reads).
     drive: usize,
+    /// The drive whose reset asked for it: once `drive` is back, the I/O modules its axis
+    /// reads that are out are brought back too, under the same deadline.
+    origin: usize,
     deadline_ns: u64,
     step: Step,
 }
 
-/// One drive (node) of the bus.
+/// One drive (node) of the bus, or an I/O module the axes' switches read.
 struct Drive {
     node: NodeId,
+    /// A CiA 401 I/O module, not an axis' drive: its faults say so.
+    module: bool,
+    /// The bus positions of the I/O modules the axis of this drive reads its switches
+    /// from: while one is unreachable, so is the axis' drive to the cycle (its limit
+    /// switches are not watched), and a reset brings it back.
+    reads: [Option<usize>; 3],
     plan: DrivePlan,
     rpdo_ids: [u16; 4],
     tpdo_ids: [u16; 4],
@@ -336,16 +346,27 @@ impl CanopenBus {
         mut link: Box<dyn CanLink>,
         out: &mut (dyn Write + Send),
     ) -> Result<Self, StartError> {
-        let setups = bring_up::drive_setups(config)?;
+        let mut setups = bring_up::drive_setups(config)?;
         let consumer_ns = u64::from(config.bus.heartbeat_consumer_ms()) * 1_000_000;
-        let infos = bring_up::run(&mut *link, &setups, consumer_ns, out)?;
+        let infos = bring_up::run(&mut *link, &mut setups, consumer_ns, out)?;
         let now = link.now_ns();
         let mut node_drive = [0u8; 128];
         let mut drives = Vec::with_capacity(setups.len());
         for (i, s) in setups.into_iter().enumerate() {
             let DriveSetup {
-                node, plan, steps, ..
+                node,
+                plan,
+                steps,
+                profile,
+                ..
             } = s;
+            let mut reads = [None; 3];
+            if let Some(a) = config.axes.get(i) {
+                let inputs = a.switches.module_inputs().unwrap_or_default();
+                for (dst, m) in reads.iter_mut().zip(inputs) {
+                    *dst = m.map(|m| m.slave);
+                }
+            }
             if let Some(slot) = node_drive.get_mut(usize::from(node.get())) {
                 *slot = i as u8 + 1;
             }
@@ -359,6 +380,8 @@ impl CanopenBus {
             }
             drives.push(Drive {
                 node,
+                module: profile != bring_up::PROFILE_CIA402,
+                reads,
                 plan,
                 rpdo_ids,
                 tpdo_ids,
@@ -1010,8 +1033,24 @@ impl CanopenBus {
         }
         if let Some(d) = self.drives.get(r.drive) {
             if d.got == d.all_tpdos() {
-                self.restore = None;
-                self.restored = Some(Ok(Restored::BackInOperation));
+                // Next, an I/O module the axis reads that is out too.
+                let next = self.drives.get(r.origin).and_then(|o| {
+                    o.reads.iter().flatten().copied().find(|m| {
+                        *m != r.drive
+                            && self
+                                .drives
+                                .get(*m)
+                                .is_some_and(|m| m.fault.is_some() || m.left.is_some())
+                    })
+                });
+                self.restore = next.map(|m| Restore {
+                    drive: m,
+                    step: Step::Reset,
+                    ..r
+                });
+                if self.restore.is_none() {
+                    self.restored = Some(Ok(Restored::BackInOperation));
+                }
             }
         }
     }
@@ -1090,7 +1129,15 @@ impl CanopenBus {
             } else {
                 None
             };
-            d.fault = fault.map(|f| (f, Unreachable::new(&f)));
+            let module = d.module;
+            d.fault = fault.map(|f| {
+                let why = if module {
+                    Unreachable::new(&format_args!("switch module: {f}"))
+                } else {
+                    Unreachable::new(&f)
+                };
+                (f, why)
+            });
         }
         any_answer || !any_expected
     }
@@ -1189,8 +1236,17 @@ impl CycleBus for CanopenBus {
         }
     }
 
+    /// The drive's own fault, else that of an I/O module its axis reads switches from
+    /// (the axis cannot run with its limit switches unwatched).
     fn fault(&self, drive: usize) -> Option<&Unreachable> {
-        self.drives.get(drive)?.fault.as_ref().map(|(_, u)| u)
+        let d = self.drives.get(drive)?;
+        d.fault.as_ref().map(|(_, u)| u).or_else(|| {
+            d.reads.iter().flatten().find_map(|m| {
+                self.drives
+                    .get(*m)
+                    .and_then(|m| m.fault.as_ref().map(|(_, u)| u))
+            })
+        })
     }
 
     fn inputs_fresh(&self, drive: usize) -> bool {
@@ -1223,7 +1279,8 @@ impl CycleBus for CanopenBus {
     /// The nodes were started at the end of the bring-up (NMT start): nothing left to do.
     fn start_operation(&mut self) {}
 
-    /// Brings the node of `drive` back: at once if it has no fault and is Operational
+    /// Brings the node of `drive` back — or, when it is fine, an I/O module its axis reads
+    /// that is not: at once if it has no fault and is Operational
     /// (heard from within its consumer time); otherwise NMT reset communication, its
     /// boot-up, its configuration by SDO (one write per exchange), NMT start and its first
     /// TPDOs, timed on the link's clock (`now_ns`, the cycle's clock, is not the link's
@@ -1237,12 +1294,29 @@ impl CycleBus for CanopenBus {
             self.restored = Some(Err(not_operational(drive, 0, "no such drive")));
             return true;
         };
-        if d.fault.is_none() && d.left.is_none() {
-            self.restored = Some(Ok(Restored::WasOperational));
-            return true;
-        }
+        let out = |d: &Drive| d.fault.is_some() || d.left.is_some();
+        let origin = drive;
+        // The drive first, then the I/O modules its axis reads (`finish_restore`).
+        let drive = if out(d) {
+            drive
+        } else {
+            match d
+                .reads
+                .iter()
+                .flatten()
+                .copied()
+                .find(|m| self.drives.get(*m).is_some_and(out))
+            {
+                Some(m) => m,
+                None => {
+                    self.restored = Some(Ok(Restored::WasOperational));
+                    return true;
+                }
+            }
+        };
         self.restore = Some(Restore {
             drive,
+            origin,
             deadline_ns: now.saturating_add(timeout_ns),
             step: Step::Reset,
         });

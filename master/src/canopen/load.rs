@@ -59,9 +59,11 @@ pub enum LoadError {
 /// What one cycle puts on the bus.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BusLoad {
-    /// Drives (nodes).
+    /// Nodes: the drives, then the I/O modules.
     pub drives: usize,
-    /// PDOs of each drive (RPDOs + TPDOs), in axis order.
+    /// Of which I/O modules (CiA 401, the switches'), counted last.
+    pub modules: usize,
+    /// PDOs of each drive (RPDOs + TPDOs), in axis order, then of each I/O module.
     pub pdos: Vec<usize>,
     /// Bits a cycle's frames take at worst: SYNC, PDOs, heartbeats averaged.
     pub bits: u64,
@@ -76,7 +78,8 @@ pub struct BusLoad {
 }
 
 impl BusLoad {
-    /// The load of `config`'s axes on its bus (CANopen: `bitrate` given).
+    /// The load of `config`'s axes and the I/O modules their switches read on its bus
+    /// (CANopen: `bitrate` given).
     pub fn of_config(config: &Config) -> Result<Self, LoadError> {
         let mut plans = Vec::with_capacity(config.axes.len());
         for a in &config.axes {
@@ -91,7 +94,12 @@ impl BusLoad {
             })?;
             plans.push(plan);
         }
-        let load = Self::of(
+        // The I/O modules the switches read: their TPDO and heartbeat are on the bus too.
+        let modules = config.module_nodes();
+        for m in &modules {
+            plans.push(super::io_module::plan(m)?);
+        }
+        let mut load = Self::of(
             &plans,
             u64::from(config.bus.cycle_us) * 1000,
             config.bus.bitrate.unwrap_or(0),
@@ -102,6 +110,7 @@ impl BusLoad {
                 .clone()
                 .unwrap_or_else(|| "the bus".into()),
         );
+        load.modules = modules.len();
         Ok(if config.bus.sync_counter.is_some() {
             load.with_sync_counter()
         } else {
@@ -135,6 +144,7 @@ impl BusLoad {
         };
         Self {
             drives: plans.len(),
+            modules: 0,
             pdos: plans.iter().map(DrivePlan::pdo_count).collect(),
             bits: SYNC_BITS + pdo_bits + heartbeat_bits.ceil() as u64,
             heartbeat_bits,
@@ -188,15 +198,20 @@ impl fmt::Display for BusLoad {
     /// "4 drives × 2 PDOs + SYNC at 1 kHz need 1.03 Mbit/s (979 bits in the 950 µs the
     /// cycle waits for its TPDOs); can0 has 1 Mbit/s".
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let drives = if self.drives == 1 { "drive" } else { "drives" };
+        let n = self.drives.saturating_sub(self.modules);
+        let drives = if n == 1 { "drive" } else { "drives" };
+        let modules = match self.modules {
+            0 => String::new(),
+            1 => " + 1 I/O module".into(),
+            m => format!(" + {m} I/O modules"),
+        };
         match self.pdos.first() {
             Some(&k) if self.pdos.iter().all(|&n| n == k) => {
-                write!(f, "{} {drives} × {k} PDOs", self.drives)?
+                write!(f, "{n} {drives}{modules} × {k} PDOs")?
             }
             _ => write!(
                 f,
-                "{} {drives} with {} PDOs",
-                self.drives,
+                "{n} {drives}{modules} with {} PDOs",
                 self.pdos.iter().sum::<usize>()
             )?,
         }
@@ -260,6 +275,31 @@ mod tests {
         assert!((four.utilisation() - 1602.0 / 1950.0).abs() < 1e-9);
         // A SYNC with counter: one data byte more (65 bits instead of 55).
         assert_eq!(four.with_sync_counter().bits, 65 + 4 * 385 + 7);
+    }
+
+    #[test]
+    fn the_switch_modules_are_counted_and_named() {
+        let plain = load(1, PdoLayout::csp(), 1000, 125_000);
+        let mut with = BusLoad::of(
+            &[
+                DrivePlan::of(&PdoLayout::csp()).unwrap(),
+                DrivePlan::of(&crate::canopen::io_module::layout(1)).unwrap(),
+            ],
+            1_000_000,
+            125_000,
+            100_000_000,
+            "can0".into(),
+        );
+        with.modules = 1;
+        // Its TPDO (1 byte) and its heartbeat averaged (65 bits every 100 cycles: 1.95
+        // bits a cycle for three heartbeats instead of 1.3, both rounded up to 2).
+        assert_eq!(with.bits - plain.bits, frame_bits(1));
+        assert!((with.heartbeat_bits - plain.heartbeat_bits - 0.65).abs() < 1e-9);
+        let e = with.check().unwrap_err().to_string();
+        assert!(
+            e.starts_with("1 drive + 1 I/O module with 4 PDOs + SYNC at 1 kHz need"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -10,13 +10,16 @@
 //!
 //! Drive positions: axis `i` of the configuration is on bus position `i`, the node its
 //! `node` key names (one node per axis), so the cycle ([`crate::runtime::cycle::Cycle`])
-//! addresses CANopen drives exactly as it addresses EtherCAT slaves.
+//! addresses CANopen drives exactly as it addresses EtherCAT slaves. The digital-input
+//! modules (CiA 401) the axes' switches read ([`io_module`]) come after the drives, on
+//! positions `axes..`, in the order the configuration first names them.
 //!
 //! [`CycleBus`]: crate::runtime::bus::CycleBus
 
 pub mod bring_up;
 pub mod bus;
 pub mod eds;
+pub mod io_module;
 pub mod link;
 pub mod load;
 pub mod pdo;

@@ -19,7 +19,10 @@ pub use bus::{
 pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
 pub use service::ServiceSection;
-pub use switches::{ModuleInput, ProbeSource, SwitchSource, SwitchesSection};
+pub use switches::{
+    ModuleInput, ModuleNode, NodeSwitch, ProbeSource, SwitchSource, SwitchesSection,
+    MODULE_NODE_INPUTS,
+};
 
 use std::path::Path;
 use std::sync::Arc;
@@ -62,6 +65,40 @@ pub struct Config {
 }
 
 impl Config {
+    /// The CANopen digital-input modules (CiA 401) the axes' switches read, by bus
+    /// position (after the drives'); none on EtherCAT.
+    pub fn module_nodes(&self) -> Vec<ModuleNode> {
+        let mut out: Vec<ModuleNode> = Vec::new();
+        if self.bus.bus_kind() != BusKind::Canopen {
+            return out;
+        }
+        for a in &self.axes {
+            for m in a.switches.module_switches() {
+                let (Some(node), Some(input), Some(position)) = (m.node, m.input, m.position)
+                else {
+                    continue;
+                };
+                let groups = input / 8 + 1;
+                match out.iter_mut().find(|n| n.node == node) {
+                    Some(n) => {
+                        n.groups = n.groups.max(groups);
+                        if !n.axes.contains(&a.name) {
+                            n.axes.push(a.name.clone());
+                        }
+                    }
+                    None => out.push(ModuleNode {
+                        node,
+                        position,
+                        groups,
+                        axes: vec![a.name.clone()],
+                    }),
+                }
+            }
+        }
+        out.sort_by_key(|n| n.position);
+        out
+    }
+
     /// The EDS of axis `axis`, when it names one.
     pub fn eds_of(&self, axis: usize) -> Option<&Eds> {
         self.eds.get(axis).and_then(|e| e.as_deref())
@@ -119,6 +156,10 @@ impl Config {
         let mut eds = Vec::with_capacity(file.axes.len());
         let mut spans = Vec::with_capacity(file.axes.len());
         let kind = bus.bus_kind();
+        // CANopen I/O modules the switches name: node, the axis and key that named it
+        // first, its span.
+        let mut module_nodes: Vec<(u8, usize, String, std::ops::Range<usize>)> = Vec::new();
+        let file_axes = file.axes.len();
         for (i, spanned) in file.axes.into_iter().enumerate() {
             let span = spanned.span();
             let mut a = spanned.into_inner();
@@ -206,25 +247,76 @@ impl Config {
                     format!("drive {} is also axis[{other}]'s", a.drive),
                 ));
             }
+            // Switches on I/O modules: an EtherCAT chain position or a CANopen node, each
+            // bus' own; a CANopen module placed on its bus position after the drives.
+            for m in a.switches.module_switches() {
+                let sw = key(&format!("switches.{}", m.key));
+                match (kind, m.slave, m.node) {
+                    (BusKind::Ethercat, _, Some(node)) => {
+                        return Err(at(
+                            span,
+                            sw,
+                            format!(
+                                "node = {node} is a CANopen node id; on EtherCAT a module is \
+                                 named by its chain position (slave = N)"
+                            ),
+                        ))
+                    }
+                    (BusKind::Canopen, Some(_), None) => {
+                        return Err(at(
+                            span,
+                            sw,
+                            "slave is an EtherCAT chain position; on CANopen a module is named \
+                             by its node id (node = N, a CiA 401 digital-input node)"
+                                .into(),
+                        ))
+                    }
+                    (BusKind::Canopen, None, Some(node)) => {
+                        if !(1..=127).contains(&node) {
+                            return Err(at(
+                                span,
+                                sw,
+                                format!("node {node} is outside 1..=127 (CiA 301)"),
+                            ));
+                        }
+                        if node == bus.master_node() {
+                            return Err(at(
+                                span,
+                                sw,
+                                format!(
+                                    "node {node} is gantry's own (bus.master_node): give the \
+                                     module another id"
+                                ),
+                            ));
+                        }
+                        if let Some(input) = m.input.filter(|i| *i >= MODULE_NODE_INPUTS) {
+                            return Err(at(
+                                span,
+                                sw,
+                                format!(
+                                    "input {input}: a CiA 401 module's TPDO1 carries inputs \
+                                     0..={} (0x6000:01–08, 8 inputs each)",
+                                    MODULE_NODE_INPUTS - 1
+                                ),
+                            ));
+                        }
+                        if !module_nodes.iter().any(|(n, ..)| *n == node) {
+                            module_nodes.push((node, i, sw, span.clone()));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            if kind == BusKind::Canopen {
+                let n_axes = file_axes;
+                let nodes: Vec<u8> = module_nodes.iter().map(|(n, ..)| *n).collect();
+                a.switches.place_modules(|node| {
+                    n_axes + nodes.iter().position(|n| *n == node).unwrap_or(nodes.len())
+                });
+            }
             let k = a
                 .kernel_config()
                 .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
-            if kind == BusKind::Canopen {
-                let modules = a
-                    .switches
-                    .module_inputs()
-                    .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
-                let names = ["negative_limit", "positive_limit", "reference"];
-                if let Some((name, _)) = names.iter().zip(modules).find(|(_, m)| m.is_some()) {
-                    return Err(at(
-                        span,
-                        key(&format!("switches.{name}")),
-                        "a module input is read on EtherCAT only; on CANopen the bus does not \
-                         read a CiA 401 node's inputs yet (use the drive's 0x60FD)"
-                            .into(),
-                    ));
-                }
-            }
             let sheet = match (&a.eds, kind) {
                 (None, _) => None,
                 (Some(_), BusKind::Ethercat) => {
@@ -249,6 +341,19 @@ impl Config {
             spans.push(span);
             kernel_axes.push(k);
             axes.push(a);
+        }
+        // A module is a node of its own: not an axis' drive.
+        for (node, axis, sw, span) in &module_nodes {
+            if let Some(other) = axes.iter().position(|b| b.node == Some(*node)) {
+                return Err(at(
+                    span.clone(),
+                    sw.clone(),
+                    format!(
+                        "node {node} is axis[{other}]'s drive (axis[{axis}] reads it as an I/O \
+                         module): a CiA 401 module is a node of its own"
+                    ),
+                ));
+            }
         }
         let config = Self {
             path: path.into(),

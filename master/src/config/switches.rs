@@ -22,13 +22,16 @@
 //! set up for its contacts; `normally_closed` is for a drive that reports the contact's
 //! level instead.
 //!
-//! A switch may also be an input of a digital-input module on the bus (EtherCAT):
+//! A switch may also be an input of a digital-input module on the bus. On EtherCAT:
 //! `{ from = "module", slave = 1, input = 2, normally_closed = true }` — the module at
-//! chain position 1, its input bit 2 (bit n of its input process data), read every cycle
-//! and routed to the axis. A module input is a level sampled once a cycle: the drive's
-//! touch probe cannot latch it, so homing runs that need the reference switch's edge are
-//! refused for a module reference switch (the kernel's `reference_edges_latched`). Not on
-//! CANopen yet (a CiA 401 node's inputs are not read by the bus).
+//! chain position 1, its input bit 2 (bit n of its input process data). On CANopen:
+//! `{ from = "module", node = 9, input = 2 }` — the CiA 401 digital-input node 9, its
+//! input bit 2 (bit `input % 8` of 0x6000:`input / 8 + 1`, read input 8-bit), brought up
+//! with the drives and read from its TPDO1 at every SYNC ([`ModuleNode`]). Either way the
+//! input is read every cycle and routed to the axis. A module input is a level sampled
+//! once a cycle: the drive's touch probe cannot latch it, so homing runs that need the
+//! reference switch's edge are refused for a module reference switch (the kernel's
+//! `reference_edges_latched`).
 
 use gantry_drives::cia402::objects::{self, digital_inputs};
 use gantry_drives::cia402::pdo::{PdoLayout, SdoWrite};
@@ -70,14 +73,22 @@ pub struct ProbeSource {
 pub enum SwitchSource {
     /// `"drive"`: its bit of the drive's 0x60FD.
     Named(String),
-    /// `{ from = "drive", normally_closed = true }` or
-    /// `{ from = "module", slave = 1, input = 2, normally_closed = true }`.
+    /// `{ from = "drive", normally_closed = true }`,
+    /// `{ from = "module", slave = 1, input = 2, normally_closed = true }` (EtherCAT) or
+    /// `{ from = "module", node = 9, input = 2 }` (CANopen).
     Wired {
         /// `"drive"` or `"module"`.
         from: String,
-        /// The module's position on the bus (`"module"` only).
+        /// The module's position on the bus (`"module"` on EtherCAT only).
         #[serde(default)]
         slave: Option<usize>,
+        /// The module's CANopen node id (`"module"` on CANopen only).
+        #[serde(default)]
+        node: Option<u8>,
+        /// The CANopen module's position on the bus (after the axes' drives), given by
+        /// the configuration's check ([`SwitchesSection::place_modules`]).
+        #[serde(skip)]
+        position: Option<usize>,
         /// The module's input (bit of its input process data; `"module"` only).
         #[serde(default)]
         input: Option<u8>,
@@ -122,34 +133,51 @@ enum Source {
 
 impl SwitchSource {
     fn resolve(&self, key: &str) -> Result<Source, (String, String)> {
-        let (from, slave, input, normally_closed) = match self {
-            SwitchSource::Named(from) => (from, None, None, false),
+        let (from, slave, node, position, input, normally_closed) = match self {
+            SwitchSource::Named(from) => (from, None, None, None, None, false),
             SwitchSource::Wired {
                 from,
                 slave,
+                node,
+                position,
                 input,
                 normally_closed,
-            } => (from, *slave, *input, *normally_closed),
+            } => (from, *slave, *node, *position, *input, *normally_closed),
         };
         let err = |why: String| Err((format!("switches.{key}"), why));
-        match (from.as_str(), slave, input) {
-            ("drive", None, None) => Ok(Source::Drive(normally_closed)),
-            ("drive", _, _) => err(
-                "slave and input are for from = \"module\"; the drive's switches are its \
-                 0x60FD bits"
+        match (from.as_str(), slave, node, input) {
+            ("drive", None, None, None) => Ok(Source::Drive(normally_closed)),
+            ("drive", _, _, _) => err(
+                "slave and input are for from = \"module\" (node and input on CANopen); \
+                 the drive's switches are its 0x60FD bits"
                     .into(),
             ),
-            ("module", Some(slave), Some(input)) => Ok(Source::Module(ModuleInput {
+            ("module", Some(_), Some(_), _) => err(
+                "slave (an EtherCAT chain position) or node (a CANopen node id), not both".into(),
+            ),
+            ("module", Some(slave), None, Some(input)) => Ok(Source::Module(ModuleInput {
                 slave,
                 input,
                 normally_closed,
             })),
-            ("module", _, _) => err(
+            ("module", None, Some(node), Some(input)) => match position {
+                Some(slave) => Ok(Source::Module(ModuleInput {
+                    slave,
+                    input,
+                    normally_closed,
+                })),
+                None => err(format!(
+                    "node = {node} names a CANopen node; on EtherCAT a module is named by \
+                     its chain position (slave = N)"
+                )),
+            },
+            ("module", _, _, _) => err(
                 "a module input needs its module and input: { from = \"module\", slave = N, \
-                 input = K }"
+                 input = K } on EtherCAT, { from = \"module\", node = N, input = K } on \
+                 CANopen"
                     .into(),
             ),
-            (other, _, _) => err(format!(
+            (other, _, _, _) => err(format!(
                 "{other:?}: \"drive\" (the drive's digital inputs 0x60FD) or \"module\" \
                  (an input of an I/O module on the bus)"
             )),
@@ -157,7 +185,94 @@ impl SwitchSource {
     }
 }
 
+/// Inputs of a CiA 401 module's TPDO1 at most: 8 groups of 8 (0x6000:01–08, one 8-byte
+/// PDO).
+pub const MODULE_NODE_INPUTS: u8 = 64;
+
+/// A CANopen digital-input module (CiA 401) the switches of the axes read: brought up
+/// with the drives, on its own bus position after theirs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ModuleNode {
+    /// Its node id.
+    pub node: u8,
+    /// Its position on the bus (the cycle reads its inputs there).
+    pub position: usize,
+    /// The 8-bit input groups its TPDO1 carries (0x6000:01..=groups): enough for the
+    /// highest input an axis reads.
+    pub groups: u8,
+    /// The axes that read it.
+    pub axes: Vec<String>,
+}
+
+/// A CANopen module switch as written: the switch, the node and the input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NodeSwitch {
+    /// `negative_limit`, `positive_limit` or `reference`.
+    pub key: &'static str,
+    /// `slave = N` was given (an EtherCAT chain position).
+    pub slave: Option<usize>,
+    /// `node = N`.
+    pub node: Option<u8>,
+    /// `input = K`.
+    pub input: Option<u8>,
+    /// The bus position a CANopen module was placed on
+    /// ([`SwitchesSection::place_modules`]).
+    pub position: Option<usize>,
+}
+
 impl SwitchesSection {
+    /// The module switches as written (`from = "module"`), for the bus' own checks.
+    pub fn module_switches(&self) -> Vec<NodeSwitch> {
+        [
+            ("negative_limit", &self.negative_limit),
+            ("positive_limit", &self.positive_limit),
+            ("reference", &self.reference),
+        ]
+        .into_iter()
+        .filter_map(|(key, source)| match source {
+            Some(SwitchSource::Wired {
+                from,
+                slave,
+                node,
+                input,
+                position,
+                ..
+            }) if from == "module" => Some(NodeSwitch {
+                key,
+                slave: *slave,
+                node: *node,
+                input: *input,
+                position: *position,
+            }),
+            _ => None,
+        })
+        .collect()
+    }
+
+    /// Places each CANopen module switch (`node = N`) on its module's bus position.
+    pub fn place_modules(&mut self, position: impl Fn(u8) -> usize) {
+        for source in [
+            &mut self.negative_limit,
+            &mut self.positive_limit,
+            &mut self.reference,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if let SwitchSource::Wired {
+                from,
+                node: Some(node),
+                position: at,
+                ..
+            } = source
+            {
+                if from == "module" {
+                    *at = Some(position(*node));
+                }
+            }
+        }
+    }
+
     /// Which 0x60FD bits are switches and which read inverted.
     pub fn wiring(&self) -> Result<SwitchWiring, (String, String)> {
         let mut w = SwitchWiring::default();

@@ -209,7 +209,7 @@ fn switches_add_their_objects_to_the_layout_and_name_their_mistakes() {
 
 /// Switches on an I/O module: resolved with their polarity, not in the drive's 0x60FD
 /// wiring; a module reference switch tells the kernel the probe cannot latch it; the
-/// mistakes named; refused on CANopen.
+/// mistakes named; a CANopen node refused on EtherCAT.
 #[test]
 fn module_switches_are_resolved_and_refused_where_not_read() {
     let with = |switches: &str| {
@@ -274,20 +274,148 @@ fn module_switches_are_resolved_and_refused_where_not_read() {
             .to_string();
         assert!(e.contains(why), "{e}");
     }
-    let canopen = "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 1000000\n\
-         cycle_us = 2000\n\
-         [[axis]]\nname = \"x\"\nnode = 1\npdo = \"csp-minimal\"\n\
-         scaling = { counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }\n\
-         max = { speed = 10.0, acceleration = 100.0, jerk = 1000.0 }\n\
-         [axis.switches]\nreference = { from = \"module\", slave = 2, input = 0 }\n";
-    let e = Config::parse(canopen, "c.toml").unwrap_err().to_string();
+    // `node` is CANopen's.
+    let e = Config::parse(
+        &with("reference = { from = \"module\", node = 9, input = 0 }"),
+        "g.toml",
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains(
-            "axis[0].switches.reference: a module input is read on EtherCAT only; on CANopen \
-             the bus does not read a CiA 401 node's inputs yet"
+            "axis[0].switches.reference: node = 9 is a CANopen node id; on EtherCAT a module \
+             is named by its chain position (slave = N)"
         ),
         "{e}"
     );
+}
+
+/// A CANopen configuration with axes on nodes 1 and 2, `x_switches` and `y_switches` as
+/// their `[axis.switches]` lines.
+fn canopen_modules(x_switches: &str, y_switches: &str) -> String {
+    format!(
+        "[bus]\nkind = \"canopen\"\ninterface = \"can0\"\nbitrate = 1000000\n\
+         cycle_us = 2000\n\
+         [[axis]]\nname = \"x\"\nnode = 1\npdo = \"csp-minimal\"\n\
+         scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+         max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n\
+         [axis.switches]\n{x_switches}\n\
+         [[axis]]\nname = \"y\"\nnode = 2\npdo = \"csp-minimal\"\n\
+         scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+         max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n\
+         [axis.switches]\n{y_switches}\n"
+    )
+}
+
+/// Switches on CANopen I/O modules (`node = N`): each module placed on a bus position
+/// after the drives, in the order first named, shared by the axes that read it, its
+/// TPDO1 as wide as the highest input read; its TPDO counted in the bus load; the
+/// mistakes named.
+#[test]
+fn canopen_module_switches_are_placed_after_the_drives_and_checked() {
+    let c = Config::parse(
+        &canopen_modules(
+            "positive_limit = { from = \"module\", node = 9, input = 1, normally_closed = true }\n\
+             reference = { from = \"module\", node = 10, input = 0 }",
+            "negative_limit = { from = \"module\", node = 9, input = 12 }",
+        ),
+        "c.toml",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let modules = c.module_nodes();
+    let got: Vec<_> = modules
+        .iter()
+        .map(|m| (m.node, m.position, m.groups, m.axes.join(",")))
+        .collect();
+    assert_eq!(
+        got,
+        [(9, 2, 2, "x,y".to_string()), (10, 3, 1, "x".to_string())]
+    );
+    let [neg, pos, reference] = c.axes[0].switches.module_inputs().unwrap();
+    assert_eq!(neg, None);
+    assert_eq!(
+        pos,
+        Some(ModuleInput {
+            slave: 2,
+            input: 1,
+            normally_closed: true
+        })
+    );
+    assert_eq!(reference.map(|r| r.slave), Some(3));
+    assert_eq!(
+        c.axes[1].switches.module_inputs().unwrap()[0].map(|m| (m.slave, m.input)),
+        Some((2, 12))
+    );
+    // Not in the drive's 0x60FD; the module reference cannot be latched.
+    assert_eq!(c.axes[0].switches.wiring().unwrap().used, 0);
+    assert!(!c.kernel_axes[0].reference_edges_latched);
+    // The bus load counts both modules' TPDOs and heartbeats: x's 4 PDOs (its drive's
+    // touch probe stays mapped for the index pulse), y's 2, a 2-byte and a 1-byte TPDO.
+    let load = crate::canopen::load::BusLoad::of_config(&c).unwrap();
+    assert_eq!(load.pdos, [4, 2, 1, 1]);
+    assert_eq!((load.drives, load.modules), (4, 2));
+    assert!(
+        load.to_string()
+            .starts_with("2 drives + 2 I/O modules with 8 PDOs"),
+        "{load}"
+    );
+    let no_modules = Config::parse(&canopen_modules("touch_probe = true", ""), "c.toml").unwrap();
+    let plain = crate::canopen::load::BusLoad::of_config(&no_modules).unwrap();
+    use gantry_drives::canopen::frame::frame_bits;
+    // Two more heartbeats every 100 ms of 2 ms cycles: 6.5 bits a cycle instead of 3.9,
+    // rounded up (7 against 4).
+    assert_eq!(
+        load.bits - plain.bits,
+        frame_bits(2) + frame_bits(1) + 3,
+        "{load}"
+    );
+    // The mistakes, by name.
+    for (x, y, why) in [
+        (
+            "reference = { from = \"module\", slave = 2, input = 0 }",
+            "",
+            "axis[0].switches.reference: slave is an EtherCAT chain position; on \
+             CANopen a module is named by its node id (node = N",
+        ),
+        (
+            "reference = { from = \"module\", slave = 2, node = 9, input = 0 }",
+            "",
+            "axis[0].switches.reference: slave (an EtherCAT chain position) or node (a CANopen \
+             node id), not both",
+        ),
+        (
+            "reference = { from = \"module\", node = 9 }",
+            "",
+            "axis[0].switches.reference: a module input needs its module and input",
+        ),
+        (
+            "reference = { from = \"module\", node = 0, input = 0 }",
+            "",
+            "axis[0].switches.reference: node 0 is outside 1..=127",
+        ),
+        (
+            "reference = { from = \"module\", node = 127, input = 0 }",
+            "",
+            "axis[0].switches.reference: node 127 is gantry's own (bus.master_node)",
+        ),
+        (
+            "reference = { from = \"module\", node = 9, input = 64 }",
+            "",
+            "axis[0].switches.reference: input 64: a CiA 401 module's TPDO1 carries inputs \
+             0..=63",
+        ),
+        (
+            "",
+            "positive_limit = { from = \"module\", node = 1, input = 3 }",
+            "axis[1].switches.positive_limit: node 1 is axis[0]'s drive (axis[1] reads it as \
+             an I/O module)",
+        ),
+    ] {
+        let e = Config::parse(&canopen_modules(x, y), "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(why), "{e}");
+    }
 }
 
 /// `probe_source`: 0x60D0:1/:2 written at bring-up, 0x60BD mapped, MoveHome on a limit
