@@ -1,4 +1,4 @@
-//! `gantry commission` and `gantry home` end to end over a veth pair (issue 13 §6): one
+//! `gantry commission` and `gantry home` end to end over a veth pair: one
 //! `gantry run` in real time on the shipped veth example, `gantry-sim` recording on the
 //! pair's other end, the CLI against the service's socket, both processes started twice.
 //!
@@ -437,7 +437,9 @@ const HOME: &[&str] = &[
 ];
 
 #[test]
-#[ignore = "needs root (network namespaces) and the built binaries; deploy/test.sh runs it"]
+#[ignore = "needs root (network namespaces) and the built binaries; not in deploy/test.sh yet: \
+            SDO transfers of the commissioning time out after lost frames (6 of 10 runs \
+            passed on the build VM; see the README's known limitations)"]
 fn commission_and_home_over_veth_across_a_restart() {
     let began = Instant::now();
     let pair = VethPair::create("com").expect("veth pair in two namespaces");
