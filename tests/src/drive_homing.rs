@@ -277,3 +277,39 @@ pub fn cancel_and_power_off(rig: &mut impl ServoRig, base: DriveHomingParams) {
     move_to(rig, here + 1.0);
     assert_eq!(rig.with_servo(|s| s.record().faults), 0);
 }
+
+/// An EtherCAT rig (1 ms) whose servo has the switch cams and `homing` in `[slave.homing]`, the axis
+/// mapped `pdo`, with `[axis.drive_homing]`.
+pub fn ethercat_rig(
+    homing: &str,
+    pdo: &str,
+) -> (crate::servo_rig::EthercatServo, gantry::config::Config) {
+    let slaves = format!(
+        "[[slave]]\nkind = \"servo\"\n[slave.al]\nsync_error_limit = {}\n{}\
+         [slave.homing]\n{homing}\n",
+        crate::DEFAULT_SYNC_ERROR_LIMIT,
+        crate::homing::servo_switches_toml()
+    );
+    let axes = format!(
+        "[[axis]]\nname = \"x\"\ndrive = 0\npdo = \"{pdo}\"\nhoming_required = false\n\
+         scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
+         max = {{ speed = 200.0, acceleration = 2000.0, jerk = 40000.0 }}\n\
+         [axis.drive_homing]\nmethod = 19\nspeed_switch = 50.0\nspeed_zero = 5.0\n\
+         acceleration = 500.0\nhome_offset = 2.0\ntimeout = 10.0\n"
+    );
+    let config = crate::sim_config_text(1000, &slaves, "", &axes);
+    let mut rig = crate::servo_rig::EthercatServo {
+        rig: crate::rig::Rig::new(&config),
+        cycle_s: 1e-3,
+    };
+    let h = rig
+        .rig
+        .ctl
+        .command(
+            0,
+            Command::Power(gantry_kernel::axis::command::PowerCommand::Enable),
+        )
+        .expect("queued");
+    assert_eq!(rig.rig.finish(&h, 5000), CommandStatus::Done);
+    (rig, config)
+}
