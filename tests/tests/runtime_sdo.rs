@@ -273,7 +273,12 @@ fn a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(rig: &mut Rig) {
     // reply is lost): a write goes again with the same counter (the slave discards it if
     // it had arrived); an answer whose read was lost is asked for again (SM1's repeat
     // request, ESC datasheet section I §8.6).
-    for on_the_way_back in [false, true] {
+    //
+    // Two replies lost in a row on the way back: the write arrived, and so did its repeat,
+    // which waits in SM0 behind the answer in SM1; the next repeat is refused (SM0 full),
+    // so the master must read the answer rather than write again (it would never be
+    // taken: the slave takes SM0 only once SM1 is read).
+    for (lost, on_the_way_back) in [(1, false), (1, true), (2, true), (3, true)] {
         for lose_at in 0..12u8 {
             let new: Vec<u8> = (0..200u32).map(|i| (i as u8) ^ lose_at).collect();
             let download = ctl
@@ -286,9 +291,9 @@ fn a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(rig: &mut Rig) {
             {
                 let mut chain = rig.chain.lock().unwrap();
                 if on_the_way_back {
-                    chain.drop_replies(1);
+                    chain.drop_replies(lost);
                 } else {
-                    chain.drop_frames(1);
+                    chain.drop_frames(lost);
                 }
             }
             let mut outcomes = (None, None);
@@ -300,7 +305,9 @@ fn a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(rig: &mut Rig) {
                     break;
                 }
             }
-            let case = format!("frame {lose_at} lost (on the way back: {on_the_way_back})");
+            let case = format!(
+                "frames {lose_at}.. lost: {lost} (on the way back: {on_the_way_back})"
+            );
             assert_eq!(outcomes.0, Some(Ok(SdoData::EMPTY)), "{case}");
             let got = outcomes.1.expect("the upload ended").expect(&case);
             assert_eq!(got.as_slice(), &new[..], "{case}");

@@ -7,11 +7,14 @@
 //! (master → slave) and 1 (slave → master) registers. A request is written as a whole
 //! SM0 area (the ESC completes a mailbox write on its last byte, ESC datasheet section I
 //! §8.2); the answer is awaited by polling the SM1 status' "mailbox full" bit and then
-//! read as a whole SM1 area (which empties it). A write the ESC refuses (working counter
-//! 0: SM0 still full, the firmware has not taken the previous mailbox) or whose frame was
-//! lost is written again with the same counter: a slave discards a mailbox whose counter
-//! repeats the previous one (ETG.1000.6 Table 29), so a request that did arrive is not
-//! served twice.
+//! read as a whole SM1 area (which empties it). A write whose frame was lost is written
+//! again with the same counter: a slave discards a mailbox whose counter repeats the
+//! previous one (ETG.1000.6 Table 29), so a request that did arrive is not served twice.
+//! A write the ESC refuses (working counter 0: SM0 still full) is not simply written
+//! again: the firmware takes SM0 only once SM1 is free, and what waits in SM0 may be this
+//! very request (a repeat whose reply was lost too) behind its own answer in SM1 — so
+//! SM1's status is looked at first, and an answer there is read (as SOEM empties a
+//! slave's send mailbox before it writes).
 //!
 //! Expedited (≤ 4 bytes), normal (the data in the initiate message) and segmented
 //! (toggle bit alternating, ETG.1000.6 §5.6.2.3–2.6) uploads and downloads; complete
@@ -268,6 +271,9 @@ enum Step {
     Read(Message),
     /// The read of the answer to this message was lost: ask the slave to put it back.
     Repeat(Message),
+    /// The write of this message was refused (SM0 full): look at SM1 — an answer there
+    /// (to this message, or a late one) keeps the firmware from taking SM0 until read.
+    Peek(Message),
     /// Finished.
     Done(SdoResult),
 }
@@ -289,6 +295,10 @@ pub struct CoeSdo {
     /// The transfer before this one timed out with its request out: its answer may
     /// still come, so an initiate answer that is not this transfer's is passed over.
     late_answer_possible: bool,
+    /// A write of the current message was taken (working counter 1).
+    taken: bool,
+    /// A write of the current message was taken or lost on the way (it may have arrived).
+    maybe_out: bool,
     /// This transfer timed out with a request out (see `late_answer_possible`).
     left_unanswered: bool,
 }
@@ -315,6 +325,8 @@ impl CoeSdo {
             sent: 0,
             late_answer_possible: false,
             left_unanswered: false,
+            taken: false,
+            maybe_out: false,
         }
     }
 
@@ -362,7 +374,7 @@ impl CoeSdo {
                     len: m.write_len,
                 })
             }
-            Step::Await(_) => Some(MailboxAccess::ReadStatus {
+            Step::Await(_) | Step::Peek(_) => Some(MailboxAccess::ReadStatus {
                 at: m.read_status(),
             }),
             Step::Read(_) => Some(MailboxAccess::Read {
@@ -380,16 +392,30 @@ impl CoeSdo {
     /// Takes the answer to [`CoeSdo::next_access`] (`answer`: the answer buffer after a
     /// read), received at `now_ns`.
     pub fn on_answer(&mut self, got: MailboxAnswer, answer: &[u8], now_ns: u64) {
+        let sending = matches!(self.step, Step::Send(_));
+        if sending && matches!(got, MailboxAnswer::Written | MailboxAnswer::None) {
+            self.maybe_out = true;
+        }
         self.step = match (self.step, got) {
             (Step::Done(r), _) => Step::Done(r),
             (Step::Send(Message::Abort(_, then)), MailboxAnswer::Written) => Step::Done(Err(then)),
             (Step::Send(msg), MailboxAnswer::Written) => Step::Await(msg),
-            (Step::Await(msg), MailboxAnswer::Status(s)) if s & SM_STATUS_MAILBOX_FULL != 0 => {
+            (Step::Send(msg), MailboxAnswer::Refused) => Step::Peek(msg),
+            (Step::Await(msg) | Step::Peek(msg), MailboxAnswer::Status(s))
+                if s & SM_STATUS_MAILBOX_FULL != 0 =>
+            {
                 Step::Read(msg)
             }
-            (Step::Read(msg), MailboxAnswer::Read) => self.on_message(msg, answer),
+            // Nothing in SM1: the firmware is still busy with SM0; write again.
+            (Step::Peek(msg), MailboxAnswer::Status(_)) => Step::Send(msg),
+            // An answer read before an abort could be written: the abort goes still.
+            (Step::Read(msg @ Message::Abort(..)), MailboxAnswer::Read) => Step::Send(msg),
+            (Step::Read(msg), MailboxAnswer::Read) => match self.on_message(msg, answer) {
+                Step::Await(m) => self.wait_for(m),
+                step => step,
+            },
             // An empty SM1 after all (another reader?): wait again.
-            (Step::Read(msg), MailboxAnswer::Refused) => Step::Await(msg),
+            (Step::Read(msg), MailboxAnswer::Refused) => self.wait_for(msg),
             // The frame that read it was lost: the ESC may have emptied SM1 on the way
             // out. Ask for the answer again (the request toggled once; written again
             // unchanged while refused or lost, a no-op if it had arrived).
@@ -397,14 +423,25 @@ impl CoeSdo {
                 self.mailbox.read_activate ^= SM_REPEAT;
                 Step::Repeat(msg)
             }
-            (Step::Repeat(msg), MailboxAnswer::Written) => Step::Await(msg),
+            (Step::Repeat(msg), MailboxAnswer::Written) => self.wait_for(msg),
             // Refused, lost, not there yet: the same again.
             (step, _) => step,
         };
-        if got == MailboxAnswer::Written {
-            self.note_written();
+        if sending && got == MailboxAnswer::Written {
+            self.taken = true;
         }
         self.tick(now_ns);
+    }
+
+    /// After an answer that was not this message's (or none): wait for it if the slave
+    /// took the message, else write it (again: a repeat that did arrive is discarded by
+    /// its counter).
+    fn wait_for(&self, msg: Message) -> Step {
+        if self.taken {
+            Step::Await(msg)
+        } else {
+            Step::Send(msg)
+        }
     }
 
     /// Ends the transfer once its time is up (call in cycles without an access of its
@@ -414,9 +451,9 @@ impl CoeSdo {
         if matches!(self.step, Step::Done(_)) || waited_ns < self.request.timeout_ns {
             return;
         }
-        self.left_unanswered =
-            matches!(self.step, Step::Await(_) | Step::Read(_) | Step::Repeat(_))
-                || self.late_answer_possible;
+        self.left_unanswered = self.maybe_out
+            || matches!(self.step, Step::Await(_) | Step::Read(_) | Step::Repeat(_))
+            || self.late_answer_possible;
         let r = &self.request;
         self.step = Step::Done(Err(SdoError::TimedOut {
             drive: r.drive,
@@ -562,6 +599,7 @@ impl CoeSdo {
                         "the answer to the download request is not its initiate response",
                     )));
                 }
+                self.sent = self.carried(msg, data.len());
                 if self.sent >= data.len() {
                     Step::Done(Ok(SdoData::EMPTY))
                 } else {
@@ -574,6 +612,7 @@ impl CoeSdo {
                         "the answer to a download segment is not its response (toggle bit)",
                     )));
                 }
+                self.sent = self.carried(msg, data.len());
                 if self.sent >= data.len() {
                     Step::Done(Ok(SdoData::EMPTY))
                 } else {
@@ -587,6 +626,7 @@ impl CoeSdo {
     /// Sends `msg` next, with a new counter.
     fn next(&mut self, msg: Message) -> Step {
         self.counter = next_counter(self.counter);
+        (self.taken, self.maybe_out) = (false, false);
         Step::Send(msg)
     }
 
@@ -655,19 +695,16 @@ impl CoeSdo {
         Some(())
     }
 
-    /// After a download message was written: how far the data went.
-    fn note_written(&mut self) {
-        let SdoKind::Download(data) = self.request.kind else {
-            return;
-        };
-        let d = data.len();
+    /// Download: how far the data went once the slave answered `msg` (counted on the
+    /// answer, not on the write: a write may have arrived although its reply was lost).
+    fn carried(&self, msg: Message, data_len: usize) -> usize {
         let w = usize::from(self.mailbox.write_len);
-        self.sent = match self.step {
-            Step::Await(Message::Initiate) if d > 4 => d.min(w - SDO_AT - SDO_INITIATE),
-            Step::Await(Message::Initiate) => d,
-            Step::Await(Message::DownloadSegment(_)) => (self.sent + (w - SDO_AT - 1)).min(d),
-            _ => self.sent,
-        };
+        match msg {
+            Message::Initiate if data_len > 4 => data_len.min(w - SDO_AT - SDO_INITIATE),
+            Message::Initiate => data_len,
+            Message::DownloadSegment(_) => (self.sent + (w - SDO_AT - 1)).min(data_len),
+            Message::UploadSegment(_) | Message::Abort(..) => self.sent,
+        }
     }
 }
 
@@ -769,12 +806,10 @@ mod tests {
     }
 
     #[test]
-    fn a_refused_or_lost_write_goes_again_unchanged() {
+    fn a_lost_write_goes_again_unchanged() {
         let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1018, 1), Some(2), 0);
         let first = written(&t);
-        t.on_answer(MailboxAnswer::Refused, &[], 1);
-        assert_eq!(written(&t), first, "SM0 still full: the same message");
-        t.on_answer(MailboxAnswer::None, &[], 2);
+        t.on_answer(MailboxAnswer::None, &[], 1);
         assert_eq!(
             written(&t),
             first,
@@ -789,6 +824,53 @@ mod tests {
             t.outcome(),
             Some(Ok(SdoData::new(&[0xAA, 0, 0, 0]).unwrap()))
         );
+    }
+
+    #[test]
+    fn a_refused_write_looks_at_sm1_and_goes_again_while_it_is_empty() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1018, 1), Some(2), 0);
+        let first = written(&t);
+        t.on_answer(MailboxAnswer::Refused, &[], 1);
+        let peek = MailboxAccess::ReadStatus { at: 0x080D };
+        assert_eq!(t.next_access(&mut [0; MAX_MAILBOX]), Some(peek));
+        t.on_answer(MailboxAnswer::Status(0), &[], 2);
+        assert_eq!(written(&t), first, "SM1 empty: the same message again");
+    }
+
+    /// The write arrived but its reply was lost; so did the repeat's, which waits in SM0
+    /// behind the answer in SM1 (the firmware takes SM0 once SM1 is read); the next
+    /// repeat is refused. Writing on would never end: the answer is read.
+    #[test]
+    fn a_refused_repeat_reads_the_answer_waiting_in_sm1() {
+        let data = [7u8; 20];
+        let request = SdoRequest::download(0, 0x2E00, 0, SdoData::new(&data).unwrap());
+        let mut t = CoeSdo::new(MAILBOX, request, Some(2), 0);
+        let (_, initiate) = written(&t);
+        t.on_answer(MailboxAnswer::None, &[], 1);
+        t.on_answer(MailboxAnswer::None, &[], 2);
+        t.on_answer(MailboxAnswer::Refused, &[], 3);
+        exchange_read(&mut t, &answer(COE_SDO_RESPONSE, &[0x60, 0, 0x2E, 0]), 4);
+        // The data of a normal initiate went with it, although no write was seen taken:
+        // the transfer is done (20 bytes fit the initiate message).
+        assert_eq!(t.outcome(), Some(Ok(SdoData::EMPTY)));
+        assert_eq!(initiate[5] >> 4, 3, "the counter after 2");
+    }
+
+    /// A late answer of an earlier transfer found while this one's write is refused is
+    /// passed over, and the request written (it was never taken).
+    #[test]
+    fn a_late_answer_found_by_a_refused_write_is_passed_over_and_the_write_goes_again() {
+        let mut t = CoeSdo::new(MAILBOX, SdoRequest::upload(0, 0x1018, 1), Some(2), 0)
+            .after_unanswered(true);
+        let first = written(&t);
+        t.on_answer(MailboxAnswer::Refused, &[], 1);
+        exchange_read(
+            &mut t,
+            &answer(COE_SDO_RESPONSE, &[0x60, 0x00, 0x2E, 0, 0, 0, 0, 0]),
+            2,
+        );
+        assert_eq!(t.outcome(), None);
+        assert_eq!(written(&t), first);
     }
 
     #[test]
