@@ -305,9 +305,8 @@ fn a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(rig: &mut Rig) {
                     break;
                 }
             }
-            let case = format!(
-                "frames {lose_at}.. lost: {lost} (on the way back: {on_the_way_back})"
-            );
+            let case =
+                format!("frames {lose_at}.. lost: {lost} (on the way back: {on_the_way_back})");
             assert_eq!(outcomes.0, Some(Ok(SdoData::EMPTY)), "{case}");
             let got = outcomes.1.expect("the upload ended").expect(&case);
             assert_eq!(got.as_slice(), &new[..], "{case}");
