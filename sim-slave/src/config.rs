@@ -266,6 +266,76 @@ pub struct ServoConfig {
     pub switches: ServoSwitches,
     /// Faults of its homing mode, to inject (`[slave.homing]`).
     pub homing: ServoHoming,
+    /// Where its maker put the commutation objects (`[slave.commutation]`).
+    pub commutation: ServoCommutation,
+}
+
+/// `[slave.commutation]` of a servo: the indices (sub-index 0) of its manufacturer's
+/// commutation objects and its open-loop current-vector mode, as another maker's drive has
+/// them elsewhere than gantry-sim's default 0x2100–0x2103 and −1. Types as the default's:
+/// offset INTEGER32, pole pairs UNSIGNED8, current and angle UNSIGNED16.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServoCommutation {
+    /// The open-loop current-vector mode (a negative 0x6060 value).
+    pub mode: i8,
+    /// The commutation offset setting.
+    pub offset: u16,
+    /// Its units to an electrical revolution; 0: encoder counts.
+    pub offset_units: u32,
+    /// The motor's pole pairs (read-only); 0: the drive does not expose them.
+    pub pole_pairs: u16,
+    /// The vector's amplitude (per mille of the rated current).
+    pub current: u16,
+    /// The vector's electrical angle.
+    pub angle: u16,
+    /// Angle units to an electrical revolution.
+    pub angle_units: u32,
+}
+
+impl Default for ServoCommutation {
+    fn default() -> Self {
+        let d = gantry_drives::commutation::CommutationObjects::default();
+        let pole_pairs = match d.pole_pairs {
+            gantry_drives::commutation::PolePairs::Object(o) => o.index,
+            gantry_drives::commutation::PolePairs::Fixed(_) => 0,
+        };
+        Self {
+            mode: d.mode,
+            offset: d.offset.index,
+            offset_units: 0,
+            pole_pairs,
+            current: d.current.index,
+            angle: d.angle.index,
+            angle_units: d.angle_units,
+        }
+    }
+}
+
+impl ServoCommutation {
+    /// The objects these keys describe (checked by [`ServoParams::check`]).
+    pub fn objects(&self, pole_pairs: u32) -> gantry_drives::commutation::CommutationObjects {
+        use gantry_drives::cia402::objects::ObjectId;
+        use gantry_drives::commutation::{CommutationObjects, OffsetUnits, PolePairs};
+        let d = CommutationObjects::default();
+        let at = |o: ObjectId, index: u16| ObjectId { index, ..o };
+        let pole_pairs = match (d.pole_pairs, self.pole_pairs) {
+            (PolePairs::Object(o), index) if index != 0 => PolePairs::Object(at(o, index)),
+            _ => PolePairs::Fixed(pole_pairs),
+        };
+        CommutationObjects {
+            mode: self.mode,
+            offset: at(d.offset, self.offset),
+            offset_units: match self.offset_units {
+                0 => OffsetUnits::Counts,
+                n => OffsetUnits::PerElectricalRev(n),
+            },
+            pole_pairs,
+            current: at(d.current, self.current),
+            angle: at(d.angle, self.angle),
+            angle_units: self.angle_units,
+        }
+    }
 }
 
 /// `[slave.homing]` of a servo: homing faults real drives are reported to have.
@@ -373,6 +443,7 @@ impl Default for ServoConfig {
             al: AlConfig::default(),
             switches: ServoSwitches::default(),
             homing: ServoHoming::default(),
+            commutation: ServoCommutation::default(),
         }
     }
 }
@@ -412,6 +483,7 @@ impl ServoConfig {
                 never_attains: c.homing.never_attains,
                 refused: c.homing.refuse_methods,
             },
+            commutation_objects: c.commutation.objects(c.pole_pairs),
         }
     }
 }

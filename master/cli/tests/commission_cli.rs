@@ -11,7 +11,7 @@
 mod support;
 
 use std::process::Stdio;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gantry_drives::commutation::electrical_error_deg;
 use support::Service;
@@ -48,49 +48,6 @@ fn start(tag: &str) -> Service {
     })
 }
 
-fn wait_state(svc: &Service, axis: &str, states: &[&str]) -> serde_json::Value {
-    let end = Instant::now() + Duration::from_secs(20);
-    loop {
-        let a = svc.axis(axis);
-        if states.iter().any(|s| a["state"] == *s) {
-            return a;
-        }
-        assert!(Instant::now() < end, "{axis} never {states:?}: {a}");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-/// Faults of the host, not of the procedure: without real time (`--no-rt`) on a loaded
-/// build machine the cycle thread now and then stalls past the drive's 100 ms process-data
-/// watchdog (0x8700), loses frames in a row (0x8100) or overruns (0x6100), as the README's
-/// known limitations say of the veth tests.
-const HOST_STALLS: [&str; 3] = ["0x8700", "0x8100", "0x6100"];
-
-/// `gantry commission x commutation` until it runs through: a run ended by a stall of the
-/// host (the axis' error says so) is reset and tried again, at most three times in all;
-/// any other failure fails the test. Its stdout.
-fn commutation(svc: &Service) -> String {
-    let mut attempt = 0;
-    loop {
-        attempt += 1;
-        let out = svc.cli(&["commission", "x", "commutation"]);
-        if out.status.success() {
-            return String::from_utf8_lossy(&out.stdout).into_owned();
-        }
-        let x = svc.axis("x");
-        let why = x["error"].as_str().unwrap_or_default().to_string();
-        assert!(
-            attempt < 3 && HOST_STALLS.iter().any(|c| why.contains(c)),
-            "attempt {attempt}: {}{} {x}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        eprintln!("attempt {attempt} ended by a stall of the host ({why}); again");
-        svc.ok(&["reset", "x"]);
-        wait_state(svc, "x", &["Disabled"]);
-    }
-}
-
 #[test]
 fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
     let _ = std::fs::remove_dir_all(state_dir());
@@ -98,7 +55,7 @@ fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
     // Uncommissioned (the drive would commutate 123.6° off and run the motor away in a
     // closed loop): measured from disabled, and written.
     assert_eq!(svc.axis("x")["state"], "Disabled");
-    let out = commutation(&svc);
+    let out = svc.commission_commutation();
     assert!(out.contains("x: commutation offset "), "{out}");
     let written: i64 = svc
         .ok(&["sdo", "upload", "--axis", "x", "0x2100:0", "--type", "i32"])
@@ -202,7 +159,7 @@ fn gantry_commission_measures_the_commutation_and_runs_the_reversing_motion() {
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("x: reversing cancelled"), "{e}");
-    let x = wait_state(&svc, "x", &["Stopping"]);
+    let x = svc.wait_state("x", &["Stopping"]);
     assert_eq!(x["velocity"], 0.0, "{x}");
     svc.ok(&["release", "x"]);
 

@@ -21,7 +21,9 @@ use std::time::{Duration, Instant};
 
 use gantry_drives::cia402::objects::{self, ObjectId};
 use gantry_drives::cia402::{ModeOfOperation, State};
-use gantry_drives::commutation::{CommutationConfig, CommutationMeasurement, CommutationProcedure};
+use gantry_drives::commutation::{
+    CommutationConfig, CommutationMeasurement, CommutationObjects, CommutationProcedure, PolePairs,
+};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 
@@ -48,6 +50,8 @@ pub struct CommutationSettings {
     pub counts_per_rev: u32,
     /// Current of the vector (per mille of the rated torque's); `None`: the default 300.
     pub current_per_mille: Option<u16>,
+    /// Where the drive exposes the objects and the open-loop mode (`[axis.commutation]`).
+    pub objects: CommutationObjects,
 }
 
 /// The app side of one measurement.
@@ -169,11 +173,30 @@ impl Run<'_> {
         }
     }
 
+    /// The motor's pole pairs: configured, or read from the drive.
+    fn pole_pairs(&self) -> Result<u32, CommissionError> {
+        match self.s.objects.pole_pairs {
+            PolePairs::Fixed(n) => Ok(n),
+            PolePairs::Object(o) => {
+                let n = self.read(o)?;
+                u32::try_from(n)
+                    .ok()
+                    .filter(|n| (1..=64).contains(n))
+                    .ok_or_else(|| {
+                        self.drive_error(format!(
+                            "the drive reports {n} pole pairs (0x{:04X}:{:02X} {}): not 1 to 64",
+                            o.index, o.sub, o.name
+                        ))
+                    })
+            }
+        }
+    }
+
     /// Starts the procedure and follows it to its end.
-    fn measure(&self) -> Result<(), CommissionError> {
+    fn measure(&self, pole_pairs: u32) -> Result<(), CommissionError> {
         let cx = self.cx;
-        let pole_pairs = self.read(objects::MOTOR_POLE_PAIRS)?;
-        let mut config = CommutationConfig::new(self.s.counts_per_rev, pole_pairs as u32);
+        let mut config = CommutationConfig::new(self.s.counts_per_rev, pole_pairs);
+        config.objects = self.s.objects;
         if let Some(c) = self.s.current_per_mille {
             config.current_per_mille = c;
         }
@@ -261,17 +284,20 @@ pub(crate) fn run(
         });
     }
     let run = Run { cx, s };
-    let result = run.measure();
+    let pole_pairs = run.pole_pairs()?;
+    let result = run.measure(pole_pairs);
     // Handed back: the power off, then the current off and CSP again, whatever happened.
     cx.progress("switching the drive back to CSP", 1.0);
     let off = run
         .drive_off()
-        .and_then(|()| run.write(objects::COMMUTATION_CURRENT, 0))
+        .and_then(|()| run.write(s.objects.current, 0))
         .and_then(|()| run.back_to_csp());
     let result = result.and(off);
     match result {
         Ok(()) => {
-            let offset = run.read(objects::COMMUTATION_OFFSET)?;
+            let wire = run.read(s.objects.offset)?;
+            let e = f64::from(s.counts_per_rev) / f64::from(pole_pairs);
+            let offset = s.objects.offset_to_counts(wire, e);
             cx.progress("done", 1.0);
             Ok(ProcedureOutcome::Commutation {
                 offset_counts: offset as i32,

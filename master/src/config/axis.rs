@@ -73,6 +73,10 @@ pub struct AxisSection {
     /// Homing done by the drive itself (`[axis.drive_homing]`).
     #[serde(default)]
     pub drive_homing: Option<super::drive_homing::DriveHomingSection>,
+    /// Where its drive exposes the commutation measurement's objects and mode
+    /// (`[axis.commutation]`; default gantry-sim's).
+    #[serde(default)]
+    pub commutation: super::commutation::CommutationSection,
     /// What the drive's position counts from: `"incremental"` (default: from where the
     /// drive was switched on) or `"absolute"` (a multi-turn absolute encoder: the same
     /// place reads the same after power-off). An absolute axis' position offset is saved
@@ -243,6 +247,7 @@ impl AxisSection {
         self.scaling()?;
         self.pdo_layout()?;
         self.drive_homing_params()?;
+        self.commutation.objects()?;
         let mut c = AxisConfig::new(&self.name, AxisKind::Real);
         let kind = match self.kind.as_str() {
             "linear" => MotionKind::Linear,

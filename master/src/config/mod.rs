@@ -6,6 +6,7 @@
 
 mod axis;
 mod bus;
+mod commutation;
 mod drive_homing;
 mod error;
 mod service;
@@ -16,6 +17,7 @@ pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE,
 };
+pub use commutation::CommutationSection;
 pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
 pub use service::ServiceSection;

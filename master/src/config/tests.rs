@@ -596,7 +596,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `encoder`, `homed_at_start`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -999,4 +999,99 @@ fn the_state_directory_is_relative_to_the_configuration() {
         Config::parse(EXAMPLE, "g.toml").unwrap().service.state_dir,
         None
     );
+}
+
+#[test]
+fn commutation_objects_are_read_and_their_mistakes_named() {
+    use gantry_drives::cia402::objects::DataType;
+    use gantry_drives::commutation::{CommutationObjects, OffsetUnits, PolePairs};
+    let with = |section: &str| {
+        EXAMPLE.replacen(
+            "pdo = \"csp\"",
+            &format!("pdo = \"csp\"\ncommutation = {{ {section} }}"),
+            1,
+        )
+    };
+    let c = Config::parse(
+        &with(
+            "mode = -3, offset = { index = 0x3010, type = \"u16\" }, offset_units = 65536, \
+             pole_pairs = 4, current = { index = 0x3012 }, angle = { index = 0x3013, sub = 2 }, \
+             angle_units = 3600, current_per_mille = 250",
+        ),
+        "g.toml",
+    )
+    .unwrap();
+    let o = c.axes[0].commutation.objects().unwrap();
+    assert_eq!(o.mode, -3);
+    assert_eq!(
+        (o.offset.index, o.offset.sub, o.offset.kind),
+        (0x3010, 0, DataType::U16)
+    );
+    assert_eq!(o.offset_units, OffsetUnits::PerElectricalRev(65536));
+    assert_eq!(o.pole_pairs, PolePairs::Fixed(4));
+    // The type left out: the default object's.
+    assert_eq!((o.current.index, o.current.kind), (0x3012, DataType::U16));
+    assert_eq!((o.angle.index, o.angle.sub), (0x3013, 2));
+    assert_eq!(o.angle_units, 3600);
+    assert_eq!(c.axes[0].commutation.current_per_mille, Some(250));
+    // Left out: gantry-sim's.
+    assert_eq!(
+        c.axes[1].commutation.objects().unwrap(),
+        CommutationObjects::default()
+    );
+    let c = Config::parse(
+        &with("offset_units = \"counts\", pole_pairs = { index = 0x3011, type = \"u16\" }"),
+        "g.toml",
+    )
+    .unwrap();
+    let o = c.axes[0].commutation.objects().unwrap();
+    assert_eq!(o.offset_units, OffsetUnits::Counts);
+    assert!(
+        matches!(o.pole_pairs, PolePairs::Object(p) if p.index == 0x3011 && p.kind == DataType::U16)
+    );
+    let e = |section: &str| {
+        Config::parse(&with(section), "g.toml")
+            .unwrap_err()
+            .to_string()
+    };
+    let cases = [
+        ("mode = 8", "commutation.mode: 8 is a CiA 402 mode"),
+        (
+            "angle_units = 100",
+            "commutation.angle_units: 100 per electrical revolution is coarser than a degree",
+        ),
+        (
+            "offset_units = 12",
+            "commutation.offset_units: 12 per electrical revolution",
+        ),
+        (
+            "pole_pairs = 0",
+            "commutation.pole_pairs: 0 is not within 1 to 64",
+        ),
+        (
+            "current = { index = 0x2103 }",
+            "commutation.current: 0x2103:0 is angle's object too",
+        ),
+        (
+            "angle = { index = 0x3013, type = \"u8\" }",
+            "commutation.angle_units: 65536 does not fit the angle's object (U8)",
+        ),
+        (
+            "offset = { index = 0x10 }",
+            "commutation.offset: 0x0010 is not an object",
+        ),
+        (
+            "current_per_mille = 0",
+            "commutation.current_per_mille: 0 is not within 1 to 1000",
+        ),
+    ];
+    for (section, want) in cases {
+        let got = e(section);
+        assert!(
+            got.starts_with("g.toml:33: axis[0].") && got.contains(want),
+            "{section}: {got}"
+        );
+    }
+    // An unknown key is refused by name.
+    assert!(e("offest = { index = 0x3010 }").contains("offest"));
 }

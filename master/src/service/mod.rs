@@ -269,36 +269,33 @@ pub fn restore_positions(
 }
 
 /// Writes each axis' saved commutation offset (`gantry commission AXIS commutation`) back
-/// to its drive (0x2100) before anything can enable it: a drive that lost its setting
-/// would hold the motor with the wrong one. A write that fails is said on `out` with the
-/// drive's reason; the axis keeps what its drive has.
+/// to its drive (its `[axis.commutation]` offset object, 0x2100 by default, in the drive's
+/// units) before anything can enable it: a drive that lost its setting would hold the
+/// motor with the wrong one. A write that fails is said on `out` with the drive's reason;
+/// the axis keeps what its drive has.
 pub fn restore_commutation(
     config: &Config,
     saved: &Saved,
     controller: &Controller,
     out: &mut (dyn Write + Send),
 ) {
-    let object = gantry_drives::cia402::objects::COMMUTATION_OFFSET;
     for (i, a) in config.axes.iter().enumerate() {
         let Some(offset) = saved.commutation_offset(i) else {
             continue;
         };
-        let data = SdoData::new(&offset.to_le_bytes()).unwrap_or_default();
-        let request = SdoRequest::download(a.drive, object.index, object.sub, data);
-        let end = Instant::now() + Duration::from_secs(10);
-        let written = loop {
-            let r = controller
-                .sdo(request)
-                .map_err(|e| e.to_string())
-                .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()));
-            match r {
-                Ok(Err(SdoError::Busy)) if Instant::now() < end => {
-                    std::thread::sleep(Duration::from_millis(5))
-                }
-                Ok(r) => break r.map_err(|e| Chain(&e).to_string()),
-                Err(e) => break Err(e),
-            }
-        };
+        let objects = a.commutation.objects().unwrap_or_default();
+        let object = objects.offset;
+        let written = drive_offset(controller, a, offset).and_then(|wire| {
+            let bytes = wire.to_le_bytes();
+            let data = bytes
+                .get(..object.kind.size())
+                .and_then(SdoData::new)
+                .unwrap_or_default();
+            sdo_blocking(
+                controller,
+                SdoRequest::download(a.drive, object.index, object.sub, data),
+            )
+        });
         let _ = match written {
             Ok(_) => writeln!(
                 out,
@@ -314,6 +311,55 @@ pub fn restore_commutation(
                 a.name, object.index, object.sub
             ),
         };
+    }
+}
+
+/// The saved `offset` (counts) in the units of axis `a`'s drive: counts pass as they are;
+/// units of an electrical revolution need the motor's pole pairs (given, or read).
+fn drive_offset(
+    controller: &Controller,
+    a: &crate::config::AxisSection,
+    offset: i32,
+) -> Result<i64, String> {
+    use gantry_drives::commutation::{OffsetUnits, PolePairs};
+    let objects = a.commutation.objects().unwrap_or_default();
+    if objects.offset_units == OffsetUnits::Counts {
+        return Ok(i64::from(offset));
+    }
+    let pole_pairs = match objects.pole_pairs {
+        PolePairs::Fixed(n) => n,
+        PolePairs::Object(o) => {
+            let d = sdo_blocking(controller, SdoRequest::upload(a.drive, o.index, o.sub))?;
+            let n = d.as_slice().first().copied().unwrap_or(0);
+            if n == 0 {
+                return Err(format!(
+                    "the drive reports 0 pole pairs (0x{:04X}:{:02X})",
+                    o.index, o.sub
+                ));
+            }
+            u32::from(n)
+        }
+    };
+    let e = f64::from(a.scaling.counts_per_motor_rev) / f64::from(pole_pairs);
+    Ok(objects.offset_to_drive(i64::from(offset), e))
+}
+
+/// One SDO transfer beside the cycle, waited for (a transfer already on the bus is waited
+/// out, for up to 10 s).
+fn sdo_blocking(controller: &Controller, request: SdoRequest) -> Result<SdoData, String> {
+    let end = Instant::now() + Duration::from_secs(10);
+    loop {
+        let r = controller
+            .sdo(request)
+            .map_err(|e| e.to_string())
+            .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()));
+        match r {
+            Ok(Err(SdoError::Busy)) if Instant::now() < end => {
+                std::thread::sleep(Duration::from_millis(5))
+            }
+            Ok(r) => return r.map_err(|e| Chain(&e).to_string()),
+            Err(e) => return Err(e),
+        }
     }
 }
 

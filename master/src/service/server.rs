@@ -443,7 +443,9 @@ fn commission(
         CommissionKind::Commutation => Procedure::Commutation(CommutationSettings {
             drive: section.drive,
             counts_per_rev: section.scaling.counts_per_motor_rev,
-            current_per_mille: current,
+            current_per_mille: current.or(section.commutation.current_per_mille),
+            // Checked when the configuration was loaded.
+            objects: section.commutation.objects().unwrap_or_default(),
         }),
         CommissionKind::Reversing => {
             let r = Reversing {

@@ -262,6 +262,7 @@ fn axis(
         encoder: Default::default(),
         homed_at_start: false,
         drive_homing: None,
+        commutation: Default::default(),
     }
 }
 

@@ -69,6 +69,7 @@ use gantry_drives::cia402::pdo::PdoLayout;
 use gantry_drives::cia402::state::transition;
 use gantry_drives::cia402::statusword;
 use gantry_drives::cia402::{Controlword, DeviceStateMachine, State, Statusword};
+use gantry_drives::commutation::PolePairs;
 
 use crate::coe::od::ObjectDictionary;
 use crate::esc::memory::Memory;
@@ -111,22 +112,12 @@ const HM: i8 = 6;
 const CSP: i8 = 8;
 const CSV: i8 = 9;
 const CST: i8 = 10;
-/// The manufacturer mode: open-loop current vector (0x2102 amplitude at 0x2103 angle).
+/// The manufacturer mode by default: open-loop current vector (0x2102 amplitude at 0x2103
+/// angle); `ServoParams::commutation_objects` may put it elsewhere.
 pub const OPEN_LOOP: i8 = gantry_drives::cia402::mode::OPEN_LOOP_CURRENT_VECTOR;
 
-/// The modes the drive has, as 0x6060 values.
-const MODES: [i64; 5] = [
-    OPEN_LOOP as i64,
-    HM as i64,
-    CSP as i64,
-    CSV as i64,
-    CST as i64,
-];
-
-/// Whether the drive has mode `m` (a mode it does not have is not taken).
-fn has_mode(m: i8) -> bool {
-    MODES.contains(&i64::from(m))
-}
+/// The CiA 402 modes the drive has, as 0x6060 values (and its maker's open-loop mode).
+const MODES: [i8; 4] = [HM, CSP, CSV, CST];
 
 /// How the drive brakes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -178,7 +169,7 @@ struct Settings {
     /// 0x2102 (per mille of the rated torque's current).
     commutation_current: u16,
     /// 0x2103 (65536 to an electrical revolution).
-    commutation_angle: u16,
+    commutation_angle: u32,
     /// 0x60D0:1 and :2.
     touch_probe_sources: [i16; 2],
 }
@@ -346,6 +337,11 @@ impl ServoDrive {
             record: DriveRecord::default(),
             crossings: CrossingLog::default(),
         }
+    }
+
+    /// Counts of one electrical revolution.
+    fn counts_per_electrical_rev(&self) -> f64 {
+        f64::from(self.params.counts_per_rev) / f64::from(self.params.pole_pairs.max(1))
     }
 
     /// cos of the electrical angle by which the commutation setting misses the motor's
@@ -561,9 +557,11 @@ impl ServoDrive {
         // The modes the drive has, and the homing methods (CiA 402-2 Table 32, §10.4.3):
         // anything else is refused with abort 0x06090030.
         let mut modes = homing::MethodSet::EMPTY;
-        for m in [HM, CSP, CSV, CST, OPEN_LOOP] {
+        for m in MODES {
             modes.insert(m);
         }
+        let c = self.params.commutation_objects;
+        modes.insert(c.mode);
         let mut methods = homing::MethodSet::EMPTY;
         for m in i8::MIN..=i8::MAX {
             if self.params.homing_faults.accepts(m) {
@@ -600,12 +598,8 @@ impl ServoDrive {
             (objects::DISABLE_OPERATION_OPTION_CODE, 0, 1),
             (objects::FAULT_REACTION_OPTION_CODE, 0, 4),
             // At most the power stage's peak (in per mille of the rated torque).
-            (
-                objects::COMMUTATION_CURRENT,
-                0,
-                i64::from(self.settings.max_torque),
-            ),
-            (objects::COMMUTATION_ANGLE, 0, i64::from(u16::MAX)),
+            (c.current, 0, i64::from(self.settings.max_torque)),
+            (c.angle, 0, i64::from(c.angle_units) - 1),
         ];
         for (o, min, max) in ranged {
             od.insert_ranged(o.index, o.sub, &vec![0; o.kind.size()], min, max);
@@ -619,11 +613,13 @@ impl ServoDrive {
             od.insert_enumerated(o.index, o.sub, &v.to_le_bytes(), &probe::source::ALLOWED);
         }
         // The simulated motor is fixed: its rated torque and pole pairs are read-only here.
-        for o in [objects::MOTOR_RATED_TORQUE, objects::MOTOR_POLE_PAIRS] {
+        let o = objects::MOTOR_RATED_TORQUE;
+        od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
+        if let PolePairs::Object(o) = c.pole_pairs {
             od.insert(o.index, o.sub, &vec![0; o.kind.size()], false);
         }
         // Any offset: the drive takes it modulo an electrical revolution.
-        let o = objects::COMMUTATION_OFFSET;
+        let o = c.offset;
         od.insert(o.index, o.sub, &vec![0; o.kind.size()], true);
         self.publish_objects(od);
     }
@@ -703,18 +699,22 @@ impl ServoDrive {
             (objects::HOME_OFFSET, i64::from(hs.home_offset)),
         ];
         let tp = &self.probe;
+        let c = self.params.commutation_objects;
+        let pole_pairs = match c.pole_pairs {
+            PolePairs::Object(o) => Some((o, i64::from(self.params.pole_pairs))),
+            PolePairs::Fixed(_) => None,
+        };
+        let offset = c.offset_to_drive(
+            i64::from(self.commutation_setting),
+            self.counts_per_electrical_rev(),
+        );
         let commutation = [
-            (
-                objects::COMMUTATION_OFFSET,
-                i64::from(self.commutation_setting),
-            ),
-            (objects::MOTOR_POLE_PAIRS, i64::from(self.params.pole_pairs)),
-            (
-                objects::COMMUTATION_CURRENT,
-                i64::from(s.commutation_current),
-            ),
-            (objects::COMMUTATION_ANGLE, i64::from(s.commutation_angle)),
-        ];
+            (c.offset, offset),
+            (c.current, i64::from(s.commutation_current)),
+            (c.angle, i64::from(s.commutation_angle)),
+        ]
+        .into_iter()
+        .chain(pole_pairs);
         let io = [
             (objects::TOUCH_PROBE_FUNCTION, i64::from(tp.function())),
             (objects::TOUCH_PROBE_STATUS, i64::from(tp.status())),
@@ -798,14 +798,16 @@ impl ServoDrive {
                 self.pending_touch_probe = Some(v as u16);
             }
         }
-        if let Some(v) = get(objects::COMMUTATION_OFFSET) {
-            self.commutation_setting = v as i32;
+        let c = self.params.commutation_objects;
+        let e = f64::from(self.params.counts_per_rev) / f64::from(self.params.pole_pairs.max(1));
+        if let Some(v) = get(c.offset) {
+            self.commutation_setting = c.offset_to_counts(v, e) as i32;
         }
-        if let Some(v) = get(objects::COMMUTATION_CURRENT) {
+        if let Some(v) = get(c.current) {
             s.commutation_current = v as u16;
         }
-        if let Some(v) = get(objects::COMMUTATION_ANGLE) {
-            s.commutation_angle = v as u16;
+        if let Some(v) = get(c.angle) {
+            s.commutation_angle = v as u32;
         }
         for (i, o) in [objects::TOUCH_PROBE_1_SOURCE, objects::TOUCH_PROBE_2_SOURCE]
             .into_iter()
@@ -969,7 +971,8 @@ impl ServoDrive {
     /// enabling: drives re-initialise their position demand to the actual position on a
     /// mode switch, so a CSP that follows another mode does not chase a stale demand.
     fn take_mode(&mut self, m: i8) {
-        if !has_mode(m) || m == self.mode {
+        let has = MODES.contains(&m) || m == self.params.commutation_objects.mode;
+        if !has || m == self.mode {
             return;
         }
         self.mode = m;
@@ -1317,10 +1320,11 @@ impl ServoDrive {
                     CST => Drive::Torque(
                         f64::from(self.target_torque) / 1000.0 * self.params.rated_torque_nm,
                     ),
-                    OPEN_LOOP => Drive::Vector {
+                    m if m == self.params.commutation_objects.mode => Drive::Vector {
                         current: f64::from(self.settings.commutation_current) / 1000.0
                             * self.params.rated_torque_nm,
-                        angle: f64::from(self.settings.commutation_angle) / 65536.0
+                        angle: f64::from(self.settings.commutation_angle)
+                            / f64::from(self.params.commutation_objects.angle_units)
                             * 2.0
                             * core::f64::consts::PI,
                     },

@@ -63,6 +63,9 @@ pub struct ServoParams {
     pub fault_reaction_option_code: i16,
     /// Homing faults real drives are reported to have, to inject.
     pub homing_faults: super::homing::HomingFaults,
+    /// Where its maker put the commutation objects and the open-loop current-vector mode
+    /// (default 0x2100–0x2103, mode −1; `[slave.commutation]`).
+    pub commutation_objects: gantry_drives::commutation::CommutationObjects,
 }
 
 impl Default for ServoParams {
@@ -103,6 +106,7 @@ impl Default for ServoParams {
             disable_operation_option_code: 1,
             fault_reaction_option_code: 2,
             homing_faults: super::homing::HomingFaults::default(),
+            commutation_objects: Default::default(),
         }
     }
 }
@@ -228,6 +232,55 @@ impl ServoParams {
             self.fault_reaction_option_code,
             4,
         )?;
+        self.check_commutation_objects()
+    }
+
+    /// The commutation objects: in the manufacturer's range (CiA 301 §7.4.1), each at an
+    /// index of its own, the mode a manufacturer's (negative), the angle's units between a
+    /// degree and 16 bits.
+    fn check_commutation_objects(&self) -> Result<(), ParamError> {
+        use gantry_drives::commutation::{OffsetUnits, PolePairs};
+        let c = &self.commutation_objects;
+        let bad = |name: &'static str, reason: String| Err(ParamError { name, reason });
+        let mut indices = vec![
+            ("commutation.offset", c.offset.index),
+            ("commutation.current", c.current.index),
+            ("commutation.angle", c.angle.index),
+        ];
+        if let PolePairs::Object(o) = c.pole_pairs {
+            indices.push(("commutation.pole_pairs", o.index));
+        }
+        for (i, &(name, index)) in indices.iter().enumerate() {
+            if !(0x2000..=0x5FFF).contains(&index) {
+                return bad(
+                    name,
+                    format!("{index:#06x} is not a manufacturer-specific index (0x2000 to 0x5fff)"),
+                );
+            }
+            if let Some((other, _)) = indices.iter().take(i).find(|(_, x)| *x == index) {
+                return bad(name, format!("{index:#06x} is {other}'s index too"));
+            }
+        }
+        if c.mode >= 0 {
+            return bad(
+                "commutation.mode",
+                format!("{} is not a manufacturer's mode (negative)", c.mode),
+            );
+        }
+        if !(360..=65536).contains(&c.angle_units) {
+            return bad(
+                "commutation.angle_units",
+                format!("{} is not within 360 to 65536", c.angle_units),
+            );
+        }
+        if let OffsetUnits::PerElectricalRev(n) = c.offset_units {
+            if !(360..=65536).contains(&n) {
+                return bad(
+                    "commutation.offset_units",
+                    format!("{n} is not within 360 to 65536 (or 0: counts)"),
+                );
+            }
+        }
         Ok(())
     }
 }
@@ -256,5 +309,58 @@ mod tests {
             bad.check().unwrap_err().to_string(),
             "quick_stop_option_code: 9 is not within 0 to 8"
         );
+    }
+
+    #[test]
+    fn commutation_objects_of_another_maker_are_checked() {
+        use gantry_drives::cia402::objects::ObjectId;
+        use gantry_drives::commutation::{CommutationObjects, OffsetUnits};
+        let p = ServoParams::default();
+        let d = CommutationObjects::default();
+        let with = |c: CommutationObjects| ServoParams {
+            commutation_objects: c,
+            ..p
+        };
+        let at = |o: ObjectId, index: u16| ObjectId { index, ..o };
+        let other = CommutationObjects {
+            mode: -3,
+            offset: at(d.offset, 0x3010),
+            offset_units: OffsetUnits::PerElectricalRev(3600),
+            current: at(d.current, 0x3012),
+            angle: at(d.angle, 0x3013),
+            angle_units: 3600,
+            ..d
+        };
+        with(other).check().unwrap();
+        let cases = [
+            (
+                CommutationObjects { mode: 8, ..other },
+                "commutation.mode: 8 is not a manufacturer's mode (negative)",
+            ),
+            (
+                CommutationObjects {
+                    angle: at(d.angle, 0x3012),
+                    ..other
+                },
+                "commutation.angle: 0x3012 is commutation.current's index too",
+            ),
+            (
+                CommutationObjects {
+                    offset: at(d.offset, 0x6000),
+                    ..other
+                },
+                "commutation.offset: 0x6000 is not a manufacturer-specific index (0x2000 to 0x5fff)",
+            ),
+            (
+                CommutationObjects {
+                    angle_units: 100,
+                    ..other
+                },
+                "commutation.angle_units: 100 is not within 360 to 65536",
+            ),
+        ];
+        for (c, want) in cases {
+            assert_eq!(with(c).check().unwrap_err().to_string(), want);
+        }
     }
 }

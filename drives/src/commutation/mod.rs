@@ -1,8 +1,9 @@
 //! Measuring a synchronous motor's commutation offset in the dynamic mode (seed 000 §5.2.6.1
 //! 测量换向角, Jetter `MeasureCommutationOffset(DynamicMode)`): small motion, through only
 //! what a drive exposes — an open-loop current vector it applies on command (amplitude,
-//! electrical angle; gantry-sim's manufacturer mode -1 with 0x2102/0x2103) and the position
-//! feedback — never the motor's true offset.
+//! electrical angle, in a manufacturer's mode: [`CommutationObjects`] names the drive's
+//! objects, gantry-sim's mode −1 with 0x2102/0x2103 by default) and the position feedback
+//! — never the motor's true offset.
 //!
 //! How: with the drive in its open-loop current-vector mode, the current is ramped up at
 //! electrical angle 0 (the rotor's magnets turn to it), then the vector is turned slowly
@@ -13,7 +14,8 @@
 //! the circular mean of the forward estimates and that of the backward ones lie that lag
 //! either side of the true offset, and their midpoint cancels it. The first quarter
 //! revolution of each direction is left out (the rotor catching up). The result is written
-//! to the drive's commutation offset (0x2100) before the current is switched off.
+//! to the drive's commutation offset (0x2100 on gantry-sim's servo), in the drive's units,
+//! before the current is switched off.
 //!
 //! Sans-I/O: [`CommutationMeasurement::poll`] is told the time and the position actual value
 //! and answers with the next [`Step`]: an object to write (by SDO; poll again once it is
@@ -25,16 +27,16 @@ use core::f64::consts::{PI, TAU};
 
 use thiserror::Error;
 
-use crate::cia402::mode::OPEN_LOOP_CURRENT_VECTOR;
-use crate::cia402::objects::{self, ObjectId};
+use crate::cia402::objects::ObjectId;
 use crate::cia402::procedure::{
     ModeSwitch, ProcedureFailure, ProcedureInputs, ProcedureOutputs, ProcedureStep, SdoAccess,
     SdoOutcome, Switching,
 };
 use crate::cia402::{ModeOfOperation, State};
 
-/// Angle units of 0x2103 to an electrical revolution.
-pub const ANGLE_UNITS: f64 = 65536.0;
+pub mod objects;
+
+pub use objects::{CommutationObjects, OffsetUnits, PolePairs};
 
 /// How the measurement runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,6 +52,8 @@ pub struct CommutationConfig {
     pub ramp_s: f64,
     /// Time for one electrical revolution each way (s).
     pub turn_s: f64,
+    /// The drive's objects and open-loop mode.
+    pub objects: CommutationObjects,
 }
 
 impl CommutationConfig {
@@ -62,12 +66,18 @@ impl CommutationConfig {
             current_per_mille: 300,
             ramp_s: 0.5,
             turn_s: 2.0,
+            objects: CommutationObjects::default(),
         }
     }
 
     /// Counts of one electrical revolution.
     pub fn counts_per_electrical_rev(&self) -> f64 {
         f64::from(self.counts_per_rev) / f64::from(self.pole_pairs.max(1))
+    }
+
+    /// Angle units of the drive's vector angle to an electrical revolution.
+    fn angle_units(&self) -> f64 {
+        f64::from(self.objects.angle_units)
     }
 }
 
@@ -226,6 +236,12 @@ impl CommutationMeasurement {
                 return Err(CommutationError::BadConfig { what, value });
             }
         }
+        if config.objects.angle_units < objects::MIN_ANGLE_UNITS {
+            return Err(CommutationError::BadConfig {
+                what: "angle units per electrical revolution (/ 360)",
+                value: f64::from(config.objects.angle_units) / 360.0,
+            });
+        }
         if config.ramp_s.is_nan() || config.ramp_s < 0.0 {
             return Err(CommutationError::BadConfig {
                 what: "ramp time (ms) + 1",
@@ -278,7 +294,7 @@ impl CommutationMeasurement {
     /// disables the drive or hands it back).
     pub fn abort(&mut self) -> Step {
         self.phase = Phase::Done;
-        Step::Write(objects::COMMUTATION_CURRENT, 0)
+        Step::Write(self.config.objects.current, 0)
     }
 
     /// The next step at time `now_s` (s, any origin, not decreasing) with the drive's
@@ -289,14 +305,16 @@ impl CommutationMeasurement {
         let last = origin.wrapping_add(self.position as i32);
         self.position += i64::from(position.wrapping_sub(last));
         let c = self.config;
+        let o = c.objects;
         let e = c.counts_per_electrical_rev();
-        let full = ANGLE_UNITS as i64;
+        let units = c.angle_units();
+        let full = i64::from(o.angle_units);
         match self.phase {
             Phase::Start => {
                 self.started += 1;
                 match self.started {
-                    1 => return Ok(Step::Write(objects::COMMUTATION_ANGLE, 0)),
-                    2 => return Ok(Step::Write(objects::COMMUTATION_CURRENT, 0)),
+                    1 => return Ok(Step::Write(o.angle, 0)),
+                    2 => return Ok(Step::Write(o.current, 0)),
                     _ => self.enter(Phase::Align, now_s),
                 }
             }
@@ -310,7 +328,7 @@ impl CommutationMeasurement {
                 let want = (share * f64::from(c.current_per_mille)).round() as u16;
                 if want != self.current {
                     self.current = want;
-                    return Ok(Step::Write(objects::COMMUTATION_CURRENT, i64::from(want)));
+                    return Ok(Step::Write(o.current, i64::from(want)));
                 }
                 if t >= 2.0 * c.ramp_s {
                     self.enter(Phase::Forward, now_s);
@@ -326,7 +344,7 @@ impl CommutationMeasurement {
                     // revolution; a count that wrapped at 32 bits keeps them only when the
                     // counts per revolution divide 2³², as binary encoders' do).
                     let at = i64::from(origin) + self.position;
-                    let estimate = at as f64 - angle as f64 / ANGLE_UNITS * e;
+                    let estimate = at as f64 - angle as f64 / units * e;
                     let phase = TAU * estimate / e;
                     if forward {
                         if self.forward_from.is_none() {
@@ -341,14 +359,14 @@ impl CommutationMeasurement {
                 let t = self.elapsed(now_s);
                 let share = (t / c.turn_s).min(1.0);
                 let want = if forward {
-                    (share * ANGLE_UNITS).round() as i64
+                    (share * units).round() as i64
                 } else {
-                    full - (share * ANGLE_UNITS).round() as i64
+                    full - (share * units).round() as i64
                 };
                 if want != self.angle {
                     self.angle = want;
                     let wire = want.rem_euclid(full);
-                    return Ok(Step::Write(objects::COMMUTATION_ANGLE, wire));
+                    return Ok(Step::Write(o.angle, wire));
                 }
                 if share >= 1.0 {
                     if forward {
@@ -364,12 +382,13 @@ impl CommutationMeasurement {
             Phase::WriteOffset => {
                 self.enter(Phase::Release, now_s);
                 let offset = self.result.map_or(0, |r| r.offset_counts);
-                return Ok(Step::Write(objects::COMMUTATION_OFFSET, i64::from(offset)));
+                let wire = o.offset_to_drive(i64::from(offset), e);
+                return Ok(Step::Write(o.offset, wire));
             }
             Phase::Release => {
                 self.phase = Phase::Done;
                 self.current = 0;
-                return Ok(Step::Write(objects::COMMUTATION_CURRENT, 0));
+                return Ok(Step::Write(o.current, 0));
             }
             Phase::Done => {}
         }
@@ -396,7 +415,8 @@ impl CommutationMeasurement {
         // From the first sample to the end of the revolution (the samples start a quarter
         // in: a rotor that stood opposite the vector at the start, where the pull is nil,
         // has swung round to it by then), within a tenth of a revolution.
-        let expected = (ANGLE_UNITS - self.forward_from_angle as f64) / ANGLE_UNITS * e;
+        let units = c.angle_units();
+        let expected = (units - self.forward_from_angle as f64) / units * e;
         if self.forward.n == 0
             || self.backward.n == 0
             || ((travel as f64) - expected).abs() > 0.1 * e
@@ -434,7 +454,7 @@ impl CommutationMeasurement {
 
 /// The measurement as a procedure the master's cycle thread runs on a drive lent to it
 /// (`crate::cia402::procedure`): the vector's current set to 0 (SDO), the open-loop mode
-/// ([`crate::cia402::mode::OPEN_LOOP_CURRENT_VECTOR`]) switched to and shown, the drive
+/// ([`CommutationObjects::mode`]) switched to and shown, the drive
 /// enabled in it (the channel enables it: the axis may be lent from Disabled, so that a
 /// drive of unknown commutation never holds a closed loop), then the measurement's writes
 /// one by one by SDO on the position of the process data; it ends with the current off,
@@ -482,7 +502,7 @@ impl CommutationProcedure {
         Self {
             measurement,
             step: ProcedureStage::ZeroCurrent,
-            switch: ModeSwitch::to(ModeOfOperation::Other(OPEN_LOOP_CURRENT_VECTOR)),
+            switch: ModeSwitch::to(ModeOfOperation::Other(measurement.config.objects.mode)),
             awaiting: None,
             failure: None,
             t0: None,
@@ -521,10 +541,15 @@ impl CommutationProcedure {
         }
     }
 
-    fn outputs() -> Option<ProcedureOutputs> {
+    fn outputs(&self) -> Option<ProcedureOutputs> {
         Some(ProcedureOutputs::idle(ModeOfOperation::Other(
-            OPEN_LOOP_CURRENT_VECTOR,
+            self.measurement.config.objects.mode,
         )))
+    }
+
+    /// The vector's current object.
+    fn current(&self) -> ObjectId {
+        self.measurement.config.objects.current
     }
 
     fn access(&mut self, object: ObjectId, value: i64) -> ProcedureStep {
@@ -534,7 +559,7 @@ impl CommutationProcedure {
         };
         self.awaiting = Some(a);
         ProcedureStep {
-            outputs: Self::outputs(),
+            outputs: self.outputs(),
             sdo: Some(a),
             end: None,
         }
@@ -543,7 +568,7 @@ impl CommutationProcedure {
     fn end(&mut self, result: Result<(), ProcedureFailure>) -> ProcedureStep {
         self.step = ProcedureStage::Ended;
         ProcedureStep {
-            outputs: Self::outputs(),
+            outputs: self.outputs(),
             sdo: None,
             end: Some(result),
         }
@@ -554,7 +579,7 @@ impl CommutationProcedure {
         // The outcome of the write on its way.
         if let Some(a) = self.awaiting {
             let Some(outcome) = io.sdo else {
-                return ProcedureStep::hold(Self::outputs());
+                return ProcedureStep::hold(self.outputs());
             };
             self.awaiting = None;
             let failed = match outcome {
@@ -585,24 +610,24 @@ impl CommutationProcedure {
         }
         if self.failure.is_some() && self.step != ProcedureStage::CurrentOff {
             self.step = ProcedureStage::CurrentOff;
-            return self.access(objects::COMMUTATION_CURRENT, 0);
+            return self.access(self.current(), 0);
         }
         match self.step {
             ProcedureStage::ZeroCurrent => {
                 self.step = ProcedureStage::ToOpenLoop;
-                self.access(objects::COMMUTATION_CURRENT, 0)
+                self.access(self.current(), 0)
             }
             ProcedureStage::ToOpenLoop => match self.switch.step(io, 0) {
                 Switching::Pending(s) => s,
                 Switching::Done => {
                     self.step = ProcedureStage::Enabling;
                     self.enabling_since = Some(io.now_s);
-                    ProcedureStep::hold(Self::outputs())
+                    ProcedureStep::hold(self.outputs())
                 }
                 Switching::Failed(f) => {
                     self.failure = Some(f);
                     self.step = ProcedureStage::CurrentOff;
-                    self.access(objects::COMMUTATION_CURRENT, 0)
+                    self.access(self.current(), 0)
                 }
             },
             ProcedureStage::Enabling => {
@@ -615,15 +640,15 @@ impl CommutationProcedure {
                         timeout_s: ENABLE_TIMEOUT_S,
                     });
                     self.step = ProcedureStage::CurrentOff;
-                    return self.access(objects::COMMUTATION_CURRENT, 0);
+                    return self.access(self.current(), 0);
                 }
-                ProcedureStep::hold(Self::outputs())
+                ProcedureStep::hold(self.outputs())
             }
             ProcedureStage::Measuring => {
                 let t = io.now_s - self.t0.unwrap_or(io.now_s);
                 match self.measurement.poll(t, io.position) {
                     Ok(Step::Write(o, v)) => self.access(o, v),
-                    Ok(Step::Wait) => ProcedureStep::hold(Self::outputs()),
+                    Ok(Step::Wait) => ProcedureStep::hold(self.outputs()),
                     Ok(Step::Done(_)) => self.end(Ok(())),
                     Err(e) => {
                         self.failure = Some(ProcedureFailure::DriveReports {
@@ -638,12 +663,12 @@ impl CommutationProcedure {
                             },
                         });
                         self.step = ProcedureStage::CurrentOff;
-                        self.access(objects::COMMUTATION_CURRENT, 0)
+                        self.access(self.current(), 0)
                     }
                 }
             }
             ProcedureStage::CurrentOff | ProcedureStage::Ended => {
-                ProcedureStep::hold(Self::outputs())
+                ProcedureStep::hold(self.outputs())
             }
         }
     }
@@ -660,6 +685,7 @@ pub fn electrical_error_deg(a: i64, b: i64, counts_per_rev: u32, pole_pairs: u32
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cia402::objects as od;
 
     #[test]
     fn a_bad_configuration_is_named() {
@@ -688,34 +714,38 @@ mod tests {
         assert!((electrical_error_deg(250 * 7 + 1, 0, 1000, 4) - 1.44).abs() < 1e-9);
     }
 
-    /// An ideal rotor that sits `lag` (rad) behind the vector in the direction it turns:
-    /// the measurement finds the offset and the lag exactly, and writes what it promises.
-    #[test]
-    fn a_rotor_lagging_by_friction_is_measured_without_the_lag() {
-        let (cpr, pp, offset) = (1u32 << 17, 5u32, 12_345.0f64);
+    /// Runs a measurement with `objects` on an ideal rotor that sits `lag` (rad) behind
+    /// the vector in the direction it turns: the outcome, and every write but the angle's.
+    fn measure_ideal_rotor(
+        objects: CommutationObjects,
+        (cpr, pp, offset): (u32, u32, f64),
+        lag: f64,
+    ) -> (CommutationOutcome, Vec<(ObjectId, i64)>) {
         let e = f64::from(cpr) / f64::from(pp);
-        let mut m = CommutationMeasurement::new(CommutationConfig::new(cpr, pp)).unwrap();
-        let lag = 10f64.to_radians();
+        let full = i64::from(objects.angle_units);
+        let mut config = CommutationConfig::new(cpr, pp);
+        config.objects = objects;
+        let mut m = CommutationMeasurement::new(config).unwrap();
         let (mut angle, mut last_angle, mut current) = (0i64, 0i64, 0i64);
         let mut writes = Vec::new();
         let mut t = 0.0;
         let outcome = loop {
             // Rotor: aligned with the vector, lagging in the direction it last turned.
             let dir = (angle - last_angle).signum() as f64;
-            let rotor = angle as f64 / ANGLE_UNITS * TAU - dir * lag;
+            let rotor = angle as f64 / full as f64 * TAU - dir * lag;
             let position = (offset + rotor / TAU * e).round() as i32;
             match m.poll(t, position).unwrap() {
-                Step::Write(o, v) if o == objects::COMMUTATION_ANGLE => {
-                    assert!((0..65536).contains(&v));
+                Step::Write(o, v) if o == objects.angle => {
+                    assert!((0..full).contains(&v));
                     // Unwrapped by the short way, as the rotor turns.
-                    let d = (v - angle.rem_euclid(65536) + 32768).rem_euclid(65536) - 32768;
+                    let d = (v - angle.rem_euclid(full) + full / 2).rem_euclid(full) - full / 2;
                     if d != 0 {
                         last_angle = angle;
                     }
                     angle += d;
                 }
                 Step::Write(o, v) => {
-                    if o == objects::COMMUTATION_CURRENT {
+                    if o == objects.current {
                         current = v;
                     }
                     writes.push((o, v));
@@ -726,21 +756,64 @@ mod tests {
             assert!(t < 10.0, "runs out");
         };
         assert_eq!(current, 0, "the current is off at the end");
+        (outcome, writes)
+    }
+
+    /// The measurement finds the offset and the lag exactly, and writes what it promises.
+    #[test]
+    fn a_rotor_lagging_by_friction_is_measured_without_the_lag() {
+        let (cpr, pp, offset) = (1u32 << 17, 5u32, 12_345.0f64);
+        let e = f64::from(cpr) / f64::from(pp);
+        let objects = CommutationObjects::default();
+        let (outcome, writes) = measure_ideal_rotor(objects, (cpr, pp, offset), 10f64.to_radians());
         assert!(
             (outcome.lag_electrical_deg - 10.0).abs() < 0.1,
             "{outcome:?}"
         );
         let miss = electrical_error_deg(i64::from(outcome.offset_counts), offset as i64, cpr, pp);
         assert!(miss.abs() < 0.05, "{miss}° {outcome:?}");
-        assert!(writes.contains(&(
-            objects::COMMUTATION_OFFSET,
-            i64::from(outcome.offset_counts)
-        )));
+        assert!(writes.contains(&(od::COMMUTATION_OFFSET, i64::from(outcome.offset_counts))));
         // From a quarter in to the end, lagging at both.
         let travel = e * 0.75;
         assert!(
             (outcome.travel_counts as f64 - travel).abs() < 2.0,
             "{outcome:?}"
+        );
+    }
+
+    /// Another maker's objects: the vector's angle in tenths of a degree, the offset in
+    /// 16-bit units of an electrical revolution, at indices of its own. Every write goes
+    /// to those objects, in those units.
+    #[test]
+    fn another_drive_s_objects_and_units_are_written() {
+        let at = |index| ObjectId {
+            index,
+            ..od::COMMUTATION_OFFSET
+        };
+        let objects = CommutationObjects {
+            mode: -3,
+            offset: ObjectId {
+                kind: crate::cia402::objects::DataType::U16,
+                ..at(0x3010)
+            },
+            offset_units: OffsetUnits::PerElectricalRev(65536),
+            pole_pairs: PolePairs::Fixed(4),
+            current: at(0x3012),
+            angle: at(0x3013),
+            angle_units: 3600,
+        };
+        let (cpr, pp, offset) = (10_000u32, 4u32, 1_234.0f64);
+        let (outcome, writes) = measure_ideal_rotor(objects, (cpr, pp, offset), 0.2);
+        let miss = electrical_error_deg(i64::from(outcome.offset_counts), offset as i64, cpr, pp);
+        assert!(miss.abs() < 0.2, "{miss}° {outcome:?}");
+        // 1234 counts of 2500 to an electrical revolution, in 65536ths.
+        let wire = (f64::from(outcome.offset_counts) / 2500.0 * 65536.0).round() as i64;
+        assert!(writes.contains(&(objects.offset, wire)), "{writes:?}");
+        assert!(
+            writes
+                .iter()
+                .all(|(o, _)| [0x3010, 0x3012].contains(&o.index)),
+            "{writes:?}"
         );
     }
 
@@ -760,6 +833,6 @@ mod tests {
             matches!(err, CommutationError::NotFollowing { moved: 0, .. }),
             "{err}"
         );
-        assert_eq!(m.abort(), Step::Write(objects::COMMUTATION_CURRENT, 0));
+        assert_eq!(m.abort(), Step::Write(od::COMMUTATION_CURRENT, 0));
     }
 }
