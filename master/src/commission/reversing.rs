@@ -3,6 +3,8 @@
 //! seed notes there is no separate mode for it — it is MovePtp to one end and back — so it
 //! is exactly that: absolute moves with the axis' last-used PTP parameters (or the speed
 //! given), each waited for, `cycles` times there and back, starting with a move to `from`.
+//! On a modulo axis both ends lie within the period and the moves go the way the numbers
+//! do (from 10° to 350°: 340° forwards, and back), never the short way across the wrap.
 
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode};
 
@@ -19,6 +21,8 @@ pub struct Reversing {
     pub cycles: u32,
     /// Speed (units/s); `None`: the axis' last-used.
     pub speed: Option<f64>,
+    /// The axis' modulo period (units), if it has one.
+    pub modulo: Option<f64>,
 }
 
 impl Reversing {
@@ -35,6 +39,16 @@ impl Reversing {
         }
         if !self.to.is_finite() {
             return Err(bad("--to", format!("{} is not a position", self.to)));
+        }
+        if let Some(period) = self.modulo {
+            for (operand, v) in [("--from", self.from), ("--to", self.to)] {
+                if !(0.0..period).contains(&v) {
+                    return Err(bad(
+                        operand,
+                        format!("{v} is not within the modulo period [0, {period})"),
+                    ));
+                }
+            }
         }
         if self.from == self.to {
             return Err(bad(
@@ -59,8 +73,15 @@ pub(crate) fn run(cx: &Context, r: Reversing) -> Result<ProcedureOutcome, Commis
     r.check(&cx.name)?;
     let moves = 1 + 2 * u64::from(r.cycles);
     let mut done = 0u64;
+    // A modulo axis goes the way the numbers do: towards `to` in the direction from
+    // `from`, and back the other way.
+    let mode = |target: f64| match r.modulo {
+        None => PositioningMode::AbsNormal,
+        Some(_) if (target == r.to) == (r.to > r.from) => PositioningMode::AbsModuloPos,
+        Some(_) => PositioningMode::AbsModuloNeg,
+    };
     let go = |target: f64, done: &mut u64, what: &str| {
-        let mut m = MovePtp::new(PositioningMode::AbsNormal, target);
+        let mut m = MovePtp::new(mode(target), target);
         m.speed = r.speed;
         let h = cx.command(Command::MovePtp(m))?;
         let cycles_done = done.saturating_sub(1) / 2;

@@ -453,6 +453,7 @@ fn commission(
                 to: to.ok_or_else(|| missing("--to"))?,
                 cycles: cycles.ok_or_else(|| missing("--cycles"))?,
                 speed,
+                modulo: section.modulo,
             };
             r.check(&a)?;
             Procedure::Reversing(r)

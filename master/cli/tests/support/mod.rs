@@ -227,28 +227,28 @@ impl Service {
         }
     }
 
-    /// `gantry commission x commutation` until it runs through: a run ended by a stall of
-    /// the host (the axis' error says so) is reset and tried again, at most three times in
-    /// all; any other failure fails the test. Its stdout.
-    pub fn commission_commutation(&self) -> String {
+    /// `gantry commission AXIS commutation` until it runs through: a run ended by a stall
+    /// of the host (the axis' error says so) is reset and tried again, at most three times
+    /// in all; any other failure fails the test. Its stdout.
+    pub fn commission_commutation(&self, axis: &str) -> String {
         let mut attempt = 0;
         loop {
             attempt += 1;
-            let out = self.cli(&["commission", "x", "commutation"]);
+            let out = self.cli(&["commission", axis, "commutation"]);
             if out.status.success() {
                 return String::from_utf8_lossy(&out.stdout).into_owned();
             }
-            let x = self.axis("x");
-            let why = x["error"].as_str().unwrap_or_default().to_string();
+            let a = self.axis(axis);
+            let why = a["error"].as_str().unwrap_or_default().to_string();
             assert!(
                 attempt < 3 && HOST_STALLS.iter().any(|c| why.contains(c)),
-                "attempt {attempt}: {}{} {x}",
+                "attempt {attempt}: {}{} {a}",
                 String::from_utf8_lossy(&out.stdout),
                 String::from_utf8_lossy(&out.stderr)
             );
             eprintln!("attempt {attempt} ended by a stall of the host ({why}); again");
-            self.ok(&["reset", "x"]);
-            self.wait_state("x", &["Disabled"]);
+            self.ok(&["reset", axis]);
+            self.wait_state(axis, &["Disabled"]);
         }
     }
 }
