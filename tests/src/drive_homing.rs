@@ -214,8 +214,10 @@ fn start(rig: &mut impl ServoRig, params: DriveHomingParams) -> CommandHandle {
         .expect("queued")
 }
 
-/// QuickStop while the drive homes: the master halts it in homing mode and hands it back
-/// (the lending's handle ends naming QuickStop); the drive stands, in CSP, unfaulted,
+/// QuickStop while the drive homes: the master gives the drive the Quick stop command, so
+/// it brakes on its quick-stop ramp (0x6085: ten times the homing acceleration here, a
+/// tenth of the distance), then enables it and hands it back (the lending's handle ends
+/// naming QuickStop); the drive stands, in CSP, unfaulted,
 /// the first CSP target its own position; the axis in Standstill, not homed. Then power
 /// off while the drive homes: the lending ends at once (Aborted), the drive is switched
 /// off and set back to CSP (by SDO where the layout has no 0x6060), and enables and moves
@@ -227,9 +229,29 @@ pub fn cancel_and_power_off(rig: &mut impl ServoRig, base: DriveHomingParams) {
     rig.cycles((0.5 / rig.cycle_s()) as usize);
     let moving = rig.with_servo(|s| s.velocity().abs());
     assert!(moving > 1000.0, "homing runs: {moving} counts/s");
+    let from = rig.with_servo(|s| s.position_counts());
     let q = rig.ctl().command(0, Command::QuickStop).expect("queued");
     assert_eq!(rig.finish(&q, 100), CommandStatus::Done);
     let status = rig.finish(&h, (10.0 / rig.cycle_s()) as usize);
+    // The distance it took to stand: its quick-stop ramp's, plus the travel of the few
+    // cycles the command takes to reach it; on the homing acceleration it would be ten
+    // times the ramp's.
+    let stopped = (rig.with_servo(|s| s.position_counts()) - from).abs() as f64;
+    let qs_decel =
+        f64::from(gantry_sim::plant::servo::ServoParams::default().quick_stop_deceleration);
+    let homing_decel = f64::from(params.acceleration);
+    let ramp = moving * moving / (2.0 * qs_decel);
+    let bound = ramp + moving * 6.0 * rig.cycle_s() + 2.0;
+    eprintln!(
+        "QuickStop during drive homing: stood after {stopped:.0} counts at {moving:.0} \
+         counts/s (quick-stop ramp {ramp:.0}, bound {bound:.0}; the homing acceleration's \
+         {:.0})",
+        moving * moving / (2.0 * homing_decel)
+    );
+    assert!(
+        stopped <= bound && stopped < moving * moving / (2.0 * homing_decel) / 2.0,
+        "stood after {stopped} counts (bound {bound})"
+    );
     let CommandStatus::Error(e) = status else {
         panic!("expected the cancel, got {status:?}");
     };

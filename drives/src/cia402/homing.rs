@@ -14,8 +14,13 @@
 //!    failed naming what was missing. The first [`STALE_STEPS`] steps after the edge are
 //!    not judged: the statusword they carry may predate it (a drive still showing the
 //!    "attained" of an earlier homing).
-//! 4. On an error, a timeout or a cancel: bit 8 halt, until bit 10 (the drive stands)
-//!    or [`HALT_TIMEOUT_S`].
+//! 4. On an error, a timeout or a Stop: bit 8 halt, until bit 10 (the drive stands)
+//!    or [`HALT_TIMEOUT_S`]. On a QuickStop: the power state machine's Quick stop
+//!    (CiA 402-2 transition 11), so the drive brakes on its quick-stop ramp (0x6085, as
+//!    its 0x605A says) rather than the homing acceleration, until its position stands
+//!    still (or [`HALT_TIMEOUT_S`]); then it is enabled again — from Quick stop active,
+//!    or from Switch on disabled where its option code took it there — before the
+//!    hand-back.
 //! 5. The position actual value still (within a count for [`SETTLE_STEPS`] steps, at most
 //!    [`SETTLE_TIMEOUT_S`]): a drive reports "target reached" while its position loop
 //!    still settles by a few counts, and the first CSP target after the hand-back is the
@@ -47,6 +52,8 @@ pub const HOMING_START: u16 = MODE_SPECIFIC_4;
 pub const STALE_STEPS: u32 = 5;
 /// How long a halted drive may take to stand (s).
 pub const HALT_TIMEOUT_S: f64 = 5.0;
+/// How long a drive may take to be enabled again after a quick stop (s).
+pub const REENABLE_TIMEOUT_S: f64 = 1.0;
 /// Steps in a row the position must stay within a count before the hand-back.
 pub const SETTLE_STEPS: u32 = 3;
 /// Longest wait for it (s): a drive that keeps creeping is handed back anyway.
@@ -86,6 +93,19 @@ enum Phase {
     },
     /// Halting since `since`, then leaving with `result`.
     Halt {
+        since: f64,
+        result: Result<(), ProcedureFailure>,
+    },
+    /// Quick stop since `since` (the position last seen, and for how many steps it has
+    /// stood), then enabling again and leaving with `result`.
+    QuickStop {
+        since: f64,
+        last: i32,
+        still: u32,
+        result: Result<(), ProcedureFailure>,
+    },
+    /// Enabling again after the quick stop, since `since`.
+    Reenable {
         since: f64,
         result: Result<(), ProcedureFailure>,
     },
@@ -136,6 +156,8 @@ impl DriveHoming {
             Phase::Enter(_) => "switching to homing mode",
             Phase::Run { .. } => "homing",
             Phase::Halt { .. } => "halting",
+            Phase::QuickStop { .. } => "quick stop",
+            Phase::Reenable { .. } => "enabling after the quick stop",
             Phase::Settle { .. } => "waiting for the drive to stand",
             Phase::Leave { .. } => "switching back to CSP",
             Phase::Ended => "ended",
@@ -173,6 +195,14 @@ impl DriveHoming {
                 Phase::Params { writing: false, .. } => {
                     self.phase = Phase::Ended;
                     return end(Err(failure));
+                }
+                Phase::Enter(_) | Phase::Run { .. } if by == "QuickStop" => {
+                    self.phase = Phase::QuickStop {
+                        since: io.now_s,
+                        last: io.position,
+                        still: 0,
+                        result: Err(failure),
+                    };
                 }
                 Phase::Enter(_) | Phase::Run { .. } => {
                     self.phase = Phase::Halt {
@@ -287,6 +317,49 @@ impl DriveHoming {
                     return self.leave(io, result);
                 }
                 ProcedureStep::hold(Some(homing.with(HOMING_START | HALT)))
+            }
+            Phase::QuickStop {
+                since,
+                last,
+                still,
+                result,
+            } => {
+                let still = if (i64::from(io.position) - i64::from(last)).abs() <= 1 {
+                    still + 1
+                } else {
+                    0
+                };
+                if still >= SETTLE_STEPS || io.now_s - since > HALT_TIMEOUT_S {
+                    self.phase = Phase::Reenable {
+                        since: io.now_s,
+                        result,
+                    };
+                    return ProcedureStep::hold(Some(homing));
+                }
+                self.phase = Phase::QuickStop {
+                    since,
+                    last: io.position,
+                    still,
+                    result,
+                };
+                ProcedureStep::hold(Some(homing.quick_stopping()))
+            }
+            Phase::Reenable { since, result } => {
+                let enabled = io.statusword.state() == Some(super::State::OperationEnabled);
+                if enabled && io.now_s - since > 0.0 {
+                    return self.leave(io, result);
+                }
+                if io.now_s - since > REENABLE_TIMEOUT_S {
+                    // Handed back anyway: the axis finds its drive not enabled.
+                    return self.leave(
+                        io,
+                        result.and(Err(ProcedureFailure::NotReported {
+                            missing: "Operation enabled after the quick stop",
+                            timeout_s: REENABLE_TIMEOUT_S,
+                        })),
+                    );
+                }
+                ProcedureStep::hold(Some(homing))
             }
             Phase::Settle {
                 since,
@@ -497,5 +570,63 @@ mod tests {
             }))
         );
         assert!(t > 1.0 && t < 1.5, "{t}");
+    }
+
+    /// QuickStop while the drive homes: the Quick stop command (not the halt bit) until
+    /// the position stands, then enabled again (the statusword still shows Quick stop
+    /// active: 0x0217), and handed back in CSP, cancelled by QuickStop. A Stop halts.
+    #[test]
+    fn a_quick_stop_uses_the_drive_s_quick_stop_and_enables_it_again() {
+        let running = |h: &mut DriveHoming| {
+            let mut step = h.step(&io(0x0237, 8, 0.0, None));
+            while step.sdo.is_some() {
+                step = h.step(&io(0x0237, 8, 0.0, Some(SdoOutcome::Done(0))));
+            }
+            let step = h.step(&io(0x0237, 6, 0.01, None));
+            assert_eq!(step.outputs.map(|o| o.mode_bits), Some(HOMING_START));
+        };
+        let mut h = DriveHoming::new(params());
+        running(&mut h);
+        h.cancel("Stop");
+        let step = h.step(&io(0x0237, 6, 0.02, None));
+        let out = step.outputs.unwrap();
+        assert!(out.mode_bits & HALT != 0 && !out.quick_stop, "a Stop halts");
+
+        let mut h = DriveHoming::new(params());
+        running(&mut h);
+        h.cancel("QuickStop");
+        // Braking: the position still changes.
+        for k in 0..10 {
+            let mut i = io(0x0217, 6, 0.02 + f64::from(k) * 0.001, None);
+            i.position = 100 * k;
+            let out = h.step(&i).outputs.unwrap();
+            assert!(out.quick_stop && out.mode_bits == 0, "{k}: {out:?}");
+        }
+        assert_eq!(h.phase_name(), "quick stop");
+        // Standing (in Quick stop active): enabled again, then back to CSP.
+        let mut end = None;
+        for k in 0..40 {
+            let mut i = io(0x0217, 6, 0.04 + f64::from(k) * 0.001, None);
+            i.position = 900;
+            if h.phase_name() != "quick stop" {
+                // The channel's Enable operation took it back to Operation enabled.
+                i.statusword = Statusword(0x0237);
+            }
+            if h.phase_name() == "switching back to CSP" {
+                i.mode_display = Some(8);
+            }
+            let step = h.step(&i);
+            if let Some(e) = step.end {
+                end = Some(e);
+                break;
+            }
+            if h.phase_name() != "quick stop" {
+                assert!(!step.outputs.is_some_and(|o| o.quick_stop), "{k}");
+            }
+        }
+        assert_eq!(
+            end,
+            Some(Err(ProcedureFailure::Cancelled { by: "QuickStop" }))
+        );
     }
 }

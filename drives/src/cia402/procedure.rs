@@ -37,19 +37,35 @@ pub struct ProcedureOutputs {
     pub mode: ModeOfOperation,
     /// Mode-specific controlword bits (only [`MODE_BITS`] are taken).
     pub mode_bits: u16,
+    /// The power state machine's Quick stop command instead of Enable operation (CiA
+    /// 402-2 transition 11): the drive brakes on its own quick-stop ramp (0x6085, as
+    /// 0x605A says) in whatever mode it is in. Cleared, the channel enables it again.
+    pub quick_stop: bool,
 }
 
 impl ProcedureOutputs {
     /// Mode `mode`, no mode-specific bit set.
     pub const fn idle(mode: ModeOfOperation) -> Self {
-        Self { mode, mode_bits: 0 }
+        Self {
+            mode,
+            mode_bits: 0,
+            quick_stop: false,
+        }
     }
 
     /// The same with `bits` (within [`MODE_BITS`]) set.
     pub const fn with(self, bits: u16) -> Self {
         Self {
-            mode: self.mode,
             mode_bits: self.mode_bits | (bits & MODE_BITS),
+            ..self
+        }
+    }
+
+    /// The same with the Quick stop command.
+    pub const fn quick_stopping(self) -> Self {
+        Self {
+            quick_stop: true,
+            ..self
         }
     }
 }

@@ -2,6 +2,7 @@
 
 use thiserror::Error;
 
+use crate::cia402::controlword::Command;
 use crate::cia402::pdo::PdoLayout;
 use crate::cia402::procedure::{ProcedureOutputs, MODE_BITS};
 use crate::cia402::{next_command, Controlword, State, Target};
@@ -356,7 +357,12 @@ impl CspChannel {
             .statusword
             .state()
             .unwrap_or(State::NotReadyToSwitchOn);
-        let cmd = next_command(state, Target::Enabled, false, self.last_cw);
+        let stopping = matches!(state, State::OperationEnabled | State::QuickStopActive);
+        let cmd = if p.quick_stop && stopping {
+            Command::QuickStop
+        } else {
+            next_command(state, Target::Enabled, false, self.last_cw)
+        };
         self.last_cw = Controlword::of(cmd);
         self.driving = false;
         self.count_error = None;
