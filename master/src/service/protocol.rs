@@ -167,6 +167,41 @@ pub struct HomeParams {
     pub normal_position: Option<f64>,
 }
 
+/// Beckhoff step-to-absolute-switch's parameters (MC_StepAbsoluteSwitch: search the
+/// reference cam, reversing at the limit switches) as a `home` request carries them
+/// (`"step_switch": {…}`); each one left out is the axis' saved value (the last such
+/// call's), else its default: the axis' default acceleration, deceleration and jerk, a
+/// set position of 0 and no distance limit. Direction, switch mode and velocity have no
+/// default: the axis' first step-to-switch call names them.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StepSwitchParams {
+    /// How the run starts (Direction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<StepDirection>,
+    /// Which crossing of the cam ends it (SwitchMode).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub switch_mode: Option<StepSwitchMode>,
+    /// Search speed (Velocity, units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<f64>,
+    /// Acceleration (units/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Deceleration (units/s²): also how hard the search reverses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deceleration: Option<f64>,
+    /// Jerk (units/s³).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jerk: Option<f64>,
+    /// The position the cam's edge gets (SetPosition, units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub set_position: Option<f64>,
+    /// Farthest the search may travel (DistanceLimit, units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance_limit: Option<f64>,
+}
+
 /// Drive homing's parameters as a `drive_home` request carries them (`"params": {…}`);
 /// each one left out is the axis' `[axis.drive_homing]` value.
 #[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
@@ -235,6 +270,87 @@ impl Word for HomeSwitches {
     ];
 }
 word_impls!(HomeSwitches);
+
+/// How a step-to-absolute-switch run starts (Beckhoff MC_Home_Direction).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepDirection {
+    /// Start positive, reversing at a limit switch (mcPositiveDirection).
+    Positive,
+    /// Start negative (mcNegativeDirection).
+    Negative,
+    /// Off the cam start positive; on it first leave it negative (mcSwitchPositive).
+    SwitchPositive,
+    /// Off the cam start negative; on it first leave it positive (mcSwitchNegative).
+    SwitchNegative,
+}
+
+impl Word for StepDirection {
+    const FIELD: &'static str = "direction";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("positive", Self::Positive),
+        ("negative", Self::Negative),
+        ("switch-positive", Self::SwitchPositive),
+        ("switch-negative", Self::SwitchNegative),
+        ("+", Self::Positive),
+        ("-", Self::Negative),
+    ];
+}
+word_impls!(StepDirection);
+
+/// Which crossing of the cam ends a step-to-absolute-switch run (Beckhoff MC_Switch_Mode).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepSwitchMode {
+    /// Where the cam signal is on (mcOn).
+    On,
+    /// Where the cam signal is off (mcOff).
+    Off,
+    /// The rising edge, moving in the set direction (mcRisingEdge).
+    RisingEdge,
+    /// The falling edge, moving in the set direction (mcFallingEdge).
+    FallingEdge,
+    /// The rising edge, moving against the set direction (mcRisingEdgeInverse).
+    RisingEdgeInverse,
+    /// The falling edge, moving against the set direction (mcFallingEdgeInverse).
+    FallingEdgeInverse,
+    /// The cam's negative edge, whichever way (mcEdgeSwitchPositive).
+    EdgeSwitchPositive,
+    /// The cam's positive edge, whichever way (mcEdgeSwitchNegative).
+    EdgeSwitchNegative,
+}
+
+impl Word for StepSwitchMode {
+    const FIELD: &'static str = "switch_mode";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("on", Self::On),
+        ("off", Self::Off),
+        ("rising-edge", Self::RisingEdge),
+        ("falling-edge", Self::FallingEdge),
+        ("rising-edge-inverse", Self::RisingEdgeInverse),
+        ("falling-edge-inverse", Self::FallingEdgeInverse),
+        ("edge-switch-positive", Self::EdgeSwitchPositive),
+        ("edge-switch-negative", Self::EdgeSwitchNegative),
+    ];
+}
+word_impls!(StepSwitchMode);
+
+/// Which homing run the master does (a `home` request's, the axis' last one).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HomeMethod {
+    /// Jetter MoveHome.
+    #[default]
+    MoveHome,
+    /// Beckhoff step-to-absolute-switch (MC_StepAbsoluteSwitch).
+    StepToSwitch,
+}
+
+impl Word for HomeMethod {
+    const FIELD: &'static str = "home_method";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("move-home", Self::MoveHome),
+        ("step-to-switch", Self::StepToSwitch),
+    ];
+}
+word_impls!(HomeMethod);
 
 /// Which commissioning procedure a `commission` request runs (seed 000 §5.2.6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
