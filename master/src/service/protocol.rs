@@ -555,14 +555,20 @@ pub enum Request {
         /// The position the axis is at now.
         position: f64,
     },
-    /// A homing run (Jetter MoveHome) on the axis' switches and its drive's touch probe;
-    /// every parameter left out is the axis' saved one (see [`HomeParams`]).
+    /// A homing run on the axis' switches and its drive's touch probe: Jetter MoveHome
+    /// when `params` is given (even `{}`), Beckhoff step-to-absolute-switch when
+    /// `step_switch` is; with neither, the axis' last homing run of the two (MoveHome when
+    /// it has had none). Every parameter left out is the axis' saved one (see
+    /// [`HomeParams`], [`StepSwitchParams`]). The reply names the run's `method`.
     Home {
         /// Axis name.
         axis: String,
-        /// The run's parameters.
-        #[serde(default)]
-        params: HomeParams,
+        /// MoveHome's parameters.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        params: Option<HomeParams>,
+        /// Step-to-absolute-switch's parameters.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        step_switch: Option<StepSwitchParams>,
     },
     /// A commissioning procedure on the axis (`gantry commission`); it runs on in the
     /// service, `procedure` follows it, `stop` on the axis cancels it.
@@ -849,7 +855,8 @@ mod tests {
             },
             Request::Home {
                 axis: axis(),
-                params: HomeParams {
+                step_switch: None,
+                params: Some(HomeParams {
                     direction: Some(JogDirection::Negative),
                     switches: Some(HomeSwitches::RefAndLimit),
                     mode: Some(HomeMode::Edge2),
@@ -861,7 +868,27 @@ mod tests {
                     jerk: Some(4000.0),
                     reference_offset: Some(-3.0),
                     normal_position: Some(5.0),
-                },
+                }),
+            },
+            Request::Home {
+                axis: axis(),
+                params: None,
+                step_switch: Some(StepSwitchParams {
+                    direction: Some(StepDirection::SwitchNegative),
+                    switch_mode: Some(StepSwitchMode::FallingEdgeInverse),
+                    velocity: Some(20.0),
+                    acceleration: Some(200.0),
+                    deceleration: Some(40.0),
+                    jerk: Some(4000.0),
+                    set_position: Some(-7.5),
+                    distance_limit: Some(300.0),
+                }),
+            },
+            // The axis' last homing run, with its saved parameters.
+            Request::Home {
+                axis: axis(),
+                params: None,
+                step_switch: None,
             },
             Request::Commission {
                 axis: axis(),
@@ -969,6 +996,86 @@ mod tests {
         }
         assert_eq!(JogDirection::Positive.to_string(), "+");
         assert_eq!(BufferMode::BlendingHigh.to_string(), "blending-high");
+        for &(word, direction) in StepDirection::NAMES {
+            for &(_, switch_mode) in StepSwitchMode::NAMES {
+                let r = Request::Home {
+                    axis: "a".into(),
+                    params: None,
+                    step_switch: Some(StepSwitchParams {
+                        direction: Some(direction),
+                        switch_mode: Some(switch_mode),
+                        ..StepSwitchParams::default()
+                    }),
+                };
+                assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+            }
+            assert_eq!(word.parse::<StepDirection>().unwrap(), direction);
+        }
+        assert_eq!(StepDirection::SwitchNegative.to_string(), "switch-negative");
+        assert_eq!(
+            StepSwitchMode::FallingEdgeInverse.to_string(),
+            "falling-edge-inverse"
+        );
+        for &(word, method) in HomeMethod::NAMES {
+            assert_eq!(word.parse::<HomeMethod>().unwrap(), method);
+            assert_eq!(method.to_string(), word);
+        }
+    }
+
+    #[test]
+    fn a_home_request_names_its_run_or_leaves_it_to_the_axis() {
+        let home = |params, step_switch| Request::Home {
+            axis: "x".into(),
+            params,
+            step_switch,
+        };
+        // What the version-1 CLI sent for `gantry home x`: MoveHome, its saved parameters.
+        assert_eq!(
+            parse(r#"{"axis":"x","cmd":"home","params":{},"v":1}"#).unwrap(),
+            home(Some(HomeParams::default()), None)
+        );
+        // Neither: the axis' last homing run.
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x"}"#).unwrap(),
+            home(None, None)
+        );
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x","params":null}"#).unwrap(),
+            home(None, None)
+        );
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"velocity":5}}"#).unwrap(),
+            home(
+                None,
+                Some(StepSwitchParams {
+                    velocity: Some(5.0),
+                    ..StepSwitchParams::default()
+                })
+            )
+        );
+        // A request without a run goes out without either field.
+        let line = home(None, None).to_line().unwrap();
+        assert!(
+            !line.contains("params") && !line.contains("step_switch"),
+            "{line}"
+        );
+        for (line, says) in [
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"switch_mode":"edge"}}"#,
+                r#"switch_mode "edge" is not one of "on", "off", "rising-edge""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"direction":"up"}}"#,
+                r#"direction "up" is not one of "positive", "negative", "switch-positive""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"speed":5}}"#,
+                "unknown field `speed`",
+            ),
+        ] {
+            let e = refusal(line);
+            assert!(e.contains(says), "{line}\n  said: {e}\n  want: {says}");
+        }
     }
 
     #[test]
