@@ -684,6 +684,98 @@ mod on_the_engine {
         assert!(rig.engine.bus.drive(0).unwrap().setpoints() >= 2000);
     }
 
+    /// A program on the controller API, not the control socket: what the axes accept is
+    /// saved all the same, what they refuse is not.
+    #[test]
+    fn commands_sent_on_the_controller_save_what_the_axes_accept() {
+        use crate::persist::{Saved, Store};
+        use gantry_kernel::axis::command::{MovePtp, PositioningMode};
+        use gantry_kernel::homing::{HomeDirection, StepAbsoluteSwitch, SwitchMode};
+        use std::sync::Arc;
+        use std::time::Duration;
+        let dir = std::env::temp_dir().join(format!("gantry-ctl-saves-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Arc::new(Store::open(&dir).unwrap());
+        let saved = Arc::new(Saved::load(Some(store.clone()), &config()).unwrap());
+        let mut rig = Rig::new();
+        rig.ctl = rig.ctl.clone().saving_to(saved.clone()).unwrap();
+        enable_both(&mut rig);
+        // Off the cam (this axis has no reference switch: its level is off), `Off` ends
+        // the run at once where the axis stands: homed there at SetPosition.
+        let run = StepAbsoluteSwitch {
+            direction: HomeDirection::Positive,
+            switch_mode: SwitchMode::Off,
+            position: 5.0,
+            velocity: 10.0,
+            acceleration: 100.0,
+            deceleration: 100.0,
+            jerk: 1000.0,
+            distance_limit: 50.0,
+        };
+        // Refused (a velocity over the axis' 200 mm/s): nothing to save.
+        let too_fast = StepAbsoluteSwitch {
+            velocity: 1000.0,
+            ..run
+        };
+        let h = rig
+            .ctl
+            .command(0, Command::StepAbsoluteSwitch(too_fast))
+            .unwrap();
+        assert!(
+            matches!(rig.finish(&h, 100), CommandStatus::Error(_)),
+            "{:?}",
+            h.status()
+        );
+        let h = rig
+            .ctl
+            .command(0, Command::StepAbsoluteSwitch(run))
+            .unwrap();
+        assert_eq!(rig.finish(&h, 1000), CommandStatus::Done);
+        let x = rig.axis(0);
+        assert!(
+            x.bits.homed && (x.actual_position - 5.0).abs() < 1e-6,
+            "{x:?}"
+        );
+        let mut m = MovePtp::new(PositioningMode::AbsNormal, 6.0);
+        m.speed = Some(7.5);
+        let h = rig.ctl.command(0, Command::MovePtp(m)).unwrap();
+        assert_eq!(rig.finish(&h, 5000), CommandStatus::Done);
+        // The saving thread follows the snapshots: cycle until it is done.
+        let saver = rig.ctl.saver().unwrap().clone();
+        let mut cycles = 0;
+        while !saver.settle(Duration::ZERO) {
+            assert!(cycles < 20_000, "the saves never finished");
+            rig.cycle();
+            cycles += 1;
+            std::thread::sleep(Duration::from_micros(200));
+        }
+        let file = store.load("x").unwrap().unwrap();
+        assert_eq!(
+            file.step_switch,
+            Some(crate::service::protocol::StepSwitchParams::from(run))
+        );
+        assert_eq!(
+            file.home_method,
+            Some(crate::service::protocol::HomeMethod::StepToSwitch)
+        );
+        assert_eq!(file.ptp.and_then(|p| p.speed), Some(7.5));
+        assert_eq!(store.load("c").unwrap(), None, "c was sent nothing to save");
+        // A move that leaves its speed out runs at the saved one.
+        assert_eq!(
+            saver
+                .prepare(
+                    0,
+                    Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 1.0))
+                )
+                .0,
+            Command::MovePtp(MovePtp {
+                speed: Some(7.5),
+                ..MovePtp::new(PositioningMode::AbsNormal, 1.0)
+            })
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn a_drive_fault_stops_its_axis_and_a_reset_brings_it_back() {
         let mut rig = Rig::new();

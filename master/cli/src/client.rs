@@ -371,6 +371,9 @@ pub fn command(
     );
     let sent = client.request(request)?;
     let handle = sent["handle"].as_u64().unwrap_or(0);
+    // A homing run: which (the service says; a call without parameters repeats the axis'
+    // last).
+    let step_switch = sent["method"].as_str() == Some("step-to-switch");
     if no_wait {
         if json_out {
             writeln!(out, "{}", json!({"handle": handle})).map_err(io)?;
@@ -402,6 +405,10 @@ pub fn command(
         let p = a["position"].as_f64()?;
         let units = a["units"].as_str().unwrap_or("");
         Some(match goal {
+            _ if cmd == "home" && step_switch => format!(
+                "{axis} {p:10.3} {units} step-to-switch homing: {}",
+                step_switch_phase(&a["homing"])
+            ),
             _ if cmd == "home" => format!(
                 "{axis} {p:10.3} {units} homing: {}",
                 homing_phase(&a["homing"])
@@ -461,12 +468,12 @@ pub fn command(
                 } else {
                     String::new()
                 };
-                writeln!(
-                    out,
-                    "{axis}: {} {set:.3} {units}{settling}{after}",
+                let outcome = if step_switch {
+                    "homed by step-to-switch; stands at"
+                } else {
                     outcome(cmd)
-                )
-                .map_err(io)?;
+                };
+                writeln!(out, "{axis}: {outcome} {set:.3} {units}{settling}{after}").map_err(io)?;
             }
             Ok(())
         }
@@ -524,6 +531,21 @@ fn homing_phase(h: &Value) -> &'static str {
         "switch found, searching the reference"
     } else if bit("started") {
         "searching the switch"
+    } else {
+        "starting"
+    }
+}
+
+/// The phase a step-to-absolute-switch run is in, from its status bits (the cam's
+/// crossing found is the switch and the reference at once).
+fn step_switch_phase(h: &Value) -> &'static str {
+    let bit = |k: &str| h[k] == json!(true);
+    if bit("reference_set") {
+        "reference set"
+    } else if bit("reference_found") {
+        "switch crossing found, stopping"
+    } else if bit("started") {
+        "searching the switch (reversing at the limit switches)"
     } else {
         "starting"
     }

@@ -8,7 +8,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
     BufferMode, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection,
-    MoveMode, Request as Line,
+    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -82,21 +82,7 @@ impl AxisCommand {
                 params,
                 no_wait,
                 client,
-            } => (
-                if params.drive {
-                    Line::DriveHome {
-                        params: params.drive_params()?,
-                        axis,
-                    }
-                } else {
-                    Line::Home {
-                        axis,
-                        params: params.into(),
-                    }
-                },
-                no_wait,
-                client,
-            ),
+            } => (params.request(axis)?, no_wait, client),
             // A jog runs until halted: nothing to wait for.
             AxisCmd::Jog {
                 axis,
@@ -342,113 +328,256 @@ extern "C" fn on_sigint(_: nix::libc::c_int) {
     INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept across restarts when the service has a state directory).
+/// `gantry home`'s parameters (each left out is the axis' saved one: the last call's, kept
+/// across restarts when the service has a state directory).
 #[derive(clap::Args, Debug)]
 struct HomeArgs {
-    /// Search direction: + or - (or positive, negative).
+    /// Search direction. MoveHome: + or - (or positive, negative). --step-to-switch
+    /// (Direction): positive, negative, switch-positive or switch-negative (these two
+    /// first leave the cam when they start on it).
     #[arg(long, allow_hyphen_values = true)]
-    direction: Option<JogDirection>,
+    direction: Option<String>,
     /// ref-and-limit, ref, limit or none (the index pulse only).
-    #[arg(long)]
+    #[arg(long, help_heading = "MoveHome (the default)")]
     switches: Option<HomeSwitches>,
     /// edge, edge-2 (switch fast, edge slowly), zero-pulse, zero-pulse-2.
-    #[arg(long)]
+    #[arg(long, help_heading = "MoveHome (the default)")]
     mode: Option<HomeMode>,
     /// Speed of the switch search (units/s).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "MoveHome (the default)")]
     speed_switch: Option<f64>,
     /// Longest switch search (units).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "MoveHome (the default)")]
     max_distance_switch: Option<f64>,
     /// Speed of the reference search (units/s).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "MoveHome (the default)")]
     speed_reference: Option<f64>,
     /// Longest reference search (units).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "MoveHome (the default)")]
     max_distance_reference: Option<f64>,
-    /// Acceleration (units/s²).
+    /// Acceleration (units/s²), of MoveHome and --step-to-switch (--drive: its homing
+    /// acceleration).
     #[arg(long, value_parser = finite)]
     acceleration: Option<f64>,
-    /// Jerk (units/s³).
+    /// Jerk (units/s³), of MoveHome and --step-to-switch.
     #[arg(long, value_parser = finite)]
     jerk: Option<f64>,
     /// The position the reference gets (units).
-    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite, help_heading = "MoveHome (the default)")]
     reference_offset: Option<f64>,
     /// Where the axis goes after homing (units).
-    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite, help_heading = "MoveHome (the default)")]
     normal_position: Option<f64>,
+    /// Run Jetter MoveHome (its saved parameters for what is left out) when the axis'
+    /// last homing was step-to-switch; any MoveHome option says so too.
+    #[arg(long, conflicts_with_all = ["step_to_switch", "drive"], help_heading = "MoveHome (the default)")]
+    move_home: bool,
+    /// Beckhoff step-to-absolute-switch (MC_StepAbsoluteSwitch): search the reference cam,
+    /// reversing at the limit switches; the crossing --switch-mode names gets
+    /// --set-position, and the axis stops just past it. Takes --direction, --switch-mode,
+    /// --velocity (these three are required on the axis' first call), --acceleration,
+    /// --deceleration, --jerk (default: the axis' defaults), --set-position (default 0)
+    /// and --distance-limit (default: none, only the limit switches).
+    #[arg(
+        long,
+        conflicts_with = "drive",
+        help_heading = "Step to absolute switch (--step-to-switch)"
+    )]
+    step_to_switch: bool,
+    /// --step-to-switch (SwitchMode): which crossing of the cam ends the run: on, off,
+    /// rising-edge, falling-edge (moving in --direction), rising-edge-inverse,
+    /// falling-edge-inverse (moving against it), edge-switch-positive (the cam's
+    /// negative edge), edge-switch-negative (its positive edge).
+    #[arg(long, help_heading = "Step to absolute switch (--step-to-switch)")]
+    switch_mode: Option<StepSwitchMode>,
+    /// --step-to-switch (Velocity): search speed (units/s).
+    #[arg(long, value_parser = finite, help_heading = "Step to absolute switch (--step-to-switch)")]
+    velocity: Option<f64>,
+    /// --step-to-switch (Deceleration): units/s²; also how hard the search reverses.
+    #[arg(long, value_parser = finite, help_heading = "Step to absolute switch (--step-to-switch)")]
+    deceleration: Option<f64>,
+    /// --step-to-switch (SetPosition): the position the cam's crossing gets (units).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite, help_heading = "Step to absolute switch (--step-to-switch)")]
+    set_position: Option<f64>,
+    /// --step-to-switch (DistanceLimit): farthest the search may travel (units).
+    #[arg(long, value_parser = finite, help_heading = "Step to absolute switch (--step-to-switch)")]
+    distance_limit: Option<f64>,
     /// Let the drive home itself (CiA 402 homing mode) with `[axis.drive_homing]`; the
     /// options below (and --speed-switch, --acceleration) replace its values.
-    #[arg(long)]
+    #[arg(long, help_heading = "Drive homing (--drive)")]
     drive: bool,
     /// --drive: the CiA 402 homing method (0x6098).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        help_heading = "Drive homing (--drive)"
+    )]
     method: Option<i8>,
     /// --drive: speed during search for zero (units/s).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "Drive homing (--drive)")]
     speed_zero: Option<f64>,
     /// --drive: home offset (units; the home position reads as minus this).
-    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    #[arg(long, allow_negative_numbers = true, value_parser = finite, help_heading = "Drive homing (--drive)")]
     home_offset: Option<f64>,
     /// --drive: how long the drive may take to report homing attained (s).
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, help_heading = "Drive homing (--drive)")]
     timeout: Option<f64>,
     /// --drive: skip the drive's homing run (an absolute drive): homed where it stands.
-    #[arg(long)]
+    #[arg(long, help_heading = "Drive homing (--drive)")]
     skip: bool,
 }
 
 impl HomeArgs {
-    /// The drive homing request's parameters; MoveHome's own options are refused by name.
-    fn drive_params(&self) -> Result<DriveHomeParams, String> {
-        let movehome_only = [
-            ("--direction", self.direction.is_some()),
-            ("--switches", self.switches.is_some()),
-            ("--mode", self.mode.is_some()),
-            ("--max-distance-switch", self.max_distance_switch.is_some()),
-            ("--speed-reference", self.speed_reference.is_some()),
-            (
-                "--max-distance-reference",
-                self.max_distance_reference.is_some(),
-            ),
-            ("--jerk", self.jerk.is_some()),
-            ("--reference-offset", self.reference_offset.is_some()),
-            ("--normal-position", self.normal_position.is_some()),
-        ];
-        if let Some((name, _)) = movehome_only.iter().find(|(_, given)| *given) {
-            return Err(format!(
-                "{name} is a MoveHome option; the drive homes by its method (--method)"
-            ));
+    /// The options of one homing run given, by name.
+    fn given(&self, which: Only) -> Vec<&'static str> {
+        let all: Vec<(&'static str, bool)> = match which {
+            Only::MoveHome => vec![
+                ("--switches", self.switches.is_some()),
+                ("--mode", self.mode.is_some()),
+                ("--max-distance-switch", self.max_distance_switch.is_some()),
+                ("--speed-reference", self.speed_reference.is_some()),
+                (
+                    "--max-distance-reference",
+                    self.max_distance_reference.is_some(),
+                ),
+                ("--reference-offset", self.reference_offset.is_some()),
+                ("--normal-position", self.normal_position.is_some()),
+            ],
+            Only::StepToSwitch => vec![
+                ("--switch-mode", self.switch_mode.is_some()),
+                ("--velocity", self.velocity.is_some()),
+                ("--deceleration", self.deceleration.is_some()),
+                ("--set-position", self.set_position.is_some()),
+                ("--distance-limit", self.distance_limit.is_some()),
+            ],
+            Only::Drive => vec![
+                ("--method", self.method.is_some()),
+                ("--speed-zero", self.speed_zero.is_some()),
+                ("--home-offset", self.home_offset.is_some()),
+                ("--timeout", self.timeout.is_some()),
+                ("--skip", self.skip),
+            ],
+        };
+        all.into_iter()
+            .filter(|(_, given)| *given)
+            .map(|(name, _)| name)
+            .collect()
+    }
+
+    /// The request: drive homing with --drive, step-to-absolute-switch with
+    /// --step-to-switch, MoveHome with --move-home or any of its options, else the axis'
+    /// last homing run (MoveHome or step-to-switch) with its saved parameters. An option
+    /// of another homing run is refused by name.
+    fn request(self, axis: String) -> Result<Line, String> {
+        let refuse = |which: Only, why: &str| match self.given(which).first() {
+            Some(name) => Err(format!("{name} {why}")),
+            None => Ok(()),
+        };
+        if self.drive {
+            refuse(
+                Only::StepToSwitch,
+                "is a step-to-switch option; the drive homes by its method (--method)",
+            )?;
+            if self.direction.is_some() {
+                return Err(
+                    "--direction is a MoveHome option; the drive homes by its method (--method)"
+                        .into(),
+                );
+            }
+            refuse(
+                Only::MoveHome,
+                "is a MoveHome option; the drive homes by its method (--method)",
+            )?;
+            if self.jerk.is_some() {
+                return Err(
+                    "--jerk is a MoveHome option; the drive homes by its method (--method)".into(),
+                );
+            }
+            return Ok(Line::DriveHome {
+                axis,
+                params: DriveHomeParams {
+                    method: self.method,
+                    speed_switch: self.speed_switch,
+                    speed_zero: self.speed_zero,
+                    acceleration: self.acceleration,
+                    home_offset: self.home_offset,
+                    timeout_s: self.timeout,
+                    skip: self.skip.then_some(true),
+                },
+            });
         }
-        Ok(DriveHomeParams {
-            method: self.method,
+        refuse(Only::Drive, "is a drive homing option (--drive)")?;
+        if self.step_to_switch {
+            refuse(
+                Only::MoveHome,
+                "is a MoveHome option, not one of step-to-switch's",
+            )?;
+            if self.speed_switch.is_some() {
+                return Err(
+                    "--speed-switch is a MoveHome option; step-to-switch searches at --velocity"
+                        .into(),
+                );
+            }
+            let direction = self
+                .direction
+                .as_deref()
+                .map(str::parse::<StepDirection>)
+                .transpose()
+                .map_err(|e| format!("--direction: {e}"))?;
+            return Ok(Line::Home {
+                axis,
+                params: None,
+                step_switch: Some(StepSwitchParams {
+                    direction,
+                    switch_mode: self.switch_mode,
+                    velocity: self.velocity,
+                    acceleration: self.acceleration,
+                    deceleration: self.deceleration,
+                    jerk: self.jerk,
+                    set_position: self.set_position,
+                    distance_limit: self.distance_limit,
+                }),
+            });
+        }
+        refuse(
+            Only::StepToSwitch,
+            "is a step-to-switch option (--step-to-switch)",
+        )?;
+        let direction = self
+            .direction
+            .as_deref()
+            .map(str::parse::<JogDirection>)
+            .transpose()
+            .map_err(|e| format!("--direction: {e} (MoveHome; with --step-to-switch also switch-positive, switch-negative)"))?;
+        let params = HomeParams {
+            direction,
+            switches: self.switches,
+            mode: self.mode,
             speed_switch: self.speed_switch,
-            speed_zero: self.speed_zero,
+            max_distance_switch: self.max_distance_switch,
+            speed_reference: self.speed_reference,
+            max_distance_reference: self.max_distance_reference,
             acceleration: self.acceleration,
-            home_offset: self.home_offset,
-            timeout_s: self.timeout,
-            skip: self.skip.then_some(true),
+            jerk: self.jerk,
+            reference_offset: self.reference_offset,
+            normal_position: self.normal_position,
+        };
+        // Nothing of MoveHome's given: the axis' last homing run, whichever it was.
+        let params = (self.move_home || params != HomeParams::default()).then_some(params);
+        Ok(Line::Home {
+            axis,
+            params,
+            step_switch: None,
         })
     }
 }
 
-impl From<HomeArgs> for HomeParams {
-    fn from(a: HomeArgs) -> Self {
-        Self {
-            direction: a.direction,
-            switches: a.switches,
-            mode: a.mode,
-            speed_switch: a.speed_switch,
-            max_distance_switch: a.max_distance_switch,
-            speed_reference: a.speed_reference,
-            max_distance_reference: a.max_distance_reference,
-            acceleration: a.acceleration,
-            jerk: a.jerk,
-            reference_offset: a.reference_offset,
-            normal_position: a.normal_position,
-        }
-    }
+/// The homing run some options belong to (and to no other).
+#[derive(Clone, Copy)]
+enum Only {
+    MoveHome,
+    StepToSwitch,
+    Drive,
 }
 
 /// The commands to one axis of a running gantry.
@@ -500,15 +629,18 @@ enum AxisCmd {
         #[command(flatten)]
         client: ClientOpts,
     },
-    /// Home an axis (Jetter MoveHome) on its switches and its drive's touch probe, showing
-    /// the phases; what is left out is the axis' saved parameters (the last call's, kept
-    /// across restarts in the state directory). With --drive the drive homes itself (CiA
-    /// 402 homing mode, `[axis.drive_homing]`) and is handed back in CSP.
+    /// Home an axis on its switches and its drive's touch probe, showing the phases: Jetter
+    /// MoveHome, or with --step-to-switch Beckhoff step-to-absolute-switch. What is left
+    /// out is the axis' saved parameters (the last call's, kept across restarts in the
+    /// state directory), and `gantry home AXIS` alone repeats the axis' last homing run of
+    /// these two (MoveHome when it has had none; --move-home or --step-to-switch choose).
+    /// With --drive the drive homes itself (CiA 402 homing mode, `[axis.drive_homing]`)
+    /// and is handed back in CSP; it is never repeated without --drive.
     Home {
         /// Axis name.
         axis: String,
         #[command(flatten)]
-        params: HomeArgs,
+        params: Box<HomeArgs>,
         /// Return at once with the command's handle.
         #[arg(long)]
         no_wait: bool,
@@ -1076,6 +1208,84 @@ mod tests {
                 false,
             ),
             (
+                &["home", "x"],
+                Line::Home {
+                    axis: x(),
+                    params: None,
+                    step_switch: None,
+                },
+                false,
+            ),
+            (
+                &["home", "x", "--move-home"],
+                Line::Home {
+                    axis: x(),
+                    params: Some(HomeParams::default()),
+                    step_switch: None,
+                },
+                false,
+            ),
+            (
+                &["home", "x", "--direction", "-", "--jerk", "5000"],
+                Line::Home {
+                    axis: x(),
+                    params: Some(HomeParams {
+                        direction: Some(JogDirection::Negative),
+                        jerk: Some(5000.0),
+                        ..HomeParams::default()
+                    }),
+                    step_switch: None,
+                },
+                false,
+            ),
+            (
+                &["home", "x", "--step-to-switch"],
+                Line::Home {
+                    axis: x(),
+                    params: None,
+                    step_switch: Some(StepSwitchParams::default()),
+                },
+                false,
+            ),
+            (
+                &[
+                    "home",
+                    "x",
+                    "--step-to-switch",
+                    "--direction",
+                    "switch-negative",
+                    "--switch-mode",
+                    "falling-edge-inverse",
+                    "--velocity",
+                    "20",
+                    "--acceleration",
+                    "300",
+                    "--deceleration",
+                    "40",
+                    "--jerk",
+                    "6000",
+                    "--set-position",
+                    "-12.5",
+                    "--distance-limit",
+                    "150",
+                ],
+                Line::Home {
+                    axis: x(),
+                    params: None,
+                    step_switch: Some(StepSwitchParams {
+                        direction: Some(StepDirection::SwitchNegative),
+                        switch_mode: Some(StepSwitchMode::FallingEdgeInverse),
+                        velocity: Some(20.0),
+                        acceleration: Some(300.0),
+                        deceleration: Some(40.0),
+                        jerk: Some(6000.0),
+                        set_position: Some(-12.5),
+                        distance_limit: Some(150.0),
+                    }),
+                },
+                false,
+            ),
+            (
                 &["home", "x", "--drive", "--skip", "--no-wait"],
                 Line::DriveHome {
                     axis: x(),
@@ -1101,6 +1311,85 @@ mod tests {
         assert_eq!(
             e,
             "--jerk is a MoveHome option; the drive homes by its method (--method)"
+        );
+    }
+
+    #[test]
+    fn each_homing_run_refuses_the_options_of_the_others_by_name() {
+        for (args, says) in [
+            (
+                &["home", "x", "--switch-mode", "on"][..],
+                "--switch-mode is a step-to-switch option (--step-to-switch)",
+            ),
+            (
+                &["home", "x", "--velocity", "5"],
+                "--velocity is a step-to-switch option (--step-to-switch)",
+            ),
+            (
+                &["home", "x", "--step-to-switch", "--mode", "edge"],
+                "--mode is a MoveHome option, not one of step-to-switch's",
+            ),
+            (
+                &["home", "x", "--step-to-switch", "--speed-switch", "5"],
+                "--speed-switch is a MoveHome option; step-to-switch searches at --velocity",
+            ),
+            (
+                &["home", "x", "--step-to-switch", "--method", "19"],
+                "--method is a drive homing option (--drive)",
+            ),
+            (
+                &["home", "x", "--method", "19"],
+                "--method is a drive homing option (--drive)",
+            ),
+            (
+                &["home", "x", "--drive", "--set-position", "1"],
+                "--set-position is a step-to-switch option; the drive homes by its method",
+            ),
+            (
+                &["home", "x", "--step-to-switch", "--direction", "up"],
+                r#"--direction: direction "up" is not one of "positive", "negative", "switch-positive", "switch-negative""#,
+            ),
+            (
+                &["home", "x", "--direction", "switch-positive"],
+                r#"--direction: direction "switch-positive" is not one of "+", "-", "positive", "negative" (MoveHome; with --step-to-switch also switch-positive, switch-negative)"#,
+            ),
+        ] {
+            let cli = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))
+                .unwrap_or_else(|e| panic!("{args:?}: {e}"));
+            let Cmd::Axis(cmd) = cli.command else {
+                panic!("a one-axis command");
+            };
+            let e = AxisCommand::of(cmd)
+                .err()
+                .unwrap_or_else(|| panic!("{args:?}"));
+            assert!(e.contains(says), "{args:?}: {e}");
+        }
+        // Two homing runs at once: clap refuses, naming both.
+        for args in [
+            &["home", "x", "--step-to-switch", "--drive"][..],
+            &["home", "x", "--move-home", "--step-to-switch"],
+            &["home", "x", "--move-home", "--drive"],
+        ] {
+            let e = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("cannot be used with"), "{args:?}: {e}");
+        }
+        // A wrong switch mode: clap names the option and the words.
+        let e = Cli::try_parse_from([
+            "gantry",
+            "home",
+            "x",
+            "--step-to-switch",
+            "--switch-mode",
+            "edge",
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("'--switch-mode <SWITCH_MODE>'")
+                && e.contains(r#"switch_mode "edge" is not one of "on", "off""#),
+            "{e}"
         );
     }
 

@@ -91,6 +91,14 @@ fn with_switches(chain: String) -> String {
     )
 }
 
+/// The service with its state in `state`, `x`'s switches on its drive and the first
+/// servo's switch cams.
+fn start_with_switches(tag: &str, state: &Path) -> Service {
+    let switches = "pdo = \"csp-minimal\"\nswitches = { negative_limit = \"drive\", \
+                    positive_limit = \"drive\", reference = \"drive\" }";
+    Service::start_edited(tag, |c| configure(c, state, switches), with_switches)
+}
+
 /// Waits until `path` holds `needle` (saves run beside the command).
 fn wait_for_file(path: &Path, needle: &str) -> String {
     let end = Instant::now() + Duration::from_secs(10);
@@ -112,10 +120,7 @@ fn wait_for_file(path: &Path, needle: &str) -> String {
 fn homing_and_move_parameters_survive_a_restart() {
     let _one = one_at_a_time();
     let state = state_dir("home");
-    let switches = "pdo = \"csp-minimal\"\nswitches = { negative_limit = \"drive\", \
-                    positive_limit = \"drive\", reference = \"drive\" }";
-    let start =
-        |tag: &str| Service::start_edited(tag, |c| configure(c, &state, switches), with_switches);
+    let start = |tag: &str| start_with_switches(tag, &state);
     let mut svc = start("persist-home-1");
     svc.ok(&["enable", "x"]);
     // Parameters the defaults do not have: a NormalPosition of 7 (the defaults end at 0).
@@ -144,6 +149,11 @@ fn homing_and_move_parameters_survive_a_restart() {
     svc.ok(&["move", "x", "--to", "8", "--speed", "5"]);
     let file = state.join("x.params");
     let text = wait_for_file(&file, "[ptp]");
+    // MoveHome and moves only: the format every gantry reads.
+    assert!(
+        text.starts_with("# gantry axis parameters, format 1\n"),
+        "{text}"
+    );
     assert!(text.contains("normal_position = 7.0"), "{text}");
     assert!(text.contains("speed = 5.0"), "{text}");
     assert!(!state.join("y.params").exists(), "y saved nothing");
@@ -189,6 +199,95 @@ fn homing_and_move_parameters_survive_a_restart() {
     eprintln!("the move took {took:?}; fastest sample {fastest} mm/s");
     // The saved set is unchanged by calls without parameters.
     assert_eq!(std::fs::read_to_string(&file).unwrap(), text);
+    drop(svc);
+    let _ = std::fs::remove_dir_all(&state);
+}
+
+/// Step-to-absolute-switch homing's parameters and the axis' homing run survive a
+/// restart: `gantry home x` alone after it repeats step-to-switch with the saved set.
+#[test]
+fn step_to_switch_homing_survives_a_restart() {
+    let _one = one_at_a_time();
+    let state = state_dir("step");
+    let start = |tag: &str| start_with_switches(tag, &state);
+    // The cam's rising edge, as the axis reads it once homed: at SetPosition to the
+    // count, from the position offset and the simulated cam.
+    let edge_at = |svc: &Service, want: f64| {
+        let x = svc.axis("x");
+        assert_eq!(x["homed"], true, "{x}");
+        let offset = x["position_offset"].as_f64().unwrap();
+        let edge = CAM.0 as f64 / COUNTS_PER_MM + offset;
+        assert!(
+            (edge - want).abs() <= 1.0 / COUNTS_PER_MM,
+            "edge at {edge}: {x}"
+        );
+    };
+    let mut svc = start("persist-step-1");
+    svc.ok(&["enable", "x"]);
+    // Below the cam, off it: switch-positive starts positive, the rising edge ends it.
+    let out = svc.ok(&[
+        "home",
+        "x",
+        "--step-to-switch",
+        "--direction",
+        "switch-positive",
+        "--switch-mode",
+        "rising-edge",
+        "--velocity",
+        "30",
+        "--set-position",
+        "20",
+        "--distance-limit",
+        "200",
+    ]);
+    assert!(
+        out.contains("x: homed by step-to-switch; stands at "),
+        "{out}"
+    );
+    edge_at(&svc, 20.0);
+    let file = state.join("x.params");
+    let text = wait_for_file(&file, "[step_switch]");
+    assert!(
+        text.starts_with("# gantry axis parameters, format 2\n"),
+        "{text}"
+    );
+    for line in [
+        "home_method = \"step-to-switch\"",
+        "direction = \"switch-positive\"",
+        "switch_mode = \"rising-edge\"",
+        "velocity = 30.0",
+        "set_position = 20.0",
+        "distance_limit = 200.0",
+        // Left out: the axis' default acceleration (its maximum, 2500 mm/s²).
+        "acceleration = 2500.0",
+    ] {
+        assert!(text.contains(line), "{line}: {text}");
+    }
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+    drop(svc);
+
+    let svc = start("persist-step-2");
+    svc.ok(&["enable", "x"]);
+    assert_eq!(svc.axis("x")["homed"], false);
+    // No parameter, no method: step-to-switch again, with the saved set — SetPosition 20
+    // among them. (The drive starts where it stopped, on the cam: switch-positive leaves
+    // it negative first, then ends on the rising edge moving positive.)
+    let out = svc.ok(&["home", "x"]);
+    assert!(
+        out.contains("x: homed by step-to-switch; stands at "),
+        "{out}"
+    );
+    edge_at(&svc, 20.0);
+    // One parameter given: that one changes, the rest are the saved ones.
+    let out = svc.ok(&["home", "x", "--step-to-switch", "--set-position", "-4"]);
+    assert!(
+        out.contains("x: homed by step-to-switch; stands at "),
+        "{out}"
+    );
+    edge_at(&svc, -4.0);
+    let text = wait_for_file(&file, "set_position = -4.0");
+    assert!(text.contains("velocity = 30.0"), "{text}");
     drop(svc);
     let _ = std::fs::remove_dir_all(&state);
 }

@@ -1,7 +1,8 @@
 //! The envelope of a parameter file: a first line naming the format and its version, the
 //! body (TOML), and a last line with the CRC-32 of everything before it. Both lines are
 //! TOML comments, so the file reads as TOML to a person or a tool; gantry itself accepts
-//! it only whole:
+//! it only whole. This gantry reads formats 1 and 2 (2 adds step-to-absolute-switch
+//! homing, see [`super::params`]) and writes the lowest that holds what is saved:
 //!
 //! ```text
 //! # gantry axis parameters, format 1
@@ -12,15 +13,16 @@
 //! ```
 //!
 //! A file cut anywhere loses its last line or its final newline (truncated); any altered
-//! byte changes the CRC (altered); another program's file or another version of this
-//! format is named as such. [`open`] says which, [`seal`] writes the envelope.
+//! byte changes the CRC (altered); another program's file or a format this gantry does
+//! not read is named as such. [`open`] says which, [`seal`] writes the envelope.
 
 use super::checksum::crc32;
 
-/// The first line of every parameter file, without its newline.
-pub const HEADER: &str = "# gantry axis parameters, format 1";
-/// The start of the first line whatever the version (to tell a later format from a foreign file).
-const HEADER_STEM: &str = "# gantry axis parameters, format ";
+/// The start of the first line of every parameter file; the format's number and a newline
+/// follow.
+pub const HEADER_STEM: &str = "# gantry axis parameters, format ";
+/// The formats this gantry reads (and writes).
+pub const FORMATS: std::ops::RangeInclusive<u32> = 1..=2;
 /// The start of the last line; eight lower-case hex digits and a newline follow.
 const TRAILER: &str = "# crc32 ";
 
@@ -38,10 +40,10 @@ pub enum Corruption {
         offset: usize,
     },
     /// The first line is not gantry's.
-    #[error("the first line is not {HEADER:?}: not a gantry parameter file")]
+    #[error("the first line is not \"{HEADER_STEM}N\": not a gantry parameter file")]
     Foreign,
     /// A format this gantry does not read.
-    #[error("format {found} is not format 1 (written by another version of gantry)")]
+    #[error("format {found} is not one this gantry reads (formats 1 and 2; written by another version of gantry)")]
     Version {
         /// The format the file names.
         found: String,
@@ -62,11 +64,17 @@ pub enum Corruption {
     },
 }
 
-/// `body` in the envelope: the header, the body (a newline added when it lacks one) and
-/// the checksum line.
-pub fn seal(body: &str) -> String {
-    let mut text = String::with_capacity(HEADER.len() + body.len() + 32);
-    text.push_str(HEADER);
+/// The first line of a file of `format`, without its newline.
+pub fn header(format: u32) -> String {
+    format!("{HEADER_STEM}{format}")
+}
+
+/// `body` in the envelope of `format`: the header, the body (a newline added when it
+/// lacks one) and the checksum line.
+pub fn seal(body: &str, format: u32) -> String {
+    let header = header(format);
+    let mut text = String::with_capacity(header.len() + body.len() + 32);
+    text.push_str(&header);
     text.push('\n');
     text.push_str(body);
     if !body.is_empty() && !body.ends_with('\n') {
@@ -77,8 +85,8 @@ pub fn seal(body: &str) -> String {
     text
 }
 
-/// The body of a sealed file, or what is wrong with it.
-pub fn open(bytes: &[u8]) -> Result<&str, Corruption> {
+/// The format and the body of a sealed file, or what is wrong with it.
+pub fn open(bytes: &[u8]) -> Result<(u32, &str), Corruption> {
     if bytes.is_empty() {
         return Err(Corruption::Empty);
     }
@@ -86,18 +94,28 @@ pub fn open(bytes: &[u8]) -> Result<&str, Corruption> {
         offset: e.valid_up_to(),
     })?;
     let first = text.split('\n').next().unwrap_or_default();
-    if first != HEADER {
-        return Err(match first.strip_prefix(HEADER_STEM) {
-            Some(version) if text.contains('\n') => Corruption::Version {
-                found: version.to_string(),
-            },
+    let newline = text.contains('\n');
+    // The format as written: one spelling per number (no sign, no leading zero).
+    let version = first.strip_prefix(HEADER_STEM);
+    let format = version
+        .and_then(|v| v.parse::<u32>().ok())
+        .filter(|f| header(*f) == first && FORMATS.contains(f) && newline);
+    let Some(format) = format else {
+        let digits = |v: &str| v.bytes().all(|b| b.is_ascii_digit());
+        return Err(match version {
             // A header cut before its newline is a truncated file of ours.
-            _ if HEADER.starts_with(first) => Corruption::Truncated {
+            _ if HEADER_STEM.starts_with(first) => Corruption::Truncated {
                 length: bytes.len(),
             },
-            _ => Corruption::Foreign,
+            Some(v) if !newline && digits(v) => Corruption::Truncated {
+                length: bytes.len(),
+            },
+            Some(v) => Corruption::Version {
+                found: v.to_string(),
+            },
+            None => Corruption::Foreign,
         });
-    }
+    };
     let truncated = Corruption::Truncated {
         length: bytes.len(),
     };
@@ -122,7 +140,7 @@ pub fn open(bytes: &[u8]) -> Result<&str, Corruption> {
     if stored != computed {
         return Err(Corruption::Checksum { stored, computed });
     }
-    Ok(&text[HEADER.len() + 1..covered_len])
+    Ok((format, &text[first.len() + 1..covered_len]))
 }
 
 #[cfg(test)]
@@ -133,49 +151,63 @@ mod tests {
 
     #[test]
     fn a_sealed_body_opens_to_itself() {
-        let sealed = seal(BODY);
-        assert!(
-            sealed.starts_with(&format!("{HEADER}\n{BODY}# crc32 ")),
-            "{sealed}"
-        );
-        assert_eq!(open(sealed.as_bytes()).unwrap(), BODY);
-        // A body without its last newline gets one.
-        assert_eq!(open(seal("a = 1").as_bytes()).unwrap(), "a = 1\n");
-        assert_eq!(open(seal("").as_bytes()).unwrap(), "");
-        // The file as a whole is TOML (the envelope's lines are comments).
-        let v: toml::Table = toml::from_str(&sealed).unwrap();
-        assert_eq!(v["commutation_offset"].as_integer(), Some(-1234));
+        for format in FORMATS {
+            let sealed = seal(BODY, format);
+            assert!(
+                sealed.starts_with(&format!(
+                    "# gantry axis parameters, format {format}\n{BODY}# crc32 "
+                )),
+                "{sealed}"
+            );
+            assert_eq!(open(sealed.as_bytes()).unwrap(), (format, BODY));
+            // A body without its last newline gets one.
+            assert_eq!(
+                open(seal("a = 1", format).as_bytes()).unwrap(),
+                (format, "a = 1\n")
+            );
+            assert_eq!(open(seal("", format).as_bytes()).unwrap(), (format, ""));
+            // The file as a whole is TOML (the envelope's lines are comments).
+            let v: toml::Table = toml::from_str(&sealed).unwrap();
+            assert_eq!(v["commutation_offset"].as_integer(), Some(-1234));
+        }
     }
 
     #[test]
     fn every_cut_of_a_file_is_found() {
-        let sealed = seal(BODY);
-        for len in 0..sealed.len() {
-            let cut = &sealed.as_bytes()[..len];
-            let e = open(cut).unwrap_err();
-            assert!(
-                matches!(
-                    e,
-                    Corruption::Empty | Corruption::Truncated { .. } | Corruption::Checksum { .. }
-                ),
-                "cut at {len}: {e:?}"
-            );
+        for format in FORMATS {
+            let sealed = seal(BODY, format);
+            for len in 0..sealed.len() {
+                let cut = &sealed.as_bytes()[..len];
+                let e = open(cut).unwrap_err();
+                assert!(
+                    matches!(
+                        e,
+                        Corruption::Empty
+                            | Corruption::Truncated { .. }
+                            | Corruption::Checksum { .. }
+                    ),
+                    "format {format} cut at {len}: {e:?}"
+                );
+            }
         }
     }
 
     #[test]
     fn every_altered_byte_and_every_flipped_bit_is_found() {
-        let sealed = seal(BODY).into_bytes();
-        for i in 0..sealed.len() {
-            for bit in 0..8 {
-                let mut bad = sealed.clone();
-                bad[i] ^= 1 << bit;
-                assert!(
-                    open(&bad).is_err(),
-                    "bit {bit} of byte {i} flipped went unnoticed"
-                );
+        for format in FORMATS {
+            let sealed = seal(BODY, format).into_bytes();
+            for i in 0..sealed.len() {
+                for bit in 0..8 {
+                    let mut bad = sealed.clone();
+                    bad[i] ^= 1 << bit;
+                    assert!(
+                        open(&bad).is_err(),
+                        "format {format}: bit {bit} of byte {i} flipped went unnoticed"
+                    );
+                }
             }
         }
+        let sealed = seal(BODY, 1).into_bytes();
         // An edit by hand that keeps the form: a digit changed.
         let edited = String::from_utf8(sealed).unwrap().replace("-1234", "-1235");
         assert!(matches!(
@@ -187,17 +219,30 @@ mod tests {
     #[test]
     fn foreign_files_and_other_versions_are_named() {
         assert_eq!(open(b"[home]\nspeed = 1\n"), Err(Corruption::Foreign));
-        let v2 = seal(BODY).replacen("format 1", "format 2", 1);
+        // A later format (the checksum is right: another gantry wrote it so).
+        let v3 = seal(BODY, 3);
         assert_eq!(
-            open(v2.as_bytes()),
-            Err(Corruption::Version { found: "2".into() })
+            open(v3.as_bytes()),
+            Err(Corruption::Version { found: "3".into() })
         );
+        assert!(Corruption::Version { found: "3".into() }
+            .to_string()
+            .contains("formats 1 and 2"));
+        // Format 1 and 2 spelled otherwise are not this gantry's.
+        for odd in ["01", "+2", "2 ", "0"] {
+            let text = seal(BODY, 1).replacen("format 1", &format!("format {odd}"), 1);
+            assert_eq!(
+                open(text.as_bytes()),
+                Err(Corruption::Version { found: odd.into() }),
+                "{odd:?}"
+            );
+        }
         assert_eq!(
             open(&[0x23, 0xff, 0x0a]),
             Err(Corruption::NotText { offset: 1 })
         );
         // Junk after the checksum line: the last line is no checksum line.
-        let extra = seal(BODY) + "x = 1\n";
+        let extra = seal(BODY, 2) + "x = 1\n";
         assert!(matches!(
             open(extra.as_bytes()),
             Err(Corruption::Truncated { .. })

@@ -6,6 +6,9 @@
 //! crash or `kill -9` during a save leaves the old or the new file whole, and a damaged
 //! file is found at start and named ([`error::PersistError`]), never silently used.
 //!
+//! What the axes accept is saved whichever way the command came ([`saver`]: the control
+//! socket and programs on the controller API alike).
+//!
 //! The directory ([`state_dir`]): `[service] state_dir` in the configuration, else
 //! systemd's `$STATE_DIRECTORY` (`StateDirectory=gantry` in `deploy/gantry.service` makes
 //! it `/var/lib/gantry`); with neither nothing is saved, and gantry says so at start.
@@ -16,11 +19,12 @@ pub mod envelope;
 pub mod error;
 pub mod params;
 pub mod saved;
+pub mod saver;
 pub mod store;
 
 pub use error::PersistError;
 pub use params::{AxisParams, PositionOffset, PtpParams, ScalingStamp};
-pub use saved::{Saved, StartPosition};
+pub use saved::{Saved, StartPosition, StepSwitchNotGiven};
 pub use store::Store;
 
 use std::path::PathBuf;

@@ -1,29 +1,38 @@
 //! The running service's saved parameters: what was loaded at start, kept in memory per
-//! axis and written to the axis' file ([`Store`]) whenever it changes — the homing
+//! axis and written to the axis' file ([`Store`]) whenever it changes — the MoveHome
 //! parameters of a homing call that carried some (seed 000 §6.3.2: a later call without
-//! them uses the saved ones), the dynamics of a move that gave some, an absolute axis'
-//! position offset whenever it is homed, the commutation offset commissioning measured.
+//! them uses the saved ones), the step-to-absolute-switch parameters of such a call, which
+//! of the two ran last, the dynamics of a move that gave some, an absolute axis' position
+//! offset whenever it is homed, the commutation offset commissioning measured.
 //!
 //! Memory is updated at once; the file writes block (fsync) and are for a thread that
-//! may block — the control socket's `spawn_blocking`, never the cycle thread.
+//! may block — the controller's saving thread ([`super::saver`]), never the cycle thread.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use gantry_kernel::homing::{MoveHome, MoveHomeCall};
+use gantry_kernel::axis::Dynamics;
+use gantry_kernel::homing::{MoveHome, MoveHomeCall, StepAbsoluteSwitch};
+use thiserror::Error;
 
-use super::params::{AxisParams, PositionOffset, PtpParams, ScalingStamp};
+use super::params::{AxisParams, NotGiven, PositionOffset, PtpParams, ScalingStamp};
 use super::store::Store;
 use super::PersistError;
 use crate::config::{Config, Encoder};
 use crate::runtime::protocol::Snapshot;
-use crate::service::protocol::HomeParams;
+use crate::service::protocol::{HomeMethod, HomeParams, StepSwitchParams};
 
 /// What one axis remembers.
 #[derive(Clone, Debug)]
 struct Memory {
     /// The homing parameters a call without any runs with.
     home: MoveHome,
+    /// The step-to-absolute-switch run a call without parameters repeats (none yet).
+    step: Option<StepAbsoluteSwitch>,
+    /// The homing run a call without a method repeats.
+    method: HomeMethod,
+    /// The axis' default dynamics (step-to-absolute-switch's defaults).
+    defaults: Dynamics,
     /// The dynamics a move that leaves them out runs with (those ever given).
     ptp: PtpParams,
     /// The position offset last saved (absolute axes).
@@ -52,6 +61,25 @@ pub enum StartPosition {
         /// Whether the configuration asked for it homed.
         homed_at_start: bool,
     },
+}
+
+/// Why a step-to-absolute-switch call has no run.
+#[derive(Clone, Debug, Error, PartialEq, Eq)]
+pub enum StepSwitchNotGiven {
+    /// It leaves out a parameter with no default, and the axis has none saved.
+    #[error(
+        "step-to-absolute-switch homing: no {parameter} given, and axis {axis:?} has none \
+         saved (its first step-to-switch homing names direction, switch mode and velocity)"
+    )]
+    Parameter {
+        /// The axis.
+        axis: String,
+        /// The parameter.
+        parameter: &'static str,
+    },
+    /// No such axis among the saved ones (the controller and the configuration disagree).
+    #[error("axis {0} has no saved parameters")]
+    NoAxis(usize),
 }
 
 /// The service's saved parameters of every axis.
@@ -94,10 +122,16 @@ impl Saved {
                 let defaults = k
                     .move_home
                     .unwrap_or_else(|| MoveHome::defaults(k.max.vmax, k.max.amax, k.max.jmax));
+                // A saved set is whole (the file holds every parameter); a file edited
+                // by hand to leave one out gets its default.
+                let step = p.step_switch.and_then(|s| s.merged(None, &k.defaults).ok());
                 Memory {
                     home: p
                         .home
                         .map_or(defaults, |h| MoveHomeCall::from(h).merged(&defaults)),
+                    step,
+                    method: p.home_method.unwrap_or_default(),
+                    defaults: k.defaults,
                     ptp: p.ptp.unwrap_or_default(),
                     offset: p.position.map(|o| o.offset),
                     commutation: p.commutation_offset,
@@ -165,18 +199,69 @@ impl Saved {
         self.lock().get(axis).map(|m| call.merged(&m.home))
     }
 
-    /// A homing call with parameters was accepted by the axis: they are the saved ones
-    /// from now on. Blocks to write the file (see the module's doc); `Ok(None)` without a
+    /// A MoveHome call was accepted by the axis: MoveHome is the homing run a call
+    /// without a method repeats, and `run` the saved parameters from now on when the call
+    /// `gave` some. Blocks to write the file (see the module's doc); `Ok(None)` without a
     /// state directory.
     pub fn home_accepted(
         &self,
         axis: usize,
         run: MoveHome,
+        gave: bool,
     ) -> Result<Option<PathBuf>, PersistError> {
         if let Some(m) = self.lock().get_mut(axis) {
-            m.home = run;
+            if gave {
+                m.home = run;
+            }
+            m.method = HomeMethod::MoveHome;
         }
-        self.save(axis, |p| p.home = Some(HomeParams::from(run)))
+        self.save(axis, |p| {
+            if gave {
+                p.home = Some(HomeParams::from(run));
+            }
+            // Absent is MoveHome (and keeps a file without step-to-switch homing format 1).
+            p.home_method = None;
+        })
+    }
+
+    /// The homing run a `home` call that names no method repeats: the axis' last.
+    pub fn home_method(&self, axis: usize) -> HomeMethod {
+        self.lock().get(axis).map(|m| m.method).unwrap_or_default()
+    }
+
+    /// The step-to-absolute-switch run a call asks for: what it gives, the saved ones for
+    /// the rest, the axis' defaults for what neither has; a parameter without a default
+    /// (direction, switch mode, velocity) that neither has is refused by name.
+    pub fn step_switch_run(
+        &self,
+        axis: usize,
+        call: &StepSwitchParams,
+    ) -> Result<StepAbsoluteSwitch, StepSwitchNotGiven> {
+        let memory = self.lock();
+        let m = memory.get(axis).ok_or(StepSwitchNotGiven::NoAxis(axis))?;
+        call.merged(m.step.as_ref(), &m.defaults)
+            .map_err(|NotGiven(parameter)| StepSwitchNotGiven::Parameter {
+                axis: self.name(axis).to_string(),
+                parameter,
+            })
+    }
+
+    /// A step-to-absolute-switch call was accepted by the axis: `run` is the saved set,
+    /// and step-to-switch the homing run a call without a method repeats, from now on.
+    /// Blocks to write the file.
+    pub fn step_switch_accepted(
+        &self,
+        axis: usize,
+        run: StepAbsoluteSwitch,
+    ) -> Result<Option<PathBuf>, PersistError> {
+        if let Some(m) = self.lock().get_mut(axis) {
+            m.step = Some(run);
+            m.method = HomeMethod::StepToSwitch;
+        }
+        self.save(axis, |p| {
+            p.step_switch = Some(StepSwitchParams::from(run));
+            p.home_method = Some(HomeMethod::StepToSwitch);
+        })
     }
 
     /// The dynamics a move runs with: those it gives, the saved ones for the rest.
@@ -331,7 +416,10 @@ mod tests {
         };
         let run = saved.home_run(0, &call).unwrap();
         assert_eq!(run.normal_position, 7.0);
-        assert_eq!(saved.home_accepted(0, run).unwrap(), Some(s.path_of("x")));
+        assert_eq!(
+            saved.home_accepted(0, run, true).unwrap(),
+            Some(s.path_of("x"))
+        );
         // Restarted: the kernel starts with them, and an empty call runs them.
         let again = Saved::load(Some(s.clone()), &c).unwrap();
         assert_eq!(again.home_run(0, &MoveHomeCall::default()), Some(run));
@@ -343,6 +431,87 @@ mod tests {
             c.kernel_axes[1].move_home,
             Some(MoveHome::defaults(k.max.vmax, k.max.amax, k.max.jmax))
         );
+        let _ = std::fs::remove_dir_all(s.dir());
+    }
+
+    #[test]
+    fn step_switch_homing_and_the_last_homing_run_are_kept_across_a_restart() {
+        use crate::service::protocol::{StepDirection, StepSwitchMode};
+        use gantry_kernel::homing::{HomeDirection, SwitchMode};
+        let s = store("step");
+        let c = config("");
+        let saved = Saved::load(Some(s.clone()), &c).unwrap();
+        assert_eq!(saved.home_method(0), HomeMethod::MoveHome);
+        // Nothing saved: direction, switch mode and velocity are needed.
+        let e = saved
+            .step_switch_run(0, &StepSwitchParams::default())
+            .unwrap_err();
+        assert_eq!(
+            e,
+            StepSwitchNotGiven::Parameter {
+                axis: "x".into(),
+                parameter: "direction"
+            }
+        );
+        assert!(
+            e.to_string().contains("no direction given")
+                && e.to_string().contains("\"x\" has none saved"),
+            "{e}"
+        );
+        let call = StepSwitchParams {
+            direction: Some(StepDirection::Negative),
+            switch_mode: Some(StepSwitchMode::FallingEdge),
+            velocity: Some(4.0),
+            set_position: Some(2.0),
+            ..StepSwitchParams::default()
+        };
+        let run = saved.step_switch_run(0, &call).unwrap();
+        let k = &c.kernel_axes[0];
+        assert_eq!(
+            (run.direction, run.switch_mode, run.velocity, run.position),
+            (HomeDirection::Negative, SwitchMode::FallingEdge, 4.0, 2.0)
+        );
+        assert_eq!(
+            (run.acceleration, run.deceleration, run.jerk),
+            (
+                k.defaults.acceleration,
+                k.defaults.deceleration,
+                k.defaults.jerk
+            )
+        );
+        saved.step_switch_accepted(0, run).unwrap();
+        assert_eq!(saved.home_method(0), HomeMethod::StepToSwitch);
+        assert_eq!(saved.home_method(1), HomeMethod::MoveHome);
+        // Restarted: the run and the method are back; an empty call runs the saved set,
+        // a call that gives one parameter changes only that one.
+        let again = Saved::load(Some(s.clone()), &c).unwrap();
+        assert_eq!(again.home_method(0), HomeMethod::StepToSwitch);
+        assert_eq!(
+            again.step_switch_run(0, &StepSwitchParams::default()),
+            Ok(run)
+        );
+        let faster = StepSwitchParams {
+            velocity: Some(8.0),
+            ..StepSwitchParams::default()
+        };
+        assert_eq!(
+            again
+                .step_switch_run(0, &faster)
+                .map(|r| (r.velocity, r.position)),
+            Ok((8.0, 2.0))
+        );
+        // A MoveHome call without parameters makes MoveHome the axis' run again and keeps
+        // the step-to-switch set for the next such call.
+        let home = again.home_run(0, &MoveHomeCall::default()).unwrap();
+        again.home_accepted(0, home, false).unwrap();
+        assert_eq!(again.home_method(0), HomeMethod::MoveHome);
+        let third = Saved::load(Some(s.clone()), &c).unwrap();
+        assert_eq!(third.home_method(0), HomeMethod::MoveHome);
+        assert_eq!(
+            third.step_switch_run(0, &StepSwitchParams::default()),
+            Ok(run)
+        );
+        assert_eq!(third.loaded()[0].home, None, "no MoveHome parameters given");
         let _ = std::fs::remove_dir_all(s.dir());
     }
 

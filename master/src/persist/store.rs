@@ -82,7 +82,7 @@ impl Store {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(source) => return Err(PersistError::Read { path, source }),
         };
-        let body = envelope::open(&bytes).map_err(|problem| PersistError::Corrupt {
+        let (format, body) = envelope::open(&bytes).map_err(|problem| PersistError::Corrupt {
             path: path.clone(),
             problem,
         })?;
@@ -90,6 +90,16 @@ impl Store {
             path: path.clone(),
             reason: e.message().to_string(),
         })?;
+        if params.format() > format {
+            return Err(PersistError::Content {
+                path,
+                reason: format!(
+                    "it holds step-to-absolute-switch homing (step_switch, home_method), \
+                     which format {format} has not (format {} has)",
+                    params.format()
+                ),
+            });
+        }
         if params.axis != axis {
             return Err(PersistError::WrongAxis {
                 path,
@@ -141,7 +151,8 @@ impl Store {
             path: path.clone(),
             reason: e.to_string(),
         })?;
-        write_atomically(&path, envelope::seal(&body).as_bytes(), FILE_MODE)
+        let sealed = envelope::seal(&body, params.format());
+        write_atomically(&path, sealed.as_bytes(), FILE_MODE)
             .map_err(|(step, source)| PersistError::Write { path, step, source })
     }
 }
@@ -166,7 +177,9 @@ mod tests {
         AxisParams {
             axis: axis.into(),
             commutation_offset: Some(-123_456),
+            home_method: None,
             home: Some(HomeParams::from(MoveHome::defaults(50.0, 500.0, 5000.0))),
+            step_switch: None,
             ptp: Some(PtpParams {
                 speed: Some(12.5),
                 acceleration: None,
@@ -282,8 +295,8 @@ mod tests {
         let path = s.path_of("x");
         let good = std::fs::read(&path).unwrap();
         let text = String::from_utf8(good.clone()).unwrap();
-        let reseal = |body: &str| envelope::seal(body).into_bytes();
-        let body = envelope::open(&good).unwrap().to_string();
+        let reseal = |body: &str| envelope::seal(body, 1).into_bytes();
+        let body = envelope::open(&good).unwrap().1.to_string();
         let cases: Vec<(&str, Vec<u8>)> = vec![
             ("empty", Vec::new()),
             ("cut in the middle", good[..good.len() / 2].to_vec()),
@@ -415,6 +428,103 @@ units_per_load_rev = 5.0
 invert = false
 # crc32 7a1f9420
 "#;
+
+    /// The parameters of [`FORMAT_2`].
+    fn step_switch_params() -> AxisParams {
+        use crate::service::protocol::{
+            HomeMethod, StepDirection, StepSwitchMode, StepSwitchParams,
+        };
+        AxisParams {
+            home_method: Some(HomeMethod::StepToSwitch),
+            step_switch: Some(StepSwitchParams {
+                direction: Some(StepDirection::SwitchNegative),
+                switch_mode: Some(StepSwitchMode::EdgeSwitchPositive),
+                velocity: Some(20.0),
+                acceleration: Some(2500.0),
+                deceleration: Some(40.0),
+                jerk: Some(50000.0),
+                set_position: Some(-12.5),
+                distance_limit: Some(f64::INFINITY),
+            }),
+            commutation_offset: Some(-123_456),
+            ..AxisParams::new("x")
+        }
+    }
+
+    /// A file of format 2 as this gantry wrote it (`Store::save` of
+    /// [`step_switch_params`], byte for byte).
+    const FORMAT_2: &str = r#"# gantry axis parameters, format 2
+axis = "x"
+commutation_offset = -123456
+home_method = "step-to-switch"
+
+[step_switch]
+direction = "switch-negative"
+switch_mode = "edge-switch-positive"
+velocity = 20.0
+acceleration = 2500.0
+deceleration = 40.0
+jerk = 50000.0
+set_position = -12.5
+distance_limit = inf
+# crc32 4a7a7f58
+"#;
+
+    #[test]
+    fn a_format_2_file_reads_and_writes_byte_for_byte() {
+        let s = store("fixture-2");
+        let p = step_switch_params();
+        s.save(&p).unwrap();
+        let written = std::fs::read_to_string(s.path_of("x")).unwrap();
+        assert_eq!(written, FORMAT_2);
+        std::fs::write(s.path_of("x"), FORMAT_2).unwrap();
+        assert_eq!(s.load("x").unwrap(), Some(p));
+        let _ = std::fs::remove_dir_all(s.dir().parent().unwrap());
+    }
+
+    #[test]
+    fn a_file_is_format_2_only_while_it_holds_step_switch_homing() {
+        let s = store("formats");
+        // Format 1 with a commutation offset; a step-to-switch homing saved: format 2,
+        // the rest kept.
+        s.update("x", |p| p.commutation_offset = Some(5)).unwrap();
+        let first_line = || {
+            let text = std::fs::read_to_string(s.path_of("x")).unwrap();
+            text.lines().next().unwrap().to_string()
+        };
+        assert_eq!(first_line(), "# gantry axis parameters, format 1");
+        let step = step_switch_params();
+        s.update("x", |p| {
+            p.step_switch = step.step_switch;
+            p.home_method = step.home_method;
+        })
+        .unwrap();
+        assert_eq!(first_line(), "# gantry axis parameters, format 2");
+        let p = s.load("x").unwrap().unwrap();
+        assert_eq!(p.commutation_offset, Some(5));
+        assert_eq!(p.step_switch, step.step_switch);
+        // MoveHome again: the method is MoveHome (absent), the step-to-switch set kept
+        // for the next such call, so still format 2.
+        s.update("x", |p| p.home_method = None).unwrap();
+        assert_eq!(first_line(), "# gantry axis parameters, format 2");
+        s.update("x", |p| p.step_switch = None).unwrap();
+        assert_eq!(first_line(), "# gantry axis parameters, format 1");
+        // A format-1 file with format 2's content (edited by hand, resealed) is refused:
+        // its first line does not say what it holds.
+        let body = toml::to_string(&step).unwrap();
+        std::fs::write(s.path_of("x"), envelope::seal(&body, 1)).unwrap();
+        let e = s.load("x").unwrap_err();
+        assert!(matches!(e, PersistError::Content { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .contains("which format 1 has not (format 2 has)"),
+            "{e}"
+        );
+        // The same body under format 2 is good.
+        std::fs::write(s.path_of("x"), envelope::seal(&body, 2)).unwrap();
+        assert_eq!(s.load("x").unwrap(), Some(step));
+        let _ = std::fs::remove_dir_all(s.dir().parent().unwrap());
+    }
 
     #[test]
     fn a_format_1_file_reads_and_writes_byte_for_byte() {

@@ -1,7 +1,10 @@
 //! The application's handle on the cycle: usable from any thread and from async code.
 //! Commands go to the cycle thread through the SPSC queue (behind a mutex on *this* side
 //! only: the cycle thread never waits for it); their status comes back in the latest
-//! snapshot, which [`CommandHandle`] reads.
+//! snapshot, which [`CommandHandle`] reads. A controller given the axes' saved parameters
+//! ([`Controller::saving_to`]) fills in what homing and point-to-point commands leave out
+//! from them and saves what the axes accept ([`crate::persist::saver`]), whoever sends
+//! the command.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -15,6 +18,8 @@ use super::engine::AppEnds;
 use super::protocol::{Request, SdoDone, SdoJob, Snapshot, TraceSample};
 use super::sdo::{SdoRequest, SdoResult};
 use super::stats::{CycleCounters, CycleFigures, FigureBook};
+use crate::persist::saver::Saver;
+use crate::persist::Saved;
 
 /// Why a request did not reach the cycle.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]
@@ -58,6 +63,7 @@ struct Shared {
 #[derive(Clone)]
 pub struct Controller {
     shared: Arc<Shared>,
+    saver: Option<Arc<Saver>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -82,7 +88,28 @@ impl Controller {
                 next_id: AtomicU64::new(1),
                 axes,
             }),
+            saver: None,
         }
+    }
+
+    /// This controller saving into `saved`: a homing or point-to-point command sent
+    /// through it runs with the saved values for what it leaves out, and what the axis
+    /// accepts is saved ([`crate::persist::saver`]). Clones made before do not save. A
+    /// controller already saving into `saved` is returned as it is.
+    pub fn saving_to(mut self, saved: Arc<Saved>) -> std::io::Result<Self> {
+        if !self
+            .saver
+            .as_ref()
+            .is_some_and(|s| Arc::ptr_eq(s.saved(), &saved))
+        {
+            self.saver = Some(Saver::new(saved)?);
+        }
+        Ok(self)
+    }
+
+    /// The saver, when this controller saves.
+    pub fn saver(&self) -> Option<&Arc<Saver>> {
+        self.saver.as_ref()
     }
 
     /// Axis names, in order.
@@ -110,9 +137,19 @@ impl Controller {
         })
     }
 
-    /// Sends `command` to axis `axis`.
+    /// Sends `command` to axis `axis` (saving what it is to save, see
+    /// [`Controller::saving_to`]).
     pub fn command(&self, axis: usize, command: Command) -> Result<CommandHandle, ControlError> {
-        self.send(|id| Request::Axis { id, axis, command })
+        let Some(saver) = &self.saver else {
+            return self.send(|id| Request::Axis { id, axis, command });
+        };
+        let (command, save) = saver.prepare(axis, command);
+        let h = self.send(|id| Request::Axis { id, axis, command })?;
+        if let Some(save) = save {
+            let name = self.shared.axes.get(axis).cloned().unwrap_or_default();
+            saver.submit(h.clone(), axis, name, save);
+        }
+        Ok(h)
     }
 
     /// Runs `procedure` on axis `axis`' drive, out of CSP ([`super::procedure`]): the

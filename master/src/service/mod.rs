@@ -425,7 +425,14 @@ pub fn run(
         Err(_) => return Err(ServiceError::CycleThread("ended at start")),
     };
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
-    let controller = Controller::new(ends, names);
+    // Homing and move parameters are filled in and saved by the controller, whoever
+    // sends the command.
+    let controller = Controller::new(ends, names)
+        .saving_to(saved.clone())
+        .map_err(|source| ServiceError::Start {
+            what: "the thread that saves axis parameters",
+            source,
+        })?;
     restore_positions(&config, &saved, &controller, out);
     restore_commutation(&config, &saved, &controller, out);
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -497,6 +504,16 @@ pub fn run(
         state.end_recordings(Duration::from_secs(2)).await;
         server.abort();
     });
+    // A save of a command the axis took just before the end is written before gantry ends.
+    if let Some(saver) = controller.saver() {
+        if !saver.settle(Duration::from_secs(5)) {
+            let _ = writeln!(
+                out,
+                "gantry: parameters of the last commands may not be saved (their saves did \
+                 not finish within 5 s)"
+            );
+        }
+    }
     let _ = std::fs::remove_file(&args.socket);
     cycle_thread
         .join()

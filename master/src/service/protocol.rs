@@ -167,6 +167,41 @@ pub struct HomeParams {
     pub normal_position: Option<f64>,
 }
 
+/// Beckhoff step-to-absolute-switch's parameters (MC_StepAbsoluteSwitch: search the
+/// reference cam, reversing at the limit switches) as a `home` request carries them
+/// (`"step_switch": {…}`); each one left out is the axis' saved value (the last such
+/// call's), else its default: the axis' default acceleration, deceleration and jerk, a
+/// set position of 0 and no distance limit. Direction, switch mode and velocity have no
+/// default: the axis' first step-to-switch call names them.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StepSwitchParams {
+    /// How the run starts (Direction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<StepDirection>,
+    /// Which crossing of the cam ends it (SwitchMode).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub switch_mode: Option<StepSwitchMode>,
+    /// Search speed (Velocity, units/s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<f64>,
+    /// Acceleration (units/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Deceleration (units/s²): also how hard the search reverses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deceleration: Option<f64>,
+    /// Jerk (units/s³).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jerk: Option<f64>,
+    /// The position the cam's edge gets (SetPosition, units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub set_position: Option<f64>,
+    /// Farthest the search may travel (DistanceLimit, units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance_limit: Option<f64>,
+}
+
 /// Drive homing's parameters as a `drive_home` request carries them (`"params": {…}`);
 /// each one left out is the axis' `[axis.drive_homing]` value.
 #[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq)]
@@ -235,6 +270,87 @@ impl Word for HomeSwitches {
     ];
 }
 word_impls!(HomeSwitches);
+
+/// How a step-to-absolute-switch run starts (Beckhoff MC_Home_Direction).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepDirection {
+    /// Start positive, reversing at a limit switch (mcPositiveDirection).
+    Positive,
+    /// Start negative (mcNegativeDirection).
+    Negative,
+    /// Off the cam start positive; on it first leave it negative (mcSwitchPositive).
+    SwitchPositive,
+    /// Off the cam start negative; on it first leave it positive (mcSwitchNegative).
+    SwitchNegative,
+}
+
+impl Word for StepDirection {
+    const FIELD: &'static str = "direction";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("positive", Self::Positive),
+        ("negative", Self::Negative),
+        ("switch-positive", Self::SwitchPositive),
+        ("switch-negative", Self::SwitchNegative),
+        ("+", Self::Positive),
+        ("-", Self::Negative),
+    ];
+}
+word_impls!(StepDirection);
+
+/// Which crossing of the cam ends a step-to-absolute-switch run (Beckhoff MC_Switch_Mode).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepSwitchMode {
+    /// Where the cam signal is on (mcOn).
+    On,
+    /// Where the cam signal is off (mcOff).
+    Off,
+    /// The rising edge, moving in the set direction (mcRisingEdge).
+    RisingEdge,
+    /// The falling edge, moving in the set direction (mcFallingEdge).
+    FallingEdge,
+    /// The rising edge, moving against the set direction (mcRisingEdgeInverse).
+    RisingEdgeInverse,
+    /// The falling edge, moving against the set direction (mcFallingEdgeInverse).
+    FallingEdgeInverse,
+    /// The cam's negative edge, whichever way (mcEdgeSwitchPositive).
+    EdgeSwitchPositive,
+    /// The cam's positive edge, whichever way (mcEdgeSwitchNegative).
+    EdgeSwitchNegative,
+}
+
+impl Word for StepSwitchMode {
+    const FIELD: &'static str = "switch_mode";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("on", Self::On),
+        ("off", Self::Off),
+        ("rising-edge", Self::RisingEdge),
+        ("falling-edge", Self::FallingEdge),
+        ("rising-edge-inverse", Self::RisingEdgeInverse),
+        ("falling-edge-inverse", Self::FallingEdgeInverse),
+        ("edge-switch-positive", Self::EdgeSwitchPositive),
+        ("edge-switch-negative", Self::EdgeSwitchNegative),
+    ];
+}
+word_impls!(StepSwitchMode);
+
+/// Which homing run the master does (a `home` request's, the axis' last one).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HomeMethod {
+    /// Jetter MoveHome.
+    #[default]
+    MoveHome,
+    /// Beckhoff step-to-absolute-switch (MC_StepAbsoluteSwitch).
+    StepToSwitch,
+}
+
+impl Word for HomeMethod {
+    const FIELD: &'static str = "home_method";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("move-home", Self::MoveHome),
+        ("step-to-switch", Self::StepToSwitch),
+    ];
+}
+word_impls!(HomeMethod);
 
 /// Which commissioning procedure a `commission` request runs (seed 000 §5.2.6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -439,14 +555,20 @@ pub enum Request {
         /// The position the axis is at now.
         position: f64,
     },
-    /// A homing run (Jetter MoveHome) on the axis' switches and its drive's touch probe;
-    /// every parameter left out is the axis' saved one (see [`HomeParams`]).
+    /// A homing run on the axis' switches and its drive's touch probe: Jetter MoveHome
+    /// when `params` is given (even `{}`), Beckhoff step-to-absolute-switch when
+    /// `step_switch` is; with neither, the axis' last homing run of the two (MoveHome when
+    /// it has had none). Every parameter left out is the axis' saved one (see
+    /// [`HomeParams`], [`StepSwitchParams`]). The reply names the run's `method`.
     Home {
         /// Axis name.
         axis: String,
-        /// The run's parameters.
-        #[serde(default)]
-        params: HomeParams,
+        /// MoveHome's parameters.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        params: Option<HomeParams>,
+        /// Step-to-absolute-switch's parameters.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        step_switch: Option<StepSwitchParams>,
     },
     /// A commissioning procedure on the axis (`gantry commission`); it runs on in the
     /// service, `procedure` follows it, `stop` on the axis cancels it.
@@ -733,7 +855,8 @@ mod tests {
             },
             Request::Home {
                 axis: axis(),
-                params: HomeParams {
+                step_switch: None,
+                params: Some(HomeParams {
                     direction: Some(JogDirection::Negative),
                     switches: Some(HomeSwitches::RefAndLimit),
                     mode: Some(HomeMode::Edge2),
@@ -745,7 +868,27 @@ mod tests {
                     jerk: Some(4000.0),
                     reference_offset: Some(-3.0),
                     normal_position: Some(5.0),
-                },
+                }),
+            },
+            Request::Home {
+                axis: axis(),
+                params: None,
+                step_switch: Some(StepSwitchParams {
+                    direction: Some(StepDirection::SwitchNegative),
+                    switch_mode: Some(StepSwitchMode::FallingEdgeInverse),
+                    velocity: Some(20.0),
+                    acceleration: Some(200.0),
+                    deceleration: Some(40.0),
+                    jerk: Some(4000.0),
+                    set_position: Some(-7.5),
+                    distance_limit: Some(300.0),
+                }),
+            },
+            // The axis' last homing run, with its saved parameters.
+            Request::Home {
+                axis: axis(),
+                params: None,
+                step_switch: None,
             },
             Request::Commission {
                 axis: axis(),
@@ -853,6 +996,86 @@ mod tests {
         }
         assert_eq!(JogDirection::Positive.to_string(), "+");
         assert_eq!(BufferMode::BlendingHigh.to_string(), "blending-high");
+        for &(word, direction) in StepDirection::NAMES {
+            for &(_, switch_mode) in StepSwitchMode::NAMES {
+                let r = Request::Home {
+                    axis: "a".into(),
+                    params: None,
+                    step_switch: Some(StepSwitchParams {
+                        direction: Some(direction),
+                        switch_mode: Some(switch_mode),
+                        ..StepSwitchParams::default()
+                    }),
+                };
+                assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+            }
+            assert_eq!(word.parse::<StepDirection>().unwrap(), direction);
+        }
+        assert_eq!(StepDirection::SwitchNegative.to_string(), "switch-negative");
+        assert_eq!(
+            StepSwitchMode::FallingEdgeInverse.to_string(),
+            "falling-edge-inverse"
+        );
+        for &(word, method) in HomeMethod::NAMES {
+            assert_eq!(word.parse::<HomeMethod>().unwrap(), method);
+            assert_eq!(method.to_string(), word);
+        }
+    }
+
+    #[test]
+    fn a_home_request_names_its_run_or_leaves_it_to_the_axis() {
+        let home = |params, step_switch| Request::Home {
+            axis: "x".into(),
+            params,
+            step_switch,
+        };
+        // What the version-1 CLI sent for `gantry home x`: MoveHome, its saved parameters.
+        assert_eq!(
+            parse(r#"{"axis":"x","cmd":"home","params":{},"v":1}"#).unwrap(),
+            home(Some(HomeParams::default()), None)
+        );
+        // Neither: the axis' last homing run.
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x"}"#).unwrap(),
+            home(None, None)
+        );
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x","params":null}"#).unwrap(),
+            home(None, None)
+        );
+        assert_eq!(
+            parse(r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"velocity":5}}"#).unwrap(),
+            home(
+                None,
+                Some(StepSwitchParams {
+                    velocity: Some(5.0),
+                    ..StepSwitchParams::default()
+                })
+            )
+        );
+        // A request without a run goes out without either field.
+        let line = home(None, None).to_line().unwrap();
+        assert!(
+            !line.contains("params") && !line.contains("step_switch"),
+            "{line}"
+        );
+        for (line, says) in [
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"switch_mode":"edge"}}"#,
+                r#"switch_mode "edge" is not one of "on", "off", "rising-edge""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"direction":"up"}}"#,
+                r#"direction "up" is not one of "positive", "negative", "switch-positive""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"home","axis":"x","step_switch":{"speed":5}}"#,
+                "unknown field `speed`",
+            ),
+        ] {
+            let e = refusal(line);
+            assert!(e.contains(says), "{line}\n  said: {e}\n  want: {says}");
+        }
     }
 
     #[test]

@@ -23,15 +23,15 @@ use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
-    self, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection,
-    MoveMode, Request, SdoDirection, MAX_LINE,
+    self, CommissionKind, DriveHomeParams, HomeMethod, HomeMode, HomeParams, HomeSwitches,
+    JogDirection, MoveMode, Request, SdoDirection, Word, MAX_LINE,
 };
 use crate::commission::{
     CommissionError, CommutationSettings, Procedure, ProcedureHandle, ProcedureOutcome, Reversing,
 };
 use crate::config::{Config, DriveHomingSection};
 use crate::error_chain::Chain;
-use crate::persist::{PersistError, PtpParams, Saved};
+use crate::persist::{Saved, StepSwitchNotGiven};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::protocol::{Snapshot, TraceSample};
@@ -61,13 +61,20 @@ pub struct ServerState {
 }
 
 impl ServerState {
-    /// Shared state for a server that saves nothing.
+    /// Shared state for a server that saves nothing to files: the axes' parameters are
+    /// remembered while it runs (when the system gives the controller its saving thread).
     pub fn new(controller: Controller, config: Config, real_time: bool) -> Arc<Self> {
         let saved = Arc::new(Saved::none(&config));
+        let controller = controller
+            .clone()
+            .saving_to(saved.clone())
+            .unwrap_or(controller);
         Self::with_saved(controller, config, real_time, saved)
     }
 
-    /// Shared state for a server that saves the axes' parameters in `saved`.
+    /// Shared state for a server that saves the axes' parameters in `saved`; `controller`
+    /// saves into it ([`Controller::saving_to`]), so that what the requests leave out and
+    /// what the axes accept are the same set, through the socket or not.
     pub fn with_saved(
         controller: Controller,
         config: Config,
@@ -226,6 +233,14 @@ pub enum Refused {
     /// disagree: a bug).
     #[error("axis {0:?} has no configuration")]
     NoConfig(String),
+    /// A `home` request that asks for two homing runs.
+    #[error(
+        "home: MoveHome's params and step_switch both given; a homing run is one or the other"
+    )]
+    TwoHomings,
+    /// A step-to-absolute-switch call without a parameter it needs.
+    #[error(transparent)]
+    StepSwitch(#[from] StepSwitchNotGiven),
     /// A drive homing parameter is missing or wrong.
     #[error("{key}: {reason}")]
     DriveHoming {
@@ -562,26 +577,13 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             };
             let mut m = MovePtp::new(mode, number("to", to)?).buffered(buffer.into());
             // What the move leaves out: the saved dynamics of the last moves (Jetter's
-            // rule, across restarts), then the axis' own.
-            let given = PtpParams {
-                speed,
-                acceleration,
-                deceleration,
-                jerk,
-            };
-            let used = state.saved.ptp_used(i, given);
-            m.speed = used.speed;
-            m.acceleration = used.acceleration;
-            m.deceleration = used.deceleration;
-            m.jerk = used.jerk;
-            let h = ctl.command(i, Command::MovePtp(m))?;
-            if given != PtpParams::default() {
-                let saved = state.saved.clone();
-                save_if_accepted(h.clone(), a, "point-to-point parameters", move || {
-                    saved.ptp_accepted(i, used)
-                });
-            }
-            sent(Ok(h))
+            // rule, across restarts; the controller fills them in and saves what the
+            // axis takes), then the axis' own.
+            m.speed = speed;
+            m.acceleration = acceleration;
+            m.deceleration = deceleration;
+            m.jerk = jerk;
+            sent(ctl.command(i, Command::MovePtp(m)))
         }
         Request::Jog {
             axis: a,
@@ -667,21 +669,33 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
         Request::Reset { axis: a } => sent(ctl.reset(axis(&a)?)),
         // The kernel checks every operand (finite, > 0 where it must be) and says which.
         // What the call leaves out are the saved parameters (seed 000 §6.3.2, across
-        // restarts); a call that gives some saves the whole set once the axis took it.
-        Request::Home { axis: a, params } => {
+        // restarts: the controller fills MoveHome's in and saves what the axis takes); a
+        // call that names no homing run repeats the axis' last.
+        Request::Home {
+            axis: a,
+            params,
+            step_switch,
+        } => {
             let i = axis(&a)?;
-            let call = MoveHomeCall::from(params);
-            let Some(run) = state.saved.home_run(i, &call) else {
-                return sent(ctl.command(i, Command::MoveHome(call)));
+            let method = match (&params, &step_switch) {
+                (Some(_), Some(_)) => return Err(Refused::TwoHomings),
+                (Some(_), None) => HomeMethod::MoveHome,
+                (None, Some(_)) => HomeMethod::StepToSwitch,
+                (None, None) => state.saved.home_method(i),
             };
-            let h = ctl.command(i, Command::MoveHome(MoveHomeCall::all(run)))?;
-            if params != HomeParams::default() {
-                let saved = state.saved.clone();
-                save_if_accepted(h.clone(), a, "homing parameters", move || {
-                    saved.home_accepted(i, run)
-                });
-            }
-            sent(Ok(h))
+            let command = match method {
+                HomeMethod::MoveHome => {
+                    Command::MoveHome(MoveHomeCall::from(params.unwrap_or_default()))
+                }
+                HomeMethod::StepToSwitch => Command::StepAbsoluteSwitch(
+                    state
+                        .saved
+                        .step_switch_run(i, &step_switch.unwrap_or_default())?,
+                ),
+            };
+            let mut reply = sent(ctl.command(i, command))?;
+            reply["method"] = json!(method.name());
+            Ok(reply)
         }
         Request::DriveHome { axis: a, params } => {
             let i = axis(&a)?;
@@ -871,60 +885,6 @@ impl From<HomeParams> for MoveHomeCall {
             normal_position: p.normal_position,
         }
     }
-}
-
-/// Once the cycle has taken command `h` for axis `axis`: unless the axis refused it (its
-/// parameters are then not the axis' and must not be saved), runs `save` — a blocking
-/// file write — off the runtime's threads; a failure is reported on the service's
-/// output (the command itself goes on).
-fn save_if_accepted(
-    h: CommandHandle,
-    axis: String,
-    what: &'static str,
-    save: impl FnOnce() -> Result<Option<PathBuf>, PersistError> + Send + 'static,
-) {
-    tokio::spawn(async move {
-        let end = tokio::time::Instant::now() + Duration::from_secs(10);
-        let status = loop {
-            if let Some(s) = h.status() {
-                break s;
-            }
-            if tokio::time::Instant::now() >= end {
-                return;
-            }
-            tokio::time::sleep(Duration::from_millis(2)).await;
-        };
-        match status {
-            CommandStatus::Error(e) if !failed_after_start(&e) => return,
-            CommandStatus::Expired => return,
-            _ => {}
-        }
-        match tokio::task::spawn_blocking(save).await {
-            Ok(Ok(_)) => {}
-            Ok(Err(e)) => {
-                use std::io::Write;
-                let _ = writeln!(
-                    std::io::stdout(),
-                    "gantry: axis {axis}: {what} not saved: {}",
-                    Chain(&e)
-                );
-            }
-            Err(_) => {}
-        }
-    });
-}
-
-/// Whether a command's error came after the axis took it (its parameters were then the
-/// axis', and are saved): the run failed — a homing search, a limit switch, a fault, the
-/// target not reached — as opposed to the command being refused at once.
-fn failed_after_start(e: &CommandError) -> bool {
-    matches!(
-        e,
-        CommandError::Homing(_)
-            | CommandError::LimitSwitch { .. }
-            | CommandError::AxisFault { .. }
-            | CommandError::TargetNotReached { .. }
-    )
 }
 
 fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
