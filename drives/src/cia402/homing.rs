@@ -324,11 +324,7 @@ impl DriveHoming {
                 still,
                 result,
             } => {
-                let still = if (i64::from(io.position) - i64::from(last)).abs() <= 1 {
-                    still + 1
-                } else {
-                    0
-                };
+                let still = steps_still(io, last, still);
                 if still >= SETTLE_STEPS || io.now_s - since > HALT_TIMEOUT_S {
                     self.phase = Phase::Reenable {
                         since: io.now_s,
@@ -367,11 +363,7 @@ impl DriveHoming {
                 still,
                 result,
             } => {
-                let still = if (i64::from(io.position) - i64::from(last)).abs() <= 1 {
-                    still + 1
-                } else {
-                    0
-                };
+                let still = steps_still(io, last, still);
                 if still >= SETTLE_STEPS || io.now_s - since > SETTLE_TIMEOUT_S {
                     self.phase = Phase::Leave {
                         switch: ModeSwitch::to(ModeOfOperation::CyclicSyncPosition),
@@ -433,6 +425,15 @@ impl DriveHoming {
             result,
         };
         ProcedureStep::hold(Some(ProcedureOutputs::idle(ModeOfOperation::Homing)))
+    }
+}
+
+/// Steps in a row the position has stood within a count of `last` (`still` before).
+fn steps_still(io: &ProcedureInputs, last: i32, still: u32) -> u32 {
+    if (i64::from(io.position) - i64::from(last)).abs() <= 1 {
+        still + 1
+    } else {
+        0
     }
 }
 
