@@ -208,6 +208,10 @@ pub struct ServoConfig {
     /// default). A longer one serves a slow client (a Python master in an emulated VM
     /// acknowledging a sub-block of 127 segments).
     pub sdo_timeout_ms: u32,
+    /// On a CAN bus: receive and transmit PDOs it has, each way (1..=8; 4 by default,
+    /// the predefined connection set's, what most CiA 402 drives have). PDOs 5 and up
+    /// power up invalid without a COB-ID: the master gives them one.
+    pub pdo_count: u8,
     /// How fast its distributed clock's oscillator runs against true time (ppm;
     /// negative: slow). A real quartz is off by tens of ppm: the first DC slave's is
     /// the network's reference, which the master's cycle has to follow.
@@ -416,6 +420,7 @@ impl Default for ServoConfig {
             sync_timeout_periods: crate::canopen::node::SYNC_TIMEOUT_PERIODS,
             recorder_bytes: 0,
             sdo_timeout_ms: 1000,
+            pdo_count: crate::canopen::pdo::DEFAULT_PDO_COUNT,
             dc_drift_ppm: 0.0,
             commutation_offset: p.commutation_offset,
             bandwidth_hz: p.velocity_loop_hz,

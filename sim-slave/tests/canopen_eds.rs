@@ -182,6 +182,44 @@ fn the_eds_describes_what_the_node_serves_and_nothing_else() {
     assert_eq!(e.entry(0x2103, 0).unwrap().data_type, DataType::Unsigned16);
 }
 
+/// A node with eight PDOs each way (chain `pdo_count = 8`) describes them all
+/// (`NrOfRXPDO`/`NrOfTXPDO` = 8, 0x1400–0x1407 … 0x1A00–0x1A07), PDOs 5–8 with the
+/// power-on COB-ID 0x80000000 (invalid, no identifier: not node-relative).
+#[test]
+fn the_eds_lists_every_pdo_the_node_has() {
+    let mut n = CanNode::new(CanNodeConfig {
+        pdo_count: 8,
+        ..CanNodeConfig::servo(id(5))
+    })
+    .unwrap();
+    let e = agrees_with_the_node(&mut n);
+    assert_eq!(e.max_pdos(PdoDirection::Receive), 8);
+    assert_eq!(e.max_pdos(PdoDirection::Transmit), 8);
+    for base in [0x1400u16, 0x1600, 0x1800, 0x1A00] {
+        assert!(e.object(base + 7).is_some(), "0x{:04X}", base + 7);
+        assert!(e.object(base + 8).is_none(), "0x{:04X}", base + 8);
+    }
+    for index in [0x1404u16, 0x1807] {
+        assert_eq!(
+            e.entry(index, 1).unwrap().default_value,
+            Some(Value::Integer(0x8000_0000)),
+            "0x{index:04X}:01"
+        );
+    }
+    assert_eq!(
+        e.entry(0x1803, 1).unwrap().default_value,
+        Some(Value::NodeRelative(0x8000_0480))
+    );
+    // A mapping of TPDO8 the EDS check accepts.
+    let statusword = MappingEntry::from_u32(0x6041_0010);
+    assert!(e
+        .check_pdo(PdoDirection::Transmit, 8, &[statusword])
+        .is_ok());
+    assert!(e
+        .check_pdo(PdoDirection::Transmit, 9, &[statusword])
+        .is_err());
+}
+
 /// A node with the recorder 0x2F00 (chain `recorder_bytes`) describes it as a read-only
 /// DOMAIN that no PDO maps; one without it does not describe it.
 #[test]

@@ -10,6 +10,7 @@ use gantry_drives::canopen::nmt::NmtCommand;
 use gantry_drives::canopen::sdo::AbortCode;
 use gantry_drives::cia402::objects::{self, ObjectId};
 use gantry_drives::cia402::pdo::mapping_entry;
+use gantry_sim::canopen::{CanNode, CanNodeConfig};
 
 const N: u8 = 9;
 const INVALID: u32 = 1 << 31;
@@ -20,6 +21,18 @@ fn entry(o: ObjectId) -> [u8; 4] {
 
 fn booted() -> Master {
     let mut m = Master::new(&[N]);
+    m.step(0);
+    m
+}
+
+/// Node `N` with `pdo_count` PDOs each way, booted.
+fn booted_with(pdo_count: u8) -> Master {
+    let node = CanNode::new(CanNodeConfig {
+        pdo_count,
+        ..CanNodeConfig::servo(id(N))
+    })
+    .unwrap();
+    let mut m = Master::with_nodes(vec![node]);
     m.step(0);
     m
 }
@@ -129,7 +142,7 @@ fn mapping_rules_and_every_refusal() {
     assert_eq!(w(&mut m, 0x1400, 0, &[2]), Err(AbortCode::READ_ONLY));
 }
 
-/// Maps PDO `n` (1..=4) of `comm`/`map` on `cob` with `objects`, transmission type `tt`.
+/// Maps the PDO of `comm`/`mapping` on `cob` with `objects`, transmission type `tt`.
 fn map(m: &mut Master, comm: u16, mapping: u16, cob: u32, objects: &[ObjectId], tt: u8) {
     m.write(N, comm, 1, &(INVALID | cob).to_le_bytes()).unwrap();
     m.write(N, mapping, 0, &[0]).unwrap();
@@ -472,4 +485,115 @@ fn emcy_cob_id_and_inhibit_time() {
         Emergency::parse(&on(&got, 0x0FF)[0]).unwrap().error_code,
         0x8210
     );
+}
+
+/// PDOs 5 and up (chain `pdo_count`, here 8): their objects exist up to the count and no
+/// further (0x06020000), they power up invalid with no identifier (0x80000000: CiA 301
+/// predefines four), they become valid only on an identifier that is not restricted
+/// (CiA 301 §7.3.5), their mapping follows the same procedure as the first four's, they
+/// carry data on SYNC like them, and reset communication takes them back to power-on.
+#[test]
+fn pdos_5_to_8_power_up_without_an_identifier_and_work_like_the_first_four() {
+    let mut m = booted_with(8);
+    let w = |m: &mut Master, i: u16, s: u8, d: &[u8]| m.write(N, i, s, d);
+    for index in [0x1404u16, 0x1407, 0x1804, 0x1807] {
+        assert_eq!(
+            m.read(N, index, 1).unwrap(),
+            INVALID.to_le_bytes(),
+            "0x{index:04X}"
+        );
+    }
+    for index in [0x1604u16, 0x1A07] {
+        assert_eq!(
+            m.read(N, index, 0).unwrap(),
+            [0],
+            "0x{index:04X} maps nothing"
+        );
+    }
+    for index in [0x1408u16, 0x1608, 0x1808, 0x1A08] {
+        assert_eq!(
+            m.read(N, index, 1),
+            Err(AbortCode::OBJECT_DOES_NOT_EXIST),
+            "0x{index:04X}"
+        );
+    }
+    // Valid without an identifier, or on a restricted one: refused.
+    for bad in [
+        0x000u32, 0x005, 0x101, 0x180, 0x589, 0x609, 0x6E0, 0x709, 0x7E5,
+    ] {
+        assert_eq!(
+            w(&mut m, 0x1804, 1, &bad.to_le_bytes()),
+            Err(AbortCode::INVALID_VALUE),
+            "0x{bad:03X}"
+        );
+    }
+    // TPDO5 on 0x1FE (TPDO1 of node 126), RPDO5 on 0x27E (RPDO1 of node 126).
+    map(
+        &mut m,
+        0x1804,
+        0x1A04,
+        0x1FE,
+        &[objects::STATUSWORD, objects::VELOCITY_ACTUAL_VALUE],
+        1,
+    );
+    map(
+        &mut m,
+        0x1404,
+        0x1604,
+        0x27E,
+        &[objects::TARGET_VELOCITY],
+        1,
+    );
+    // Valid: identifier and mapping fixed, as for the first four.
+    assert_eq!(
+        w(&mut m, 0x1804, 1, &0x1FDu32.to_le_bytes()),
+        Err(AbortCode::INVALID_VALUE)
+    );
+    assert_eq!(
+        w(&mut m, 0x1A04, 0, &[0]),
+        Err(AbortCode::CANNOT_STORE_DEVICE_STATE)
+    );
+    assert_eq!(m.read(N, 0x1A04, 0).unwrap(), [2]);
+    m.nmt(NmtCommand::Start, Some(N));
+    m.take_inbox();
+    m.send(&[frame(0x27E, &4321i32.to_le_bytes())]);
+    let sync = m.sync_frame();
+    m.send(&[sync]);
+    assert_eq!(m.read(N, 0x60FF, 0).unwrap(), 4321i32.to_le_bytes());
+    let got = m.take_inbox();
+    let tpdo5 = on(&got, 0x1FE);
+    assert_eq!(tpdo5.len(), 1, "TPDO5 at the SYNC");
+    assert_eq!(tpdo5[0].len(), 6, "statusword + velocity actual value");
+    // Reset communication: back to power-on, no identifier.
+    m.nmt(NmtCommand::ResetCommunication, Some(N));
+    assert_eq!(m.read(N, 0x1804, 1).unwrap(), INVALID.to_le_bytes());
+    assert_eq!(m.read(N, 0x1A04, 0).unwrap(), [0]);
+    assert_eq!(m.read(N, 0x1404, 1).unwrap(), INVALID.to_le_bytes());
+}
+
+/// A node has the four PDOs of the predefined connection set by default; 1 to 8 may be
+/// asked for, others are refused naming the node.
+#[test]
+fn the_pdo_count_defaults_to_four_and_is_bounded() {
+    let mut m = booted();
+    m.read(N, 0x1803, 1).unwrap();
+    assert_eq!(m.read(N, 0x1804, 1), Err(AbortCode::OBJECT_DOES_NOT_EXIST));
+    assert_eq!(
+        m.write(N, 0x1404, 1, &INVALID.to_le_bytes()),
+        Err(AbortCode::OBJECT_DOES_NOT_EXIST)
+    );
+    for bad in [0u8, 9] {
+        let e = CanNode::new(CanNodeConfig {
+            pdo_count: bad,
+            ..CanNodeConfig::servo(id(N))
+        })
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("CANopen node 9: pdo_count = {bad}: a simulated node has 1 to 8 PDOs each way")
+        );
+    }
+    let mut m = booted_with(2);
+    m.read(N, 0x1A01, 0).unwrap();
+    assert_eq!(m.read(N, 0x1A02, 0), Err(AbortCode::OBJECT_DOES_NOT_EXIST));
 }

@@ -38,6 +38,18 @@ pub fn can_config(nodes: &[u8], cycle_us: u32, pdo: &str) -> Config {
 
 /// [`can_config`] with more `[bus]` lines.
 pub fn can_config_with(nodes: &[u8], cycle_us: u32, pdo: &str, bus: &str) -> Config {
+    can_config_axes(nodes, cycle_us, pdo, bus, "")
+}
+
+/// [`can_config_with`] with `axis` (keys and tables of `[[axis]]`, e.g.
+/// `[axis.switches]`) after each axis.
+pub fn can_config_axes(nodes: &[u8], cycle_us: u32, pdo: &str, bus: &str, axis: &str) -> Config {
+    let text = can_config_text(nodes, cycle_us, pdo, bus, axis);
+    Config::parse(&text, "can.toml").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The text of [`can_config_axes`].
+pub fn can_config_text(nodes: &[u8], cycle_us: u32, pdo: &str, bus: &str, axis: &str) -> String {
     let mut text = format!(
         "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\n\
          cycle_us = {cycle_us}\n{bus}\n"
@@ -46,19 +58,27 @@ pub fn can_config_with(nodes: &[u8], cycle_us: u32, pdo: &str, bus: &str) -> Con
         text += &format!(
             "[[axis]]\nname = \"a{i}\"\nnode = {node}\npdo = \"{pdo}\"\n\
              scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n\
-             max = {{ speed = 200.0, acceleration = 2000.0, jerk = 20000.0 }}\n"
+             max = {{ speed = 200.0, acceleration = 2000.0, jerk = 20000.0 }}\n{axis}"
         );
     }
-    Config::parse(&text, "can.toml").unwrap_or_else(|e| panic!("{e}"))
+    text
 }
 
 /// Simulated servos with these node ids (heartbeat every 100 ms, as the configuration's
 /// default asks for anyway).
 pub fn servos(ids: &[u8]) -> Vec<CanNode> {
+    servos_with_pdos(ids, gantry_sim::canopen::pdo::DEFAULT_PDO_COUNT)
+}
+
+/// [`servos`] with `pdo_count` PDOs each way (the chain's `pdo_count`).
+pub fn servos_with_pdos(ids: &[u8], pdo_count: u8) -> Vec<CanNode> {
     ids.iter()
         .map(|&n| {
-            CanNode::new(CanNodeConfig::servo(NodeId::new(n).expect("node id")))
-                .expect("a simulated servo")
+            CanNode::new(CanNodeConfig {
+                pdo_count,
+                ..CanNodeConfig::servo(NodeId::new(n).expect("node id"))
+            })
+            .expect("a simulated servo")
         })
         .collect()
 }
@@ -172,6 +192,28 @@ impl CanRig {
     pub fn start_move(&mut self, axis: usize, to: f64) -> CommandHandle {
         let cmd = Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, to));
         self.ctl.command(axis, cmd).expect("queued")
+    }
+
+    /// Starts absolute moves of axes 0, 1, … to `targets`.
+    pub fn start_moves(&mut self, targets: &[f64]) -> Vec<CommandHandle> {
+        targets
+            .iter()
+            .enumerate()
+            .map(|(axis, &to)| self.start_move(axis, to))
+            .collect()
+    }
+
+    /// `index:sub` of `node` as its SDO server reads it, little-endian into a u32.
+    pub fn read_u32(&self, node: u8, index: u16, sub: u8) -> u32 {
+        let mut out = [0u8; 4];
+        let n = self
+            .sim()
+            .node_mut(node)
+            .read_object(index, sub, &mut out)
+            .unwrap_or_else(|e| panic!("node {node} 0x{index:04X}:{sub}: {e}"));
+        let mut b = [0u8; 4];
+        b[..n].copy_from_slice(&out[..n]);
+        u32::from_le_bytes(b)
     }
 
     /// The latest snapshot.

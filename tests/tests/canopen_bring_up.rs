@@ -13,15 +13,7 @@ use gantry_tests::can_rig::{can_config, servos, CanRig};
 
 /// `index:sub` of `node` as its SDO server reads it, little-endian into a u32.
 fn read(rig: &CanRig, node: u8, index: u16, sub: u8) -> u32 {
-    let mut sim = rig.sim();
-    let mut out = [0u8; 4];
-    let n = sim
-        .node_mut(node)
-        .read_object(index, sub, &mut out)
-        .unwrap_or_else(|e| panic!("node {node} 0x{index:04X}:{sub}: {e}"));
-    let mut b = [0u8; 4];
-    b[..n].copy_from_slice(&out[..n]);
-    u32::from_le_bytes(b)
+    rig.read_u32(node, index, sub)
 }
 
 #[test]

@@ -33,12 +33,7 @@ fn four_drives_move_ptp_on_sync_with_no_setpoint_missed() {
     }
     let targets = [[100.0, -40.0, 12.5, 250.0], [0.0, 33.3, -7.25, 1.0]];
     for round in targets {
-        let handles: Vec<_> = round
-            .iter()
-            .enumerate()
-            .map(|(axis, &to)| rig.start_move(axis, to))
-            .collect();
-        for (axis, h) in handles.iter().enumerate() {
+        for (axis, h) in rig.start_moves(&round).iter().enumerate() {
             let status = rig.finish(h, 10_000);
             assert_eq!(
                 status,

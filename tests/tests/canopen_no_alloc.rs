@@ -8,7 +8,6 @@
 //! which allocate nothing after they are built), so any allocation counted is the
 //! cycle's.
 
-use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 use gantry::canopen::CanopenBus;
@@ -23,7 +22,10 @@ use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
-use gantry_tests::can_rig::{can_config_with, servos, Nodes, NodesLink, QUEUE};
+use gantry_tests::can_rig::{
+    can_config_axes, can_config_with, servos, servos_with_pdos, Nodes, NodesLink,
+};
+use gantry_tests::homing::AXIS_SWITCHES_TOML;
 
 mod counting {
     include!("../../kernel/tests/common/counting_alloc.rs");
@@ -32,35 +34,82 @@ mod counting {
 #[global_allocator]
 static ALLOC: counting::Counting = counting::Counting;
 
-#[test]
-fn the_canopen_cycle_does_not_allocate() {
-    let ids = [1u8, 2, 3, 4];
-    // With a SYNC counter and gantry's heartbeat: their paths run in the watched cycles.
-    let config = can_config_with(&ids, 2000, "csp", "sync_counter = 8");
-    let shared = Arc::new(Mutex::new(Nodes {
-        nodes: servos(&ids),
-        queue: VecDeque::with_capacity(QUEUE),
-        clock_ns: 0,
-        stepped: false,
-        drop: None,
-        overflow: 0,
-    }));
+/// An engine on simulated nodes behind the lockstep queue.
+struct Watched<F: FnMut(u64)> {
+    engine: Engine<CanopenBus>,
+    ctl: Controller,
+    /// The queue and the nodes.
+    shared: Arc<Mutex<Nodes>>,
+    /// Moves the queue's time one 2 ms cycle per cycle.
+    clock: StepClock<F>,
+    /// Cycles run under the counting allocator's watch.
+    watched: u64,
+}
+
+impl<F: FnMut(u64)> Watched<F> {
+    /// Up to `n` watched cycles, until `h` is final (its status).
+    fn run(&mut self, h: Option<&CommandHandle>, n: usize) -> Option<CommandStatus> {
+        for _ in 0..n {
+            counting::watch(true);
+            let running = self.engine.cycle(&mut self.clock);
+            counting::watch(false);
+            assert!(running);
+            self.watched += 1;
+            if let Some(s) = h.and_then(|h| self.engine.command_status(h.id())) {
+                if s.is_final() {
+                    return Some(s);
+                }
+            }
+        }
+        None
+    }
+}
+
+/// The engine of `config` on `nodes` behind the lockstep queue (brought up while the
+/// link's waits move the time), the controller, the queue and the step clock that moves
+/// it from then on.
+fn engine_on(
+    config: &gantry::config::Config,
+    nodes: Vec<gantry_sim::canopen::CanNode>,
+) -> Watched<impl FnMut(u64)> {
+    let shared = Arc::new(Mutex::new(Nodes::new(nodes)));
     let bus = CanopenBus::bring_up_on(
-        &config,
+        config,
         Box::new(NodesLink(shared.clone())),
         &mut std::io::sink(),
     )
     .unwrap_or_else(|e| panic!("{}", gantry::error_chain::Chain(&e)));
-    let cycle = Cycle::from_config(&config, &bus).unwrap();
-    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
-    let ctl = Controller::new(ends, (0..4).map(|i| format!("a{i}")).collect());
+    let cycle = Cycle::from_config(config, &bus).unwrap();
+    let (engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
+    let ctl = Controller::new(ends, config.axes.iter().map(|a| a.name.clone()).collect());
     let start = {
         let mut s = shared.lock().unwrap();
         s.stepped = true;
         s.clock_ns
     };
     let stepped = shared.clone();
-    let mut clock = StepClock::new(2_000_000, start, move |to| stepped.lock().unwrap().tick(to));
+    let clock = StepClock::new(2_000_000, start, move |to| stepped.lock().unwrap().tick(to));
+    Watched {
+        engine,
+        ctl,
+        shared,
+        clock,
+        watched: 0,
+    }
+}
+
+#[test]
+fn the_canopen_cycle_does_not_allocate() {
+    let ids = [1u8, 2, 3, 4];
+    // With a SYNC counter and gantry's heartbeat: their paths run in the watched cycles.
+    let config = can_config_with(&ids, 2000, "csp", "sync_counter = 8");
+    let Watched {
+        mut engine,
+        ctl,
+        shared,
+        mut clock,
+        ..
+    } = engine_on(&config, servos(&ids));
     let mut watched = 0u64;
     let mut cycle = |engine: &mut Engine<CanopenBus>, n: usize| {
         for _ in 0..n {
@@ -230,40 +279,8 @@ fn the_canopen_cycle_with_a_switch_module_does_not_allocate() {
     let module = CanNodeConfig::switches(NodeId::new(9).unwrap(), NodeId::new(1).unwrap(), &[cam])
         .expect("cams");
     nodes.push(CanNode::new(module).expect("module"));
-    let shared = Arc::new(Mutex::new(Nodes::new(nodes)));
-    let bus = CanopenBus::bring_up_on(
-        &config,
-        Box::new(NodesLink(shared.clone())),
-        &mut std::io::sink(),
-    )
-    .unwrap_or_else(|e| panic!("{}", gantry::error_chain::Chain(&e)));
-    assert_eq!(bus.drives(), 2, "the drive and the module");
-    let cycle = Cycle::from_config(&config, &bus).unwrap();
-    let (mut engine, ends) = Engine::new(bus, cycle, config.rt.overrun_limit, 1024);
-    let ctl = Controller::new(ends, vec!["a0".into()]);
-    let start = {
-        let mut s = shared.lock().unwrap();
-        s.stepped = true;
-        s.clock_ns
-    };
-    let stepped = shared.clone();
-    let mut clock = StepClock::new(2_000_000, start, move |to| stepped.lock().unwrap().tick(to));
-    let mut watched = 0u64;
-    let mut run = |engine: &mut Engine<CanopenBus>, h: Option<&CommandHandle>, n: usize| {
-        for _ in 0..n {
-            counting::watch(true);
-            let running = engine.cycle(&mut clock);
-            counting::watch(false);
-            assert!(running);
-            watched += 1;
-            if let Some(s) = h.and_then(|h| engine.command_status(h.id())) {
-                if s.is_final() {
-                    return Some(s);
-                }
-            }
-        }
-        None
-    };
+    let mut w = engine_on(&config, nodes);
+    assert_eq!(w.engine.bus.drives(), 2, "the drive and the module");
     for command in [
         Command::Power(PowerCommand::Enable),
         Command::SetPosition {
@@ -272,64 +289,132 @@ fn the_canopen_cycle_with_a_switch_module_does_not_allocate() {
         },
         Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 20.0)),
     ] {
-        let h = ctl.command(0, command).unwrap();
-        assert_eq!(
-            run(&mut engine, Some(&h), 10_000),
-            Some(CommandStatus::Done)
-        );
+        let h = w.ctl.command(0, command).unwrap();
+        assert_eq!(w.run(Some(&h), 10_000), Some(CommandStatus::Done));
     }
     // The module's heartbeat stays away: the axis stops, naming the module.
-    shared.lock().unwrap().drop = Some(0x709);
-    let h = ctl
+    w.shared.lock().unwrap().drop = Some(0x709);
+    let h = w
+        .ctl
         .command(
             0,
             Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 0.0)),
         )
         .unwrap();
-    run(&mut engine, None, 250);
-    let why = engine
+    w.run(None, 250);
+    let why = w
+        .engine
         .bus
         .fault(0)
         .map(|f| f.to_string())
         .unwrap_or_default();
     assert!(why.starts_with("switch module: CANopen node 9"), "{why}");
     assert_eq!(
-        engine.cycle.kernel.axis_status(0).unwrap().state,
+        w.engine.cycle.kernel.axis_status(0).unwrap().state,
         AxisState::ErrorStop
     );
-    assert!(engine.command_status(h.id()).is_some_and(|s| s.is_final()));
-    shared.lock().unwrap().drop = None;
+    assert!(w
+        .engine
+        .command_status(h.id())
+        .is_some_and(|s| s.is_final()));
+    w.shared.lock().unwrap().drop = None;
     // The reset brings the module back by SDO inside the watched cycles.
-    let h = ctl.reset(0).unwrap();
-    assert_eq!(
-        run(&mut engine, Some(&h), 10_000),
-        Some(CommandStatus::Done)
-    );
-    assert!(!engine.bus.any_fault());
+    let h = w.ctl.reset(0).unwrap();
+    assert_eq!(w.run(Some(&h), 10_000), Some(CommandStatus::Done));
+    assert!(!w.engine.bus.any_fault());
     // The drive stayed enabled through it or the reset left it disabled (it stopped by
     // its own 0x6007 reaction): enabled either way, the axis moves again.
-    if engine.cycle.kernel.axis_status(0).unwrap().state == AxisState::Disabled {
-        let e = ctl
+    if w.engine.cycle.kernel.axis_status(0).unwrap().state == AxisState::Disabled {
+        let e = w
+            .ctl
             .command(0, Command::Power(PowerCommand::Enable))
             .unwrap();
-        assert_eq!(
-            run(&mut engine, Some(&e), 10_000),
-            Some(CommandStatus::Done)
-        );
+        assert_eq!(w.run(Some(&e), 10_000), Some(CommandStatus::Done));
     }
-    let h = ctl
+    let h = w
+        .ctl
         .command(
             0,
             Command::MovePtp(MovePtp::new(PositioningMode::AbsNormal, 0.0)),
         )
         .unwrap();
-    assert_eq!(
-        run(&mut engine, Some(&h), 10_000),
-        Some(CommandStatus::Done)
-    );
+    assert_eq!(w.run(Some(&h), 10_000), Some(CommandStatus::Done));
     let allocations = counting::take_count();
-    assert_eq!(shared.lock().unwrap().overflow, 0);
-    eprintln!("{allocations} allocations in {watched} watched cycles");
-    assert!(watched > 500, "{watched} cycles");
+    assert_eq!(w.shared.lock().unwrap().overflow, 0);
+    eprintln!("{allocations} allocations in {} watched cycles", w.watched);
+    assert!(w.watched > 500, "{} cycles", w.watched);
+    assert_eq!(allocations, 0);
+}
+
+/// The same with two drives whose process data take seven PDOs each (the full CSP
+/// layout with switches and both touch probes: 2 RPDOs, 5 TPDOs, TPDO5 on a COB-ID
+/// gantry lent): their TPDOs routed by COB-ID every cycle, a heartbeat lost until the
+/// axis stops, and the reset that maps all seven again by SDO — inside the watched
+/// cycles.
+#[test]
+fn the_canopen_cycle_with_five_tpdos_a_drive_does_not_allocate() {
+    let ids = [1u8, 2];
+    let config = can_config_axes(&ids, 2000, "csp", "", AXIS_SWITCHES_TOML);
+    let mut w = engine_on(&config, servos_with_pdos(&ids, 8));
+    for d in 0..2 {
+        let plan = w.engine.bus.plan(d).unwrap();
+        assert_eq!((plan.rpdos.len(), plan.tpdos.len()), (2, 5));
+    }
+    let to = |mm: f64| {
+        Some(Command::MovePtp(MovePtp::new(
+            PositioningMode::AbsNormal,
+            mm,
+        )))
+    };
+    let enable = || Some(Command::Power(PowerCommand::Enable));
+    let here = || {
+        Some(Command::SetPosition {
+            position: 0.0,
+            relative: false,
+        })
+    };
+    // Each (axis, command) to its end; None: gantry's reset.
+    let steps = |w: &mut Watched<_>, steps: Vec<(usize, Option<Command>)>| {
+        for (axis, command) in steps {
+            let h = match command {
+                Some(c) => w.ctl.command(axis, c).unwrap(),
+                None => w.ctl.reset(axis).unwrap(),
+            };
+            assert_eq!(
+                w.run(Some(&h), 10_000),
+                Some(CommandStatus::Done),
+                "axis {axis}: {:?}",
+                w.engine.bus.fault(axis).map(|f| f.to_string())
+            );
+        }
+    };
+    steps(
+        &mut w,
+        vec![
+            (0, enable()),
+            (1, enable()),
+            (0, here()),
+            (1, here()),
+            (0, to(20.0)),
+            (1, to(20.0)),
+        ],
+    );
+    // Node 2's heartbeat stays away: its axis stops.
+    w.shared.lock().unwrap().drop = Some(0x702);
+    w.run(None, 250);
+    assert!(w.engine.bus.fault(1).is_some(), "heartbeat fault");
+    w.shared.lock().unwrap().drop = None;
+    let mut again = vec![(1, None)];
+    if w.engine.cycle.kernel.axis_status(1).unwrap().state == AxisState::ErrorStop {
+        // The reset leaves the drive disabled (its own 0x6007 reaction stopped it).
+        again.push((1, enable()));
+    }
+    again.extend([(0, to(-15.0)), (1, to(-15.0))]);
+    steps(&mut w, again);
+    assert!(!w.engine.bus.any_fault());
+    let allocations = counting::take_count();
+    assert_eq!(w.shared.lock().unwrap().overflow, 0);
+    eprintln!("{allocations} allocations in {} watched cycles", w.watched);
+    assert!(w.watched > 500, "{} cycles", w.watched);
     assert_eq!(allocations, 0);
 }

@@ -660,7 +660,8 @@ fn dcf_writes_the_vendor_eds_with_what_the_bring_up_configures() {
     assert_eq!(
         e.trim(),
         format!(
-            "gantry: {}:9: axis[0].eds: TPDO2 of pdo = \"csp\": TPDO 2 does not exist: {} has 1",
+            "gantry: {}:9: axis[0].eds: CANopen node 9 (axis \"x\"): its process data need 2 \
+             TPDOs (15 input bytes in PDOs of 8), the drive has 1 (NrOfTXPDO in {})",
             config.display(),
             dir.join("sx400.eds").display()
         )

@@ -3,7 +3,10 @@
 //! to be a CiA 402 drive (0x1000) and named (0x1018), its PDOs configured by SDO in
 //! pre-operational by the procedure of CiA 301 §7.5.2.35–.38 (COB-ID invalid, mapping
 //! count 0, the entries, the count, transmission type 1 = synchronous at every SYNC, COB-ID
-//! valid), its heartbeat producer time (0x1017), its consumer of gantry's own heartbeat
+//! valid; PDOs 5 and up on COB-IDs gantry lends them, [`super::pdo::CobIdPool`], after
+//! the drive is seen to have them: its EDS' `NrOfRXPDO`/`NrOfTXPDO`, or without an EDS an
+//! SDO read of their communication objects), its heartbeat producer time (0x1017), its
+//! consumer of gantry's own heartbeat
 //! (0x1016), the SYNC counter's overflow value (0x1019, when the SYNC carries one) and the
 //! communication cycle period (0x1006) set, then NMT start. It blocks, but every wait is bounded (boot-up [`BOOT_UP_TIMEOUT_NS`],
 //! each SDO transfer [`SDO_TIMEOUT_NS`]). The same configuration writes
@@ -24,7 +27,7 @@ use thiserror::Error;
 
 use super::link::CanLink;
 use super::load::{BusLoad, LoadError};
-use super::pdo::{DrivePlan, PdoPlan};
+use super::pdo::{CobIdPool, CobIdsExhausted, DrivePlan, PdoPlan, Way, PREDEFINED_PDOS};
 use crate::config::Config;
 
 /// How long the nodes have to send their boot-up after NMT reset communication.
@@ -197,6 +200,63 @@ pub enum StartError {
     /// The SDO client's configuration.
     #[error("CANopen: SDO client: {0}")]
     SdoConfig(gantry_drives::canopen::sdo::SdoConfigError),
+    /// A drive has fewer PDOs of a direction than its axis' process data need.
+    #[error(
+        "CANopen node {node} (axis {axis:?}): its process data need {needed} {}s ({bytes} \
+         {} bytes in PDOs of 8), the drive has {has} ({how})",
+        way.name(),
+        match way { Way::Rpdo => "output", Way::Tpdo => "input" }
+    )]
+    TooFewPdos {
+        /// The node.
+        node: u8,
+        /// Its axis.
+        axis: String,
+        /// Which way.
+        way: Way,
+        /// PDOs the layout needs.
+        needed: usize,
+        /// Bytes of the layout that way.
+        bytes: usize,
+        /// PDOs the drive has.
+        has: u16,
+        /// How gantry knows ("NrOfTXPDO in acme.eds", "0x1804:01 does not exist …").
+        how: String,
+    },
+    /// PDOs 5 and up found no COB-ID to borrow.
+    #[error("CANopen node {node} (axis {axis:?}): {source}")]
+    CobIds {
+        /// The node.
+        node: u8,
+        /// Its axis.
+        axis: String,
+        /// Why.
+        source: CobIdsExhausted,
+    },
+    /// A device outside the configuration speaks with a node id whose predefined
+    /// identifier gantry lent to a PDO.
+    #[error(
+        "CANopen: node {lender} is on the bus (its {heard} came), but gantry gave its \
+         predefined COB-ID 0x{cob_id:03X} to {}{pdo} of node {node} (axis {axis:?}): \
+         add it to the configuration or give it another node id",
+        way.name()
+    )]
+    CobIdTaken {
+        /// The node heard.
+        lender: u8,
+        /// What it sent.
+        heard: &'static str,
+        /// The identifier lent.
+        cob_id: u16,
+        /// Which way the PDO goes.
+        way: Way,
+        /// Its number.
+        pdo: u8,
+        /// The node it was lent to.
+        node: u8,
+        /// Its axis.
+        axis: String,
+    },
     /// An SDO transfer failed.
     #[error("CANopen node {node}: {what} ({mux}): {failure}")]
     Sdo {
@@ -282,12 +342,14 @@ impl SdoStep {
     }
 }
 
-/// Every SDO download that configures a node for the cycle, in order: per PDO 1..=4 of
-/// each direction, the procedure of CiA 301 §7.5.2.37 for those `plan` uses (COB-ID
-/// invalid, transmission type 1, mapping count 0, the entries, the count, COB-ID valid on
-/// its predefined identifier) and COB-ID invalid for the others (a vendor's defaults may
-/// have them valid); then 0x1017 heartbeat producer time, 0x1016:01 the consumer of
-/// gantry's heartbeat, with a SYNC counter 0x1006 = 0 and 0x1019 (CiA 301 §7.5.2.22: the
+/// Every SDO download that configures a node for the cycle, in order: per PDO of each
+/// direction, the procedure of CiA 301 §7.5.2.37 for those `plan` uses (COB-ID invalid
+/// on its identifier — the predefined one of PDOs 1–4, the lent one of 5 and up —,
+/// transmission type 1, mapping count 0, the entries, the count, COB-ID valid) and
+/// COB-ID invalid for the others of 1–4 (a vendor's defaults may have them valid; those
+/// of 5 and up power up invalid, CiA 301 predefining no identifier for them, and NMT
+/// reset communication before each configuration brings them back there); then 0x1017
+/// heartbeat producer time, 0x1016:01 the consumer of gantry's heartbeat, with a SYNC counter 0x1006 = 0 and 0x1019 (CiA 301 §7.5.2.22: the
 /// overflow value may only change while the communication cycle period is 0), 0x1006
 /// communication cycle period, and 0x6060 = CSP when the layout does not carry the mode.
 pub fn config_steps(
@@ -300,8 +362,9 @@ pub fn config_steps(
 }
 
 /// [`config_steps`] for a node with `pdos[0]` RPDOs and `pdos[1]` TPDOs (its EDS'
-/// `NrOfRXPDO` / `NrOfTXPDO`, at most 4 each are touched): the PDOs a node does not have
-/// are left alone (a write to their objects would be aborted: 0x06020000, no object).
+/// `NrOfRXPDO` / `NrOfTXPDO`): of the first four, the PDOs a node does not have are left
+/// alone (a write to their objects would be aborted: 0x06020000, no object); `plan`'s
+/// PDOs are all written (that the node has them is checked before).
 pub fn config_steps_for(
     node: NodeId,
     plan: &DrivePlan,
@@ -336,11 +399,15 @@ pub fn config_steps_for(
     .into_iter()
     .zip(pdos)
     {
-        for n in 0..have.min(4) as u8 {
+        let touched = usize::from(have).min(PREDEFINED_PDOS).max(pdos.len());
+        for n in 0..touched as u8 {
             let comm = comm + u16::from(n);
             let mapping = mapping + u16::from(n);
-            let cob = u32::from(base + 0x100 * u16::from(n) + u16::from(node.get()));
             let used: Option<&PdoPlan> = pdos.iter().find(|p| p.number == n + 1);
+            let cob = u32::from(match used {
+                Some(p) => p.cob_id,
+                None => base + 0x100 * u16::from(n) + u16::from(node.get()),
+            });
             steps.push(SdoStep::new(
                 comm,
                 1,
@@ -454,6 +521,10 @@ pub struct DriveSetup {
     pub steps: Vec<SdoStep>,
     /// What the axis' EDS says the node is, when it names one.
     pub expect: Option<ExpectedIdentity>,
+    /// Whether the bring-up asks the node (by SDO) whether it has the PDOs beyond the
+    /// fourth that the plan uses: a drive without an EDS (one with an EDS was checked
+    /// against its `NrOfRXPDO`/`NrOfTXPDO` at configuration).
+    pub ask_pdos: bool,
 }
 
 /// The identity an axis' EDS gives its node (`[DeviceInfo]`).
@@ -506,9 +577,8 @@ pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     Ok(setups)
 }
 
-/// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
-/// configure it (only the PDOs its EDS says it has, when the axis names one).
-pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartError> {
+/// The node and layout of axis `axis` of `config`.
+fn axis_node_layout(config: &Config, axis: usize) -> Result<(NodeId, PdoLayout), StartError> {
     let a = config.axes.get(axis).ok_or_else(|| StartError::NoNode {
         axis: format!("#{axis}"),
     })?;
@@ -522,18 +592,80 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
         axis: a.name.clone(),
         reason,
     })?;
-    let plan = DrivePlan::of(&layout).map_err(|source| LoadError::Layout {
-        axis: a.name.clone(),
-        pdo: a.pdo.clone(),
-        source,
+    Ok((node, layout))
+}
+
+/// The PDOs of every axis of `config`, in axis order, with their COB-IDs: PDOs 1–4 on
+/// their node's predefined identifiers, 5 and up on identifiers lent by the node ids
+/// that neither an axis' drive, nor an I/O module the switches read, nor gantry has
+/// ([`CobIdPool`], axis by axis: the same configuration gives the same COB-IDs).
+pub fn axis_plans(config: &Config) -> Result<Vec<DrivePlan>, StartError> {
+    let mut used: Vec<u8> = config.axes.iter().filter_map(|a| a.node).collect();
+    used.extend(config.module_nodes().iter().map(|m| m.node));
+    used.push(config.bus.master_node());
+    let mut pool = CobIdPool::new(&used);
+    let mut plans = Vec::with_capacity(config.axes.len());
+    for (i, a) in config.axes.iter().enumerate() {
+        let (node, layout) = axis_node_layout(config, i)?;
+        let mut plan = DrivePlan::on_node(&layout, node).map_err(|source| LoadError::Layout {
+            axis: a.name.clone(),
+            pdo: a.pdo.clone(),
+            source,
+        })?;
+        pool.lend(&mut plan).map_err(|source| StartError::CobIds {
+            node: node.get(),
+            axis: a.name.clone(),
+            source,
+        })?;
+        plans.push(plan);
+    }
+    Ok(plans)
+}
+
+/// The drive of axis `axis` of `config`: its node, layout, PDOs and the SDO writes that
+/// configure it (only the PDOs its EDS says it has, when the axis names one; a layout
+/// that needs more PDOs than the EDS gives the drive is refused).
+pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartError> {
+    let (node, layout) = axis_node_layout(config, axis)?;
+    let a = config.axes.get(axis).ok_or_else(|| StartError::NoNode {
+        axis: format!("#{axis}"),
     })?;
-    let pdos = config.eds_of(axis).map_or([4, 4], |e| {
-        use gantry_drives::canopen::eds::PdoDirection;
-        [
-            e.max_pdos(PdoDirection::Receive),
-            e.max_pdos(PdoDirection::Transmit),
-        ]
-    });
+    let plan = axis_plans(config)?
+        .into_iter()
+        .nth(axis)
+        .ok_or_else(|| StartError::NoNode {
+            axis: a.name.clone(),
+        })?;
+    let pdos = match config.eds_of(axis) {
+        None => [PREDEFINED_PDOS as u16; 2],
+        Some(e) => {
+            use gantry_drives::canopen::eds::PdoDirection;
+            let has = [
+                e.max_pdos(PdoDirection::Receive),
+                e.max_pdos(PdoDirection::Transmit),
+            ];
+            for ((way, pdos, bytes, key), has) in [
+                (Way::Rpdo, &plan.rpdos, plan.output_bytes, "NrOfRXPDO"),
+                (Way::Tpdo, &plan.tpdos, plan.input_bytes, "NrOfTXPDO"),
+            ]
+            .into_iter()
+            .zip(has)
+            {
+                if pdos.len() > usize::from(has) {
+                    return Err(StartError::TooFewPdos {
+                        node: node.get(),
+                        axis: a.name.clone(),
+                        way,
+                        needed: pdos.len(),
+                        bytes,
+                        has,
+                        how: format!("{key} in {}", e.file),
+                    });
+                }
+            }
+            has
+        }
+    };
     let comm = CommSettings::of(config)?;
     let mut steps = config_steps_for(node, &plan, &layout, &comm, pdos);
     // What the switches need of the drive: 0x60D0 for homing on a limit switch's edge.
@@ -576,6 +708,7 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
             vendor: e.device_info.vendor_number,
             product: e.device_info.product_number,
         }),
+        ask_pdos: config.eds_of(axis).is_none(),
     })
 }
 
@@ -604,15 +737,15 @@ pub fn nmt(command: NmtCommand, target: NmtTarget) -> CanFrame {
 }
 
 /// One blocking SDO transfer: a download of `data`, or an upload (`data` None) whose
-/// bytes are left in the client's buffer. Frames that are not the node's answer are
-/// passed to `other`.
+/// bytes are left in the client's buffer. Of the frames that are not the node's answer,
+/// one that shows a clash with a COB-ID gantry lent ([`Lent::check`]) ends the bring-up.
 fn transfer(
     link: &mut dyn CanLink,
     client: &mut Client,
     mux: Multiplexer,
     data: Option<&[u8]>,
     what: &'static str,
-    other: &mut dyn FnMut(&CanFrame),
+    lent: &Lent,
 ) -> Result<(), StartError> {
     let node = client.node().get();
     let now = link.now_ns();
@@ -651,10 +784,10 @@ fn transfer(
                 Some(r) if r.frame.id() == CobId::SdoTx(client.node()).id() => {
                     client.receive(&r.frame, link.now_ns())
                 }
-                Some(r) => {
-                    other(&r.frame);
-                    None
-                }
+                Some(r) => match lent.check(&r.frame) {
+                    Some(clash) => return Err(clash),
+                    None => None,
+                },
                 None => None,
             },
         };
@@ -681,8 +814,9 @@ fn upload_u32(
     client: &mut Client,
     mux: Multiplexer,
     what: &'static str,
+    lent: &Lent,
 ) -> Result<u32, StartError> {
-    transfer(link, client, mux, None, what, &mut |_| {})?;
+    transfer(link, client, mux, None, what, lent)?;
     let d = client.data();
     let mut b = [0u8; 4];
     for (dst, src) in b.iter_mut().zip(d) {
@@ -701,22 +835,23 @@ fn take_default_mapping(
     client: &mut Client,
     d: &mut DriveSetup,
     out: &mut (dyn Write + Send),
+    lent: &Lent,
 ) -> Result<(), StartError> {
     let mapping = |sub| Multiplexer::new(TPDO_MAPPING, sub);
-    let n = upload_u32(link, client, mapping(0), "TPDO1 mapping count")?;
+    let n = upload_u32(link, client, mapping(0), "TPDO1 mapping count", lent)?;
     let needed = d.layout.inputs.len() as u32;
     if !(needed..=8).contains(&n) {
         return Ok(());
     }
     for k in 1..=n as u8 {
-        let entry = upload_u32(link, client, mapping(k), "TPDO1 mapping entry")?;
+        let entry = upload_u32(link, client, mapping(k), "TPDO1 mapping entry", lent)?;
         let want = gantry_drives::cia402::pdo::mapping_entry(&super::io_module::read_input_8(k));
         if entry != want {
             return Ok(());
         }
     }
     let layout = super::io_module::layout(n as u8);
-    let Ok(plan) = DrivePlan::of(&layout) else {
+    let Ok(plan) = DrivePlan::on_node(&layout, d.node) else {
         return Ok(());
     };
     d.steps.retain(|s| s.mux.index != TPDO_MAPPING);
@@ -728,6 +863,117 @@ fn take_default_mapping(
         d.node.get()
     );
     Ok(())
+}
+
+/// Whether the node of `d` has the PDOs beyond the fourth that its plan uses (a drive
+/// without an EDS): an SDO read of each one's COB-ID (0x1404:01, 0x1804:01, …). One the
+/// node does not have (abort 0x06020000, no object) refuses the drive, naming how many
+/// it has (PDOs are numbered from 1 without gaps).
+fn ask_pdos(
+    link: &mut dyn CanLink,
+    client: &mut Client,
+    d: &DriveSetup,
+    lent: &Lent,
+) -> Result<(), StartError> {
+    for (way, comm, pdos, bytes) in [
+        (
+            Way::Rpdo,
+            RPDO_COMMUNICATION,
+            &d.plan.rpdos,
+            d.plan.output_bytes,
+        ),
+        (
+            Way::Tpdo,
+            TPDO_COMMUNICATION,
+            &d.plan.tpdos,
+            d.plan.input_bytes,
+        ),
+    ] {
+        for p in pdos
+            .iter()
+            .filter(|p| usize::from(p.number) > PREDEFINED_PDOS)
+        {
+            let index = comm + u16::from(p.number) - 1;
+            let mux = Multiplexer::new(index, 1);
+            match transfer(link, client, mux, None, "PDO COB-ID (is it there?)", lent) {
+                Ok(()) => {}
+                Err(StartError::Sdo {
+                    failure: SdoFailure::Refused(code),
+                    ..
+                }) if code == AbortCode::OBJECT_DOES_NOT_EXIST => {
+                    return Err(StartError::TooFewPdos {
+                        node: d.node.get(),
+                        axis: d.axis.clone(),
+                        way,
+                        needed: pdos.len(),
+                        bytes,
+                        has: u16::from(p.number) - 1,
+                        how: format!("0x{index:04X}:01 does not exist: SDO abort {code}"),
+                    })
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A COB-ID gantry lent to a PDO 5 or up: the node id whose predefined identifier it
+/// is, and the PDO that has it.
+struct LentId {
+    lender: u8,
+    cob_id: u16,
+    way: Way,
+    pdo: u8,
+    node: u8,
+    axis: String,
+}
+
+/// The COB-IDs gantry lent: a frame from a node id that lent one (a device outside the
+/// configuration) is a clash.
+struct Lent(Vec<LentId>);
+
+impl Lent {
+    fn of(drives: &[DriveSetup]) -> Self {
+        let mut v = Vec::new();
+        for d in drives {
+            for (way, pdos) in [(Way::Rpdo, &d.plan.rpdos), (Way::Tpdo, &d.plan.tpdos)] {
+                for p in pdos
+                    .iter()
+                    .filter(|p| usize::from(p.number) > PREDEFINED_PDOS)
+                {
+                    v.push(LentId {
+                        lender: (p.cob_id & 0x7F) as u8,
+                        cob_id: p.cob_id,
+                        way,
+                        pdo: p.number,
+                        node: d.node.get(),
+                        axis: d.axis.clone(),
+                    });
+                }
+            }
+        }
+        Self(v)
+    }
+
+    /// The clash `frame` shows: the boot-up or heartbeat of a node id that lent.
+    fn check(&self, frame: &CanFrame) -> Option<StartError> {
+        let hb = Heartbeat::parse(frame).ok()?;
+        let l = self.0.iter().find(|l| l.lender == hb.node.get())?;
+        Some(StartError::CobIdTaken {
+            lender: l.lender,
+            heard: if hb.is_boot_up() {
+                "boot-up"
+            } else {
+                "heartbeat"
+            },
+            cob_id: l.cob_id,
+            way: l.way,
+            pdo: l.pdo,
+            node: l.node,
+            axis: l.axis.clone(),
+        })
+    }
 }
 
 /// Bring-up: every step in order on `link`, printing them to `out`. Returns what each
@@ -757,6 +1003,7 @@ pub fn run(
     let start = link.now_ns();
     let deadline = start + BOOT_UP_TIMEOUT_NS;
     let mut booted = vec![false; drives.len()];
+    let lent = Lent::of(drives);
     while booted.iter().any(|b| !b) {
         let Some(r) = link.receive(deadline).map_err(|source| StartError::Link {
             what: "waiting for boot-up",
@@ -765,6 +1012,9 @@ pub fn run(
         else {
             break;
         };
+        if let Some(e) = lent.check(&r.frame) {
+            return Err(e);
+        }
         if let Ok(hb) = Heartbeat::parse(&r.frame) {
             if hb.is_boot_up() {
                 if let Some(i) = drives.iter().position(|d| d.node == hb.node) {
@@ -799,6 +1049,7 @@ pub fn run(
             &mut c,
             Multiplexer::new(DEVICE_TYPE, 0),
             "device type",
+            &lent,
         )?;
         if device_type & 0xFFFF != u32::from(d.profile) {
             return Err(if d.profile == PROFILE_CIA402 {
@@ -813,7 +1064,13 @@ pub fn run(
         }
         let mut identity = [None; 4];
         for (sub, slot) in (1u8..=4).zip(identity.iter_mut()) {
-            match upload_u32(link, &mut c, Multiplexer::new(IDENTITY, sub), "identity") {
+            match upload_u32(
+                link,
+                &mut c,
+                Multiplexer::new(IDENTITY, sub),
+                "identity",
+                &lent,
+            ) {
                 Ok(v) => *slot = Some(v),
                 // Only the vendor id is mandatory (CiA 301 §7.5.2.23).
                 Err(StartError::Sdo {
@@ -842,21 +1099,17 @@ pub fn run(
             identity[3].map_or("-".to_string(), |s| s.to_string()),
         );
         if d.profile == super::io_module::PROFILE_CIA401 {
-            take_default_mapping(link, &mut c, d, out)?;
+            take_default_mapping(link, &mut c, d, out, &lent)?;
+        }
+        if d.ask_pdos {
+            ask_pdos(link, &mut c, d, &lent)?;
         }
         let mut absent: Vec<u16> = Vec::new();
         for step in &d.steps {
             if absent.contains(&step.mux.index) {
                 continue;
             }
-            match transfer(
-                link,
-                &mut c,
-                step.mux,
-                Some(step.value()),
-                step.what,
-                &mut |_| {},
-            ) {
+            match transfer(link, &mut c, step.mux, Some(step.value()), step.what, &lent) {
                 Ok(()) => {}
                 // An I/O module has no EDS that says which optional objects it has:
                 // without 0x1006 it does not watch the SYNC, without 0x1016 gantry's
@@ -884,7 +1137,13 @@ pub fn run(
         d.steps.retain(|s| !absent.contains(&s.mux.index));
         let pdos = |what: &str, pdos: &[PdoPlan]| {
             pdos.iter()
-                .map(|p| format!("{what}{} {} bytes", p.number, p.len))
+                .map(|p| {
+                    if usize::from(p.number) > PREDEFINED_PDOS {
+                        format!("{what}{} {} bytes on 0x{:03X}", p.number, p.len, p.cob_id)
+                    } else {
+                        format!("{what}{} {} bytes", p.number, p.len)
+                    }
+                })
                 .collect::<Vec<_>>()
                 .join(", ")
         };
@@ -949,7 +1208,7 @@ mod tests {
 
     fn steps(sync_overflow: u8) -> Vec<SdoStep> {
         let layout = PdoLayout::csp_minimal();
-        let plan = DrivePlan::of(&layout).unwrap();
+        let plan = DrivePlan::on_node(&layout, NodeId::new(3).unwrap()).unwrap();
         let comm = CommSettings {
             heartbeat_ms: 100,
             cycle_us: 2000,

@@ -42,8 +42,6 @@ use crate::runtime::bus::{
 use crate::runtime::clock::now_ns;
 use crate::runtime::sdo::{SdoData, SdoError, SdoKind, SdoRequest, SdoResult, SDO_MAX_DATA};
 
-/// Bytes of a drive's process data each way at most (4 PDOs of 8 bytes).
-pub const MAX_IMAGE: usize = 32;
 /// How long a reset may take to bring a node back (NMT reset, boot-up, ~30 SDO writes
 /// at one per cycle, NMT start, the first TPDOs).
 pub const RESTORE_TIMEOUT_NS: u64 = 5_000_000_000;
@@ -269,12 +267,12 @@ struct Drive {
     /// switches are not watched), and a reset brings it back.
     reads: [Option<usize>; 3],
     plan: DrivePlan,
-    rpdo_ids: [u16; 4],
-    tpdo_ids: [u16; 4],
-    inputs: [u8; MAX_IMAGE],
-    outputs: [u8; MAX_IMAGE],
-    /// TPDOs received this exchange (bit k: plan.tpdos[k]).
-    got: u8,
+    /// The process data, layout order (made at bring-up to the plan's size).
+    inputs: Box<[u8]>,
+    outputs: Box<[u8]>,
+    /// TPDOs received this exchange (bit k: plan.tpdos[k]; at most
+    /// [`super::pdo::MAX_PDOS`] = 64).
+    got: u64,
     /// Inputs complete with the last exchange.
     fresh: bool,
     /// A boot-up or another NMT state seen since it was last started.
@@ -296,10 +294,16 @@ struct Drive {
 }
 
 impl Drive {
-    fn all_tpdos(&self) -> u8 {
-        ((1u16 << self.plan.tpdos.len()) - 1) as u8
+    fn all_tpdos(&self) -> u64 {
+        match self.plan.tpdos.len() {
+            n if n >= 64 => u64::MAX,
+            n => (1u64 << n) - 1,
+        }
     }
 }
+
+/// Which drive's TPDO a COB-ID carries: (bus position, index into its plan's TPDOs).
+type TpdoRoute = Option<(u8, u8)>;
 
 /// The CANopen bus: its nodes Operational after the bring-up, exchanging synchronous PDOs
 /// at each SYNC the cycle sends.
@@ -308,6 +312,9 @@ pub struct CanopenBus {
     drives: Vec<Drive>,
     /// Node id → drive index + 1 (0: not ours).
     node_drive: [u8; 128],
+    /// COB-ID (11 bits) → the drive and TPDO it carries (PDOs 5 and up are on identifiers
+    /// of other node ids: a TPDO is known by its COB-ID, not by the node bits).
+    tpdo_route: Box<[TpdoRoute]>,
     infos: Vec<NodeInfo>,
     sync: CanFrame,
     /// 0x1019 the nodes were given (0: SYNC without counter), and the last counter sent.
@@ -351,6 +358,7 @@ impl CanopenBus {
         let infos = bring_up::run(&mut *link, &mut setups, consumer_ns, out)?;
         let now = link.now_ns();
         let mut node_drive = [0u8; 128];
+        let mut tpdo_route: Box<[TpdoRoute]> = vec![None; 0x800].into_boxed_slice();
         let mut drives = Vec::with_capacity(setups.len());
         for (i, s) in setups.into_iter().enumerate() {
             let DriveSetup {
@@ -370,23 +378,18 @@ impl CanopenBus {
             if let Some(slot) = node_drive.get_mut(usize::from(node.get())) {
                 *slot = i as u8 + 1;
             }
-            let mut rpdo_ids = [0u16; 4];
-            for (dst, p) in rpdo_ids.iter_mut().zip(&plan.rpdos) {
-                *dst = DrivePlan::rpdo_id(node, p);
-            }
-            let mut tpdo_ids = [0u16; 4];
-            for (dst, p) in tpdo_ids.iter_mut().zip(&plan.tpdos) {
-                *dst = DrivePlan::tpdo_id(node, p);
+            for (k, p) in plan.tpdos.iter().enumerate() {
+                if let Some(slot) = tpdo_route.get_mut(usize::from(p.cob_id)) {
+                    *slot = Some((i as u8, k as u8));
+                }
             }
             drives.push(Drive {
                 node,
                 module: profile != bring_up::PROFILE_CIA402,
                 reads,
+                inputs: vec![0; plan.input_bytes].into_boxed_slice(),
+                outputs: vec![0; plan.output_bytes].into_boxed_slice(),
                 plan,
-                rpdo_ids,
-                tpdo_ids,
-                inputs: [0; MAX_IMAGE],
-                outputs: [0; MAX_IMAGE],
                 got: 0,
                 fresh: false,
                 left: None,
@@ -419,6 +422,7 @@ impl CanopenBus {
             link,
             drives,
             node_drive,
+            tpdo_route,
             infos,
             sync: Sync::new().emit(),
             sync_overflow: config.bus.sync_counter.unwrap_or(0),
@@ -751,6 +755,16 @@ impl CanopenBus {
         if frame.is_remote() {
             return;
         }
+        // A TPDO is known by its COB-ID (PDOs 5 and up carry another node id's bits).
+        let route = self
+            .tpdo_route
+            .get(usize::from(frame.id()))
+            .copied()
+            .flatten();
+        if let Some((i, k)) = route {
+            self.on_tpdo(usize::from(i), usize::from(k), frame, in_window);
+            return;
+        }
         let Ok(cob) = CobId::classify(frame.id()) else {
             return;
         };
@@ -761,36 +775,6 @@ impl CanopenBus {
             return;
         };
         match cob {
-            CobId::Tpdo(..) => {
-                if !in_window || !self.in_operation(i) {
-                    return;
-                }
-                let Some(d) = self.drives.get_mut(i) else {
-                    return;
-                };
-                let Some(k) = d.tpdo_ids.iter().position(|id| *id == frame.id()) else {
-                    return;
-                };
-                let Some(p) = d.plan.tpdos.get(k) else {
-                    return;
-                };
-                let data = frame.data();
-                // CiA 301 §7.2.2: fewer bytes than mapped is not processed.
-                if data.len() < p.len {
-                    self.malformed += 1;
-                    return;
-                }
-                for m in &p.entries {
-                    let n = m.size();
-                    if let (Some(src), Some(dst)) = (
-                        data.get(m.in_pdo..m.in_pdo + n),
-                        d.inputs.get_mut(m.in_image..m.in_image + n),
-                    ) {
-                        dst.copy_from_slice(src);
-                    }
-                }
-                d.got |= 1 << k;
-            }
             CobId::Emcy(_) => match Emergency::parse(frame) {
                 Ok(e) => {
                     if let Some(d) = self.drives.get_mut(i) {
@@ -823,6 +807,36 @@ impl CanopenBus {
             }
             _ => {}
         }
+    }
+
+    /// TPDO `k` of drive `i`: its objects into the drive's inputs, when it came in this
+    /// exchange's window and the drive is in operation.
+    fn on_tpdo(&mut self, i: usize, k: usize, frame: &CanFrame, in_window: bool) {
+        if !in_window || !self.in_operation(i) {
+            return;
+        }
+        let Some(d) = self.drives.get_mut(i) else {
+            return;
+        };
+        let Some(p) = d.plan.tpdos.get(k) else {
+            return;
+        };
+        let data = frame.data();
+        // CiA 301 §7.2.2: fewer bytes than mapped is not processed.
+        if data.len() < p.len {
+            self.malformed += 1;
+            return;
+        }
+        for m in &p.entries {
+            let n = m.size();
+            if let (Some(src), Some(dst)) = (
+                data.get(m.in_pdo..m.in_pdo + n),
+                d.inputs.get_mut(m.in_image..m.in_image + n),
+            ) {
+                dst.copy_from_slice(src);
+            }
+        }
+        d.got |= 1u64.checked_shl(k as u32).unwrap_or(0);
     }
 
     fn on_heartbeat(&mut self, i: usize, hb: Heartbeat, at: u64) {
@@ -1199,7 +1213,7 @@ impl CycleBus for CanopenBus {
             let Some(d) = self.drives.get(i) else {
                 continue;
             };
-            for (p, id) in d.plan.rpdos.iter().zip(d.rpdo_ids) {
+            for p in &d.plan.rpdos {
                 let mut data = [0u8; 8];
                 for m in &p.entries {
                     let n = m.size();
@@ -1210,7 +1224,7 @@ impl CycleBus for CanopenBus {
                         dst.copy_from_slice(src);
                     }
                 }
-                let frame = CanFrame::new(u32::from(id), data.get(..p.len).unwrap_or(&[]));
+                let frame = CanFrame::new(u32::from(p.cob_id), data.get(..p.len).unwrap_or(&[]));
                 sent &= frame.is_ok_and(|f| self.link.send(&f).is_ok());
             }
         }

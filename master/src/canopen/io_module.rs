@@ -46,7 +46,12 @@ pub fn layout(groups: u8) -> PdoLayout {
 
 /// The PDOs of `module`: TPDO1 with its input groups.
 pub fn plan(module: &ModuleNode) -> Result<DrivePlan, LoadError> {
-    DrivePlan::of(&layout(module.groups)).map_err(|source| LoadError::Layout {
+    let layout = layout(module.groups);
+    let plan = match NodeId::new(module.node) {
+        Ok(node) => DrivePlan::on_node(&layout, node),
+        Err(_) => DrivePlan::of(&layout),
+    };
+    plan.map_err(|source| LoadError::Layout {
         axis: name(module),
         pdo: format!("0x6000:01..={:02X}", module.groups),
         source,
@@ -78,6 +83,7 @@ pub fn setup(config: &Config, module: &ModuleNode) -> Result<DriveSetup, StartEr
         plan,
         steps,
         expect: None,
+        ask_pdos: false,
     })
 }
 

@@ -302,6 +302,33 @@ mod tests {
         );
     }
 
+    /// The full CSP layout with switches and both touch probes: 9 output bytes (2 RPDOs),
+    /// 37 input bytes (5 TPDOs: four of 8 bytes and one of 5) — every PDO counted.
+    #[test]
+    fn pdos_beyond_the_fourth_are_counted() {
+        let switches: crate::config::SwitchesSection = toml::from_str(
+            "negative_limit = \"drive\"\npositive_limit = \"drive\"\nreference = \"drive\"\n\
+             probe_source = { negative_limit = -1, positive_limit = -2 }",
+        )
+        .unwrap();
+        let mut layout = PdoLayout::csp();
+        switches.extend(&mut layout).unwrap();
+        let plan = DrivePlan::of(&layout).unwrap();
+        assert_eq!((plan.rpdos.len(), plan.tpdos.len()), (2, 5));
+        assert_eq!(plan.bits_per_cycle(), 135 + 65 + 4 * 135 + 105);
+        let one = load(1, layout.clone(), 1000, 1_000_000);
+        assert_eq!(one.bits, 55 + 845 + 2);
+        assert!(one.check().is_ok(), "one drive at 1 ms");
+        let e = load(2, layout, 1000, 1_000_000)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("2 drives × 7 PDOs + SYNC at 1 kHz need 1.84 Mbit/s (1747 bits"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn eight_drives_at_1_khz_name_the_figure() {
         let e = load(8, PdoLayout::csp(), 1000, 1_000_000)

@@ -796,14 +796,15 @@ fn a_pdo_the_eds_does_not_allow_is_refused_at_load_naming_object_and_file() {
             "{c}:9: axis[0].eds: TPDO1 of pdo = \"csp\": 0x6064:00 is not PDO-mappable in {eds}"
         )
     );
-    // A drive with one TPDO cannot take the CSP layout's two.
+    // A drive with one TPDO cannot take the CSP layout's two: named with the figures.
     let eds = acme(&dir, "[DeviceInfo]", "NrOfTXPDO=4", "NrOfTXPDO=1");
     let e = with_eds(&dir, "acme.eds", "bitrate = 1000000")
         .unwrap_err()
         .to_string();
     assert!(
         e.ends_with(&format!(
-            "axis[0].eds: TPDO2 of pdo = \"csp\": TPDO 2 does not exist: {eds} has 1"
+            "axis[0].eds: CANopen node 5 (axis \"x\"): its process data need 2 TPDOs (15 \
+             input bytes in PDOs of 8), the drive has 1 (NrOfTXPDO in {eds})"
         )),
         "{e}"
     );

@@ -19,8 +19,8 @@
 //! | 0x1017 | rw | heartbeat producer time (ms, 0 = off) (§7.5.2.17) |
 //! | 0x1018:01–04 | ro | identity: vendor, product, revision, serial |
 //! | 0x1029:01 | rw | error behaviour on a communication error: 0 pre-operational, 1 no change, 2 stopped (§7.5.2.32) |
-//! | 0x1400–0x1403, 0x1600–0x1603 | rw | RPDO communication / mapping ([`super::pdo`]) |
-//! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping |
+//! | 0x1400–0x1403, 0x1600–0x1603 | rw | RPDO communication / mapping ([`super::pdo`]); up to 0x1407 / 0x1607 with `pdo_count` |
+//! | 0x1800–0x1803, 0x1A00–0x1A03 | rw | TPDO communication / mapping; up to 0x1807 / 0x1A07 with `pdo_count` |
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
 //! | 0x2100–0x2103 | rw, ro, rw, rw | the servo's commutation offset, pole pairs, open-loop current vector amplitude and angle (manufacturer-specific, `gantry_drives::cia402::objects::MANUFACTURER`; installed by the servo, as on EtherCAT) |
 //! | 0x2F00 | ro | recorder: a manufacturer DOMAIN of `recorder_bytes` (chain file; absent when 0) whose byte `i` is [`recorder_byte`]`(i)`, for large SDO uploads (segmented, block) |
@@ -34,7 +34,7 @@ use gantry_drives::canopen::sdo::{
 use gantry_drives::cia402::objects::ObjectId;
 
 use super::device::{image_offset, CanDevice, DeviceKind};
-use super::pdo::{self, Direction, Pdo, PDO_COUNT};
+use super::pdo::{self, Direction, Pdo, MAX_PDO_COUNT};
 use crate::coe::od::{ObjectDictionary as Od, OdError};
 
 /// 0x1000 device type.
@@ -130,10 +130,13 @@ pub struct Communication {
     pub emcy_inhibit_100us: u16,
     /// 0x1029:01.
     pub error_behaviour: u8,
-    /// 0x1400–0x1403 with 0x1600–0x1603.
-    pub rpdo: [Pdo; PDO_COUNT],
-    /// 0x1800–0x1803 with 0x1A00–0x1A03.
-    pub tpdo: [Pdo; PDO_COUNT],
+    /// PDOs the node has each way (1..=[`MAX_PDO_COUNT`]): the objects of the others do
+    /// not exist, and their entries below stay invalid.
+    pub pdo_count: u8,
+    /// 0x1400… with 0x1600…
+    pub rpdo: [Pdo; MAX_PDO_COUNT],
+    /// 0x1800… with 0x1A00…
+    pub tpdo: [Pdo; MAX_PDO_COUNT],
 }
 
 impl Communication {
@@ -141,12 +144,20 @@ impl Communication {
     /// power-on objects ([`DeviceKind::power_on_mapping`]; the servo's: controlword +
     /// target position and statusword + position actual value, the EtherCAT servo's
     /// power-up mapping), synchronous on every SYNC, on their predefined COB-IDs; a PDO
-    /// that maps nothing and the others exist not (COB-ID bit 31).
-    pub fn power_on(node: NodeId, heartbeat_producer_ms: u16, kind: DeviceKind) -> Self {
+    /// that maps nothing and the others exist not (COB-ID bit 31). `pdo_count` PDOs each
+    /// way (at most [`MAX_PDO_COUNT`]): PDOs 2–4 invalid on their predefined COB-IDs,
+    /// PDOs 5 and up invalid on none (0x80000000: CiA 301 predefines four).
+    pub fn power_on(
+        node: NodeId,
+        heartbeat_producer_ms: u16,
+        kind: DeviceKind,
+        pdo_count: u8,
+    ) -> Self {
         let (outputs, inputs) = kind.power_on_mapping();
         let id = |c: Result<CobId, _>| c.map(CobId::id).unwrap_or(0);
-        let mut rpdo = [Pdo::unused(kind, Direction::Receive, 0); PDO_COUNT];
-        let mut tpdo = [Pdo::unused(kind, Direction::Transmit, 0); PDO_COUNT];
+        let mut rpdo = [Pdo::unused(kind, Direction::Receive, 0); MAX_PDO_COUNT];
+        let mut tpdo = [Pdo::unused(kind, Direction::Transmit, 0); MAX_PDO_COUNT];
+        // CobId::rpdo/tpdo refuse PDO 5 and up: identifier 0.
         for (n, (r, t)) in rpdo.iter_mut().zip(tpdo.iter_mut()).enumerate() {
             let k = n as u8 + 1;
             *r = Pdo::unused(kind, Direction::Receive, id(CobId::rpdo(k, node)));
@@ -166,6 +177,7 @@ impl Communication {
             emcy_cob_id: u32::from(CobId::Emcy(node).id()),
             emcy_inhibit_100us: 0,
             error_behaviour: behaviour::PRE_OPERATIONAL,
+            pdo_count: pdo_count.clamp(1, MAX_PDO_COUNT as u8),
             rpdo,
             tpdo,
         }
@@ -196,9 +208,9 @@ pub struct Changed {
     pub heartbeat_consumer: bool,
     /// RPDO n's or TPDO n's communication parameter was written: its run-time state
     /// (pending data, SYNC count, last sent) restarts.
-    pub rpdo: [bool; PDO_COUNT],
+    pub rpdo: [bool; MAX_PDO_COUNT],
     /// Same for TPDOs.
-    pub tpdo: [bool; PDO_COUNT],
+    pub tpdo: [bool; MAX_PDO_COUNT],
     /// 0x1006 was written: the SYNC watchdog restarts.
     pub sync_watchdog: bool,
 }
@@ -262,9 +274,10 @@ fn fixed(access: Access, n: usize) -> EntryInfo {
     }
 }
 
-/// The PDO an index names: (receive?, number 0..4, mapping?).
-fn pdo_of(index: u16) -> Option<(Direction, usize, bool)> {
-    let n = PDO_COUNT as u16;
+/// The PDO an index names on a node with `count` PDOs each way: (direction, number
+/// 0..count, mapping?).
+fn pdo_of(index: u16, count: u8) -> Option<(Direction, usize, bool)> {
+    let n = u16::from(count);
     let (dir, base, mapping) = match index {
         i if (pdo::RPDO_COMMUNICATION..pdo::RPDO_COMMUNICATION + n).contains(&i) => {
             (Direction::Receive, pdo::RPDO_COMMUNICATION, false)
@@ -295,12 +308,14 @@ pub fn image_put(image: &mut [u8], at: Option<usize>, o: ObjectId, bytes: &[u8])
 
 impl NodeDictionary {
     /// The dictionary of `node` with `identity` (vendor, product, revision, serial) and
-    /// `device` behind it; 0x1017 powers on with `heartbeat_producer_ms`.
+    /// `device` behind it; 0x1017 powers on with `heartbeat_producer_ms`; `pdo_count`
+    /// PDOs each way (1..=[`MAX_PDO_COUNT`], clamped).
     pub fn new(
         node: NodeId,
         identity: [u32; 4],
         heartbeat_producer_ms: u16,
         mut device: CanDevice,
+        pdo_count: u8,
     ) -> Self {
         let kind = device.kind();
         let mut od = Od::default();
@@ -314,7 +329,7 @@ impl NodeDictionary {
             od.insert_ranged(ABORT_CONNECTION_OPTION_CODE, 0, &1i16.to_le_bytes(), 0, 1);
         }
         device.install_objects(&mut od);
-        let comm = Communication::power_on(node, heartbeat_producer_ms, kind);
+        let comm = Communication::power_on(node, heartbeat_producer_ms, kind, pdo_count);
         let mut d = Self {
             node,
             identity,
@@ -486,7 +501,8 @@ impl NodeDictionary {
                 _,
             ) => sub_missing,
             (index, sub) => {
-                let (dir, n, mapping) = pdo_of(index).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
+                let (dir, n, mapping) =
+                    pdo_of(index, self.comm.pdo_count).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
                 let p = self.pdo(dir, n)?;
                 if mapping {
                     p.mapping_entry(sub).map(|len| fixed(ReadWrite, len))
@@ -576,7 +592,8 @@ impl SdoDictionary for NodeDictionary {
             (MISSED_SETPOINT_LIMIT, 0) => put(out, &self.missed_setpoint_limit.to_le_bytes()),
             (RECORDER, 0) if !self.recorder.is_empty() => put(out, &self.recorder),
             (index, sub) if index < 0x2000 => {
-                let (dir, n, mapping) = pdo_of(index).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
+                let (dir, n, mapping) =
+                    pdo_of(index, self.comm.pdo_count).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
                 let p = self.pdo(dir, n)?;
                 if mapping {
                     p.read_mapping(sub, out)
@@ -688,7 +705,8 @@ impl SdoDictionary for NodeDictionary {
                 Ok(())
             }
             (index, sub) if index < 0x2000 => {
-                let (dir, n, mapping) = pdo_of(index).ok_or(AbortCode::READ_ONLY)?;
+                let (dir, n, mapping) =
+                    pdo_of(index, self.comm.pdo_count).ok_or(AbortCode::READ_ONLY)?;
                 let p = self.pdo_mut(dir, n)?;
                 if mapping {
                     p.write_mapping(sub, data)
@@ -727,6 +745,7 @@ mod tests {
             [1, 2, 3, 4],
             100,
             CanDevice::Servo(ServoDrive::new(0, 0, 0)),
+            pdo::DEFAULT_PDO_COUNT,
         )
     }
 

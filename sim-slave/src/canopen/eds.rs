@@ -24,8 +24,7 @@ use super::dictionary::{
 };
 use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use super::pdo::{
-    self, Direction, MAX_MAPPED, PDO_COUNT, RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION,
-    TPDO_MAPPING,
+    self, Direction, MAX_MAPPED, RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION, TPDO_MAPPING,
 };
 use crate::config::SimConfig;
 
@@ -126,7 +125,7 @@ fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
     for s in 1..=MAX_MAPPED as u8 {
         mapping.push((s, format!("Mapping entry {s}"), U32));
     }
-    for n in 0..PDO_COUNT as u16 {
+    for n in 0..u16::from(node.dictionary().comm.pdo_count) {
         v.push((
             RPDO_COMMUNICATION + n,
             format!("RPDO {} communication parameter", n + 1),
@@ -241,7 +240,8 @@ fn access_type(access: Access, rpdo: bool, tpdo: bool) -> AccessType {
 
 /// Objects whose power-on value is a node's predefined COB-ID (`$NODEID` + base).
 fn node_relative(index: u16, sub: u8) -> bool {
-    let n = PDO_COUNT as u16;
+    // PDOs 1–4: the predefined connection set (5 and up have no node-relative default).
+    let n = 4;
     (index == COB_ID_EMCY && sub == 0)
         || (sub == 1
             && [RPDO_COMMUNICATION, TPDO_COMMUNICATION]
@@ -306,8 +306,9 @@ pub fn model(node: &mut CanNode, file_name: &str) -> Eds {
     e.device_info.simple_boot_up_slave = true;
     // Whole objects only (bit lengths are multiples of 8, CiA 301 §7.4.7.1).
     e.device_info.granularity = 8;
-    e.device_info.nr_of_rx_pdo = PDO_COUNT as u16;
-    e.device_info.nr_of_tx_pdo = PDO_COUNT as u16;
+    let pdos = u16::from(node.dictionary().comm.pdo_count);
+    e.device_info.nr_of_rx_pdo = pdos;
+    e.device_info.nr_of_tx_pdo = pdos;
     // Dummy entries the node's RPDOs take (not BOOLEAN).
     for d in pdo::DUMMIES {
         if let Some(slot) = e.dummy_usage.get_mut(usize::from(d.index)) {

@@ -36,7 +36,7 @@ use thiserror::Error;
 use super::device::{CanDevice, CanDeviceConfig, EncoderDevice, SwitchesDevice};
 use super::dictionary::{behaviour, image_put, NodeDictionary, IMAGE_BYTES};
 use super::nmt::{NmtAction, NmtSlaveState};
-use super::pdo::{Pdo, Trigger, PDO_COUNT};
+use super::pdo::{Pdo, Trigger, DEFAULT_PDO_COUNT, MAX_PDO_COUNT};
 use crate::catalog;
 use crate::config::{ServoConfig, SimConfig, SlaveConfig};
 use crate::plant::servo::{ParamError, ServoDrive, ServoParams};
@@ -99,6 +99,8 @@ pub struct CanNodeConfig {
     pub recorder_bytes: usize,
     /// The SYNC watchdog's margin (periods of 0x1006; at least 1).
     pub sync_timeout_periods: f64,
+    /// PDOs each way (1..=[`MAX_PDO_COUNT`]; [`DEFAULT_PDO_COUNT`] by default).
+    pub pdo_count: u8,
 }
 
 impl CanNodeConfig {
@@ -121,6 +123,7 @@ impl CanNodeConfig {
             sdo_buffer: 1024,
             recorder_bytes: 0,
             sync_timeout_periods: SYNC_TIMEOUT_PERIODS,
+            pdo_count: DEFAULT_PDO_COUNT,
         }
     }
 }
@@ -134,6 +137,7 @@ impl CanNodeConfig {
             start_counts: servo.start_position,
             sync_timeout_periods: servo.sync_timeout_periods,
             recorder_bytes: servo.recorder_bytes as usize,
+            pdo_count: servo.pdo_count,
             sdo: SdoConfig {
                 timeout_ns: u64::from(servo.sdo_timeout_ms) * 1_000_000,
                 ..SdoConfig::default()
@@ -288,6 +292,18 @@ pub enum CanNodeError {
         /// The size asked for.
         bytes: usize,
     },
+    /// A PDO count the simulator does not offer.
+    #[error(
+        "CANopen {node}: pdo_count = {count}: a simulated node has 1 to {max} PDOs \
+         each way",
+        max = MAX_PDO_COUNT
+    )]
+    PdoCount {
+        /// The node.
+        node: NodeId,
+        /// The count asked for.
+        count: u8,
+    },
     /// The servo's parameters.
     #[error("CANopen node {node}: servo parameters: {source}")]
     Params {
@@ -377,8 +393,8 @@ pub struct CanNode {
     sdo: SdoServer<Box<[u8]>>,
     dict: NodeDictionary,
     out: Outbox,
-    rpdo: [PdoRun; PDO_COUNT],
-    tpdo: [PdoRun; PDO_COUNT],
+    rpdo: [PdoRun; MAX_PDO_COUNT],
+    tpdo: [PdoRun; MAX_PDO_COUNT],
     last_heartbeat_ns: u64,
     /// Heartbeat consumer: last heartbeat of the monitored node, and whether it timed out.
     consumer_seen_ns: Option<u64>,
@@ -420,6 +436,12 @@ impl CanNode {
             .params
             .check()
             .map_err(|source| CanNodeError::Params { node, source })?;
+        if !(1..=MAX_PDO_COUNT as u8).contains(&config.pdo_count) {
+            return Err(CanNodeError::PdoCount {
+                node,
+                count: config.pdo_count,
+            });
+        }
         if config.recorder_bytes > super::dictionary::RECORDER_MAX_BYTES {
             return Err(CanNodeError::Recorder {
                 node,
@@ -449,7 +471,13 @@ impl CanNode {
                 )
             }
         };
-        let mut dict = NodeDictionary::new(node, config.identity, config.heartbeat_ms, device);
+        let mut dict = NodeDictionary::new(
+            node,
+            config.identity,
+            config.heartbeat_ms,
+            device,
+            config.pdo_count,
+        );
         dict.set_recorder(config.recorder_bytes);
         Ok(Self {
             node,
@@ -457,8 +485,8 @@ impl CanNode {
             sdo,
             dict,
             out: Outbox::new(),
-            rpdo: [PdoRun::default(); PDO_COUNT],
-            tpdo: [PdoRun::default(); PDO_COUNT],
+            rpdo: [PdoRun::default(); MAX_PDO_COUNT],
+            tpdo: [PdoRun::default(); MAX_PDO_COUNT],
             last_heartbeat_ns: 0,
             consumer_seen_ns: None,
             consumer_lost: false,
@@ -639,7 +667,7 @@ impl CanNode {
     /// that does not come again within its event timer is an RPDO timeout (EMCY 0x8250,
     /// and, its data being the drive's command, the 0x6007 reaction), once until it comes.
     fn rpdo_deadlines(&mut self, now: u64) {
-        for n in 0..PDO_COUNT {
+        for n in 0..MAX_PDO_COUNT {
             let Some(p) = self.dict.comm.rpdo.get(n).copied() else {
                 continue;
             };
@@ -683,8 +711,8 @@ impl CanNode {
         self.counters.heartbeats += 1;
         self.nmt = NmtSlaveState::PreOperational;
         self.last_heartbeat_ns = now;
-        self.rpdo = [PdoRun::default(); PDO_COUNT];
-        self.tpdo = [PdoRun::default(); PDO_COUNT];
+        self.rpdo = [PdoRun::default(); MAX_PDO_COUNT];
+        self.tpdo = [PdoRun::default(); MAX_PDO_COUNT];
         self.consumer_seen_ns = None;
         self.consumer_lost = false;
         self.last_sync_ns = None;
@@ -787,8 +815,8 @@ impl CanNode {
                 if s != self.nmt {
                     // PDO run-time state restarts on every change (CiA 301: PDOs exist
                     // only in Operational).
-                    self.rpdo = [PdoRun::default(); PDO_COUNT];
-                    self.tpdo = [PdoRun::default(); PDO_COUNT];
+                    self.rpdo = [PdoRun::default(); MAX_PDO_COUNT];
+                    self.tpdo = [PdoRun::default(); MAX_PDO_COUNT];
                     self.counters.missed_in_row = 0;
                 }
                 self.nmt = s;
@@ -893,7 +921,7 @@ impl CanNode {
         self.dict
             .device
             .publish_input_image(&mut self.dict.tx_image);
-        for n in 0..PDO_COUNT {
+        for n in 0..MAX_PDO_COUNT {
             let Some(p) = self.dict.comm.tpdo.get(n).copied() else {
                 continue;
             };
@@ -939,7 +967,7 @@ impl CanNode {
         // (3) The setpoint: synchronous RPDO data received since the last SYNC.
         let mut any_sync = false;
         let mut got = false;
-        for n in 0..PDO_COUNT {
+        for n in 0..MAX_PDO_COUNT {
             let Some(p) = self.dict.comm.rpdo.get(n).copied() else {
                 continue;
             };
@@ -1059,7 +1087,7 @@ impl CanNode {
         let mut image = [0u8; IMAGE_BYTES];
         self.dict.device.publish_input_image(&mut image);
         self.dict.tx_image = image;
-        for n in 0..PDO_COUNT {
+        for n in 0..MAX_PDO_COUNT {
             let Some(p) = self.dict.comm.tpdo.get(n).copied() else {
                 continue;
             };

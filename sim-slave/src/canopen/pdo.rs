@@ -1,12 +1,18 @@
-//! Process data objects (CiA 301 §7.2.2, §7.5.2.35–.38): four receive and four transmit
-//! PDOs, each a communication parameter record (0x1400+n / 0x1800+n) and a mapping record
-//! (0x1600+n / 0x1A00+n), with the rules a CiA 301 device enforces on the SDO writes that
-//! configure them:
+//! Process data objects (CiA 301 §7.2.2, §7.5.2.35–.38): [`DEFAULT_PDO_COUNT`] receive and
+//! transmit PDOs by default, up to [`MAX_PDO_COUNT`] each way (a node's `pdo_count`), each
+//! a communication parameter record (0x1400+n / 0x1800+n) and a mapping record (0x1600+n /
+//! 0x1A00+n), with the rules a CiA 301 device enforces on the SDO writes that configure
+//! them:
 //!
 //! - **COB-ID** (sub 1): bit 31 set = PDO does not exist (invalid). Bits 0–29 may not
 //!   change while the PDO exists (§7.5.2.35: "it is not allowed to change bit 0 to 29
 //!   while the PDO exists"), abort 0x06090030; 29-bit identifiers (bit 29) are not
-//!   supported, abort 0x06090030.
+//!   supported, abort 0x06090030; a PDO is made valid only on an identifier that is not
+//!   one of CiA 301's restricted CAN-IDs ([`restricted`]: 0 among them), abort
+//!   0x06090030. PDOs 1–4 power up on their predefined identifiers (Table 75);
+//!   PDOs 5 and up have none (the predefined connection set stops at four): they power
+//!   up invalid with identifier 0 (0x80000000, as CANopenNode's dictionaries have them),
+//!   and the master gives them one.
 //! - **Transmission type** (sub 2): RPDO 0–240 synchronous (the data takes effect at the
 //!   next SYNC), 254/255 event-driven (at once); TPDO 0 synchronous acyclic, 1–240 every
 //!   n-th SYNC, 254/255 event-driven; 241–251 are reserved and 252/253 (RTR only) not
@@ -43,8 +49,12 @@ pub const RPDO_MAPPING: u16 = 0x1600;
 pub const TPDO_COMMUNICATION: u16 = 0x1800;
 /// First TPDO mapping parameter (§7.5.2.38).
 pub const TPDO_MAPPING: u16 = 0x1A00;
-/// PDOs per direction (the predefined connection set's four).
-pub const PDO_COUNT: usize = 4;
+/// PDOs per direction a node has unless its configuration says otherwise: the predefined
+/// connection set's four (CiA 301 Table 75), what most CiA 402 drives offer.
+pub const DEFAULT_PDO_COUNT: u8 = 4;
+/// Most PDOs per direction a simulated node may have (CiA 301 allows 512: eight are
+/// enough for any CiA 402 layout and keep the node's arrays small).
+pub const MAX_PDO_COUNT: usize = 8;
 /// Most entries of one mapping (one byte each at least: 8 fill a CAN frame).
 pub const MAX_MAPPED: usize = 8;
 /// Bits a PDO carries at most (8 data bytes).
@@ -238,7 +248,7 @@ impl Pdo {
                 if self.is_valid() && new_valid && (v & id_bits) != (self.cob_id & id_bits) {
                     return Err(AbortCode::INVALID_VALUE);
                 }
-                if new_valid && !self.is_valid() && (v & 0x7FF) == 0 {
+                if new_valid && !self.is_valid() && restricted((v & 0x7FF) as u16) {
                     return Err(AbortCode::INVALID_VALUE);
                 }
                 self.cob_id = v;
@@ -338,6 +348,19 @@ impl Pdo {
         *slot = v;
         Ok(())
     }
+}
+
+/// Whether `id` is a CAN-ID no configurable communication object may use (CiA 301
+/// §7.3.5 Table 76): 0x000 (NMT) and 0x001–0x07F, 0x101–0x180, 0x581–0x5FF (SDO server →
+/// client), 0x601–0x67F (SDO client → server), 0x6E0–0x6FF, 0x701–0x77F (NMT error
+/// control), 0x780–0x7FF (LSS among them).
+pub const fn restricted(id: u16) -> bool {
+    id <= 0x07F
+        || (id >= 0x101 && id <= 0x180)
+        || (id >= 0x581 && id <= 0x5FF)
+        || (id >= 0x601 && id <= 0x67F)
+        || (id >= 0x6E0 && id <= 0x6FF)
+        || id >= 0x701
 }
 
 /// The object a mapping entry names, if it may be mapped in `direction` in a PDO of a
