@@ -120,10 +120,6 @@ step "SOEM test peer (pysoem venv)" need_peer
 step "fmt" cargo fmt --all -- --check
 step "clippy" cargo clippy --workspace --all-targets --release --features gantry-tests/vcan -- -D warnings
 step "binaries" cargo build --workspace --release --bins
-# veth_commissioning is left out until the CoE SDO recovers from lost frames (README,
-# "Known limitations"): run it with
-#   cargo test -p gantry-tests --release --test veth_commissioning -- --include-ignored
-step "tests" cargo test --workspace --release -- --include-ignored \
-  --skip commission_and_home_over_veth_across_a_restart
+step "tests" cargo test --workspace --release -- --include-ignored
 step "vcan tests (deploy/vm)" vcan_tests
 step "benches compile" cargo bench --workspace --no-run
