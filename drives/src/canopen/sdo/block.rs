@@ -104,6 +104,13 @@ impl BlockSender {
         Some(seg)
     }
 
+    /// Whether the next segment (if one remains to be sent) ends its sub-block: the
+    /// receiver answers it.
+    pub(crate) fn next_ends_sub_block(&self) -> bool {
+        let k = self.confirmed + self.next_seq as usize - 1;
+        self.sending && (k + 1 >= self.total || self.next_seq >= self.blksize)
+    }
+
     /// Segments sent in the current sub-block.
     fn sent_in_sub_block(&self) -> u8 {
         if self.sending {
@@ -179,6 +186,11 @@ impl BlockReceiver {
             in_sub_block: false,
             crc: Crc16::new(),
         }
+    }
+
+    /// Segments stored in order so far.
+    pub(crate) fn segments(&self) -> usize {
+        self.segments
     }
 
     /// Whether the last segment has arrived (the end frame is next).

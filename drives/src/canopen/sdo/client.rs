@@ -8,7 +8,7 @@
 //! the transfer with the CiA 301 Table 22 code and queues the abort frame for the server.
 
 use super::abort::AbortCode;
-use super::block::{check_block_size, AckResult, BlockReceiver, BlockSender};
+use super::block::{check_block_size, segments_for, AckResult, BlockReceiver, BlockSender};
 use super::command::{
     ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, EXPEDITED_DATA, SEGMENT_DATA,
 };
@@ -175,7 +175,20 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// A client for `node`; `buf` holds the data of a transfer (its length is the largest
     /// object the client can move).
     pub fn new(node: NodeId, config: SdoConfig, buf: B) -> Result<Self, SdoConfigError> {
-        config.validate()?;
+        Self::with_buffer(node, config, buf).map_err(|(e, _)| e)
+    }
+
+    /// Like [`SdoClient::new`], but a configuration it cannot run with hands `buf` back
+    /// with the reason (a buffer lent for one transfer goes back to its owner, whatever
+    /// happens).
+    pub fn with_buffer(
+        node: NodeId,
+        config: SdoConfig,
+        buf: B,
+    ) -> Result<Self, (SdoConfigError, B)> {
+        if let Err(e) = config.validate() {
+            return Err((e, buf));
+        }
         let timing = Timing::new(Side::Client, &config);
         Ok(Self {
             node,
@@ -393,6 +406,40 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         let id = CobId::SdoRx(self.node).id();
         self.timing
             .transmit(&mut self.state, id, self.buf.as_ref(), None)
+    }
+
+    /// How many frames the server sends in answer to the next frame
+    /// [`SdoClient::transmit`] returns: none to an abort, to the last frame of a transfer
+    /// or to a block download's segment but the sub-block's last (its acknowledgement);
+    /// a sub-block to a block upload's start or acknowledgement (what remains of the
+    /// object, when the server gave its size; the end frame after the last); one to any
+    /// other request. For a caller that budgets the bus.
+    pub fn answers_to_next(&self) -> u8 {
+        use ClientCommand as C;
+        if let Some(bytes) = self.timing.pending() {
+            let sub_block = |block_size: u8| match self.state {
+                State::BlockUpload { receiver, .. } if receiver.is_done() => 1,
+                State::BlockUpload {
+                    receiver,
+                    size: Some(size),
+                    ..
+                } => {
+                    let left = segments_for(size as usize).saturating_sub(receiver.segments());
+                    block_size.min(u8::try_from(left).unwrap_or(u8::MAX))
+                }
+                _ => block_size,
+            };
+            return match ClientCommand::parse(bytes) {
+                Ok(C::Abort { .. } | C::BlockUploadEnd) => 0,
+                Ok(C::BlockUploadStart) => sub_block(self.config.block_size),
+                Ok(C::BlockUploadAck { block_size, .. }) => sub_block(block_size),
+                _ => 1,
+            };
+        }
+        match self.state {
+            State::BlockDownload { sender, .. } => u8::from(sender.next_ends_sub_block()),
+            _ => 0,
+        }
     }
 
     /// [`SdoClient::transmit`] for a caller that paces a block download's segments (a few

@@ -269,6 +269,11 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     ) -> Result<Option<Outcome>, (Multiplexer, AbortCode)> {
         use ClientCommand as C;
         match cmd {
+            C::BlockDownloadInitiate { mux, .. } | C::BlockUploadInitiate { mux, .. }
+                if !self.config.block =>
+            {
+                Err((mux, AbortCode::INVALID_COMMAND_SPECIFIER))
+            }
             C::InitiateDownload {
                 mux,
                 payload: Initiate::Expedited { data, len },

@@ -1275,6 +1275,7 @@ fn a_paced_block_download_times_the_server_from_its_last_segment() {
             .download(DOMAIN, &data, DownloadMode::Block, 0)
             .unwrap();
         let mut now = 0u64;
+        let (mut segments, mut requests) = (0, 0);
         loop {
             // One frame each 100 µs: a sub-block of 127 takes 12.7 ms, the timeout is 1 ms.
             now += 100_000;
@@ -1282,12 +1283,18 @@ fn a_paced_block_download_times_the_server_from_its_last_segment() {
                 rig.client_outcome = Some(o);
                 break;
             }
+            let answers = rig.client.answers_to_next();
             let sent = if paced {
                 rig.client.transmit_at(now)
             } else {
                 rig.client.transmit()
             };
             if let Some(f) = sent {
+                if answers == 0 {
+                    segments += 1;
+                } else {
+                    requests += 1;
+                }
                 if let Some(o) = rig.server.receive(&f, now, &mut rig.od) {
                     rig.server_outcome = Some(o);
                 }
@@ -1304,6 +1311,8 @@ fn a_paced_block_download_times_the_server_from_its_last_segment() {
         }
         if paced {
             let len = data.len();
+            // Answered: the initiate, the two sub-blocks' last segments, the end.
+            assert_eq!((segments, requests), (len.div_ceil(7) - 2, 4));
             assert_eq!(
                 rig.client_outcome,
                 Some(Outcome::Downloaded { mux: DOMAIN, len })
@@ -1314,6 +1323,114 @@ fn a_paced_block_download_times_the_server_from_its_last_segment() {
                 rig.client_outcome,
                 aborted(DOMAIN, AbortCode::TIMED_OUT, Side::Client)
             );
+        }
+    }
+}
+
+/// A server without block transfer (CiA 301 makes it optional) refuses a block request
+/// either way with 0x05040001 and serves the same object the normal way.
+#[test]
+fn a_server_without_block_transfer_refuses_it_with_0x05040001() {
+    let server = SdoConfig {
+        block: false,
+        ..SdoConfig::default()
+    };
+    let mut rig = Rig::new(SdoConfig::default(), server);
+    let data = pattern(100);
+    let refused = aborted(DOMAIN, AbortCode::INVALID_COMMAND_SPECIFIER, Side::Server);
+    let (client, _) = rig.download(DOMAIN, &data, DownloadMode::Block);
+    assert_eq!(client, refused);
+    assert_eq!(
+        rig.od.value(DOMAIN.index, DOMAIN.sub),
+        &[] as &[u8],
+        "nothing written"
+    );
+    let (client, _) = rig.upload(DOMAIN, UploadMode::Block);
+    assert_eq!(client, refused);
+    let (client, _) = rig.download(DOMAIN, &data, DownloadMode::Segmented);
+    assert_eq!(
+        client,
+        Some(Outcome::Downloaded {
+            mux: DOMAIN,
+            len: 100
+        })
+    );
+    let (client, _) = rig.upload(DOMAIN, UploadMode::Normal);
+    assert_eq!(
+        client,
+        Some(Outcome::Uploaded {
+            mux: DOMAIN,
+            len: 100
+        })
+    );
+    assert_eq!(rig.client.data(), &data[..]);
+}
+
+/// What the client says the server will answer to each frame it sends adds up to what
+/// the server sent, for every kind and size of transfer both ways.
+#[test]
+fn the_client_foretells_how_many_frames_the_server_answers() {
+    let downloads = [
+        DownloadMode::Auto,
+        DownloadMode::Segmented,
+        DownloadMode::Block,
+    ];
+    for &len in SIZES {
+        for k in 0..5 {
+            let mut rig = Rig::new(
+                SdoConfig {
+                    block_size: 5,
+                    pst: if k == 4 { 8 } else { 0 },
+                    ..SdoConfig::default()
+                },
+                SdoConfig {
+                    block_size: 7,
+                    ..SdoConfig::default()
+                },
+            );
+            let data = pattern(len);
+            match downloads.get(k) {
+                Some(&mode) => rig.client.download(DOMAIN, &data, mode, 0).unwrap(),
+                None => {
+                    rig.od.write(DOMAIN, &data).unwrap();
+                    let mode = if k == 3 {
+                        UploadMode::Normal
+                    } else {
+                        UploadMode::Block
+                    };
+                    rig.client.upload(DOMAIN, mode, 0).unwrap();
+                }
+            }
+            let (mut foretold, mut answered) = (0u32, 0u32);
+            for _ in 0..10_000 {
+                let answers = rig.client.answers_to_next();
+                let Some(f) = rig.client.transmit() else {
+                    break;
+                };
+                foretold += u32::from(answers);
+                if let Some(o) = rig.server.receive(&f, 0, &mut rig.od) {
+                    rig.server_outcome = Some(o);
+                }
+                while let Some(f) = rig.server.transmit() {
+                    answered += 1;
+                    if let Some(o) = rig.client.receive(&f, 0) {
+                        rig.client_outcome = Some(o);
+                    }
+                }
+            }
+            assert!(
+                rig.client.is_idle() && rig.server.is_idle(),
+                "{len} bytes, case {k}"
+            );
+            assert!(
+                matches!(
+                    rig.client_outcome,
+                    Some(Outcome::Downloaded { .. } | Outcome::Uploaded { .. })
+                ),
+                "{len} bytes, case {k}: {:?}",
+                rig.client_outcome
+            );
+            assert_eq!(foretold, answered, "{len} bytes, case {k}");
         }
     }
 }

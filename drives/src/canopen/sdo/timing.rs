@@ -69,6 +69,11 @@ impl Timing {
         Some(CanFrame::from_parts(id, seg.emit()))
     }
 
+    /// The frame waiting to be taken.
+    pub(super) fn pending(&self) -> Option<&[u8; SDO_LEN]> {
+        self.pending.as_ref()
+    }
+
     /// Queues `bytes` (replacing a frame not yet taken) and waits for the peer's answer.
     pub(super) fn send(&mut self, bytes: [u8; SDO_LEN], now_ns: u64) {
         self.pending = Some(bytes);
