@@ -283,12 +283,12 @@ pub fn restore_commutation(
         let Some(offset) = saved.commutation_offset(i) else {
             continue;
         };
-        let data = SdoData::new(&offset.to_le_bytes()).unwrap_or_default();
+        let data = SdoData::new(&offset.to_le_bytes());
         let request = SdoRequest::download(a.drive, object.index, object.sub, data);
         let end = Instant::now() + Duration::from_secs(10);
         let written = loop {
             let r = controller
-                .sdo(request)
+                .sdo(request.clone())
                 .map_err(|e| e.to_string())
                 .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()));
             match r {
@@ -379,7 +379,7 @@ pub fn run(
         Err(_) => return Err(ServiceError::CycleThread("ended at start")),
     };
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
-    let controller = Controller::new(ends, names);
+    let controller = Controller::with_sdo_max_bytes(ends, names, config.bus.sdo_max_bytes());
     restore_positions(&config, &saved, &controller, out);
     restore_commutation(&config, &saved, &controller, out);
     let runtime = tokio::runtime::Builder::new_multi_thread()
