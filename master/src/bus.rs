@@ -14,7 +14,7 @@ use crate::ethercat::link::LinkFactory;
 use crate::runtime::bus::{
     BusCounters, CanNodeStatus, CycleBus, DriveError, Reply, Restored, Unreachable,
 };
-use crate::runtime::sdo::{SdoError, SdoRequest, SdoResult};
+use crate::runtime::sdo::{SdoBuffer, SdoEnded, SdoTransfer};
 use gantry_kernel::axis::command::CommandError;
 
 /// Either bus.
@@ -157,10 +157,15 @@ impl CycleBus for AnyBus {
     fn dc_measured(&self) -> bool {
         with_bus!(self, b => b.dc_measured())
     }
-    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
-        with_bus!(self, b => b.start_sdo(request, now_ns))
+    fn start_sdo(
+        &mut self,
+        transfer: &SdoTransfer,
+        buffer: SdoBuffer,
+        now_ns: u64,
+    ) -> Result<(), SdoEnded> {
+        with_bus!(self, b => b.start_sdo(transfer, buffer, now_ns))
     }
-    fn take_sdo(&mut self) -> Option<SdoResult> {
+    fn take_sdo(&mut self) -> Option<SdoEnded> {
         with_bus!(self, b => b.take_sdo())
     }
     fn can_node(&self, drive: usize) -> Option<CanNodeStatus> {

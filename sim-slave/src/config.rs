@@ -203,6 +203,10 @@ pub struct ServoConfig {
     /// On a CAN bus: bytes of the manufacturer DOMAIN 0x2F00 "recorder" (read-only, known
     /// content, for large SDO uploads; 0: the node has none; at most 1 MiB).
     pub recorder_bytes: u32,
+    /// On a CAN bus: bytes the manufacturer DOMAIN 0x2F01 "scratch" holds at most
+    /// (read-write: an upload reads back what the last download wrote, for large SDO
+    /// downloads; 0: the node has none; at most 1 MiB).
+    pub scratch_bytes: u32,
     /// On a CAN bus: how long its SDO server waits for the client's next frame before it
     /// aborts the transfer with 0x05040000 (ms; CiA 301 leaves it to the device; 1000 by
     /// default). A longer one serves a slow client (a Python master in an emulated VM
@@ -419,6 +423,7 @@ impl Default for ServoConfig {
             start_position: 0,
             sync_timeout_periods: crate::canopen::node::SYNC_TIMEOUT_PERIODS,
             recorder_bytes: 0,
+            scratch_bytes: 0,
             sdo_timeout_ms: 1000,
             pdo_count: crate::canopen::pdo::DEFAULT_PDO_COUNT,
             dc_drift_ppm: 0.0,

@@ -75,6 +75,10 @@ fn agrees_with_the_node(n: &mut CanNode) -> eds::Eds {
                     "{place}: {:?}",
                     s.data_type
                 ),
+                // Any length up to a maximum the EDS has no key for: a DOMAIN.
+                (None, ObjectSize::Variable { .. }) => {
+                    assert_eq!(s.data_type, DataType::Domain, "{place}")
+                }
                 (a, b) => panic!("{place}: {a:?} vs {b:?}"),
             }
             // Mappability: the node's own rule, both ways, with the type's length.
@@ -89,7 +93,12 @@ fn agrees_with_the_node(n: &mut CanNode) -> eds::Eds {
             }
             // The power-on value, read by SDO now.
             let mut buf = [0u8; 64];
+            let empty_domain = s.data_type == DataType::Domain && s.default_value.is_none();
             if let Ok(len) = n.read_object(o.index, sub, &mut buf) {
+                if empty_domain && len == 0 {
+                    // A DOMAIN that powers on empty has no DefaultValue.
+                    continue;
+                }
                 let node_value = Value::from_le_bytes(&buf[..len], s.data_type).unwrap();
                 let eds_value = s
                     .default_value
@@ -236,6 +245,24 @@ fn the_recorder_is_a_read_only_domain_in_the_eds() {
         (DataType::Domain, AccessType::ReadOnly, false)
     );
     assert!(read(&mut node(5)).entry(0x2F00, 0).is_none());
+}
+
+/// A node with the scratch 0x2F01 (chain `scratch_bytes`) describes it as a read-write
+/// DOMAIN that no PDO maps; one without it does not describe it.
+#[test]
+fn the_scratch_is_a_read_write_domain_in_the_eds() {
+    let mut n = CanNode::new(CanNodeConfig {
+        scratch_bytes: 1000,
+        ..CanNodeConfig::servo(id(5))
+    })
+    .unwrap();
+    let e = agrees_with_the_node(&mut n);
+    let r = e.entry(0x2F01, 0).unwrap();
+    assert_eq!(
+        (r.data_type, r.access, r.pdo_mapping),
+        (DataType::Domain, AccessType::ReadWrite, false)
+    );
+    assert!(read(&mut node(5)).entry(0x2F01, 0).is_none());
 }
 
 #[test]

@@ -209,11 +209,83 @@ fn the_recorder_uploads_64_kib_segmented_and_by_block() {
     assert_eq!(m.read(7, 0x2F00, 0), Err(AbortCode::OBJECT_DOES_NOT_EXIST));
     let too_big = CanNode::new(node(8, RECORDER_MAX_BYTES + 1)).unwrap_err();
     assert!(
-        matches!(too_big, CanNodeError::Recorder { .. }),
+        matches!(too_big, CanNodeError::DomainSize { .. }),
         "{too_big}"
     );
     assert!(
         too_big.to_string().contains("recorder_bytes = 1048577"),
+        "{too_big}"
+    );
+}
+
+/// The scratch 0x2F01 (chain `scratch_bytes`): a read-write DOMAIN that reads back what
+/// was last written. 64 KiB written segmented and by block read back byte for byte (by
+/// block and segmented), a shorter write reads back shorter, one longer than it holds is
+/// refused with 0x06070012 before any data moves, reset application empties it, and one
+/// larger than 1 MiB is refused.
+#[test]
+fn the_scratch_takes_64_kib_and_reads_it_back() {
+    use gantry_drives::canopen::nmt::NmtCommand;
+    use gantry_drives::canopen::NodeId;
+    use gantry_sim::canopen::dictionary::{recorder_byte, RECORDER_MAX_BYTES};
+    use gantry_sim::canopen::{CanNode, CanNodeConfig, CanNodeError};
+    const BYTES: usize = 65_536;
+    let node = |id: u8, scratch_bytes| CanNodeConfig {
+        scratch_bytes,
+        ..CanNodeConfig::servo(NodeId::new(id).unwrap())
+    };
+    let mut m = Master::with_nodes(vec![
+        CanNode::new(node(6, BYTES)).unwrap(),
+        CanNode::new(node(7, 0)).unwrap(),
+        CanNode::new(node(9, 100)).unwrap(),
+    ]);
+    m.step(0);
+    assert_eq!(m.read(6, 0x2F01, 0), Ok(vec![]), "empty at power-on");
+    for (k, mode) in [DownloadMode::Segmented, DownloadMode::Block]
+        .into_iter()
+        .enumerate()
+    {
+        let data: Vec<u8> = (0..BYTES).map(|i| recorder_byte(i + k)).collect();
+        m.download(6, 0x2F01, 0, &data, mode).unwrap();
+        for up in [UploadMode::Block, UploadMode::Normal] {
+            let got = m.upload(6, 0x2F01, 0, up).unwrap();
+            assert_eq!(got.len(), BYTES, "{mode:?} {up:?}");
+            let first_bad = got.iter().zip(&data).position(|(a, b)| a != b);
+            assert_eq!(first_bad, None, "{mode:?} {up:?}");
+        }
+    }
+    m.write(6, 0x2F01, 0, b"short").unwrap();
+    assert_eq!(m.read(6, 0x2F01, 0), Ok(b"short".to_vec()));
+    m.write(9, 0x2F01, 0, b"short").unwrap();
+    for mode in [DownloadMode::Segmented, DownloadMode::Block] {
+        assert_eq!(
+            m.download(9, 0x2F01, 0, &[1; 101], mode),
+            Err(AbortCode::LENGTH_TOO_HIGH),
+            "{mode:?}"
+        );
+    }
+    assert_eq!(m.read(9, 0x2F01, 0), Ok(b"short".to_vec()), "unchanged");
+    assert_eq!(
+        m.read(6, 0x2F01, 1),
+        Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST)
+    );
+    assert_eq!(m.read(7, 0x2F01, 0), Err(AbortCode::OBJECT_DOES_NOT_EXIST));
+    m.nmt(NmtCommand::ResetNode, Some(6));
+    m.step(0);
+    assert_eq!(
+        m.read(6, 0x2F01, 0),
+        Ok(vec![]),
+        "empty after reset application"
+    );
+    let too_big = CanNode::new(node(8, RECORDER_MAX_BYTES + 1)).unwrap_err();
+    assert!(
+        matches!(too_big, CanNodeError::DomainSize { .. }),
+        "{too_big}"
+    );
+    assert!(
+        too_big
+            .to_string()
+            .contains("scratch_bytes = 1048577: the scratch 0x2F01 holds at most 1048576"),
         "{too_big}"
     );
 }

@@ -289,6 +289,7 @@ fn gantry_sdo_types_objects_by_the_eds_and_refuses_what_it_does_not_have() {
             value,
             ty,
             timeout_s: None,
+            file: None,
         };
         sdo::run(client, &transfer, false, &mut out)
             .map(|()| String::from_utf8(out).unwrap())

@@ -3,10 +3,11 @@
 //! the drive layer, and the restore's NMT and SDO steps) while four simulated drives are
 //! enabled and moved, a node's heartbeat stays away until its axis stops, the node is
 //! reset by another master, gantry's reset brings it back by SDO, and the application's
-//! SDO transfers (segmented, expedited, aborted) go beside the moves. The link is a
-//! lockstep one that does not allocate either (a fixed queue in front of the nodes,
-//! which allocate nothing after they are built), so any allocation counted is the
-//! cycle's.
+//! SDO transfers (segmented, expedited, aborted, 64 KiB up and down by block) go beside
+//! the moves, during which it frees nothing either (the buffer lent with a transfer goes
+//! back to the application). The link is a lockstep one that does not allocate either (a
+//! fixed queue in front of the nodes, which allocate nothing after they are built), so any
+//! allocation counted is the cycle's.
 
 use std::sync::{Arc, Mutex};
 
@@ -16,12 +17,14 @@ use gantry::runtime::clock::StepClock;
 use gantry::runtime::controller::{CommandHandle, Controller};
 use gantry::runtime::cycle::Cycle;
 use gantry::runtime::engine::Engine;
-use gantry::runtime::sdo::{SdoData, SdoError, SdoRequest};
+use gantry::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_BYTES};
 use gantry_drives::canopen::nmt::{NmtCommand, NmtFrame, NmtTarget};
 use gantry_drives::canopen::NodeId;
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
+use gantry_sim::canopen::dictionary::recorder_byte;
+use gantry_sim::canopen::{CanNode, CanNodeConfig};
 use gantry_tests::can_rig::{
     can_config_axes, can_config_with, servos, servos_with_pdos, Nodes, NodesLink,
 };
@@ -103,13 +106,22 @@ fn the_canopen_cycle_does_not_allocate() {
     let ids = [1u8, 2, 3, 4];
     // With a SYNC counter and gantry's heartbeat: their paths run in the watched cycles.
     let config = can_config_with(&ids, 2000, "csp", "sync_counter = 8");
+    // Node 1 carries the recorder 0x2F00 and the scratch 0x2F01 of 64 KiB each: a
+    // block transfer of the most a transfer carries goes each way in the watched cycles.
+    let mut nodes = servos(&ids[1..]);
+    let big = CanNodeConfig {
+        recorder_bytes: SDO_MAX_BYTES,
+        scratch_bytes: SDO_MAX_BYTES,
+        ..CanNodeConfig::servo(NodeId::new(1).unwrap())
+    };
+    nodes.insert(0, CanNode::new(big).unwrap());
     let Watched {
         mut engine,
         ctl,
         shared,
         mut clock,
         ..
-    } = engine_on(&config, servos(&ids));
+    } = engine_on(&config, nodes);
     let mut watched = 0u64;
     let mut cycle = |engine: &mut Engine<CanopenBus>, n: usize| {
         for _ in 0..n {
@@ -212,19 +224,25 @@ fn the_canopen_cycle_does_not_allocate() {
     }
     assert!(!engine.bus.any_fault());
     // SDO transfers beside the PDOs while the axes move, inside the watched cycles: a
-    // segmented upload, an expedited download, an abort.
+    // segmented upload, an expedited download, an abort, 64 KiB up and down by block.
     let hs = moves(25.0);
-    let window = SdoData::new(&50_000u32.to_le_bytes()).unwrap();
+    let window = SdoData::new(&50_000u32.to_le_bytes());
+    let written: Vec<u8> = (0..SDO_MAX_BYTES).map(|i| recorder_byte(i + 1)).collect();
     let transfers = [
         SdoRequest::upload(0, 0x1008, 0),
         SdoRequest::download(2, 0x6065, 0, window),
         SdoRequest::upload(3, 0x2FFF, 0),
+        SdoRequest::upload(0, 0x2F00, 0),
+        SdoRequest::download(0, 0x2F01, 0, SdoData::new(&written)),
     ];
     let mut outcomes = Vec::with_capacity(transfers.len());
+    let mut in_flight = 0;
+    counting::take_frees();
     for request in transfers {
         let h = ctl.sdo(request).unwrap();
-        let outcome = (0..100).find_map(|_| {
+        let outcome = (0..20_000).find_map(|_| {
             cycle(&mut engine, 1);
+            in_flight += 1;
             h.outcome()
         });
         outcomes.push(outcome.expect("the transfer ended"));
@@ -239,6 +257,23 @@ fn the_canopen_cycle_does_not_allocate() {
         "{:?}",
         outcomes[2]
     );
+    let recorder: Vec<u8> = (0..SDO_MAX_BYTES).map(recorder_byte).collect();
+    assert_eq!(
+        outcomes[3].as_ref().map(SdoData::as_slice),
+        Ok(&recorder[..]),
+        "the 64 KiB upload"
+    );
+    assert_eq!(outcomes[4], Ok(SdoData::EMPTY));
+    assert_eq!(
+        shared.lock().unwrap().nodes[0].dictionary().scratch(),
+        &written[..],
+        "the 64 KiB download"
+    );
+    // Nor does the cycle free anything while they run: the buffer lent with each goes
+    // back to the application.
+    let frees = counting::take_frees();
+    eprintln!("{in_flight} watched cycles with a transfer in flight: {frees} frees");
+    assert_eq!(frees, 0);
     for h in hs {
         assert_eq!(
             until_final(&mut engine, &mut cycle, &h),
@@ -258,7 +293,6 @@ fn the_canopen_cycle_does_not_allocate() {
 /// communication, its SDO configuration, NMT start) — all inside the watched cycles.
 #[test]
 fn the_canopen_cycle_with_a_switch_module_does_not_allocate() {
-    use gantry_sim::canopen::{CanNode, CanNodeConfig};
     use gantry_sim::plant::switches::SwitchCam;
     let config = gantry::config::Config::parse(
         "[bus]\nkind = \"canopen\"\ninterface = \"mem0\"\nbitrate = 1000000\ncycle_us = 2000\n\

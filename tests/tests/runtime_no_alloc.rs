@@ -6,8 +6,8 @@
 //! thread from its first cycle to its last while the application moves the axes, the bus
 //! loses frames, a cable is pulled long enough for a slave to drop out of OP, and a reset
 //! brings it back (the recovery's register accesses run inside the watched cycles), and
-//! SDO transfers (expedited and segmented, both ways, an abort) go through the drives'
-//! mailboxes beside the process data. That
+//! SDO transfers (expedited and segmented, both ways, 64 KiB each way, an abort) go
+//! through the drives' mailboxes beside the process data. That
 //! it takes no lock is `runtime_no_lock.rs`. Needs root (real time), as `deploy/test.sh`
 //! runs it.
 
@@ -16,7 +16,7 @@ use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
 use gantry::runtime::controller::Controller;
-use gantry::runtime::sdo::{SdoData, SdoRequest};
+use gantry::runtime::sdo::{SdoData, SdoRequest, SDO_MAX_BYTES};
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
 use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
@@ -73,10 +73,16 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
     // An object longer than a drive's mailbox carries in one message: segmented both ways
     // (0x2E00: free on the simulated servo, whose 0x2100 is its commutation offset).
     let long: Vec<u8> = (0..200u32).map(|i| i as u8).collect();
+    // And one of the most a transfer carries (64 KiB: 555 mailbox messages each way).
+    let big: Vec<u8> = (0..SDO_MAX_BYTES)
+        .map(|i| (i / 3) as u8 ^ (i >> 11) as u8)
+        .collect();
     for i in 0..AXES {
         let mut c = chain.lock().unwrap();
         let od = c.slave_mut(i).and_then(|s| s.object_dictionary_mut());
-        od.expect("a servo with CoE").insert(0x2E00, 0, &long, true);
+        let od = od.expect("a servo with CoE");
+        od.insert(0x2E00, 0, &long, true);
+        od.insert(0x2E03, 0, &big, true);
     }
     let names = (0..AXES).map(|i| format!("a{i}")).collect();
     let ctl = Controller::new(ends, names);
@@ -86,8 +92,8 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
         let new: Vec<u8> = long.iter().map(|b| b ^ round as u8).collect();
         let requests = [
             SdoRequest::upload(drive, 0x1018, 1),
-            SdoRequest::download(drive, 0x6060, 0, SdoData::new(&[8]).unwrap()),
-            SdoRequest::download(drive, 0x2E00, 0, SdoData::new(&new).unwrap()),
+            SdoRequest::download(drive, 0x6060, 0, SdoData::new(&[8])),
+            SdoRequest::download(drive, 0x2E00, 0, SdoData::new(&new)),
             SdoRequest::upload(drive, 0x2E00, 0),
             SdoRequest::upload(drive, 0x2000, 0),
         ];
@@ -97,8 +103,27 @@ fn the_cycle_thread_does_not_allocate_in_production_configuration() {
             outcomes.push(h.wait(Duration::from_secs(5)).expect("an outcome"));
         }
         assert!(outcomes[..3].iter().all(Result::is_ok), "{outcomes:?}");
-        assert_eq!(outcomes[3].unwrap().as_slice(), &new[..]);
+        assert_eq!(outcomes[3].as_ref().unwrap().as_slice(), &new[..]);
         assert!(outcomes[4].is_err(), "0x2000 does not exist: aborted");
+        if round == 0 {
+            // 64 KiB up, then down, every byte checked at both ends.
+            let h = ctl.sdo(SdoRequest::upload(drive, 0x2E03, 0)).unwrap();
+            let up = h.wait(Duration::from_secs(60)).expect("an outcome");
+            assert!(
+                up.as_ref().is_ok_and(|d| d.as_slice() == &big[..]),
+                "{up:?}"
+            );
+            let back: Vec<u8> = big.iter().map(|b| !b).collect();
+            let request = SdoRequest::download(drive, 0x2E03, 0, SdoData::new(&back));
+            let h = ctl.sdo(request).unwrap();
+            assert_eq!(h.wait(Duration::from_secs(60)), Ok(Ok(SdoData::EMPTY)));
+            let c = chain.lock().unwrap();
+            let od = c.slaves()[drive].object_dictionary().unwrap();
+            assert!(
+                od.read(0x2E03, 0).unwrap() == &back[..],
+                "what reached the drive"
+            );
+        }
     };
     for i in 0..AXES {
         ctl.command(i, Command::Power(PowerCommand::Enable))

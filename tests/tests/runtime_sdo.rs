@@ -1,15 +1,16 @@
 //! SDO transfers while the cycle runs (`gantry sdo`), through the [`Controller`] and the
 //! engine on the in-process simulator in lockstep: CoE through each slave's mailbox, one
 //! mailbox register access per cycle beside the process data. While an axis moves, its
-//! drive is read and written — expedited, normal and segmented, both ways — and its
-//! records show every setpoint arrived (none missed, none doubled, with the strict
-//! 0x10F1:02 = 4), the move ends exactly where it should. An object the drive does not
-//! have is aborted with the drive's code and its CiA 301 text; a drive that never answers
-//! times out; what the bus cannot do is refused at once.
+//! drive is read and written — expedited, normal and segmented, both ways, up to a 64 KiB
+//! object every byte of which is checked — and its records show every setpoint arrived
+//! (none missed, none doubled, with the strict 0x10F1:02 = 4), the move ends exactly
+//! where it should. An object the drive does not have is aborted with the drive's code
+//! and its CiA 301 text; one larger than a transfer carries is refused naming its size; a
+//! drive that never answers times out; what the bus cannot do is refused at once.
 
 use gantry::runtime::bus::CycleBus;
 use gantry::runtime::controller::Controller;
-use gantry::runtime::sdo::{SdoData, SdoError, SdoRequest, SdoResult};
+use gantry::runtime::sdo::{ObjectBytes, SdoData, SdoError, SdoRequest, SdoResult, SDO_MAX_BYTES};
 use gantry_drives::canopen::sdo::abort::AbortCode;
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_tests::invariant::{assert_drive_invariants, DriveUnderTest, TestConditions};
@@ -21,6 +22,16 @@ use gantry_tests::rig::Rig;
 const LONG: u16 = 0x2E00;
 /// One that fits a single message (normal, not expedited, not segmented).
 const MEDIUM: u16 = 0x2E01;
+/// A 64 KiB object, the most a transfer carries by default: 555 messages each way.
+const BIG: u16 = 0x2E03;
+/// One byte more than a transfer carries.
+const TOO_BIG: u16 = 0x2E04;
+
+/// Byte `i` of the big object's `round`th content: no period a misplaced segment could
+/// hide in.
+fn big_byte(i: usize, round: usize) -> u8 {
+    ((i as u32 + round as u32).wrapping_mul(2_654_435_761) >> 24) as u8
+}
 
 /// The drives' firmware takes this long to answer a mailbox request: the master polls.
 const MAILBOX_MS: u64 = 3;
@@ -47,6 +58,9 @@ fn rig(axes: usize) -> (Rig, gantry::config::Config) {
             let long: Vec<u8> = (0..200u32).map(|i| (i * 3) as u8).collect();
             od.insert(LONG, 0, &long, true);
             od.insert(MEDIUM, 0, b"gantry simulated servo", true);
+            let big: Vec<u8> = (0..SDO_MAX_BYTES).map(|i| big_byte(i, 0)).collect();
+            od.insert(BIG, 0, &big, true);
+            od.insert(TOO_BIG, 0, &vec![7u8; SDO_MAX_BYTES + 1], false);
         }
     }
     (rig, config)
@@ -74,7 +88,23 @@ fn transfer(rig: &mut Rig, ctl: &Controller, request: SdoRequest) -> (SdoResult,
 }
 
 fn data(bytes: &[u8]) -> SdoData {
-    SdoData::new(bytes).expect("fits")
+    SdoData::new(bytes)
+}
+
+/// Every setpoint reached the drives: none missed or doubled at SYNC0, no target step
+/// beyond the axis' speed; no frame lost or incomplete.
+fn every_setpoint_arrived(rig: &Rig, config: &gantry::config::Config) {
+    assert_drive_invariants(
+        &rig.chain.lock().unwrap(),
+        &DriveUnderTest::of_config(config),
+        1e-3,
+        TestConditions {
+            injects_following_error: false,
+            phase_locked: true,
+        },
+    );
+    let counters = rig.engine.bus().counters();
+    assert_eq!((counters.lost, counters.incomplete), (0, 0));
 }
 
 /// One bus per process (ethercrab's frame storage is static): the cases run in turn on
@@ -84,6 +114,7 @@ fn data(bytes: &[u8]) -> SdoData {
 fn sdo_transfers_beside_the_cycle() {
     let (mut rig, config) = rig(2);
     reads_and_writes_while_an_axis_moves_miss_no_setpoint(&mut rig, &config);
+    a_64_kib_object_goes_both_ways_beside_a_move(&mut rig, &config);
     an_object_the_drive_does_not_have_is_aborted_with_its_code_and_text(&mut rig);
     what_the_bus_cannot_do_is_refused_at_once(&mut rig);
     a_lost_frame_mid_transfer_costs_a_retry_not_the_transfer(&mut rig);
@@ -188,19 +219,51 @@ fn reads_and_writes_while_an_axis_moves_miss_no_setpoint(
     assert!((actual - target).abs() < 1e-3, "ended at {actual}");
     let actual = rig.snapshot().axes[1].actual_position;
     assert!((actual + 40.0).abs() < 1e-3, "ended at {actual}");
-    // Every setpoint reached the drives: none missed or doubled at SYNC0, no target step
-    // beyond the axis' speed.
-    assert_drive_invariants(
-        &rig.chain.lock().unwrap(),
-        &DriveUnderTest::of_config(config),
-        1e-3,
-        TestConditions {
-            injects_following_error: false,
-            phase_locked: true,
-        },
+    every_setpoint_arrived(rig, config);
+}
+
+/// The largest object a transfer carries by default, read and written while both axes
+/// move: 64 KiB through the 128-byte mailbox, one mailbox access in each cycle's one
+/// frame, every byte checked at both ends; the moves miss no setpoint.
+fn a_64_kib_object_goes_both_ways_beside_a_move(rig: &mut Rig, config: &gantry::config::Config) {
+    let ctl = rig.ctl.clone();
+    // Long moves (15 s at the axes' 200 units/s): still running when the transfers end.
+    let moving = rig.start_move(0, 3000.0);
+    let other = rig.start_move(1, -3000.0);
+    rig.run(20);
+    let before = rig.engine.bus().replies();
+    let (r, up_cycles) = transfer(rig, &ctl, SdoRequest::upload(0, BIG, 0));
+    let got = r.expect("the 64 KiB upload");
+    assert_eq!(got.len(), SDO_MAX_BYTES);
+    let first_bad = (0..SDO_MAX_BYTES).find(|&i| got.as_slice()[i] != big_byte(i, 0));
+    assert_eq!(first_bad, None, "the upload's bytes");
+    let new: Vec<u8> = (0..SDO_MAX_BYTES).map(|i| big_byte(i, 1)).collect();
+    let (r, down_cycles) = transfer(rig, &ctl, SdoRequest::download(0, BIG, 0, data(&new)));
+    assert_eq!(r, Ok(SdoData::EMPTY));
+    // One frame per cycle all along: the mailbox accesses rode in the cyclic frame.
+    let frames = rig.engine.bus().replies() - before;
+    assert_eq!(
+        frames,
+        u64::from(up_cycles + down_cycles),
+        "frames in {up_cycles} + {down_cycles} cycles"
     );
-    let counters = rig.engine.bus().counters();
-    assert_eq!((counters.lost, counters.incomplete), (0, 0));
+    eprintln!("64 KiB: upload {up_cycles} cycles, download {down_cycles} cycles");
+    {
+        let chain = rig.chain.lock().unwrap();
+        let od = chain.slaves()[0].object_dictionary().unwrap();
+        let there = od.read(BIG, 0).unwrap();
+        let first_bad = (0..SDO_MAX_BYTES).find(|&i| there[i] != new[i]);
+        assert_eq!(first_bad, None, "what reached the drive");
+    }
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, BIG, 0));
+    assert_eq!(r.unwrap().as_slice(), &new[..], "read back");
+    assert!(
+        rig.status_now(&moving).is_none_or(|s| !s.is_final()),
+        "the transfers ran during the move"
+    );
+    assert_eq!(rig.finish(&moving, 40_000), CommandStatus::Done);
+    assert_eq!(rig.finish(&other, 40_000), CommandStatus::Done);
+    every_setpoint_arrived(rig, config);
 }
 
 fn an_object_the_drive_does_not_have_is_aborted_with_its_code_and_text(rig: &mut Rig) {
@@ -319,25 +382,34 @@ fn what_the_bus_cannot_do_is_refused_at_once(rig: &mut Rig) {
     rig.run(20);
     let (r, cycles) = transfer(rig, &ctl, SdoRequest::upload(5, 0x1018, 1));
     assert_eq!((r, cycles), (Err(SdoError::NoDrive { drive: 5 }), 1));
-    // An upload larger than a transfer in the cycle carries: aborted at the drive, and
-    // the size said.
-    let big = vec![7u8; 300];
-    rig.chain
-        .lock()
-        .unwrap()
-        .slave_mut(0)
-        .and_then(|s| s.object_dictionary_mut())
-        .unwrap()
-        .insert(0x2E02, 0, &big, false);
-    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x2E02, 0));
+    // An upload larger than a transfer carries: aborted at the drive once it says the
+    // size, and the size said.
+    let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, TOO_BIG, 0));
+    let too_big = SdoError::TooLarge {
+        drive: 0,
+        index: TOO_BIG,
+        sub: 0,
+        size: ObjectBytes(Some(SDO_MAX_BYTES as u32 + 1)),
+        max: SDO_MAX_BYTES,
+    };
+    assert_eq!(r, Err(too_big));
     assert_eq!(
-        r,
-        Err(SdoError::TooLarge {
+        too_big.to_string(),
+        "drive 0: SDO 0x2E04:00: the object has 65537 bytes, more than the 65536 bytes a \
+         transfer carries here (`[bus] sdo_max_bytes`)"
+    );
+    // A download of as much: refused before anything is sent (no cycle has run).
+    let request = SdoRequest::download(0, BIG, 0, data(&vec![1; SDO_MAX_BYTES + 1]));
+    let h = ctl.sdo(request).expect("answered");
+    assert_eq!(
+        h.outcome(),
+        Some(Err(SdoError::TooLarge {
             drive: 0,
-            index: 0x2E02,
+            index: BIG,
             sub: 0,
-            size: 300
-        })
+            size: ObjectBytes(Some(SDO_MAX_BYTES as u32 + 1)),
+            max: SDO_MAX_BYTES,
+        }))
     );
     // The drive's segmented transfer was aborted: the next one starts clean.
     let (r, _) = transfer(rig, &ctl, SdoRequest::upload(0, 0x6060, 0));

@@ -5,12 +5,13 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-/// Counts allocations (and reallocations) of watching threads.
+/// Counts allocations (and reallocations) of watching threads, and their frees apart.
 pub struct Counting;
 
 thread_local! {
     static WATCHING: Cell<bool> = const { Cell::new(false) };
     static COUNT: Cell<u64> = const { Cell::new(0) };
+    static FREES: Cell<u64> = const { Cell::new(0) };
 }
 
 /// Starts or stops watching this thread.
@@ -21,6 +22,13 @@ pub fn watch(on: bool) {
 /// Allocations this thread made while watched; resets the count.
 pub fn take_count() -> u64 {
     COUNT.with(|c| c.replace(0))
+}
+
+/// Frees this thread made while watched (memory it freed, whoever allocated it); resets
+/// the count.
+#[allow(dead_code)] // not every test binary asks
+pub fn take_frees() -> u64 {
+    FREES.with(|c| c.replace(0))
 }
 
 fn counted() {
@@ -37,6 +45,9 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if WATCHING.with(Cell::get) {
+            FREES.with(|c| c.set(c.get() + 1));
+        }
         // SAFETY: same contract as our caller's.
         unsafe { System.dealloc(ptr, layout) }
     }

@@ -730,7 +730,7 @@ impl SdoTarget {
 /// `gantry sdo upload|download`.
 #[derive(Subcommand, Debug)]
 enum SdoOp {
-    /// Read an object: prints its value as --type.
+    /// Read an object: prints its value as --type, or writes its bytes to --out.
     Upload {
         #[command(flatten)]
         target: SdoTarget,
@@ -738,27 +738,35 @@ enum SdoOp {
         object: String,
         /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex (default: the object's type in
         /// the drive's EDS, `[[axis]] eds`; hex bytes for a drive without one).
-        #[arg(long = "type")]
+        #[arg(long = "type", conflicts_with = "out")]
         ty: Option<SdoType>,
+        /// Write the object's bytes, as the drive sent them, to this file (a recorder, a
+        /// parameter set: up to `[bus] sdo_max_bytes`, 64 KiB by default).
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Seconds the drive may take to answer (default 2).
         #[arg(long, value_parser = finite)]
         timeout: Option<f64>,
         #[command(flatten)]
         client: ClientOpts,
     },
-    /// Write an object: VALUE as --type.
+    /// Write an object: VALUE as --type, or the bytes of --file.
     Download {
         #[command(flatten)]
         target: SdoTarget,
         /// The object: INDEX:SUB in hex (e.g. 0x6060:0).
         object: String,
         /// The value (decimal or 0x… for integers; hex digits for --type hex).
-        #[arg(allow_hyphen_values = true)]
-        value: String,
+        #[arg(allow_hyphen_values = true, required_unless_present = "file")]
+        value: Option<String>,
         /// u8 u16 u32 u64 i8 i16 i32 i64 f32 string hex (default: the object's type in
         /// the drive's EDS, `[[axis]] eds`; hex bytes for a drive without one).
-        #[arg(long = "type")]
+        #[arg(long = "type", conflicts_with = "file")]
         ty: Option<SdoType>,
+        /// Write this file's bytes, as they are, instead of a VALUE (up to `[bus]
+        /// sdo_max_bytes`, 64 KiB by default).
+        #[arg(long, conflicts_with = "value")]
+        file: Option<PathBuf>,
         /// Seconds the drive may take to answer (default 2).
         #[arg(long, value_parser = finite)]
         timeout: Option<f64>,
@@ -919,22 +927,40 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             .map_err(anyhow::Error::msg)?
             .send()?,
         Cmd::Sdo { op } => {
-            let (target, object, value, ty, timeout, opts) = match op {
+            let (target, object, value, ty, timeout, opts, file) = match op {
                 SdoOp::Upload {
                     target,
                     object,
                     ty,
+                    out,
                     timeout,
                     client,
-                } => (target, object, None, ty, timeout, client),
+                } => (
+                    target,
+                    object,
+                    None,
+                    ty,
+                    timeout,
+                    client,
+                    out.map(sdo_cli::File::Out),
+                ),
                 SdoOp::Download {
+                    target,
+                    object,
+                    value,
+                    ty,
+                    file,
+                    timeout,
+                    client,
+                } => (
                     target,
                     object,
                     value,
                     ty,
                     timeout,
                     client,
-                } => (target, object, Some(value), ty, timeout, client),
+                    file.map(sdo_cli::File::In),
+                ),
             };
             anyhow::ensure!(
                 timeout.is_none_or(|t| (0.001..=60.0).contains(&t)),
@@ -954,6 +980,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     value: value.as_deref(),
                     ty,
                     timeout_s: timeout,
+                    file,
                 },
                 opts.json,
                 &mut std::io::stdout(),

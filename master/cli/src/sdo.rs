@@ -6,10 +6,12 @@
 //! names its EDS (`[[axis]] eds`) has each object read and written as the EDS' data type
 //! says (the service answers an `object` request from the configuration, and refuses an
 //! object the EDS does not have: "0x2001:00 is not in drive.eds"); a drive without an
-//! EDS is read and written as raw hex bytes, as before.
+//! EDS is read and written as raw hex bytes, as before. A large object (a recorder, a
+//! parameter set) goes to or comes from a file as raw bytes (`--out`, `--file`).
 
 use std::fmt;
 use std::io::Write;
+use std::path::PathBuf;
 use std::str::FromStr;
 
 use gantry::service::protocol::{Request, SdoDirection};
@@ -393,6 +395,15 @@ pub fn typing(
     })
 }
 
+/// A file a transfer's raw bytes go to or come from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum File {
+    /// An upload's bytes are written here.
+    Out(PathBuf),
+    /// A download's bytes are read from here.
+    In(PathBuf),
+}
+
 /// A transfer as typed on the command line.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transfer<'a> {
@@ -407,6 +418,8 @@ pub struct Transfer<'a> {
     pub ty: Option<SdoType>,
     /// Seconds the drive may take (`None`: the service's default).
     pub timeout_s: Option<f64>,
+    /// The raw bytes to a file (upload) or from one (download, instead of `value`).
+    pub file: Option<File>,
 }
 
 /// Runs `gantry sdo upload` (no value) or `download`: prints the value read (as its
@@ -423,8 +436,18 @@ pub fn run(
         Target::Drive(d) => (None, Some(*d)),
         Target::Node(n) => (None, Some(drive_of_node(client, *n)?)),
     };
-    let ty = typing(client, axis.clone(), drive, index, sub, transfer.ty)?;
-    let data = transfer.value.map(|v| ty.encode(v)).transpose()?;
+    // A file holds raw bytes, whatever the object's type.
+    let ty = match &transfer.file {
+        Some(_) => Typing::Given(SdoType::Hex),
+        None => typing(client, axis.clone(), drive, index, sub, transfer.ty)?,
+    };
+    let data = match &transfer.file {
+        Some(File::In(path)) => Some(std::fs::read(path).map_err(|source| SdoCliError::File {
+            path: path.display().to_string(),
+            source,
+        })?),
+        _ => transfer.value.map(|v| ty.encode(v)).transpose()?,
+    };
     let direction = if data.is_some() {
         SdoDirection::Download
     } else {
@@ -445,6 +468,35 @@ pub fn run(
     let print = |out: &mut dyn Write, text: String| {
         writeln!(out, "{text}").map_err(|e| SdoCliError::Client(ClientError::Output(e)))
     };
+    match (&transfer.file, data.as_deref()) {
+        (Some(File::Out(path)), _) => {
+            std::fs::write(path, &bytes).map_err(|source| SdoCliError::File {
+                path: path.display().to_string(),
+                source,
+            })?;
+            let path = path.display().to_string();
+            let n = bytes.len();
+            return print(
+                out,
+                if json_out {
+                    json!({"index": index, "sub": sub, "bytes": n, "out": path}).to_string()
+                } else {
+                    format!("{n} bytes to {path}")
+                },
+            );
+        }
+        (Some(File::In(_)), Some(written)) => {
+            let n = written.len();
+            return match json_out {
+                true => print(
+                    out,
+                    json!({"index": index, "sub": sub, "bytes": n}).to_string(),
+                ),
+                false => Ok(()),
+            };
+        }
+        _ => {}
+    }
     match (direction, json_out) {
         (SdoDirection::Upload, false) => print(out, ty.decode(&bytes)?),
         (SdoDirection::Upload, true) => {
@@ -478,6 +530,15 @@ pub enum SdoCliError {
     /// The service, the bus or the drive.
     #[error(transparent)]
     Client(#[from] ClientError),
+    /// The file of `--out` or `--file`.
+    #[error("{path}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
     /// `--node N` names no CANopen node of the running bus.
     #[error("--node {node}: no such CANopen node on this bus ({nodes})")]
     NoNode {

@@ -151,3 +151,117 @@ fn gantry_run_drives_simulated_canopen_nodes_with_status_moves_and_sdo() {
     // host's, not judged.
     svc.assert_drive_invariant();
 }
+
+/// `gantry sdo` with a file: node 1's recorder 0x2F00 (64 KiB of known content, the
+/// chain's `recorder_bytes`) uploaded to a file with `--out`, 64 KiB written to its
+/// scratch 0x2F01 from a file with `--file` and read back, every byte checked; a file
+/// larger than a transfer carries is refused with its size, and what was typed wrong is
+/// said before anything is asked of the service.
+#[test]
+fn gantry_sdo_moves_64_kib_to_and_from_files() {
+    use gantry_sim::canopen::dictionary::recorder_byte;
+    const BYTES: usize = 65_536;
+    let mut svc = Service::start_example(
+        "canopen-sdo-files",
+        "sim-canopen-4-axes.toml",
+        "sim-canopen-4-servos.toml",
+        |chain| {
+            chain.replacen(
+                "node = 1\n",
+                &format!("node = 1\nrecorder_bytes = {BYTES}\nscratch_bytes = {BYTES}\n"),
+                1,
+            )
+        },
+    );
+    // The socket opens before the cycle's first snapshot: wait for a few cycles.
+    let end = Instant::now() + Duration::from_secs(10);
+    while svc.status()["cycles"].as_u64().unwrap_or(0) < 20 {
+        assert!(Instant::now() < end, "no cycles");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // `gantry sdo DIRECTION TARGET… OBJECT FLAG FILE`, its arguments.
+    let with_file = |direction: &'static str,
+                     target: &[&'static str],
+                     object: &'static str,
+                     flag: &'static str,
+                     file: &std::path::Path| {
+        let mut a = vec!["sdo".to_string(), direction.to_string()];
+        a.extend(target.iter().map(|t| t.to_string()));
+        a.extend([
+            object.to_string(),
+            flag.to_string(),
+            file.display().to_string(),
+        ]);
+        a
+    };
+    fn args(a: &[String]) -> Vec<&str> {
+        a.iter().map(String::as_str).collect()
+    }
+    let dir = svc.dir.clone();
+    let out = dir.join("recorder.bin");
+    let said = svc.ok(&args(&with_file(
+        "upload",
+        &["--node", "1"],
+        "0x2F00:0",
+        "--out",
+        &out,
+    )));
+    assert_eq!(said.trim(), format!("{BYTES} bytes to {}", out.display()));
+    let got = std::fs::read(&out).unwrap();
+    assert_eq!(got.len(), BYTES);
+    let first_bad = (0..BYTES).find(|&i| got[i] != recorder_byte(i));
+    assert_eq!(first_bad, None, "the recorder's bytes in the file");
+
+    let written: Vec<u8> = (0..BYTES).map(|i| recorder_byte(3 * i + 1)).collect();
+    let file = dir.join("parameters.bin");
+    std::fs::write(&file, &written).unwrap();
+    let mut download = with_file("download", &["--axis", "x"], "0x2F01:0", "--file", &file);
+    download.push("--json".into());
+    let said = svc.ok(&args(&download));
+    let j: serde_json::Value = serde_json::from_str(said.trim()).unwrap();
+    assert_eq!(j["bytes"], BYTES as u64, "{j}");
+    let back = dir.join("back.bin");
+    svc.ok(&args(&with_file(
+        "upload",
+        &["--axis", "x"],
+        "0x2F01:0",
+        "--out",
+        &back,
+    )));
+    assert!(std::fs::read(&back).unwrap() == written, "read back");
+
+    let big = dir.join("too-big.bin");
+    std::fs::write(&big, vec![0u8; BYTES + 1]).unwrap();
+    let e = svc.fails(&args(&with_file(
+        "download",
+        &["--axis", "x"],
+        "0x2F01:0",
+        "--file",
+        &big,
+    )));
+    assert!(
+        e.contains(
+            "drive 0: SDO 0x2F01:00: the object has 65537 bytes, more than the 65536 bytes a \
+             transfer carries here (`[bus] sdo_max_bytes`)"
+        ),
+        "{e}"
+    );
+    let e = svc.fails(&args(&with_file(
+        "download",
+        &["--axis", "x"],
+        "0x2F01:0",
+        "--file",
+        std::path::Path::new("/nonexistent/p.bin"),
+    )));
+    assert!(e.contains("/nonexistent/p.bin"), "{e}");
+    let e = svc.fails(&[
+        "sdo", "download", "--axis", "x", "0x2F01:0", "01", "--file", "p.bin",
+    ]);
+    assert!(e.contains("cannot be used with"), "{e}");
+    let e = svc.fails(&[
+        "sdo", "upload", "--axis", "x", "0x2F01:0", "--type", "u8", "--out", "p.bin",
+    ]);
+    assert!(e.contains("cannot be used with"), "{e}");
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+}

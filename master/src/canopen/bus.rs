@@ -12,18 +12,28 @@
 //! code to its axis ([`CycleBus::drive_error`]). A reset brings a faulted node back one
 //! step per exchange: NMT reset communication, its boot-up, its configuration by SDO,
 //! NMT start, its first TPDOs. An application's SDO transfer ([`CycleBus::start_sdo`])
-//! goes beside the PDOs: expedited or segmented (CiA 301 §7.2.4.3), one request frame per
-//! exchange, sent after the TPDOs so that it never delays them, its answer taken in the
-//! next exchange. Nothing in [`CycleBus`]'s methods allocates, locks or panics; all
-//! state is made at bring-up (a transfer's client and its 256-byte buffer live inline).
+//! goes beside the PDOs, sent after the TPDOs: objects up to 255 bytes expedited or
+//! segmented (CiA 301 §7.2.4.3; an upload asks for a block with that protocol switch
+//! threshold, which a node answers the normal way), larger ones by block. Its frames and
+//! the answers they call for fit the bits the bus load leaves in a cycle
+//! ([`BusLoad::spare_bits`], paced by a credit of them): the master's own frames never
+//! queue in front of the next cycle's RPDOs and SYNC (a CAN controller sends its frames in
+//! order), and the node's answers, whose identifiers lose to every PDO, delay the SYNC by
+//! at most the one frame already on the wire. A block upload's sub-block is what fits
+//! beside its acknowledgement. A node that refuses block transfer (0x05040001) gets the
+//! transfer again the normal way, and from then on only that. Nothing in [`CycleBus`]'s
+//! methods allocates, locks or panics; all state is made at bring-up (a transfer's client
+//! works in the buffer lent with it).
 
 use std::fmt;
 use std::io::Write;
 
 use gantry_drives::canopen::cob_id::{CobId, NodeId};
 use gantry_drives::canopen::emcy::Emergency;
+use gantry_drives::canopen::frame::frame_bits;
 use gantry_drives::canopen::heartbeat::{Heartbeat, NmtState};
 use gantry_drives::canopen::nmt::{NmtCommand, NmtTarget};
+use gantry_drives::canopen::sdo::command::MAX_BLOCK_SIZE;
 use gantry_drives::canopen::sdo::{
     AbortCode, DownloadMode, Initiate, Multiplexer, Outcome, SdoClient, SdoConfig, ServerCommand,
     Side, UploadMode,
@@ -34,13 +44,14 @@ use gantry_kernel::axis::command::CommandError;
 
 use super::bring_up::{self, Client, DriveSetup, NodeInfo, SdoStep, StartError};
 use super::link::{CanLink, Received};
+use super::load::{BusLoad, HEARTBEAT_BITS};
 use super::pdo::DrivePlan;
 use crate::config::Config;
 use crate::runtime::bus::{
     BusCounters, CanNodeStatus, CycleBus, DriveError, Reply, Restored, Unreachable,
 };
 use crate::runtime::clock::now_ns;
-use crate::runtime::sdo::{SdoData, SdoError, SdoKind, SdoRequest, SdoResult, SDO_MAX_DATA};
+use crate::runtime::sdo::{SdoBuffer, SdoDirection, SdoEnded, SdoError, SdoTransfer};
 
 /// How long a reset may take to bring a node back (NMT reset, boot-up, ~30 SDO writes
 /// at one per cycle, NMT start, the first TPDOs).
@@ -189,59 +200,71 @@ enum Step {
     FirstTpdos,
 }
 
+/// Objects from this size on go by block (smaller ones expedited or segmented, as
+/// before block transfer: the most a protocol switch threshold says is 255).
+const BLOCK_FROM: usize = 256;
+/// The protocol switch threshold a block upload offers (CiA 301 §7.2.4.3.13): a node
+/// answers an object of up to this many bytes the normal way.
+const PROTOCOL_SWITCH: u8 = 255;
+
+/// The buffer lent with a transfer, whole, as the SDO client works in it.
+struct Lent(SdoBuffer);
+
+impl AsRef<[u8]> for Lent {
+    fn as_ref(&self) -> &[u8] {
+        self.0.storage()
+    }
+}
+
+impl AsMut<[u8]> for Lent {
+    fn as_mut(&mut self) -> &mut [u8] {
+        self.0.storage_mut()
+    }
+}
+
 /// An application's SDO transfer in progress ([`CycleBus::start_sdo`]).
 struct Transfer {
-    request: SdoRequest,
-    client: SdoClient<[u8; SDO_MAX_DATA]>,
-    /// When it started and by when it must end (link clock).
-    started_ns: u64,
-    deadline_ns: u64,
-    /// The size a segmented upload announced, when more than a transfer carries.
+    transfer: SdoTransfer,
+    client: SdoClient<Lent>,
+    /// Bytes to download.
+    len: usize,
+    /// The buffer's capacity: the largest object it takes.
+    capacity: usize,
+    /// When the node last sent a frame of it (at first, when it started; link clock).
+    heard_ns: u64,
+    /// The size an upload announced, when more than the buffer holds.
     too_large: Option<u32>,
+    /// Started by block and the node has not answered yet: a refusal (0x05040001) means
+    /// it has no block transfer.
+    block_unheard: bool,
+    /// How it ended, once it has: its last frames (an abort, the block upload's end) go
+    /// before the buffer goes back. An upload's bytes are the buffer's first `uploaded`.
+    ended: Option<Result<(), SdoError>>,
+    uploaded: usize,
 }
 
 impl Transfer {
     /// The application's result of the client's `outcome`.
-    fn result(&self, outcome: Outcome, now: u64) -> SdoResult {
-        let (drive, index, sub) = (self.request.drive, self.request.index, self.request.sub);
+    fn result(&self, outcome: Outcome, now: u64) -> Result<(), SdoError> {
+        let t = &self.transfer;
         match outcome {
-            Outcome::Uploaded { .. } => {
-                SdoData::new(self.client.data()).ok_or(SdoError::Protocol {
-                    drive,
-                    index,
-                    sub,
-                    what: "the upload is larger than a transfer carries",
-                })
-            }
-            Outcome::Downloaded { .. } => Ok(SdoData::EMPTY),
+            Outcome::Uploaded { .. } | Outcome::Downloaded { .. } => Ok(()),
             Outcome::Aborted {
                 code,
                 by: Side::Client,
                 ..
-            } if code == AbortCode::TIMED_OUT => Err(SdoError::TimedOut {
-                drive,
-                index,
-                sub,
-                waited_ms: now.saturating_sub(self.started_ns) / 1_000_000,
-            }),
+            } if code == AbortCode::TIMED_OUT => {
+                Err(SdoError::timed_out(t, now.saturating_sub(self.heard_ns)))
+            }
+            // The client aborts so only when the object does not fit the buffer.
             Outcome::Aborted {
                 code,
                 by: Side::Client,
                 ..
-            } if code == AbortCode::OUT_OF_MEMORY && self.too_large.is_some() => {
-                Err(SdoError::TooLarge {
-                    drive,
-                    index,
-                    sub,
-                    size: self.too_large.unwrap_or_default(),
-                })
+            } if code == AbortCode::OUT_OF_MEMORY => {
+                Err(SdoError::too_large(t, self.too_large, self.capacity))
             }
-            Outcome::Aborted { code, .. } => Err(SdoError::Aborted {
-                drive,
-                index,
-                sub,
-                code,
-            }),
+            Outcome::Aborted { code, .. } => Err(SdoError::aborted(t, code)),
         }
     }
 }
@@ -291,6 +314,8 @@ struct Drive {
     emcy_fresh: bool,
     sdo: Client,
     steps: Vec<SdoStep>,
+    /// The node has not refused an application's block transfer (0x05040001).
+    sdo_block: bool,
 }
 
 impl Drive {
@@ -339,8 +364,17 @@ pub struct CanopenBus {
     last_exchange_ns: u64,
     /// The application's SDO transfer in progress, and how the last one ended.
     sdo: Option<Transfer>,
-    sdo_done: Option<SdoResult>,
+    sdo_done: Option<SdoEnded>,
+    /// Bits an SDO transfer's frames and their answers may take per cycle
+    /// ([`BusLoad::spare_bits`]), what is left of them now (the credit grows by them each
+    /// exchange, up to the cost of one step), and the sub-block a block upload asks for.
+    sdo_spare_bits: u64,
+    sdo_credit_bits: u64,
+    sdo_block_size: u8,
 }
+
+/// Bits an SDO frame takes at worst (8 data bytes with stuff bits).
+const SDO_FRAME_BITS: u64 = frame_bits(8);
 
 impl CanopenBus {
     /// Brings the bus of `config` up on `link` (see [`bring_up`](super::bring_up)),
@@ -403,9 +437,11 @@ impl CanopenBus {
                 emcy_fresh: false,
                 sdo: bring_up::client(node)?,
                 steps,
+                sdo_block: true,
             });
         }
         let master = bring_up::master_node(config)?;
+        let spare_bits = BusLoad::of_config(config).map_or(0, |l| l.spare_bits());
         let _ = writeln!(
             out,
             "CANopen: gantry is node {}: its heartbeat every {} ms, the nodes stop {} ms \
@@ -443,6 +479,11 @@ impl CanopenBus {
             last_exchange_ns: now,
             sdo: None,
             sdo_done: None,
+            sdo_spare_bits: spare_bits,
+            sdo_credit_bits: 0,
+            sdo_block_size: (spare_bits / SDO_FRAME_BITS)
+                .saturating_sub(1)
+                .clamp(1, u64::from(MAX_BLOCK_SIZE)) as u8,
         })
     }
 
@@ -465,6 +506,18 @@ impl CanopenBus {
     /// or heartbeat of the wrong length), since start.
     pub fn malformed(&self) -> u64 {
         self.malformed
+    }
+
+    /// Bits an SDO transfer may take per cycle, its frames and their answers: what the
+    /// bus load leaves in the cycle's window.
+    pub fn sdo_spare_bits(&self) -> u64 {
+        self.sdo_spare_bits
+    }
+
+    /// The sub-block a block upload asks of a node: what fits a cycle beside its
+    /// acknowledgement.
+    pub fn sdo_block_size(&self) -> u8 {
+        self.sdo_block_size
     }
 
     /// Exchanges run since start.
@@ -870,51 +923,153 @@ impl CanopenBus {
 
     /// An SDO answer for the application's transfer, if it is with that drive.
     fn on_transfer_frame(&mut self, drive: usize, frame: &CanFrame, now: u64) {
-        let Some(t) = self.sdo.as_mut().filter(|t| t.request.drive == drive) else {
+        let Some(t) = self
+            .sdo
+            .as_mut()
+            .filter(|t| t.transfer.drive == drive && t.ended.is_none())
+        else {
             return;
         };
-        // A segmented upload larger than the buffer: the client aborts it (0x05040005);
-        // the application is told the size the drive announced.
-        if let Ok(ServerCommand::InitiateUpload {
-            payload: Initiate::Segmented { size: Some(size) },
-            ..
-        }) = ServerCommand::parse(frame.data())
-        {
-            if size as usize > SDO_MAX_DATA {
-                t.too_large = Some(size);
-            }
+        t.heard_ns = now;
+        // An upload larger than the buffer: the client aborts it (0x05040005); the
+        // application is told the size the drive announced.
+        let announced = match ServerCommand::parse(frame.data()) {
+            Ok(ServerCommand::InitiateUpload {
+                payload: Initiate::Segmented { size },
+                ..
+            })
+            | Ok(ServerCommand::BlockUploadInitiate { size, .. }) => size,
+            _ => None,
+        };
+        if let Some(size) = announced.filter(|&s| s as usize > t.capacity) {
+            t.too_large = Some(size);
         }
-        if let Some(outcome) = t.client.receive(frame, now) {
-            self.sdo_done = Some(t.result(outcome, now));
+        let outcome = t.client.receive(frame, now);
+        match outcome {
+            Some(o) => self.on_transfer_outcome(o, now),
+            None => t.block_unheard = false,
         }
     }
 
-    /// The application's transfer after the TPDOs: its timeouts, then its next request
-    /// (one frame per exchange); once it has ended, what the client still has to say (an
-    /// abort) goes and the transfer is gone.
-    fn step_transfer(&mut self, now: u64) {
+    /// The application's transfer ended with the client's `outcome` — unless the node
+    /// refused block transfer, when it starts again the normal way.
+    fn on_transfer_outcome(&mut self, outcome: Outcome, now: u64) {
         let Some(t) = self.sdo.as_mut() else {
             return;
         };
-        if self.sdo_done.is_none() {
-            let outcome = if now >= t.deadline_ns {
-                t.client.abort(AbortCode::TIMED_OUT)
-            } else {
-                t.client.poll(now)
+        let refused_block = matches!(
+            outcome,
+            Outcome::Aborted {
+                code: AbortCode::INVALID_COMMAND_SPECIFIER,
+                by: Side::Server,
+                ..
+            }
+        ) && t.block_unheard;
+        t.block_unheard = false;
+        if refused_block {
+            if let Some(d) = self.drives.get_mut(t.transfer.drive) {
+                d.sdo_block = false;
+            }
+            let mux = Multiplexer::new(t.transfer.index, t.transfer.sub);
+            let again = match t.transfer.direction {
+                SdoDirection::Upload => t.client.upload(mux, UploadMode::Normal, now),
+                SdoDirection::Download => {
+                    t.client
+                        .download_buffered(mux, t.len, DownloadMode::Auto, now)
+                }
             };
-            if let Some(o) = outcome {
-                self.sdo_done = Some(t.result(o, now));
+            if again.is_ok() {
+                return;
             }
         }
-        if self.sdo_done.is_some() {
+        t.ended = Some(t.result(outcome, now));
+        if let Outcome::Uploaded { len, .. } = outcome {
+            t.uploaded = len;
+        }
+    }
+
+    /// The application's transfer after the TPDOs: its timeouts, then its next frames
+    /// (as many as the credit pays for); once it has ended, what the client still has to
+    /// say (an abort, a block upload's end) goes and the transfer is gone, its buffer
+    /// with the outcome.
+    fn step_transfer(&mut self, now: u64, own_heartbeat: bool) {
+        let Some(t) = self.sdo.as_mut() else {
+            return;
+        };
+        if t.ended.is_none() {
+            if let Some(o) = t.client.poll(now) {
+                self.on_transfer_outcome(o, now);
+            }
+        }
+        let Some(t) = self.sdo.as_mut() else {
+            return;
+        };
+        if t.ended.is_some() {
             while let Some(f) = t.client.transmit() {
                 let _ = self.link.send(&f);
             }
-            self.sdo = None;
-        } else if let Some(f) = t.client.transmit() {
-            // Not taken by the link: the transfer times out, as a lost frame would.
-            let _ = self.link.send(&f);
+            self.end_transfer(None);
+            return;
         }
+        // Each frame costs its bits and those of the node's answers to it (a block
+        // upload's acknowledgement calls for a sub-block, a block download's segment for
+        // none but the sub-block's last). The credit grows by the spare bits each
+        // exchange, up to what the dearest step costs (a bus with less room than a step
+        // takes one now and then), less the heartbeats of this cycle: gantry's, if it
+        // went, and each node's that is due by the end of the cycle — give or take half a
+        // cycle: the nodes' come all at once, arriving one after the other.
+        let dearest = (1 + u64::from(self.sdo_block_size).max(1)) * SDO_FRAME_BITS;
+        let due = if self.heartbeat_ns == 0 {
+            0
+        } else {
+            let by = now.saturating_add(self.period_ns + self.period_ns / 2);
+            self.drives
+                .iter()
+                .filter(|d| d.heard_ns.saturating_add(self.heartbeat_ns) <= by)
+                .count() as u64
+        };
+        let heartbeats = (due + u64::from(own_heartbeat)) * HEARTBEAT_BITS;
+        // (At least a bit a cycle: a bus with no room left still gets its transfer done,
+        // a step now and then, rather than timed out unsent.)
+        self.sdo_credit_bits = self
+            .sdo_credit_bits
+            .saturating_add(self.sdo_spare_bits.max(1))
+            .min(self.sdo_spare_bits.max(dearest))
+            .saturating_sub(heartbeats);
+        loop {
+            let cost = (1 + u64::from(t.client.answers_to_next())) * SDO_FRAME_BITS;
+            if self.sdo_credit_bits < cost {
+                break;
+            }
+            let Some(f) = t.client.transmit_at(now) else {
+                break;
+            };
+            self.sdo_credit_bits -= cost;
+            // Not taken by the link: the transfer times out, as a lost frame would.
+            if self.link.send(&f).is_err() {
+                break;
+            }
+        }
+    }
+
+    /// Ends the application's transfer with how it ended (or `instead`), its buffer to
+    /// the engine.
+    fn end_transfer(&mut self, instead: Option<SdoError>) {
+        let Some(t) = self.sdo.take() else {
+            return;
+        };
+        let result = match (t.ended, instead) {
+            (Some(r), _) => r,
+            (None, Some(e)) => Err(e),
+            (None, None) => Err(SdoError::protocol(
+                &t.transfer,
+                "the transfer was cut short",
+            )),
+        };
+        let mut buffer = t.client.into_buffer().0;
+        let len = if result.is_ok() { t.uploaded } else { 0 };
+        buffer.set_len(len);
+        self.sdo_done = Some(SdoEnded { result, buffer });
     }
 
     fn fail_restore(&mut self, problem: &'static str) {
@@ -962,6 +1117,16 @@ impl CanopenBus {
             self.fail_restore(problem);
             return;
         }
+        if r.step == Step::Reset {
+            // The application's transfer with this node ends with the reset.
+            if let Some(t) = self.sdo.as_ref().filter(|t| t.transfer.drive == r.drive) {
+                let e = SdoError::protocol(
+                    &t.transfer,
+                    "the node was reset (NMT reset communication) during the transfer",
+                );
+                self.end_transfer(Some(e));
+            }
+        }
         let Some(d) = self.drives.get_mut(r.drive) else {
             self.fail_restore("no such drive");
             return;
@@ -971,23 +1136,6 @@ impl CanopenBus {
         let mut step = r.step;
         match r.step {
             Step::Reset => {
-                // The application's transfer with this node ends with the reset.
-                if self
-                    .sdo
-                    .as_ref()
-                    .is_some_and(|t| t.request.drive == r.drive)
-                    && self.sdo_done.is_none()
-                {
-                    self.sdo_done = self.sdo.take().map(|t| {
-                        Err(SdoError::Protocol {
-                            drive: t.request.drive,
-                            index: t.request.index,
-                            sub: t.request.sub,
-                            what:
-                                "the node was reset (NMT reset communication) during the transfer",
-                        })
-                    });
-                }
                 let f = bring_up::nmt(NmtCommand::ResetCommunication, NmtTarget::Node(d.node));
                 if self.link.send(&f).is_ok() {
                     // A transfer cut short by the reset is gone with it.
@@ -1185,6 +1333,7 @@ impl CycleBus for CanopenBus {
 
     fn exchange(&mut self, deadline_ns: u64) -> Reply {
         self.exchanges += 1;
+        let heartbeats_before = self.heartbeats_sent;
         let now = self.link.now_ns();
         self.last_exchange_ns = now;
         // The engine's deadline is CLOCK_MONOTONIC; the wait left, on the link's clock.
@@ -1241,7 +1390,7 @@ impl CycleBus for CanopenBus {
             }
         }
         self.finish_restore();
-        self.step_transfer(now);
+        self.step_transfer(now, self.heartbeats_sent != heartbeats_before);
         let answered = self.judge(now);
         if sent && answered {
             Reply::Answered
@@ -1346,55 +1495,73 @@ impl CycleBus for CanopenBus {
     }
 
     /// An SDO transfer with the drive's node on its default SDO channel (0x600/0x580 +
-    /// node): expedited or segmented as the size asks (CiA 301 §7.2.4.3), one request per
-    /// exchange after the TPDOs, timed on the link's clock. Refused while the node is
-    /// being brought back by a reset (its channel carries the restore's configuration).
-    fn start_sdo(&mut self, request: &SdoRequest, _now_ns: u64) -> Result<(), SdoError> {
+    /// node): expedited, segmented or block as the size asks (see the module doc), its
+    /// frames after the TPDOs, timed on the link's clock. Refused while the node is being
+    /// brought back by a reset (its channel carries the restore's configuration).
+    fn start_sdo(
+        &mut self,
+        transfer: &SdoTransfer,
+        buffer: SdoBuffer,
+        _now_ns: u64,
+    ) -> Result<(), SdoEnded> {
         if self.sdo.is_some() || self.sdo_done.is_some() {
-            return Err(SdoError::Busy);
+            return Err(SdoEnded::refused(SdoError::Busy, buffer));
         }
-        let drive = request.drive;
-        let node = self
-            .drives
-            .get(drive)
-            .map(|d| d.node)
-            .ok_or(SdoError::NoDrive { drive })?;
-        if self.restoring(drive) {
-            return Err(SdoError::Busy);
-        }
-        let protocol = |what| SdoError::Protocol {
-            drive,
-            index: request.index,
-            sub: request.sub,
-            what,
+        let drive = transfer.drive;
+        let Some(d) = self.drives.get(drive) else {
+            return Err(SdoEnded::refused(SdoError::NoDrive { drive }, buffer));
         };
+        if self.restoring(drive) {
+            return Err(SdoEnded::refused(SdoError::Busy, buffer));
+        }
+        let (node, block) = (d.node, d.sdo_block);
         let now = self.link.now_ns();
         let config = SdoConfig {
-            timeout_ns: request.timeout_ns.max(1),
+            timeout_ns: transfer.timeout_ns.max(1),
+            block_size: self.sdo_block_size,
+            pst: PROTOCOL_SWITCH,
             ..SdoConfig::default()
         };
-        let mut client = SdoClient::new(node, config, [0u8; SDO_MAX_DATA])
-            .map_err(|_| protocol("the SDO client refused its timeout"))?;
-        let mux = Multiplexer::new(request.index, request.sub);
-        let started = match &request.kind {
-            SdoKind::Upload => client.upload(mux, UploadMode::Normal, now),
-            SdoKind::Download(data) => {
-                client.download(mux, data.as_slice(), DownloadMode::Auto, now)
+        let (len, capacity) = (buffer.len(), buffer.capacity());
+        let mut client = match SdoClient::with_buffer(node, config, Lent(buffer)) {
+            Ok(c) => c,
+            Err((_, Lent(buffer))) => {
+                let e = SdoError::protocol(transfer, "the SDO client refused its settings");
+                return Err(SdoEnded::refused(e, buffer));
             }
         };
-        started.map_err(|_| protocol("the SDO client refused the request"))?;
-        let transfer = Transfer {
-            request: *request,
-            client,
-            started_ns: now,
-            deadline_ns: now.saturating_add(request.timeout_ns),
-            too_large: None,
+        let mux = Multiplexer::new(transfer.index, transfer.sub);
+        let (started, by_block) = match transfer.direction {
+            SdoDirection::Upload if block => (client.upload(mux, UploadMode::Block, now), true),
+            SdoDirection::Upload => (client.upload(mux, UploadMode::Normal, now), false),
+            SdoDirection::Download if block && len >= BLOCK_FROM => (
+                client.download_buffered(mux, len, DownloadMode::Block, now),
+                true,
+            ),
+            SdoDirection::Download => (
+                client.download_buffered(mux, len, DownloadMode::Auto, now),
+                false,
+            ),
         };
-        self.sdo = Some(transfer);
+        if started.is_err() {
+            let e = SdoError::protocol(transfer, "the SDO client refused the request");
+            return Err(SdoEnded::refused(e, client.into_buffer().0));
+        }
+        self.sdo = Some(Transfer {
+            transfer: *transfer,
+            client,
+            len,
+            capacity,
+            heard_ns: now,
+            too_large: None,
+            block_unheard: by_block,
+            ended: None,
+            uploaded: 0,
+        });
         Ok(())
     }
 
-    fn take_sdo(&mut self) -> Option<SdoResult> {
+    fn take_sdo(&mut self) -> Option<SdoEnded> {
         self.sdo_done.take()
     }
 

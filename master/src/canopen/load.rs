@@ -154,6 +154,16 @@ impl BusLoad {
         }
     }
 
+    /// Bits left in a cycle's window beside its SYNC and PDOs (worst case): what an SDO
+    /// transfer may put on the bus per cycle, its frames and the node's answers, without
+    /// delaying the process data — less the heartbeats in the cycles they come in (every
+    /// few hundred cycles, all at once: the bus keeps them free).
+    pub fn spare_bits(&self) -> u64 {
+        let window_bits = u128::from(self.window_ns()) * u128::from(self.bitrate) / 1_000_000_000;
+        let cyclic = self.bits.saturating_sub(self.heartbeat_bits.ceil() as u64);
+        u64::try_from(window_bits.saturating_sub(u128::from(cyclic))).unwrap_or(u64::MAX)
+    }
+
     /// How long the cycle waits for its frames (ns; [`reply_window_ns`]).
     pub fn window_ns(&self) -> u64 {
         reply_window_ns(self.period_ns)
@@ -275,6 +285,20 @@ mod tests {
         assert!((four.utilisation() - 1602.0 / 1950.0).abs() < 1e-9);
         // A SYNC with counter: one data byte more (65 bits instead of 55).
         assert_eq!(four.with_sync_counter().bits, 65 + 4 * 385 + 7);
+    }
+
+    #[test]
+    fn an_sdo_transfer_gets_the_bits_left_in_the_window() {
+        // 4 full CSP drives at 2 ms: SYNC and PDOs 1595 of 1950 bits, 355 left (two
+        // 8-byte frames) when no heartbeat comes.
+        let four = load(4, PdoLayout::csp(), 2000, 1_000_000);
+        assert_eq!(four.spare_bits(), 355);
+        // 1 minimal drive at 1 ms: 950 − 285.
+        let one = load(1, PdoLayout::csp_minimal(), 1000, 1_000_000);
+        assert_eq!(one.bits, 55 + 230 + 2);
+        assert_eq!(one.spare_bits(), 665);
+        // An overloaded window leaves nothing.
+        assert_eq!(load(8, PdoLayout::csp(), 1000, 1_000_000).spare_bits(), 0);
     }
 
     #[test]

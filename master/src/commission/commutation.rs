@@ -74,7 +74,11 @@ impl Run<'_> {
     fn transfer(&self, o: ObjectId, request: SdoRequest) -> Result<SdoData, CommissionError> {
         let end = Instant::now() + Duration::from_secs(10);
         loop {
-            let h = self.cx.ctl.sdo(request).map_err(|e| self.cx.control(e))?;
+            let h = self
+                .cx
+                .ctl
+                .sdo(request.clone())
+                .map_err(|e| self.cx.control(e))?;
             let r = h
                 .wait(Duration::from_secs(5))
                 .map_err(|e| self.cx.control(e))?;
@@ -88,10 +92,7 @@ impl Run<'_> {
 
     fn write(&self, o: ObjectId, value: i64) -> Result<(), CommissionError> {
         let bytes = value.to_le_bytes();
-        let data = bytes
-            .get(..o.kind.size())
-            .and_then(SdoData::new)
-            .unwrap_or_default();
+        let data = SdoData::new(bytes.get(..o.kind.size()).unwrap_or_default());
         self.transfer(o, SdoRequest::download(self.s.drive, o.index, o.sub, data))?;
         Ok(())
     }

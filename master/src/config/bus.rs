@@ -59,6 +59,12 @@ pub struct BusSection {
     /// overflow value, 2..=240, written to every node); none: SYNC without counter.
     #[serde(default)]
     pub sync_counter: Option<u8>,
+    /// The largest object `gantry sdo` (an SDO transfer beside the cycle) reads or writes
+    /// (bytes, 256 to 16 MiB; default [`crate::runtime::sdo::SDO_MAX_BYTES`], 64 KiB): a
+    /// buffer of this size is allocated at start and lent to the cycle thread with each
+    /// transfer.
+    #[serde(default)]
+    pub sdo_max_bytes: Option<usize>,
 }
 
 /// Which bus a configuration drives.
@@ -143,6 +149,12 @@ impl BusSection {
         })
     }
 
+    /// The largest object an SDO transfer beside the cycle carries (bytes).
+    pub fn sdo_max_bytes(&self) -> usize {
+        self.sdo_max_bytes
+            .unwrap_or(crate::runtime::sdo::SDO_MAX_BYTES)
+    }
+
     /// Checks values; the error names the key (below `bus.`) and the reason.
     pub(super) fn check(&self) -> Result<(), (String, String)> {
         let kind = match self.kind.as_str() {
@@ -195,6 +207,15 @@ impl BusSection {
                 "cycle_us".into(),
                 format!("{} µs is outside {low} to {high} µs", self.cycle_us),
             ));
+        }
+        use crate::runtime::sdo::{SDO_LIMIT_BYTES, SDO_MIN_BYTES};
+        if let Some(n) = self.sdo_max_bytes {
+            if !(SDO_MIN_BYTES..=SDO_LIMIT_BYTES).contains(&n) {
+                return Err((
+                    "sdo_max_bytes".into(),
+                    format!("{n} bytes is outside {SDO_MIN_BYTES} to {SDO_LIMIT_BYTES}"),
+                ));
+            }
         }
         if self.faults.lost_frames_limit == 0 || self.faults.working_counter_limit == 0 {
             return Err((

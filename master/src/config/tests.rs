@@ -1096,3 +1096,30 @@ fn commutation_objects_are_read_and_their_mistakes_named() {
     // An unknown key is refused by name.
     assert!(e("offest = { index = 0x3010 }").contains("offest"));
 }
+
+/// `[bus] sdo_max_bytes`: the largest object `gantry sdo` moves, 64 KiB unless given,
+/// 256 B to 16 MiB.
+#[test]
+fn sdo_max_bytes_defaults_to_64_kib_and_is_bounded() {
+    let c = Config::parse(EXAMPLE, "g.toml").unwrap();
+    assert_eq!(c.bus.sdo_max_bytes(), 65_536);
+    let text = EXAMPLE.replacen(
+        "cycle_us = 1000",
+        "cycle_us = 1000\nsdo_max_bytes = 1048576",
+        1,
+    );
+    let c = Config::parse(&text, "g.toml").unwrap();
+    assert_eq!(c.bus.sdo_max_bytes(), 1 << 20);
+    for bad in ["255", "16777217"] {
+        let e = mistake(
+            "cycle_us = 1000",
+            &format!("cycle_us = 1000\nsdo_max_bytes = {bad}"),
+        );
+        assert!(
+            e.contains(&format!(
+                "bus.sdo_max_bytes: {bad} bytes is outside 256 to 16777216"
+            )),
+            "{e}"
+        );
+    }
+}

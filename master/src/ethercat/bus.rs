@@ -29,7 +29,7 @@ use crate::pcap::PcapWriter;
 use crate::runtime::bus::{BusCounters, CycleBus, Reply, Restored, Unreachable};
 use crate::runtime::clock::now_ns;
 use crate::runtime::cycle::SetupError;
-use crate::runtime::sdo::{SdoError, SdoRequest, SdoResult};
+use crate::runtime::sdo::{SdoBuffer, SdoEnded, SdoError, SdoTransfer};
 
 /// Most slaves on one bus.
 pub const MAX_SLAVES: usize = 64;
@@ -208,10 +208,10 @@ pub struct EthercatBus {
     /// still come).
     mailbox_unanswered: Vec<bool>,
     /// The SDO transfer in progress: the slave's position, its station address, the
-    /// machine.
-    sdo: Option<(usize, u16, CoeSdo)>,
-    /// A finished SDO transfer, until the engine takes it.
-    sdo_done: Option<SdoResult>,
+    /// machine, the buffer lent with it.
+    sdo: Option<(usize, u16, CoeSdo, SdoBuffer)>,
+    /// A finished SDO transfer and its buffer, until the engine takes them.
+    sdo_done: Option<SdoEnded>,
     /// The mailbox message being sent (made once, at bring-up).
     sdo_message: Box<[u8; coe_sdo::MAX_MAILBOX]>,
     /// The answer read (made once, at bring-up).
@@ -438,12 +438,12 @@ impl EthercatBus {
     /// The SDO transfer's step after an exchange: the answer to its access if it had
     /// one (`accessed`), else only its clock.
     fn step_sdo(&mut self, accessed: bool, answer: Option<MailboxAnswer>) {
-        let Some((drive, _, sdo)) = self.sdo.as_mut() else {
+        let Some((drive, _, sdo, buffer)) = self.sdo.as_mut() else {
             return;
         };
         if accessed {
             let got = answer.unwrap_or(MailboxAnswer::None);
-            sdo.on_answer(got, &self.sdo_answer[..], now_ns());
+            sdo.on_answer(got, &self.sdo_answer[..], buffer, now_ns());
         } else {
             sdo.tick(now_ns());
         }
@@ -453,12 +453,14 @@ impl EthercatBus {
         if let Some(Some(mailbox)) = self.mailboxes.get_mut(*drive) {
             *mailbox = sdo.mailbox();
         }
-        if let Some(outcome) = sdo.outcome() {
-            if let Some(slot) = self.mailbox_unanswered.get_mut(*drive) {
-                *slot = sdo.left_unanswered();
-            }
-            self.sdo_done = Some(outcome);
-            self.sdo = None;
+        let Some(result) = sdo.outcome() else {
+            return;
+        };
+        if let Some(slot) = self.mailbox_unanswered.get_mut(*drive) {
+            *slot = sdo.left_unanswered();
+        }
+        if let Some((_, _, _, buffer)) = self.sdo.take() {
+            self.sdo_done = Some(SdoEnded { result, buffer });
         }
     }
 }
@@ -885,8 +887,8 @@ impl CycleBus for EthercatBus {
             .or(asking.map(|k| (k, RegisterAccess::WriteAlControl(recovery::AL_STATE_OP))));
         // Otherwise a step of the SDO transfer in progress, through the slave's mailbox.
         let mailbox = match (&pending, &self.sdo) {
-            (None, Some((_, address, sdo))) => sdo
-                .next_access(&mut self.sdo_message[..])
+            (None, Some((_, address, sdo, buffer))) => sdo
+                .next_access(&mut self.sdo_message[..], buffer.as_slice())
                 .map(|a| (*address, a)),
             _ => None,
         };
@@ -1068,29 +1070,33 @@ impl CycleBus for EthercatBus {
 
     /// A CoE SDO transfer through the slave's mailbox (`ethercat::coe_sdo`: one mailbox
     /// register access per exchange, when no reset uses the exchange's access).
-    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
+    fn start_sdo(
+        &mut self,
+        transfer: &SdoTransfer,
+        buffer: SdoBuffer,
+        now_ns: u64,
+    ) -> Result<(), SdoEnded> {
         if self.sdo.is_some() || self.sdo_done.is_some() {
-            return Err(SdoError::Busy);
+            return Err(SdoEnded::refused(SdoError::Busy, buffer));
         }
-        let drive = request.drive;
+        let drive = transfer.drive;
         let address = with_group!(&self.group, g => g
             .subdevice(&self.md, drive)
-            .map(|sd| sd.configured_address()))
-        .map_err(|_| SdoError::NoDrive { drive })?;
-        let mailbox = self
-            .mailboxes
-            .get(drive)
-            .copied()
-            .flatten()
-            .ok_or(SdoError::NoChannel { drive })?;
+            .map(|sd| sd.configured_address()));
+        let Ok(address) = address else {
+            return Err(SdoEnded::refused(SdoError::NoDrive { drive }, buffer));
+        };
+        let Some(mailbox) = self.mailboxes.get(drive).copied().flatten() else {
+            return Err(SdoEnded::refused(SdoError::NoChannel { drive }, buffer));
+        };
         let last = self.mailbox_counters.get(drive).copied().flatten();
         let late = self.mailbox_unanswered.get(drive).copied().unwrap_or(false);
-        let sdo = CoeSdo::new(mailbox, *request, last, now_ns).after_unanswered(late);
-        self.sdo = Some((drive, address, sdo));
+        let sdo = CoeSdo::new(mailbox, *transfer, last, now_ns).after_unanswered(late);
+        self.sdo = Some((drive, address, sdo, buffer));
         Ok(())
     }
 
-    fn take_sdo(&mut self) -> Option<SdoResult> {
+    fn take_sdo(&mut self) -> Option<SdoEnded> {
         self.sdo_done.take()
     }
 

@@ -8,7 +8,7 @@ use std::fmt;
 
 use gantry_kernel::axis::command::CommandError;
 
-use super::sdo::{SdoError, SdoRequest, SdoResult};
+use super::sdo::{SdoBuffer, SdoEnded, SdoError, SdoTransfer};
 
 /// A bus as the cycle uses it. Drives are named by their position on the bus (what an
 /// axis' `drive` says in the configuration). Every method runs in the cycle thread: no
@@ -78,19 +78,27 @@ pub trait CycleBus {
     fn dc_measured(&self) -> bool {
         true
     }
-    /// Starts an SDO transfer ([`SdoRequest`]) beside the process data: from the next
-    /// exchange on, each exchange does at most one step of it under the same deadline,
-    /// never delaying the process data, until it ends or `request.timeout_ns` after
-    /// `now_ns` passes; its outcome comes from [`CycleBus::take_sdo`]. Refused at once
-    /// ([`SdoError::Busy`]) while another transfer runs, or when the bus cannot do it —
-    /// by default, [`SdoError::NotSupported`].
-    fn start_sdo(&mut self, request: &SdoRequest, now_ns: u64) -> Result<(), SdoError> {
-        let _ = (request, now_ns);
-        Err(SdoError::NotSupported)
+    /// Starts an SDO transfer beside the process data, its bytes in `buffer` (a
+    /// download's data; an upload's place, its capacity the largest object taken): from
+    /// the next exchange on, each exchange does a bounded step of it under the same
+    /// deadline, never delaying the process data, until it ends or the drive stays silent
+    /// for `transfer.timeout_ns`; its outcome and the buffer come back from
+    /// [`CycleBus::take_sdo`]. Refused at once, the buffer handed back
+    /// ([`SdoEnded::refused`]): [`SdoError::Busy`] while another transfer runs, or what
+    /// the bus cannot do — by default, [`SdoError::NotSupported`]. The buffer is never
+    /// grown nor freed here.
+    fn start_sdo(
+        &mut self,
+        transfer: &SdoTransfer,
+        buffer: SdoBuffer,
+        now_ns: u64,
+    ) -> Result<(), SdoEnded> {
+        let _ = (transfer, now_ns);
+        Err(SdoEnded::refused(SdoError::NotSupported, buffer))
     }
-    /// How the transfer started last ended, once it has (taken once): the object's bytes
-    /// for an upload, none for a download.
-    fn take_sdo(&mut self) -> Option<SdoResult> {
+    /// How the transfer started last ended, once it has (taken once), with its buffer:
+    /// the object's bytes after an upload, none after a download.
+    fn take_sdo(&mut self) -> Option<SdoEnded> {
         None
     }
     /// On CANopen: what the bus knows of drive `drive`'s node (its id, the NMT state its

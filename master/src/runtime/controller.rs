@@ -16,7 +16,10 @@ use thiserror::Error;
 
 use super::engine::AppEnds;
 use super::protocol::{Request, SdoDone, SdoJob, Snapshot, TraceSample};
-use super::sdo::{SdoRequest, SdoResult};
+use super::sdo::{
+    SdoBuffer, SdoData, SdoError, SdoKind, SdoRequest, SdoResult, SDO_LIMIT_BYTES, SDO_MAX_BYTES,
+    SDO_MIN_BYTES,
+};
 use super::stats::{CycleCounters, CycleFigures, FigureBook};
 use crate::persist::saver::Saver;
 use crate::persist::Saved;
@@ -38,16 +41,36 @@ pub enum ControlError {
     Ended,
 }
 
-/// The application's ends of the SDO channels, and outcomes that arrived for handles
-/// other than the one that drained them.
+/// The application's ends of the SDO channels, the outcomes that arrived for handles
+/// other than the one that drained them, and the buffers lent to the cycle thread when
+/// they are back.
 struct SdoEnds {
     jobs: rtrb::Producer<SdoJob>,
     done: rtrb::Consumer<SdoDone>,
-    arrived: Vec<SdoDone>,
+    arrived: Vec<(u64, SdoResult)>,
+    /// Buffers back from the cycle thread, for the next transfers.
+    free: Vec<SdoBuffer>,
+    /// Each buffer's capacity: the largest object a transfer carries.
+    max_bytes: usize,
+}
+
+impl SdoEnds {
+    /// Keeps the outcome of job `id` for its handle.
+    fn keep(&mut self, id: u64, result: SdoResult) {
+        if self.arrived.len() == SDO_ARRIVED_KEEP {
+            // The oldest, of a handle given up.
+            drop(self.arrived.remove(0));
+        }
+        self.arrived.push((id, result));
+    }
 }
 
 /// Outcomes kept for handles not asking yet (the oldest, of handles given up, drop out).
 const SDO_ARRIVED_KEEP: usize = 32;
+
+/// Buffers kept for the next transfers (more are made while transfers queue up, and
+/// freed here when they come back).
+const SDO_BUFFERS_KEPT: usize = 2;
 
 struct Shared {
     requests: Mutex<rtrb::Producer<Request>>,
@@ -72,8 +95,17 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 impl Controller {
-    /// A controller over the application's ends of an engine's channels.
+    /// A controller over the application's ends of an engine's channels, whose SDO
+    /// transfers carry objects of up to [`SDO_MAX_BYTES`].
     pub fn new(ends: AppEnds, axes: Vec<String>) -> Self {
+        Self::with_sdo_max_bytes(ends, axes, SDO_MAX_BYTES)
+    }
+
+    /// A controller whose SDO transfers carry objects of up to `sdo_max_bytes` (kept
+    /// within [`SDO_MIN_BYTES`]`..=`[`SDO_LIMIT_BYTES`]): the buffer lent to the cycle
+    /// thread with a transfer is allocated here, once, at that size.
+    pub fn with_sdo_max_bytes(ends: AppEnds, axes: Vec<String>, sdo_max_bytes: usize) -> Self {
+        let max_bytes = sdo_max_bytes.clamp(SDO_MIN_BYTES, SDO_LIMIT_BYTES);
         Self {
             shared: Arc::new(Shared {
                 requests: Mutex::new(ends.requests),
@@ -84,6 +116,8 @@ impl Controller {
                     jobs: ends.sdo_jobs,
                     done: ends.sdo_done,
                     arrived: Vec::with_capacity(SDO_ARRIVED_KEEP),
+                    free: vec![SdoBuffer::with_capacity(max_bytes)],
+                    max_bytes,
                 }),
                 next_id: AtomicU64::new(1),
                 axes,
@@ -204,29 +238,70 @@ impl Controller {
 
     /// Starts an SDO transfer on the bus, beside the process data
     /// ([`crate::runtime::bus::CycleBus::start_sdo`]); its outcome follows on the handle.
+    /// Data to write larger than [`Controller::sdo_max_bytes`] ends at once with
+    /// [`SdoError::TooLarge`]; an upload larger than that is aborted at the drive.
     pub fn sdo(&self, request: SdoRequest) -> Result<SdoHandle, ControlError> {
         let id = self.shared.next_id.fetch_add(1, Ordering::Relaxed);
-        lock(&self.shared.sdo)
-            .jobs
-            .push(SdoJob { id, request })
-            .map_err(|_| ControlError::QueueFull)?;
-        Ok(SdoHandle {
+        let handle = SdoHandle {
             id,
             controller: self.clone(),
-        })
+        };
+        let transfer = request.transfer();
+        let mut ends = lock(&self.shared.sdo);
+        let max = ends.max_bytes;
+        let mut buffer = ends
+            .free
+            .pop()
+            .unwrap_or_else(|| SdoBuffer::with_capacity(max));
+        let fits = match &request.kind {
+            SdoKind::Upload => {
+                buffer.clear();
+                true
+            }
+            SdoKind::Download(data) => buffer.fill(data.as_slice()),
+        };
+        if !fits {
+            ends.free.push(buffer);
+            let size = match &request.kind {
+                SdoKind::Download(data) => u32::try_from(data.len()).unwrap_or(u32::MAX),
+                SdoKind::Upload => 0,
+            };
+            let refused = Err(SdoError::too_large(&transfer, Some(size), max));
+            ends.keep(id, refused);
+            return Ok(handle);
+        }
+        let job = SdoJob {
+            id,
+            transfer,
+            buffer,
+        };
+        match ends.jobs.push(job) {
+            Ok(()) => Ok(handle),
+            Err(rtrb::PushError::Full(job)) => {
+                ends.free.push(job.buffer);
+                Err(ControlError::QueueFull)
+            }
+        }
+    }
+
+    /// The largest object an SDO transfer carries (bytes).
+    pub fn sdo_max_bytes(&self) -> usize {
+        lock(&self.shared.sdo).max_bytes
     }
 
     /// The outcome of SDO job `id`, once the cycle thread has handed it back.
     fn sdo_outcome(&self, id: u64) -> Option<SdoResult> {
         let mut ends = lock(&self.shared.sdo);
         while let Ok(done) = ends.done.pop() {
-            if ends.arrived.len() == SDO_ARRIVED_KEEP {
-                ends.arrived.remove(0);
+            let buffer = done.ended.buffer;
+            let result = done.ended.result.map(|()| SdoData::new(buffer.as_slice()));
+            if ends.free.len() < SDO_BUFFERS_KEPT {
+                ends.free.push(buffer);
             }
-            ends.arrived.push(done);
+            ends.keep(done.id, result);
         }
-        let at = ends.arrived.iter().position(|d| d.id == id)?;
-        Some(ends.arrived.remove(at).result)
+        let at = ends.arrived.iter().position(|(i, _)| *i == id)?;
+        Some(ends.arrived.remove(at).1)
     }
 
     fn status_of(&self, id: u64) -> Option<CommandStatus> {

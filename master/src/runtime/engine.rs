@@ -17,7 +17,7 @@ use super::protocol::{
     DriveStatus, ProcedureStatus, Request, SdoDone, SdoJob, Snapshot, TraceSample, Tracked,
     TRACE_AXES, TRACKED_COMMANDS,
 };
-use super::sdo::SdoError;
+use super::sdo::{SdoBuffer, SdoDirection, SdoEnded, SdoError};
 use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::procedure::{ModeSwitch, ProcedureInputs};
@@ -179,6 +179,12 @@ pub struct Engine<B: CycleBus> {
     sdo_done: rtrb::Producer<SdoDone>,
     /// Who the SDO transfer the bus is carrying is for.
     sdo_active: Option<SdoOwner>,
+    /// An outcome the application's queue had no room for, with its buffer: kept (never
+    /// freed here) and handed on first; no other transfer starts meanwhile.
+    sdo_unsent: Option<SdoDone>,
+    /// The buffer the procedures' transfers use (allocated with the engine); out while
+    /// one runs.
+    procedure_buffer: Option<SdoBuffer>,
     /// Procedures running on the axes' drives (see [`super::procedure`]).
     procedures: Vec<Option<Running>>,
 }
@@ -186,8 +192,8 @@ pub struct Engine<B: CycleBus> {
 /// Who an SDO transfer is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum SdoOwner {
-    /// The application's job with this id.
-    App(u64),
+    /// The application's job with this id, going this way.
+    App(u64, SdoDirection),
     /// The procedure on this axis' drive.
     Procedure(usize),
 }
@@ -273,6 +279,8 @@ impl<B: CycleBus> Engine<B> {
             sdo_jobs: sdo_rx,
             sdo_done: done_tx,
             sdo_active: None,
+            sdo_unsent: None,
+            procedure_buffer: Some(SdoBuffer::with_capacity(procedure::SDO_BYTES)),
             procedures: vec![None; axes],
         };
         let app = AppEnds {
@@ -629,8 +637,13 @@ impl<B: CycleBus> Engine<B> {
 
     /// Hands the next SDO transfer to the bus when none runs — a procedure's first (it
     /// holds a drive out of CSP while it waits), then the application's; one the bus
-    /// refuses at once (no such drive, not supported) ends here.
+    /// refuses at once (no such drive, not supported) ends here. The application's
+    /// buffer goes to the bus with its transfer and back to the application with the
+    /// outcome: never dropped here.
     fn start_sdo(&mut self, now_ns: u64) {
+        if let Some(done) = self.sdo_unsent.take() {
+            self.hand_back(done);
+        }
         if self.sdo_active.is_some() {
             return;
         }
@@ -642,52 +655,74 @@ impl<B: CycleBus> Engine<B> {
             let Some(access) = r.wanted.take() else {
                 continue;
             };
-            match self
-                .bus
-                .start_sdo(&procedure::request(drive, &access), now_ns)
-            {
+            let Some(mut buffer) = self.procedure_buffer.take() else {
+                // Out with a transfer (none runs, so it cannot be): asked again.
+                r.wanted = Some(access);
+                return;
+            };
+            let transfer = procedure::transfer(drive, &access, &mut buffer);
+            match self.bus.start_sdo(&transfer, buffer, now_ns) {
                 Ok(()) => {
                     r.active = Some(access);
                     self.sdo_active = Some(SdoOwner::Procedure(axis));
                     return;
                 }
-                // Asked again next cycle.
-                Err(SdoError::Busy) => r.wanted = Some(access),
-                Err(e) => r.outcome = Some(procedure::failure(&e)),
+                Err(refused) => {
+                    self.procedure_buffer = Some(refused.buffer);
+                    match refused.result {
+                        // Asked again next cycle.
+                        Err(SdoError::Busy) => r.wanted = Some(access),
+                        Err(e) => r.outcome = Some(procedure::failure(&e)),
+                        Ok(()) => r.wanted = Some(access),
+                    }
+                }
             }
+        }
+        if self.sdo_unsent.is_some() {
+            return;
         }
         let Ok(job) = self.sdo_jobs.pop() else {
             return;
         };
-        match self.bus.start_sdo(&job.request, now_ns) {
-            Ok(()) => self.sdo_active = Some(SdoOwner::App(job.id)),
-            Err(e) => {
-                // The application gave up on it if its queue is full: dropped.
-                let _ = self.sdo_done.push(SdoDone {
-                    id: job.id,
-                    result: Err(e),
-                });
-            }
+        match self.bus.start_sdo(&job.transfer, job.buffer, now_ns) {
+            Ok(()) => self.sdo_active = Some(SdoOwner::App(job.id, job.transfer.direction)),
+            Err(ended) => self.hand_back(SdoDone { id: job.id, ended }),
+        }
+    }
+
+    /// Hands an outcome and its buffer to the application, or keeps it for the next
+    /// cycle if its queue is full.
+    fn hand_back(&mut self, done: SdoDone) {
+        if let Err(rtrb::PushError::Full(done)) = self.sdo_done.push(done) {
+            self.sdo_unsent = Some(done);
         }
     }
 
     /// Hands a finished SDO transfer's outcome to the application or the procedure.
     fn finish_sdo(&mut self) {
-        let Some(result) = self.bus.take_sdo() else {
+        let Some(mut ended) = self.bus.take_sdo() else {
             return;
         };
         match self.sdo_active.take() {
-            Some(SdoOwner::App(id)) => {
-                let _ = self.sdo_done.push(SdoDone { id, result });
+            Some(SdoOwner::App(id, direction)) => {
+                if direction == SdoDirection::Download {
+                    ended.buffer.clear();
+                }
+                self.hand_back(SdoDone { id, ended });
             }
             Some(SdoOwner::Procedure(axis)) => {
+                let SdoEnded { result, buffer } = ended;
                 if let Some(r) = self.procedures.get_mut(axis).and_then(Option::as_mut) {
                     if let Some(access) = r.active.take() {
-                        r.outcome = Some(procedure::outcome(&access, &result));
+                        let got = result.map(|()| buffer.as_slice());
+                        r.outcome = Some(procedure::outcome(&access, got));
                     }
                 }
+                self.procedure_buffer = Some(buffer);
             }
-            None => {}
+            // A transfer started on the bus itself, not through the engine (a test asks
+            // the bus directly): its buffer is the caller's affair.
+            None => drop(ended),
         }
     }
 

@@ -24,7 +24,7 @@ use gantry_drives::cia402::procedure::{
 use gantry_drives::commutation::CommutationProcedure;
 use gantry_kernel::axis::lend::{DriveProcedureError, DriveProcedureFailure};
 
-use super::sdo::{SdoData, SdoError, SdoRequest, SdoResult};
+use super::sdo::{SdoBuffer, SdoError, SdoTransfer};
 
 /// A procedure a drive runs by itself.
 // Inline on purpose (the commutation measurement carries its samples' sums): boxed, the
@@ -172,29 +172,34 @@ impl Running {
     }
 }
 
-/// The SDO request for `access` on drive `drive`.
-pub(crate) fn request(drive: usize, access: &SdoAccess) -> SdoRequest {
+/// Bytes of the buffer the engine lends the procedures' transfers (their objects are
+/// numbers of up to 8 bytes; an object that turns out larger is refused as such).
+pub(crate) const SDO_BYTES: usize = 256;
+
+/// The SDO transfer for `access` on drive `drive`, its data put in `buffer`.
+pub(crate) fn transfer(drive: usize, access: &SdoAccess, buffer: &mut SdoBuffer) -> SdoTransfer {
     let o = access.object;
     match access.write {
         Some(v) => {
             let bytes = v.to_le_bytes();
-            let data = bytes
-                .get(..o.kind.size())
-                .and_then(SdoData::new)
-                .unwrap_or_default();
-            SdoRequest::download(drive, o.index, o.sub, data)
+            if !buffer.fill(bytes.get(..o.kind.size()).unwrap_or_default()) {
+                buffer.clear();
+            }
+            SdoTransfer::download(drive, o.index, o.sub)
         }
-        None => SdoRequest::upload(drive, o.index, o.sub),
+        None => {
+            buffer.clear();
+            SdoTransfer::upload(drive, o.index, o.sub)
+        }
     }
 }
 
-/// The outcome of `access` from the transfer's result.
-pub(crate) fn outcome(access: &SdoAccess, result: &SdoResult) -> SdoOutcome {
+/// The outcome of `access` from the transfer's result (the bytes uploaded).
+pub(crate) fn outcome(access: &SdoAccess, result: Result<&[u8], SdoError>) -> SdoOutcome {
     match result {
-        Ok(data) => {
+        Ok(got) => {
             let size = access.object.kind.size();
             let mut b = [0u8; 8];
-            let got = data.as_slice();
             let n = got.len().min(size).min(8);
             if let (Some(dst), Some(src)) = (b.get_mut(..n), got.get(..n)) {
                 dst.copy_from_slice(src);
@@ -210,7 +215,7 @@ pub(crate) fn outcome(access: &SdoAccess, result: &SdoResult) -> SdoOutcome {
             let v = if signed { (raw << shift) >> shift } else { raw };
             SdoOutcome::Done(v)
         }
-        Err(e) => failure(e),
+        Err(e) => failure(&e),
     }
 }
 

@@ -9,7 +9,7 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::status::AxisStatus;
 
 use super::bus::{CanNodeStatus, Unreachable};
-use super::sdo::{SdoRequest, SdoResult};
+use super::sdo::{SdoBuffer, SdoEnded, SdoTransfer};
 use super::stats::CycleFigures;
 
 /// Axes a trace sample holds.
@@ -64,22 +64,26 @@ pub struct ProcedureStatus {
     pub phase: &'static str,
 }
 
-/// An SDO transfer for the cycle thread to hand to the bus.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// An SDO transfer for the cycle thread to hand to the bus, with the buffer the
+/// application lends it (allocated on the application's side; handed back in
+/// [`SdoDone`], never freed by the cycle thread).
+#[derive(Debug)]
 pub struct SdoJob {
     /// Request id (the handle's).
     pub id: u64,
     /// The transfer.
-    pub request: SdoRequest,
+    pub transfer: SdoTransfer,
+    /// Its bytes: the data to download, or room for the upload.
+    pub buffer: SdoBuffer,
 }
 
-/// How an SDO transfer ended, from the cycle thread.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How an SDO transfer ended, from the cycle thread, with its buffer back.
+#[derive(Debug)]
 pub struct SdoDone {
     /// The job's id.
     pub id: u64,
-    /// The object's bytes (upload), none (download), or why it failed.
-    pub result: SdoResult,
+    /// Done (the buffer holds an upload's bytes) or why not.
+    pub ended: SdoEnded,
 }
 
 /// Status of one request as the cycle thread last saw it.

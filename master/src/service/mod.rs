@@ -287,10 +287,7 @@ pub fn restore_commutation(
         let object = objects.offset;
         let written = drive_offset(controller, a, offset).and_then(|wire| {
             let bytes = wire.to_le_bytes();
-            let data = bytes
-                .get(..object.kind.size())
-                .and_then(SdoData::new)
-                .unwrap_or_default();
+            let data = SdoData::new(bytes.get(..object.kind.size()).unwrap_or(&bytes));
             sdo_blocking(
                 controller,
                 SdoRequest::download(a.drive, object.index, object.sub, data),
@@ -350,7 +347,7 @@ fn sdo_blocking(controller: &Controller, request: SdoRequest) -> Result<SdoData,
     let end = Instant::now() + Duration::from_secs(10);
     loop {
         let r = controller
-            .sdo(request)
+            .sdo(request.clone())
             .map_err(|e| e.to_string())
             .and_then(|h| h.wait(Duration::from_secs(5)).map_err(|e| e.to_string()));
         match r {
@@ -427,7 +424,7 @@ pub fn run(
     let names = config.axes.iter().map(|a| a.name.clone()).collect();
     // Homing and move parameters are filled in and saved by the controller, whoever
     // sends the command.
-    let controller = Controller::new(ends, names)
+    let controller = Controller::with_sdo_max_bytes(ends, names, config.bus.sdo_max_bytes())
         .saving_to(saved.clone())
         .map_err(|source| ServiceError::Start {
             what: "the thread that saves axis parameters",

@@ -33,8 +33,19 @@ use thiserror::Error;
 
 /// The protocol version this gantry speaks.
 pub const VERSION: u64 = 1;
-/// Longest request line accepted.
+/// Longest request line accepted, besides an `sdo` download's data ([`max_line`]).
 pub const MAX_LINE: usize = 64 * 1024;
+
+/// Longest request line accepted when an SDO transfer carries up to `sdo_max_bytes`:
+/// [`MAX_LINE`], or room for that many bytes as hex digits and the rest of the request.
+pub const fn max_line(sdo_max_bytes: usize) -> usize {
+    let sdo = 2 * sdo_max_bytes + 1024;
+    if sdo > MAX_LINE {
+        sdo
+    } else {
+        MAX_LINE
+    }
+}
 
 /// A word of the protocol that is not one of its field's choices.
 #[derive(Clone, Debug, Error, PartialEq, Eq)]

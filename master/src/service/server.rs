@@ -24,7 +24,7 @@ use tokio::net::{UnixListener, UnixStream};
 
 use super::protocol::{
     self, CommissionKind, DriveHomeParams, HomeMethod, HomeMode, HomeParams, HomeSwitches,
-    JogDirection, MoveMode, Request, SdoDirection, Word, MAX_LINE,
+    JogDirection, MoveMode, Request, SdoDirection, Word,
 };
 use crate::commission::{
     CommissionError, CommutationSettings, Procedure, ProcedureHandle, ProcedureOutcome, Reversing,
@@ -35,7 +35,7 @@ use crate::persist::{Saved, StepSwitchNotGiven};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
 use crate::runtime::procedure::DriveProcedure;
 use crate::runtime::protocol::{Snapshot, TraceSample};
-use crate::runtime::sdo::{SdoData, SdoError, SdoRequest, SDO_MAX_DATA, SDO_TIMEOUT_NS};
+use crate::runtime::sdo::{SdoData, SdoError, SdoKind, SdoRequest, SDO_TIMEOUT_NS};
 use gantry_drives::cia402::homing::{DriveHoming, DriveHomingParams};
 use gantry_kernel::homing::{HomingMode, MoveHomeCall, SwitchConfig};
 
@@ -153,10 +153,11 @@ pub async fn serve(listener: UnixListener, state: Arc<ServerState>) {
 async fn client(stream: UnixStream, state: Arc<ServerState>) {
     let (read, mut write) = stream.into_split();
     let mut reader = BufReader::new(read);
+    let max_line = protocol::max_line(state.controller.sdo_max_bytes());
     loop {
         let mut line = Vec::new();
         match (&mut reader)
-            .take(MAX_LINE as u64 + 1)
+            .take(max_line as u64 + 1)
             .read_until(b'\n', &mut line)
             .await
         {
@@ -166,8 +167,8 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
         // Held until this request's reply is written: a shutdown waits for it (see
         // `end_recordings`).
         let _in_progress = state.ending.subscribe();
-        let reply = if line.len() > MAX_LINE {
-            let reply = protocol::error(&format!("request longer than {MAX_LINE} bytes"));
+        let reply = if line.len() > max_line {
+            let reply = protocol::error(&format!("request longer than {max_line} bytes"));
             let _ = write.write_all(format!("{reply}\n").as_bytes()).await;
             return;
         } else {
@@ -279,8 +280,8 @@ pub enum Refused {
     /// An SDO request names its drive by neither or both of axis and drive.
     #[error("sdo: name the drive by its axis or by its bus position, one of the two")]
     SdoTarget,
-    /// An SDO download's data is not hex bytes, or too many.
-    #[error("sdo: data {0:?} is not hex bytes (two digits a byte, at most {SDO_MAX_DATA} bytes)")]
+    /// An SDO download's data is not hex bytes (its start, for the message).
+    #[error("sdo: data {0:?} is not hex bytes (two digits a byte)")]
     SdoData(String),
     /// A download without data.
     #[error("sdo: a download needs data")]
@@ -320,27 +321,39 @@ async fn sdo(
         (SdoDirection::Upload, _) => SdoRequest::upload(drive, index, sub),
         (SdoDirection::Download, None) => return Err(Refused::SdoNoData),
         (SdoDirection::Download, Some(hex)) => {
-            let bytes = from_hex(&hex).ok_or_else(|| Refused::SdoData(hex.clone()))?;
-            let data = SdoData::new(&bytes).ok_or(Refused::SdoData(hex))?;
-            SdoRequest::download(drive, index, sub, data)
+            let bytes = from_hex(&hex).ok_or_else(|| {
+                let start: String = hex.chars().take(40).collect();
+                Refused::SdoData(if start.len() < hex.len() {
+                    format!("{start}…")
+                } else {
+                    start
+                })
+            })?;
+            SdoRequest::download(drive, index, sub, SdoData::from(bytes))
         }
     };
     // What the drive's EDS says it would refuse is refused here, before anything is sent.
     if let Some(eds) = axis.and_then(|i| state.config.eds_of(i)) {
         let len = match &request.kind {
-            crate::runtime::sdo::SdoKind::Upload => None,
-            crate::runtime::sdo::SdoKind::Download(d) => Some(d.len()),
+            SdoKind::Upload => None,
+            SdoKind::Download(d) => Some(d.len()),
         };
         crate::canopen::eds::check_sdo(eds, index, sub, len)?;
     }
     if let Some(t) = timeout_s {
         request.timeout_ns = (number("timeout_s", t)?.clamp(0.001, 60.0) * 1e9) as u64;
     }
+    let timeout_ns = request.timeout_ns;
     let handle = ctl.sdo(request)?;
-    // The bus times the transfer out itself; a cycle that stopped taking requests is
-    // waited for a little longer, then reported.
-    let wait =
-        Duration::from_nanos(request.timeout_ns.max(SDO_TIMEOUT_NS)) + Duration::from_secs(2);
+    // The bus times the drive's silence out itself, each answer anew: a transfer that
+    // goes on may take as many answers as the object has segments. Bounded by that (a
+    // cycle that stopped taking requests is reported then): for the largest object at
+    // 7 bytes a segment, four cycles each, plus the drive's timeout and a margin.
+    let cycle = Duration::from_micros(u64::from(state.config.bus.cycle_us));
+    let segments = u32::try_from(ctl.sdo_max_bytes() / 7 + 16).unwrap_or(u32::MAX);
+    let wait = Duration::from_nanos(timeout_ns.max(SDO_TIMEOUT_NS))
+        + Duration::from_secs(2)
+        + cycle.saturating_mul(4).saturating_mul(segments);
     let outcome = tokio::task::spawn_blocking(move || handle.wait(wait))
         .await
         .map_err(|_| Refused::Control(ControlError::Ended))??;
@@ -405,7 +418,16 @@ fn object(
 
 /// Bytes as hex, two lower-case digits each.
 pub fn to_hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut text = String::with_capacity(2 * bytes.len());
+    for b in bytes {
+        for d in [b >> 4, b & 0x0F] {
+            text.push(char::from(
+                DIGITS.get(usize::from(d)).copied().unwrap_or(b'0'),
+            ));
+        }
+    }
+    text
 }
 
 /// Hex digits as bytes (`None` unless an even number of hex digits).

@@ -24,6 +24,7 @@
 //! | 0x2010 | rw | missed SYNC setpoint limit (manufacturer-specific, see [`MISSED_SETPOINT_LIMIT`]) |
 //! | 0x2100–0x2103 | rw, ro, rw, rw | the servo's commutation offset, pole pairs, open-loop current vector amplitude and angle (manufacturer-specific, `gantry_drives::cia402::objects::MANUFACTURER`; installed by the servo, as on EtherCAT) |
 //! | 0x2F00 | ro | recorder: a manufacturer DOMAIN of `recorder_bytes` (chain file; absent when 0) whose byte `i` is [`recorder_byte`]`(i)`, for large SDO uploads (segmented, block) |
+//! | 0x2F01 | rw | scratch: a manufacturer DOMAIN of up to `scratch_bytes` (chain file; absent when 0) that reads back what was last written to it (empty at power-on and after reset application), for large SDO downloads |
 //! | 0x6007 | rw | abort connection option code (CiA 402-2): 0 none, 1 fault |
 //! | 0x6000… | | the device's objects (`CanDevice::install_objects`) and every mappable one |
 
@@ -87,6 +88,12 @@ pub const RECORDER: u16 = 0x2F00;
 /// Largest recorder (bytes): a 64 KiB trace is what the SDO benchmark moves; 1 MiB
 /// leaves room without letting a chain file ask for gigabytes.
 pub const RECORDER_MAX_BYTES: usize = 1 << 20;
+
+/// Manufacturer-specific 0x2F01: the scratch, a read-write DOMAIN of any length up to
+/// the chain file's `scratch_bytes` (CiA 301 §7.4.7.1: a download of more is refused with
+/// 0x06070012) that an upload reads back as last written, so a client's download can be
+/// checked byte for byte. Present only with a length.
+pub const SCRATCH: u16 = 0x2F01;
 
 /// Byte `i` of the recorder 0x2F00: the top byte of a multiplicative hash of `i`
 /// (Knuth's 2654435761), so that no 256-byte period hides a segment delivered in the
@@ -244,6 +251,9 @@ pub struct NodeDictionary {
     pub changed: Changed,
     /// 0x2F00's content (empty: no recorder).
     recorder: Box<[u8]>,
+    /// 0x2F01's room (empty: no scratch) and the bytes of it written last.
+    scratch: Box<[u8]>,
+    scratch_len: usize,
 }
 
 fn od_abort(e: OdError) -> AbortCode {
@@ -346,6 +356,8 @@ impl NodeDictionary {
             tx_image: [0; IMAGE_BYTES],
             changed: Changed::default(),
             recorder: Box::default(),
+            scratch: Box::default(),
+            scratch_len: 0,
         };
         d.refresh_objects();
         d.od_power_on = d.od.clone();
@@ -362,6 +374,23 @@ impl NodeDictionary {
     /// Bytes of the recorder 0x2F00 (0: the node has none).
     pub fn recorder_len(&self) -> usize {
         self.recorder.len()
+    }
+
+    /// Gives the node the scratch 0x2F01 of up to `bytes` bytes, empty (0: none).
+    /// Allocates: call it before the node runs.
+    pub fn set_scratch(&mut self, bytes: usize) {
+        self.scratch = vec![0; bytes].into_boxed_slice();
+        self.scratch_len = 0;
+    }
+
+    /// The most the scratch 0x2F01 holds (0: the node has none).
+    pub fn scratch_capacity(&self) -> usize {
+        self.scratch.len()
+    }
+
+    /// What was last written to the scratch 0x2F01.
+    pub fn scratch(&self) -> &[u8] {
+        self.scratch.get(..self.scratch_len).unwrap_or_default()
     }
 
     /// The device's profile objects (0x6000…): index, sub-index, in the order installed.
@@ -429,6 +458,7 @@ impl NodeDictionary {
     /// Reset application: 0x2000–0x9FFF to power-on values, the device restarts.
     pub fn reset_application(&mut self) {
         self.missed_setpoint_limit = DEFAULT_MISSED_SETPOINT_LIMIT;
+        self.scratch_len = 0;
         self.device.power_on_reset();
         self.od.copy_values_from(&self.od_power_on);
         // The command objects start from where the drive is, not where it powered on.
@@ -539,6 +569,17 @@ impl SdoDictionary for NodeDictionary {
                 _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
             };
         }
+        if mux.index == SCRATCH && !self.scratch.is_empty() {
+            return match mux.sub {
+                0 => Ok(EntryInfo {
+                    access: Access::ReadWrite,
+                    size: ObjectSize::Variable {
+                        max: self.scratch.len(),
+                    },
+                }),
+                _ => Err(AbortCode::SUB_INDEX_DOES_NOT_EXIST),
+            };
+        }
         if mux.index < 0x2000 || mux.index == MISSED_SETPOINT_LIMIT {
             return self.comm_entry(mux);
         }
@@ -591,6 +632,10 @@ impl SdoDictionary for NodeDictionary {
             (SYNC_COUNTER_OVERFLOW, 0) => put(out, &[self.comm.sync_overflow]),
             (MISSED_SETPOINT_LIMIT, 0) => put(out, &self.missed_setpoint_limit.to_le_bytes()),
             (RECORDER, 0) if !self.recorder.is_empty() => put(out, &self.recorder),
+            (SCRATCH, 0) if !self.scratch.is_empty() => {
+                let written = self.scratch.get(..self.scratch_len).unwrap_or_default();
+                put(out, written)
+            }
             (index, sub) if index < 0x2000 => {
                 let (dir, n, mapping) =
                     pdo_of(index, self.comm.pdo_count).ok_or(AbortCode::OBJECT_DOES_NOT_EXIST)?;
@@ -702,6 +747,15 @@ impl SdoDictionary for NodeDictionary {
             }
             (MISSED_SETPOINT_LIMIT, 0) => {
                 self.missed_setpoint_limit = u16_of(data);
+                Ok(())
+            }
+            (SCRATCH, 0) if !self.scratch.is_empty() => {
+                let dst = self
+                    .scratch
+                    .get_mut(..data.len())
+                    .ok_or(AbortCode::LENGTH_TOO_HIGH)?;
+                dst.copy_from_slice(data);
+                self.scratch_len = data.len();
                 Ok(())
             }
             (index, sub) if index < 0x2000 => {

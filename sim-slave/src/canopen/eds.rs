@@ -20,7 +20,7 @@ use super::dictionary::{
     ABORT_CONNECTION_OPTION_CODE, COB_ID_EMCY, COB_ID_SYNC, COMMUNICATION_CYCLE_PERIOD,
     CONSUMER_HEARTBEAT_TIME, DEVICE_NAME, DEVICE_TYPE, ERROR_BEHAVIOUR, ERROR_HISTORY,
     ERROR_REGISTER, IDENTITY, INHIBIT_TIME_EMCY, MISSED_SETPOINT_LIMIT, PREDEFINED_ERROR_FIELD,
-    PRODUCER_HEARTBEAT_TIME, RECORDER, SOFTWARE_VERSION, SYNC_COUNTER_OVERFLOW,
+    PRODUCER_HEARTBEAT_TIME, RECORDER, SCRATCH, SOFTWARE_VERSION, SYNC_COUNTER_OVERFLOW,
 };
 use super::node::{CanNode, CanNodeConfig, CanNodeError, SlaveNodeError};
 use super::pdo::{
@@ -170,6 +170,9 @@ fn layout(node: &CanNode) -> Vec<(u16, String, ObjectType, Vec<Spec>)> {
     ));
     if node.dictionary().recorder_len() > 0 {
         v.push(var(RECORDER, "Recorder", DataType::Domain));
+    }
+    if node.dictionary().scratch_capacity() > 0 {
+        v.push(var(SCRATCH, "Scratch", DataType::Domain));
     }
     // The device's profile objects: typed by the CiA 402 table (the servo's) or the
     // device's own (CiA 406, CiA 401); an index with sub-indices above 0 is an ARRAY.

@@ -97,6 +97,9 @@ pub struct CanNodeConfig {
     /// Bytes of the recorder DOMAIN 0x2F00 (0: none; see
     /// [`super::dictionary::RECORDER`]).
     pub recorder_bytes: usize,
+    /// Bytes the scratch DOMAIN 0x2F01 holds at most (0: none; see
+    /// [`super::dictionary::SCRATCH`]).
+    pub scratch_bytes: usize,
     /// The SYNC watchdog's margin (periods of 0x1006; at least 1).
     pub sync_timeout_periods: f64,
     /// PDOs each way (1..=[`MAX_PDO_COUNT`]; [`DEFAULT_PDO_COUNT`] by default).
@@ -122,6 +125,7 @@ impl CanNodeConfig {
             sdo: SdoConfig::default(),
             sdo_buffer: 1024,
             recorder_bytes: 0,
+            scratch_bytes: 0,
             sync_timeout_periods: SYNC_TIMEOUT_PERIODS,
             pdo_count: DEFAULT_PDO_COUNT,
         }
@@ -138,6 +142,7 @@ impl CanNodeConfig {
             sync_timeout_periods: servo.sync_timeout_periods,
             recorder_bytes: servo.recorder_bytes as usize,
             pdo_count: servo.pdo_count,
+            scratch_bytes: servo.scratch_bytes as usize,
             sdo: SdoConfig {
                 timeout_ns: u64::from(servo.sdo_timeout_ms) * 1_000_000,
                 ..SdoConfig::default()
@@ -280,15 +285,18 @@ pub enum CanNodeError {
         /// The margin given.
         periods: f64,
     },
-    /// A recorder larger than the simulator holds.
+    /// A recorder (0x2F00) or scratch (0x2F01) larger than the simulator holds.
     #[error(
-        "CANopen node {node}: recorder_bytes = {bytes}: the recorder 0x2F00 holds at most \
-         {max} bytes",
+        "CANopen node {node}: {key} = {bytes}: the {what} holds at most {max} bytes",
         max = super::dictionary::RECORDER_MAX_BYTES
     )]
-    Recorder {
+    DomainSize {
         /// The node.
         node: NodeId,
+        /// The chain file's key.
+        key: &'static str,
+        /// The object.
+        what: &'static str,
         /// The size asked for.
         bytes: usize,
     },
@@ -442,14 +450,24 @@ impl CanNode {
                 count: config.pdo_count,
             });
         }
-        if config.recorder_bytes > super::dictionary::RECORDER_MAX_BYTES {
-            return Err(CanNodeError::Recorder {
-                node,
-                bytes: config.recorder_bytes,
-            });
+        for (key, what, bytes) in [
+            ("recorder_bytes", "recorder 0x2F00", config.recorder_bytes),
+            ("scratch_bytes", "scratch 0x2F01", config.scratch_bytes),
+        ] {
+            if bytes > super::dictionary::RECORDER_MAX_BYTES {
+                return Err(CanNodeError::DomainSize {
+                    node,
+                    key,
+                    what,
+                    bytes,
+                });
+            }
         }
-        // The SDO server holds an object whole: the recorder must fit.
-        let sdo_buffer = config.sdo_buffer.max(config.recorder_bytes);
+        // The SDO server holds an object whole: the recorder and the scratch must fit.
+        let sdo_buffer = config
+            .sdo_buffer
+            .max(config.recorder_bytes)
+            .max(config.scratch_bytes);
         let sdo = SdoServer::new(node, config.sdo, vec![0u8; sdo_buffer].into_boxed_slice())
             .map_err(|source| CanNodeError::Sdo { node, source })?;
         let device = match config.device {
@@ -479,6 +497,7 @@ impl CanNode {
             config.pdo_count,
         );
         dict.set_recorder(config.recorder_bytes);
+        dict.set_scratch(config.scratch_bytes);
         Ok(Self {
             node,
             nmt: NmtSlaveState::Initialisation,

@@ -181,7 +181,7 @@ fn engine() {
             _ => {}
         }
         let drive = round as usize % AXES;
-        let value = SdoData::new(&[8]).unwrap_or_default();
+        let value = SdoData::new(&[8]);
         for request in [
             SdoRequest::upload(drive, 0x1018, 1),
             SdoRequest::download(drive, 0x6060, 0, value),

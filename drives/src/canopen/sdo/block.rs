@@ -7,9 +7,14 @@
 //! receiver confirms each sub-block with the last sequence number it got in order
 //! (`ackseq`); the sender continues with the segment after it, in a new sub-block numbered
 //! from 1 again — so a lost segment is sent again, and so are the ones after it.
+//!
+//! Both halves keep the block CRC (§7.2.4.3.16) as the transfer goes, over the segments
+//! as they are confirmed (sender) or stored in order (receiver): the end frame costs no
+//! pass over the whole buffer, so no step of a transfer does more work than its segments.
 
 use super::abort::AbortCode;
 use super::command::{BlockSegment, MAX_BLOCK_SIZE, SEGMENT_DATA};
+use super::crc::Crc16;
 
 /// Segments needed for `len` bytes (at least one).
 pub(crate) const fn segments_for(len: usize) -> usize {
@@ -41,6 +46,8 @@ pub(crate) struct BlockSender {
     next_seq: u8,
     /// Whether segments of the current sub-block remain to be sent.
     sending: bool,
+    /// CRC of the confirmed segments' data.
+    crc: Crc16,
 }
 
 /// What an acknowledgement means to the sender.
@@ -61,6 +68,7 @@ impl BlockSender {
             blksize,
             next_seq: 1,
             sending: true,
+            crc: Crc16::new(),
         }
     }
 
@@ -96,6 +104,13 @@ impl BlockSender {
         Some(seg)
     }
 
+    /// Whether the next segment (if one remains to be sent) ends its sub-block: the
+    /// receiver answers it.
+    pub(crate) fn next_ends_sub_block(&self) -> bool {
+        let k = self.confirmed + self.next_seq as usize - 1;
+        self.sending && (k + 1 >= self.total || self.next_seq >= self.blksize)
+    }
+
     /// Segments sent in the current sub-block.
     fn sent_in_sub_block(&self) -> u8 {
         if self.sending {
@@ -106,14 +121,23 @@ impl BlockSender {
         }
     }
 
-    /// Takes the receiver's acknowledgement. An `ackseq` past what was sent is 0x05040003,
+    /// Takes the receiver's acknowledgement (`buf`: the data being sent, whose newly
+    /// confirmed segments go into the CRC). An `ackseq` past what was sent is 0x05040003,
     /// a block size outside 1..=127 is 0x05040002.
-    pub(crate) fn on_ack(&mut self, ackseq: u8, blksize: u8) -> Result<AckResult, AbortCode> {
+    pub(crate) fn on_ack(
+        &mut self,
+        ackseq: u8,
+        blksize: u8,
+        buf: &[u8],
+    ) -> Result<AckResult, AbortCode> {
         if ackseq > self.sent_in_sub_block() {
             return Err(AbortCode::INVALID_SEQUENCE_NUMBER);
         }
         let blksize = check_block_size(blksize)?;
+        let from = (self.confirmed * SEGMENT_DATA).min(self.len);
         self.confirmed += ackseq as usize;
+        let to = (self.confirmed * SEGMENT_DATA).min(self.len);
+        self.crc.update(buf.get(from..to).unwrap_or(&[]));
         if self.confirmed >= self.total {
             self.sending = false;
             return Ok(AckResult::Done);
@@ -127,6 +151,11 @@ impl BlockSender {
     /// Bytes of the last segment that carry no data (`n` of the end frame).
     pub(crate) fn unused_in_last(&self) -> u8 {
         (self.total * SEGMENT_DATA - self.len) as u8
+    }
+
+    /// The CRC of the data confirmed so far (all of it once [`AckResult::Done`]).
+    pub(crate) fn crc(&self) -> u16 {
+        self.crc.value()
     }
 }
 
@@ -142,6 +171,9 @@ pub(crate) struct BlockReceiver {
     done: bool,
     /// A segment of the current sub-block arrived since the last ack.
     in_sub_block: bool,
+    /// CRC of the segments stored, all but the last one (whose unused bytes only the end
+    /// frame tells).
+    crc: Crc16,
 }
 
 impl BlockReceiver {
@@ -152,7 +184,13 @@ impl BlockReceiver {
             segments: 0,
             done: false,
             in_sub_block: false,
+            crc: Crc16::new(),
         }
+    }
+
+    /// Segments stored in order so far.
+    pub(crate) fn segments(&self) -> usize {
+        self.segments
     }
 
     /// Whether the last segment has arrived (the end frame is next).
@@ -187,6 +225,9 @@ impl BlockReceiver {
                 for (d, s) in dst.iter_mut().zip(seg.data) {
                     *d = s;
                 }
+            }
+            if !seg.last {
+                self.crc.update(&seg.data);
             }
             self.segments += 1;
             self.ackseq = seg.seqno;
@@ -227,6 +268,15 @@ impl BlockReceiver {
     pub(crate) fn length(&self, unused: u8) -> Option<usize> {
         (self.segments * SEGMENT_DATA).checked_sub(unused as usize)
     }
+
+    /// The CRC of the `len` bytes received into `buf` (`len` from [`Self::length`]): the
+    /// running CRC and the last segment's bytes that carry data.
+    pub(crate) fn crc(&self, buf: &[u8], len: usize) -> u16 {
+        let mut crc = self.crc;
+        let last = self.segments.saturating_sub(1) * SEGMENT_DATA;
+        crc.update(buf.get(last.min(len)..len).unwrap_or(&[]));
+        crc.value()
+    }
 }
 
 #[cfg(test)]
@@ -240,7 +290,7 @@ mod tests {
         let first: Vec<_> = std::iter::from_fn(|| s.next_segment(&data)).collect();
         assert_eq!(first.iter().map(|g| g.seqno).collect::<Vec<_>>(), [1, 2, 3]);
         // Segment 2 lost: the receiver confirms 1.
-        assert_eq!(s.on_ack(1, 3), Ok(AckResult::More));
+        assert_eq!(s.on_ack(1, 3, &data), Ok(AckResult::More));
         let second: Vec<_> = std::iter::from_fn(|| s.next_segment(&data)).collect();
         assert_eq!(second.len(), 3);
         assert_eq!(second[0].seqno, 1);
@@ -248,14 +298,17 @@ mod tests {
             second[0].data[0], 7,
             "resends the second segment of the transfer"
         );
-        assert_eq!(s.on_ack(3, 3), Ok(AckResult::More));
+        assert_eq!(s.on_ack(3, 3, &data), Ok(AckResult::More));
         let third: Vec<_> = std::iter::from_fn(|| s.next_segment(&data)).collect();
         assert_eq!(third.len(), 1);
         assert!(third[0].last);
         assert_eq!(&third[0].data[..2], &[28, 29]);
-        assert_eq!(s.on_ack(2, 3), Err(AbortCode::INVALID_SEQUENCE_NUMBER));
-        assert_eq!(s.on_ack(1, 0), Err(AbortCode::INVALID_BLOCK_SIZE));
-        assert_eq!(s.on_ack(1, 3), Ok(AckResult::Done));
+        assert_eq!(
+            s.on_ack(2, 3, &data),
+            Err(AbortCode::INVALID_SEQUENCE_NUMBER)
+        );
+        assert_eq!(s.on_ack(1, 0, &data), Err(AbortCode::INVALID_BLOCK_SIZE));
+        assert_eq!(s.on_ack(1, 3, &data), Ok(AckResult::Done));
         assert_eq!(s.unused_in_last(), 5);
     }
 
@@ -280,6 +333,41 @@ mod tests {
             r.on_segment(&seg(4, false), &mut buf),
             Err(AbortCode::INVALID_SEQUENCE_NUMBER)
         );
+    }
+
+    /// The CRC both halves keep as segments are confirmed or stored is the CRC of the
+    /// whole data, whatever was lost and sent again on the way.
+    #[test]
+    fn the_running_crc_is_the_crc_of_the_data() {
+        use super::super::crc::Crc16;
+        for len in [0usize, 1, 6, 7, 8, 20, 21, 22, 889, 1000] {
+            let data: Vec<u8> = (0..len).map(|i| (i * 31 + 7) as u8).collect();
+            let mut s = BlockSender::new(len, 4);
+            let mut r = BlockReceiver::new(4);
+            let mut buf = vec![0u8; len];
+            let mut round = 0;
+            loop {
+                round += 1;
+                let segs: Vec<_> = std::iter::from_fn(|| s.next_segment(&data)).collect();
+                let mut ack = None;
+                for (k, seg) in segs.iter().enumerate() {
+                    // Every third round loses its second segment.
+                    if round % 3 == 0 && k == 1 {
+                        continue;
+                    }
+                    ack = r.on_segment(seg, &mut buf).unwrap().or(ack);
+                }
+                let ack = ack.or_else(|| r.on_silence()).unwrap();
+                if s.on_ack(ack, 4, &data).unwrap() == AckResult::Done {
+                    break;
+                }
+            }
+            let unused = s.unused_in_last();
+            assert_eq!(r.length(unused), Some(len));
+            assert_eq!(buf, data, "{len} bytes");
+            assert_eq!(s.crc(), Crc16::of(&data), "sender, {len} bytes");
+            assert_eq!(r.crc(&buf, len), Crc16::of(&data), "receiver, {len} bytes");
+        }
     }
 
     #[test]

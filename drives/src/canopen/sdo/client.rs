@@ -8,11 +8,10 @@
 //! the transfer with the CiA 301 Table 22 code and queues the abort frame for the server.
 
 use super::abort::AbortCode;
-use super::block::{check_block_size, AckResult, BlockReceiver, BlockSender};
+use super::block::{check_block_size, segments_for, AckResult, BlockReceiver, BlockSender};
 use super::command::{
     ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, EXPEDITED_DATA, SEGMENT_DATA,
 };
-use super::crc::Crc16;
 use super::timing::{Timing, Transfer};
 use super::{Outcome, SdoConfig, SdoConfigError, Side};
 use crate::canopen::cob_id::{CobId, NodeId};
@@ -176,7 +175,20 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// A client for `node`; `buf` holds the data of a transfer (its length is the largest
     /// object the client can move).
     pub fn new(node: NodeId, config: SdoConfig, buf: B) -> Result<Self, SdoConfigError> {
-        config.validate()?;
+        Self::with_buffer(node, config, buf).map_err(|(e, _)| e)
+    }
+
+    /// Like [`SdoClient::new`], but a configuration it cannot run with hands `buf` back
+    /// with the reason (a buffer lent for one transfer goes back to its owner, whatever
+    /// happens).
+    pub fn with_buffer(
+        node: NodeId,
+        config: SdoConfig,
+        buf: B,
+    ) -> Result<Self, (SdoConfigError, B)> {
+        if let Err(e) = config.validate() {
+            return Err((e, buf));
+        }
         let timing = Timing::new(Side::Client, &config);
         Ok(Self {
             node,
@@ -203,6 +215,20 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         self.buf.as_ref().get(..self.uploaded).unwrap_or(&[])
     }
 
+    /// The whole buffer, to put a download's data in before
+    /// [`SdoClient::download_buffered`]. What an upload left there is gone.
+    pub fn buffer_mut(&mut self) -> &mut [u8] {
+        self.uploaded = 0;
+        self.buf.as_mut()
+    }
+
+    /// The client's buffer back (a completed upload's data is its first
+    /// [`SdoClient::data`]`().len()` bytes); a transfer in progress is dropped with the
+    /// client, without an abort frame.
+    pub fn into_buffer(self) -> B {
+        self.buf
+    }
+
     fn busy(&self, mux: Multiplexer) -> Result<(), SdoClientError> {
         match self.state.mux() {
             Some(busy) => Err(SdoClientError::Busy {
@@ -214,7 +240,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         }
     }
 
-    /// Starts writing `data` to `mux`.
+    /// Starts writing `data` to `mux` (copied into the client's buffer unless expedited).
     pub fn download(
         &mut self,
         mux: Multiplexer,
@@ -223,26 +249,87 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
         now_ns: u64,
     ) -> Result<(), SdoClientError> {
         self.busy(mux)?;
-        // The buffer is about to hold the download: the last upload is gone.
-        self.uploaded = 0;
         let len = data.len();
-        let capacity = self.buf.as_ref().len();
-        let too_large = SdoClientError::TooLarge {
-            node: self.node,
-            mux,
-            len,
-            capacity,
-        };
-        if u32::try_from(len).is_err() {
-            return Err(too_large);
+        if !self.expedited(mode, len) {
+            let capacity = self.buf.as_ref().len();
+            let Some(dst) = self.buf.as_mut().get_mut(..len) else {
+                return Err(SdoClientError::TooLarge {
+                    node: self.node,
+                    mux,
+                    len,
+                    capacity,
+                });
+            };
+            dst.copy_from_slice(data);
         }
-        let expedited = match mode {
+        let expedited = self.expedited(mode, len).then_some(data);
+        self.start_download_of(mux, len, mode, expedited, now_ns)
+    }
+
+    /// Starts writing the first `len` bytes of the client's buffer to `mux`: the data was
+    /// put there beforehand ([`SdoClient::buffer_mut`]), so nothing is copied — a buffer
+    /// lent for the transfer is sent from where it is.
+    pub fn download_buffered(
+        &mut self,
+        mux: Multiplexer,
+        len: usize,
+        mode: DownloadMode,
+        now_ns: u64,
+    ) -> Result<(), SdoClientError> {
+        self.busy(mux)?;
+        let capacity = self.buf.as_ref().len();
+        if len > capacity {
+            return Err(SdoClientError::TooLarge {
+                node: self.node,
+                mux,
+                len,
+                capacity,
+            });
+        }
+        if self.expedited(mode, len) {
+            // An expedited request carries its bytes itself (1 to 4 of them).
+            let mut small = [0u8; EXPEDITED_DATA];
+            let n = len.min(EXPEDITED_DATA);
+            if let (Some(dst), Some(src)) = (small.get_mut(..n), self.buf.as_ref().get(..n)) {
+                dst.copy_from_slice(src);
+            }
+            let data = small.get(..len).unwrap_or(&[]);
+            return self.start_download_of(mux, len, mode, Some(data), now_ns);
+        }
+        self.start_download_of(mux, len, mode, None, now_ns)
+    }
+
+    /// Whether a download of `len` bytes in `mode` goes expedited.
+    fn expedited(&self, mode: DownloadMode, len: usize) -> bool {
+        match mode {
             DownloadMode::Auto => (1..=EXPEDITED_DATA).contains(&len),
             DownloadMode::Expedited => true,
             DownloadMode::Segmented | DownloadMode::Block => false,
-        };
+        }
+    }
+
+    /// Starts the download of `len` bytes: `expedited` carries them in the request, else
+    /// they are the buffer's first `len`.
+    fn start_download_of(
+        &mut self,
+        mux: Multiplexer,
+        len: usize,
+        mode: DownloadMode,
+        expedited: Option<&[u8]>,
+        now_ns: u64,
+    ) -> Result<(), SdoClientError> {
+        // The buffer holds the download: the last upload is gone.
+        self.uploaded = 0;
+        if u32::try_from(len).is_err() {
+            return Err(SdoClientError::TooLarge {
+                node: self.node,
+                mux,
+                len,
+                capacity: self.buf.as_ref().len(),
+            });
+        }
         let size = self.config.indicate_size.then_some(len as u32);
-        let request = if expedited {
+        let request = if let Some(data) = expedited {
             let Some(payload) = Initiate::expedited(data) else {
                 return Err(SdoClientError::ExpeditedLength {
                     node: self.node,
@@ -256,28 +343,22 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 segmented: false,
             };
             ClientCommand::InitiateDownload { mux, payload }
+        } else if mode == DownloadMode::Block {
+            self.state = State::BlockDownloadInitiate { mux, len };
+            ClientCommand::BlockDownloadInitiate {
+                mux,
+                crc: self.config.crc,
+                size,
+            }
         } else {
-            let Some(dst) = self.buf.as_mut().get_mut(..len) else {
-                return Err(too_large);
+            self.state = State::DownloadInitiate {
+                mux,
+                len,
+                segmented: true,
             };
-            dst.copy_from_slice(data);
-            if mode == DownloadMode::Block {
-                self.state = State::BlockDownloadInitiate { mux, len };
-                ClientCommand::BlockDownloadInitiate {
-                    mux,
-                    crc: self.config.crc,
-                    size,
-                }
-            } else {
-                self.state = State::DownloadInitiate {
-                    mux,
-                    len,
-                    segmented: true,
-                };
-                ClientCommand::InitiateDownload {
-                    mux,
-                    payload: Initiate::Segmented { size },
-                }
+            ClientCommand::InitiateDownload {
+                mux,
+                payload: Initiate::Segmented { size },
             }
         };
         self.timing.send(request.emit(), now_ns);
@@ -323,7 +404,51 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
     /// next answer, e.g. by an abort, which supersedes it anyway.
     pub fn transmit(&mut self) -> Option<CanFrame> {
         let id = CobId::SdoRx(self.node).id();
-        self.timing.transmit(&mut self.state, id, self.buf.as_ref())
+        self.timing
+            .transmit(&mut self.state, id, self.buf.as_ref(), None)
+    }
+
+    /// How many frames the server sends in answer to the next frame
+    /// [`SdoClient::transmit`] returns: none to an abort, to the last frame of a transfer
+    /// or to a block download's segment but the sub-block's last (its acknowledgement);
+    /// a sub-block to a block upload's start or acknowledgement (what remains of the
+    /// object, when the server gave its size; the end frame after the last); one to any
+    /// other request. For a caller that budgets the bus.
+    pub fn answers_to_next(&self) -> u8 {
+        use ClientCommand as C;
+        if let Some(bytes) = self.timing.pending() {
+            let sub_block = |block_size: u8| match self.state {
+                State::BlockUpload { receiver, .. } if receiver.is_done() => 1,
+                State::BlockUpload {
+                    receiver,
+                    size: Some(size),
+                    ..
+                } => {
+                    let left = segments_for(size as usize).saturating_sub(receiver.segments());
+                    block_size.min(u8::try_from(left).unwrap_or(u8::MAX))
+                }
+                _ => block_size,
+            };
+            return match ClientCommand::parse(bytes) {
+                Ok(C::Abort { .. } | C::BlockUploadEnd) => 0,
+                Ok(C::BlockUploadStart) => sub_block(self.config.block_size),
+                Ok(C::BlockUploadAck { block_size, .. }) => sub_block(block_size),
+                _ => 1,
+            };
+        }
+        match self.state {
+            State::BlockDownload { sender, .. } => u8::from(sender.next_ends_sub_block()),
+            _ => 0,
+        }
+    }
+
+    /// [`SdoClient::transmit`] for a caller that paces a block download's segments (a few
+    /// per cycle, so that the bus keeps room for the process data): the server's silence
+    /// is timed from the segment sent last at `now_ns`, not from the sub-block's start.
+    pub fn transmit_at(&mut self, now_ns: u64) -> Option<CanFrame> {
+        let id = CobId::SdoRx(self.node).id();
+        self.timing
+            .transmit(&mut self.state, id, self.buf.as_ref(), Some(now_ns))
     }
 
     /// Checks the timeouts: the server's silence past `timeout_ns` aborts with 0x05040000;
@@ -447,7 +572,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                 },
                 S::BlockDownloadAck { ackseq, block_size },
             ) => {
-                let result = sender.on_ack(ackseq, block_size)?;
+                let result = sender.on_ack(ackseq, block_size, self.buf.as_ref())?;
                 match result {
                     AckResult::More => {
                         self.state = State::BlockDownload {
@@ -459,11 +584,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                         self.timing.arm(now_ns);
                     }
                     AckResult::Done => {
-                        let crc = if crc {
-                            Crc16::of(self.buf.as_ref().get(..len).unwrap_or(&[]))
-                        } else {
-                            0
-                        };
+                        let crc = if crc { sender.crc() } else { 0 };
                         let unused = sender.unused_in_last();
                         self.state = State::BlockDownloadEnd { mux, len };
                         self.timing.send(
@@ -597,7 +718,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoClient<B> {
                         return Err(AbortCode::LENGTH_MISMATCH);
                     }
                 }
-                if use_crc && Crc16::of(data) != crc {
+                if use_crc && receiver.crc(data, len) != crc {
                     return Err(AbortCode::CRC_ERROR);
                 }
                 self.uploaded = len;

@@ -93,6 +93,10 @@ pub struct SdoConfig {
     pub pst: u8,
     /// Client, segmented and block download: whether to indicate the size.
     pub indicate_size: bool,
+    /// Server: whether it serves block transfers (CiA 301 makes them optional; a server
+    /// without them refuses a block request with 0x05040001, the command specifier it
+    /// does not know).
+    pub block: bool,
 }
 
 impl Default for SdoConfig {
@@ -104,6 +108,7 @@ impl Default for SdoConfig {
             sub_block_timeout_ns: None,
             pst: 0,
             indicate_size: true,
+            block: true,
         }
     }
 }

@@ -12,7 +12,6 @@ use super::block::{check_block_size, AckResult, BlockReceiver, BlockSender};
 use super::command::{
     ClientCommand, Initiate, Multiplexer, Segment, ServerCommand, EXPEDITED_DATA, SEGMENT_DATA,
 };
-use super::crc::Crc16;
 use super::dictionary::{EntryInfo, ObjectDictionary, ObjectSize};
 use super::timing::{Timing, Transfer};
 use super::{Outcome, SdoConfig, SdoConfigError, Side};
@@ -133,7 +132,8 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     /// next answer, e.g. by an abort, which supersedes it anyway.
     pub fn transmit(&mut self) -> Option<CanFrame> {
         let id = CobId::SdoTx(self.node).id();
-        self.timing.transmit(&mut self.state, id, self.buf.as_ref())
+        self.timing
+            .transmit(&mut self.state, id, self.buf.as_ref(), None)
     }
 
     /// Checks the timeouts (see [`SdoConfig`]): the client's silence past `timeout_ns`
@@ -269,6 +269,11 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
     ) -> Result<Option<Outcome>, (Multiplexer, AbortCode)> {
         use ClientCommand as C;
         match cmd {
+            C::BlockDownloadInitiate { mux, .. } | C::BlockUploadInitiate { mux, .. }
+                if !self.config.block =>
+            {
+                Err((mux, AbortCode::INVALID_COMMAND_SPECIFIER))
+            }
             C::InitiateDownload {
                 mux,
                 payload: Initiate::Expedited { data, len },
@@ -481,7 +486,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                         return fail(AbortCode::LENGTH_TOO_LOW);
                     }
                 }
-                if use_crc && Crc16::of(data) != crc {
+                if use_crc && receiver.crc(data, len) != crc {
                     return fail(AbortCode::CRC_ERROR);
                 }
                 info.size.check(len).map_err(|c| (mux, c))?;
@@ -516,7 +521,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     ..
                 },
                 C::BlockUploadAck { ackseq, block_size },
-            ) => match sender.on_ack(ackseq, block_size) {
+            ) => match sender.on_ack(ackseq, block_size, self.buf.as_ref()) {
                 Err(code) => fail(code),
                 Ok(AckResult::More) => {
                     self.state = State::BlockUpload {
@@ -529,11 +534,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> SdoServer<B> {
                     Ok(None)
                 }
                 Ok(AckResult::Done) => {
-                    let crc = if crc {
-                        Crc16::of(self.buf.as_ref().get(..len).unwrap_or(&[]))
-                    } else {
-                        0
-                    };
+                    let crc = if crc { sender.crc() } else { 0 };
                     let unused = sender.unused_in_last();
                     self.state = State::BlockUploadEnd { mux, len };
                     self.timing

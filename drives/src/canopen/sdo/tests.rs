@@ -1206,3 +1206,231 @@ fn a_stalled_sub_block_is_waited_for_not_acknowledged_early() {
         "{outcome:?}"
     );
 }
+
+/// A download of data already in the client's buffer (a buffer lent for the transfer):
+/// every mode, the same frames and the same bytes at the server as a copied download.
+#[test]
+fn a_buffered_download_sends_the_buffer_as_it_is() {
+    let modes = [
+        DownloadMode::Auto,
+        DownloadMode::Segmented,
+        DownloadMode::Block,
+    ];
+    for &len in SIZES {
+        for mode in modes {
+            let data = pattern(len);
+            let mut copied = Rig::default();
+            let expected = copied.download(DOMAIN, &data, mode);
+            let mut rig = Rig::default();
+            rig.client.buffer_mut()[..len].copy_from_slice(&data);
+            rig.client
+                .download_buffered(DOMAIN, len, mode, rig.now)
+                .unwrap();
+            rig.run_clean();
+            let case = format!("{len} bytes, {mode:?}");
+            assert_eq!((rig.client_outcome, rig.server_outcome), expected, "{case}");
+            assert_eq!(rig.od.value(DOMAIN.index, DOMAIN.sub), &data[..], "{case}");
+            assert_eq!(rig.log, copied.log, "{case}: the same frames");
+        }
+    }
+    // Expedited: 1 to 4 bytes from the buffer; more is refused, as for a copied one.
+    let mut rig = Rig::default();
+    rig.client.buffer_mut()[..4].copy_from_slice(&[1, 2, 3, 4]);
+    rig.client
+        .download_buffered(U32, 4, DownloadMode::Expedited, 0)
+        .unwrap();
+    rig.run_clean();
+    assert_eq!(rig.od.value(U32.index, U32.sub), &[1, 2, 3, 4]);
+    assert!(matches!(
+        rig.client
+            .download_buffered(U32, 5, DownloadMode::Expedited, 0),
+        Err(SdoClientError::ExpeditedLength { len: 5, .. })
+    ));
+    assert!(matches!(
+        rig.client
+            .download_buffered(DOMAIN, 4097, DownloadMode::Block, 0),
+        Err(SdoClientError::TooLarge {
+            len: 4097,
+            capacity: 4096,
+            ..
+        })
+    ));
+    // The buffer comes back with the client.
+    assert_eq!(rig.client.into_buffer().len(), 4096);
+}
+
+/// A block download paced by its caller (a few segments per cycle): the server's silence
+/// is timed from the last segment sent, so a sub-block sent over longer than the timeout
+/// still completes; without pacing the wait runs from the server's last answer.
+#[test]
+fn a_paced_block_download_times_the_server_from_its_last_segment() {
+    for paced in [true, false] {
+        let config = SdoConfig {
+            timeout_ns: 1_000_000,
+            ..SdoConfig::default()
+        };
+        let mut rig = Rig::new(config, SdoConfig::default());
+        let data = pattern(127 * 7 * 2);
+        rig.client
+            .download(DOMAIN, &data, DownloadMode::Block, 0)
+            .unwrap();
+        let mut now = 0u64;
+        let (mut segments, mut requests) = (0, 0);
+        loop {
+            // One frame each 100 µs: a sub-block of 127 takes 12.7 ms, the timeout is 1 ms.
+            now += 100_000;
+            if let Some(o) = rig.client.poll(now) {
+                rig.client_outcome = Some(o);
+                break;
+            }
+            let answers = rig.client.answers_to_next();
+            let sent = if paced {
+                rig.client.transmit_at(now)
+            } else {
+                rig.client.transmit()
+            };
+            if let Some(f) = sent {
+                if answers == 0 {
+                    segments += 1;
+                } else {
+                    requests += 1;
+                }
+                if let Some(o) = rig.server.receive(&f, now, &mut rig.od) {
+                    rig.server_outcome = Some(o);
+                }
+            }
+            while let Some(f) = rig.server.transmit() {
+                if let Some(o) = rig.client.receive(&f, now) {
+                    rig.client_outcome = Some(o);
+                }
+            }
+            if rig.client_outcome.is_some() {
+                break;
+            }
+            assert!(now < 1_000_000_000, "never ended");
+        }
+        if paced {
+            let len = data.len();
+            // Answered: the initiate, the two sub-blocks' last segments, the end.
+            assert_eq!((segments, requests), (len.div_ceil(7) - 2, 4));
+            assert_eq!(
+                rig.client_outcome,
+                Some(Outcome::Downloaded { mux: DOMAIN, len })
+            );
+            assert_eq!(rig.od.value(DOMAIN.index, DOMAIN.sub), &data[..]);
+        } else {
+            assert_eq!(
+                rig.client_outcome,
+                aborted(DOMAIN, AbortCode::TIMED_OUT, Side::Client)
+            );
+        }
+    }
+}
+
+/// A server without block transfer (CiA 301 makes it optional) refuses a block request
+/// either way with 0x05040001 and serves the same object the normal way.
+#[test]
+fn a_server_without_block_transfer_refuses_it_with_0x05040001() {
+    let server = SdoConfig {
+        block: false,
+        ..SdoConfig::default()
+    };
+    let mut rig = Rig::new(SdoConfig::default(), server);
+    let data = pattern(100);
+    let refused = aborted(DOMAIN, AbortCode::INVALID_COMMAND_SPECIFIER, Side::Server);
+    let (client, _) = rig.download(DOMAIN, &data, DownloadMode::Block);
+    assert_eq!(client, refused);
+    assert_eq!(
+        rig.od.value(DOMAIN.index, DOMAIN.sub),
+        &[] as &[u8],
+        "nothing written"
+    );
+    let (client, _) = rig.upload(DOMAIN, UploadMode::Block);
+    assert_eq!(client, refused);
+    let (client, _) = rig.download(DOMAIN, &data, DownloadMode::Segmented);
+    assert_eq!(
+        client,
+        Some(Outcome::Downloaded {
+            mux: DOMAIN,
+            len: 100
+        })
+    );
+    let (client, _) = rig.upload(DOMAIN, UploadMode::Normal);
+    assert_eq!(
+        client,
+        Some(Outcome::Uploaded {
+            mux: DOMAIN,
+            len: 100
+        })
+    );
+    assert_eq!(rig.client.data(), &data[..]);
+}
+
+/// What the client says the server will answer to each frame it sends adds up to what
+/// the server sent, for every kind and size of transfer both ways.
+#[test]
+fn the_client_foretells_how_many_frames_the_server_answers() {
+    let downloads = [
+        DownloadMode::Auto,
+        DownloadMode::Segmented,
+        DownloadMode::Block,
+    ];
+    for &len in SIZES {
+        for k in 0..5 {
+            let mut rig = Rig::new(
+                SdoConfig {
+                    block_size: 5,
+                    pst: if k == 4 { 8 } else { 0 },
+                    ..SdoConfig::default()
+                },
+                SdoConfig {
+                    block_size: 7,
+                    ..SdoConfig::default()
+                },
+            );
+            let data = pattern(len);
+            match downloads.get(k) {
+                Some(&mode) => rig.client.download(DOMAIN, &data, mode, 0).unwrap(),
+                None => {
+                    rig.od.write(DOMAIN, &data).unwrap();
+                    let mode = if k == 3 {
+                        UploadMode::Normal
+                    } else {
+                        UploadMode::Block
+                    };
+                    rig.client.upload(DOMAIN, mode, 0).unwrap();
+                }
+            }
+            let (mut foretold, mut answered) = (0u32, 0u32);
+            for _ in 0..10_000 {
+                let answers = rig.client.answers_to_next();
+                let Some(f) = rig.client.transmit() else {
+                    break;
+                };
+                foretold += u32::from(answers);
+                if let Some(o) = rig.server.receive(&f, 0, &mut rig.od) {
+                    rig.server_outcome = Some(o);
+                }
+                while let Some(f) = rig.server.transmit() {
+                    answered += 1;
+                    if let Some(o) = rig.client.receive(&f, 0) {
+                        rig.client_outcome = Some(o);
+                    }
+                }
+            }
+            assert!(
+                rig.client.is_idle() && rig.server.is_idle(),
+                "{len} bytes, case {k}"
+            );
+            assert!(
+                matches!(
+                    rig.client_outcome,
+                    Some(Outcome::Downloaded { .. } | Outcome::Uploaded { .. })
+                ),
+                "{len} bytes, case {k}: {:?}",
+                rig.client_outcome
+            );
+            assert_eq!(foretold, answered, "{len} bytes, case {k}");
+        }
+    }
+}

@@ -50,18 +50,28 @@ impl Timing {
     }
 
     /// The next frame on COB-ID `id`: the answer waiting, else the next segment of the
-    /// block `state` is sending (from `buf`).
+    /// block `state` is sending (from `buf`). With `now_ns`, a segment restarts the wait
+    /// for the peer (it answers a sub-block only after its last segment).
     pub(super) fn transmit(
         &mut self,
         state: &mut impl Transfer,
         id: u16,
         buf: &[u8],
+        now_ns: Option<u64>,
     ) -> Option<CanFrame> {
         if let Some(bytes) = self.pending.take() {
             return Some(CanFrame::from_parts(id, bytes));
         }
         let seg = state.sending()?.next_segment(buf)?;
+        if let Some(now) = now_ns {
+            self.arm(now);
+        }
         Some(CanFrame::from_parts(id, seg.emit()))
+    }
+
+    /// The frame waiting to be taken.
+    pub(super) fn pending(&self) -> Option<&[u8; SDO_LEN]> {
+        self.pending.as_ref()
     }
 
     /// Queues `bytes` (replacing a frame not yet taken) and waits for the peer's answer.

@@ -328,6 +328,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
             master_node: None,
             master_timeout_ms: None,
             sync_counter: None,
+            sdo_max_bytes: None,
         },
         rt: RtSection::default(),
         // The demo saves nothing.
