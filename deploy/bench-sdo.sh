@@ -4,7 +4,7 @@
 # vcan, in one run (tests/tests/sdo_bench_vcan.rs). Prints the "SDO bench:" figures.
 # Runs in a network namespace where the host kernel has vcan, else in the VM of deploy/vm/
 # (the build machines' kernels have no CAN; there the figures are an emulator's).
-# Usage: bash deploy/bench-sdo.sh   (not part of deploy/test.sh: minutes in an emulated VM)
+# Usage: bash deploy/bench-sdo.sh   (not part of deploy/test.sh: ten minutes in an emulated VM)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,5 +34,5 @@ if [ "$(id -u)" = 0 ] && modprobe vcan >/dev/null 2>&1 && ip netns add gantry-sd
   done
   ip netns exec gantry-sdo-bench sh -c "$cmd"
 else
-  bash deploy/vm/run --timeout 900 "$cmd"
+  bash deploy/vm/run --timeout 1800 "$cmd"
 fi

@@ -54,11 +54,8 @@ def main():
         # No EDS: a raw upload of the object's bytes.
         node = canopen.RemoteNode(a.node, canopen.ObjectDictionary())
         network.add_node(node)
-        # The emulated VM is slow: more than python-canopen's 0.3 s between frames.
-        # Measured in the build machines' VM under a loaded host: with 30 s here and at
-        # the node, 7620 of 9363 segments in 15.8 s, then both sides waited and the node
-        # aborted; with 3 s here, python-canopen stopped acknowledging after its third
-        # sub-block and the node aborted. Not understood yet.
+        # The emulated VM is slow: more than python-canopen's 0.3 s between frames. 30 s,
+        # as gantry's client has and the node (`sdo_timeout_ms`, sdo_bench_vcan.rs).
         node.sdo.RESPONSE_TIMEOUT = 30.0
         # Progress on stderr every 1270 answers (ten sub-blocks), so that a run that
         # fails still tells how fast it went.
