@@ -130,7 +130,15 @@ fn the_cli_drives_a_running_service_and_sigterm_stops_it_gracefully() {
         assert_eq!(r["ok"], false, "{r}");
         assert!(r["error"].as_str().unwrap().contains(says), "{r}");
     }
-    let huge = vec![b'x'; 70 * 1024];
+    // Longer than a request may be: with the example's `sdo_max_bytes` (64 KiB, carried as
+    // hex digits) that is more than 128 KiB.
+    let max_line = gantry::service::protocol::max_line(
+        gantry::config::Config::load(&svc.dir.join("gantry.toml").display().to_string())
+            .unwrap()
+            .bus
+            .sdo_max_bytes(),
+    );
+    let huge = vec![b'x'; max_line + 1];
     let r = raw_request(&svc.socket, &huge);
     assert!(r["error"].as_str().unwrap().contains("longer than"), "{r}");
     // A reset says what it left the axis in (x has no error: it stays powered).
