@@ -285,7 +285,7 @@ pub fn restore_commutation(
         };
         let objects = a.commutation.objects().unwrap_or_default();
         let object = objects.offset;
-        let written = drive_offset(controller, a, offset).and_then(|wire| {
+        let written = drive_offset(controller, a, &objects, offset).and_then(|wire| {
             let bytes = wire.to_le_bytes();
             let data = SdoData::new(bytes.get(..object.kind.size()).unwrap_or(&bytes));
             sdo_blocking(
@@ -311,15 +311,15 @@ pub fn restore_commutation(
     }
 }
 
-/// The saved `offset` (counts) in the units of axis `a`'s drive: counts pass as they are;
+/// The saved `offset` (counts) in the units of axis `a`'s drive (its `objects`): counts pass as they are;
 /// units of an electrical revolution need the motor's pole pairs (given, or read).
 fn drive_offset(
     controller: &Controller,
     a: &crate::config::AxisSection,
+    objects: &gantry_drives::commutation::CommutationObjects,
     offset: i32,
 ) -> Result<i64, String> {
     use gantry_drives::commutation::{OffsetUnits, PolePairs};
-    let objects = a.commutation.objects().unwrap_or_default();
     if objects.offset_units == OffsetUnits::Counts {
         return Ok(i64::from(offset));
     }
