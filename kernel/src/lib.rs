@@ -16,6 +16,7 @@
 )]
 
 pub mod axis;
+pub mod cam;
 pub mod homing;
 pub mod kernel;
 pub mod mechanics;
