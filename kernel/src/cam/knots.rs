@@ -35,7 +35,10 @@ pub(crate) fn cubic_spline(points: &[CamPoint], periodic: bool) -> KnotDerivativ
     let segments = h.len();
     // Row i of the system for point i, given its left segment l and right segment r.
     let row = |l: usize, r: usize| {
-        let (hl, hr) = (h.get(l).copied().unwrap_or(1.0), h.get(r).copied().unwrap_or(1.0));
+        let (hl, hr) = (
+            h.get(l).copied().unwrap_or(1.0),
+            h.get(r).copied().unwrap_or(1.0),
+        );
         let (dl, dr) = (
             delta.get(l).copied().unwrap_or(0.0),
             delta.get(r).copied().unwrap_or(0.0),

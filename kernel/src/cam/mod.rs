@@ -254,7 +254,10 @@ impl CamTable {
             return self.end;
         }
         let x = x.max(first);
-        let i = self.segments.partition_point(|s| s.x0 <= x).saturating_sub(1);
+        let i = self
+            .segments
+            .partition_point(|s| s.x0 <= x)
+            .saturating_sub(1);
         match self.segments.get(i) {
             Some(s) => s.sample(x),
             None => self.end,

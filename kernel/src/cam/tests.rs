@@ -62,7 +62,11 @@ fn cubic_is_c2_at_interior_points() {
     for periodic in [false, true] {
         let t = CamTable::new(bumpy(), Interpolation::Cubic, periodic).unwrap();
         for (i, (l, r)) in limits_at_interior_points(&t).iter().enumerate() {
-            assert!(close(l.slave, r.slave, 1e-12), "point {}: {l:?} {r:?}", i + 1);
+            assert!(
+                close(l.slave, r.slave, 1e-12),
+                "point {}: {l:?} {r:?}",
+                i + 1
+            );
             assert!(close(l.d1, r.d1, 1e-9), "point {}: {l:?} {r:?}", i + 1);
             assert!(close(l.d2, r.d2, 1e-9), "point {}: {l:?} {r:?}", i + 1);
         }
@@ -108,7 +112,10 @@ fn periodic_end_conditions_hold_for_cubic_and_quintic() {
         assert!(close(start.d2, end.d2, 1e-9), "{i}: {start:?} {end:?}");
         // What eval reports at both ends (the end from the point data, not the segment).
         let (a, b) = (t.eval(0.0), t.eval(100.0));
-        assert!(close(a.d1, b.d1, 1e-12) && close(a.d2, b.d2, 1e-12), "{a:?} {b:?}");
+        assert!(
+            close(a.d1, b.d1, 1e-12) && close(a.d2, b.d2, 1e-12),
+            "{a:?} {b:?}"
+        );
     }
 }
 
@@ -148,7 +155,11 @@ fn quintic_dwells_are_flat_and_rises_between_them_are_3_4_5() {
     assert!(close(t.max_d1(), 100.0 * 15.0 / 8.0 / 90.0, 1e-12));
     // Peak d2 of 3-4-5 is 10/√3 · Δs / h² at u = (3 - √3)/6.
     let want_d2 = 10.0 / 3f64.sqrt() * 100.0 / (90.0 * 90.0);
-    assert!(close(t.max_d2(), want_d2, 1e-9), "{} vs {want_d2}", t.max_d2());
+    assert!(
+        close(t.max_d2(), want_d2, 1e-9),
+        "{} vs {want_d2}",
+        t.max_d2()
+    );
 }
 
 #[test]
@@ -270,7 +281,14 @@ fn every_error_names_the_point() {
 #[test]
 fn periodic_linear_with_two_points_is_a_ramp() {
     let t = CamTable::new(pts(&[(0.0, 0.0), (2.0, 1.0)]), Interpolation::Linear, true).unwrap();
-    assert_eq!(t.eval(1.0), CamSample { slave: 0.5, d1: 0.5, d2: 0.0 });
+    assert_eq!(
+        t.eval(1.0),
+        CamSample {
+            slave: 0.5,
+            d1: 0.5,
+            d2: 0.0
+        }
+    );
 }
 
 #[test]
@@ -281,7 +299,10 @@ fn explicit_derivatives_are_matched_and_checked() {
     assert_eq!(t.interpolation(), Interpolation::Quintic);
     let at1 = t.eval(1.0);
     assert_eq!(at1.slave, 1.0);
-    assert!(close(at1.d1, 0.5, 1e-12) && close(at1.d2, -3.0, 1e-12), "{at1:?}");
+    assert!(
+        close(at1.d1, 0.5, 1e-12) && close(at1.d2, -3.0, 1e-12),
+        "{at1:?}"
+    );
     let left = t.segments[0].sample_u(1.0);
     assert!(close(left.d1, 0.5, 1e-12) && close(left.d2, -3.0, 1e-12));
 
