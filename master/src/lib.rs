@@ -11,6 +11,7 @@
 
 pub mod axis_fault;
 pub mod bus;
+pub mod cam;
 pub mod canopen;
 pub mod commission;
 pub mod config;
