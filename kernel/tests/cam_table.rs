@@ -2,13 +2,20 @@
 //! linear derivatives, clamping, a known analytic case (sin over one period), and seeded
 //! properties over random strictly increasing tables (continuity, finiteness, the maxima
 //! bound every sample). Tests that need exact left/right limits at the points are next
-//! to the code (`kernel/src/cam/tests.rs`).
+//! to the code (`kernel/src/cam/tests.rs`). `eval` runs under a counting allocator.
 
 use std::f64::consts::PI;
 
 use gantry_kernel::cam::{CamError, CamPoint, CamSample, CamTable, Interpolation};
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
+
+mod counting {
+    include!("common/counting_alloc.rs");
+}
+
+#[global_allocator]
+static ALLOC: counting::Counting = counting::Counting;
 
 const ALL: [Interpolation; 3] = [
     Interpolation::Linear,
@@ -86,6 +93,30 @@ fn eval_clamps_into_the_master_range() {
         assert_eq!(t.eval(f64::INFINITY).slave, 1e3, "{i}");
         assert!(t.eval(f64::NAN).slave.is_nan(), "{i}: NaN in, NaN out");
     }
+}
+
+/// eval is called every cycle: no allocation, for every interpolation, inside and outside
+/// the range and at the points (the counter watches this thread only).
+#[test]
+fn eval_does_not_allocate() {
+    let tables: Vec<CamTable> = ALL
+        .iter()
+        .flat_map(|&i| [false, true].map(|p| CamTable::new(table(), i, p).unwrap()))
+        .collect();
+    let mut sum = 0.0;
+    counting::watch(true);
+    for t in &tables {
+        for k in -100..=1100 {
+            let s = t.eval(-5.0 + 0.105 * k as f64);
+            sum += s.slave + s.d1 + s.d2;
+        }
+        for p in t.points() {
+            sum += t.eval(p.master).slave;
+        }
+    }
+    counting::watch(false);
+    assert_eq!(counting::take_count(), 0, "eval allocated");
+    assert!(sum.is_finite());
 }
 
 /// sin sampled at `n` equal steps over one period, both ends included.
