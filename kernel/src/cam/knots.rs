@@ -159,8 +159,7 @@ fn solve_cyclic(rows: &[Row]) -> Vec<f64> {
     }
 }
 
-/// d1 and d2 of the parabola through three points, at the middle one (`at_middle`) or
-/// at the first / last (`At::First` / `At::Last`).
+/// Which of the parabola's three points the derivatives are wanted at.
 #[derive(Clone, Copy)]
 enum At {
     First,
@@ -168,6 +167,7 @@ enum At {
     Last,
 }
 
+/// d1 and d2 of the parabola through `a`, `b`, `c` (master strictly increasing) at `at`.
 fn parabola(a: CamPoint, b: CamPoint, c: CamPoint, at: At) -> (f64, f64) {
     let (ha, hc) = (b.master - a.master, c.master - b.master);
     let (da, dc) = ((b.slave - a.slave) / ha, (c.slave - b.slave) / hc);

@@ -42,9 +42,10 @@ impl Segment {
         }
     }
 
-    /// The cubic with slave `p0`, `p1`, slope `v0` at the start and second derivatives
-    /// `a0`, `a1` at the ends (the spline's form: the cubic is fixed by p0, p1, a0, a1; v0
-    /// is passed to keep `u = 0` exact rather than recomputed).
+    /// The spline's cubic from its start (slave, d1, d2 in `k0`) and the d2 `a1` at its
+    /// end: d2 is linear over the segment. Its slave at the end is the next point's up to
+    /// rounding (the spline's d1 was solved for that); evaluation at a point uses the
+    /// segment starting there, so the table's values come back exactly.
     pub(crate) fn cubic(x0: f64, h: f64, k0: Knot, a1: f64) -> Self {
         let h2 = h * h;
         Segment {
