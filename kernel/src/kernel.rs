@@ -7,16 +7,45 @@ use crate::axis::command::{Command, CommandError};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::status::AxisStatus;
 use crate::axis::{Axis, AxisConfig, AxisFeedback, AxisKind, AxisSetpoint, ConfigError};
+use crate::cam::CamTable;
+use crate::sync::MasterSample;
 
 /// Shortest and longest cycle time the kernel accepts (s).
 pub const CYCLE_RANGE_S: (f64, f64) = (50e-6, 0.1);
+
+/// How many cam tables the kernel holds (slots 0..CAM_SLOTS).
+pub const CAM_SLOTS: usize = 32;
+
+/// Why a cam table could not be put into or taken out of a slot.
+#[derive(Clone, Debug, thiserror::Error, PartialEq, Eq)]
+pub enum CamSlotError {
+    /// The slot is beyond [`CAM_SLOTS`].
+    #[error("cam table slot {slot} does not exist (slots 0..{CAM_SLOTS})")]
+    NoSuchSlot {
+        /// The slot given.
+        slot: usize,
+    },
+    /// An axis cams on the table in that slot.
+    #[error("cam table slot {slot} is in use by axis {axis}; CamOut first")]
+    InUse {
+        /// The slot.
+        slot: usize,
+        /// The axis' name.
+        axis: String,
+    },
+}
 
 /// All axes and the cycle clock.
 #[derive(Clone, Debug)]
 pub struct Kernel {
     axes: Vec<Axis>,
-    /// Order in which axes are stepped: sources of shadow axes first.
+    /// Order in which axes are stepped: every master (of a gear, a cam or a shadow) before
+    /// the axes that follow it; recomputed when a command changes the relations.
     order: Vec<usize>,
+    /// Scratch for [`Kernel::reorder`]: each axis' depth in the chains of masters.
+    depth: Vec<usize>,
+    /// Cam tables by slot.
+    cams: Vec<Option<CamTable>>,
     setpoints: Vec<AxisSetpoint>,
     handles: HandleTable,
     dt: f64,
@@ -52,19 +81,99 @@ impl Kernel {
             .into_iter()
             .map(Axis::new)
             .collect::<Result<Vec<_>, _>>()?;
-        let is_shadow = |a: &Axis| matches!(a.config().kind, AxisKind::Shadow { .. });
-        let mut order: Vec<usize> = (0..axes.len())
-            .filter(|&i| axes.get(i).is_some_and(|a| !is_shadow(a)))
-            .collect();
-        order.extend((0..axes.len()).filter(|&i| axes.get(i).is_some_and(is_shadow)));
-        Ok(Self {
-            setpoints: vec![AxisSetpoint::default(); axes.len()],
+        let n = axes.len();
+        let mut k = Self {
+            setpoints: vec![AxisSetpoint::default(); n],
             axes,
-            order,
+            order: (0..n).collect(),
+            depth: vec![0; n],
+            cams: (0..CAM_SLOTS).map(|_| None).collect(),
             handles: HandleTable::new(),
             dt: cycle_s,
             tick: 0,
-        })
+        };
+        k.reorder();
+        Ok(k)
+    }
+
+    /// The axis `i` takes its values from (its master or its shadow source).
+    fn upstream(&self, i: usize) -> Option<usize> {
+        let a = self.axes.get(i)?;
+        match a.config().kind {
+            AxisKind::Shadow { source } => Some(source),
+            _ => a.following().map(|(m, _)| m),
+        }
+    }
+
+    /// Recomputes the stepping order: by depth in the chains of masters, then by index.
+    /// No allocation (the vectors keep their length; the sort is in place).
+    fn reorder(&mut self) {
+        for i in 0..self.axes.len() {
+            let mut d = 0;
+            let mut at = i;
+            // Chains are loop-free (checked when a relation starts), so this ends; the
+            // bound guards it anyway.
+            while let Some(up) = self.upstream(at) {
+                d += 1;
+                at = up;
+                if d > self.axes.len() {
+                    break;
+                }
+            }
+            if let Some(slot) = self.depth.get_mut(i) {
+                *slot = d;
+            }
+        }
+        let depth = &self.depth;
+        self.order
+            .sort_unstable_by_key(|&i| (depth.get(i).copied().unwrap_or(0), i));
+    }
+
+    /// Whether `master` is `follower` or takes its values from it, directly or through
+    /// other axes.
+    fn depends_on(&self, master: usize, follower: usize) -> bool {
+        let mut at = master;
+        for _ in 0..=self.axes.len() {
+            if at == follower {
+                return true;
+            }
+            match self.upstream(at) {
+                Some(up) => at = up,
+                None => return false,
+            }
+        }
+        true
+    }
+
+    /// Puts `table` into cam slot `slot` (`None` empties it); returns what was there, to
+    /// be dropped by the caller (outside the RT path). Refused while an axis cams on it.
+    pub fn set_cam_table(
+        &mut self,
+        slot: usize,
+        table: Option<CamTable>,
+    ) -> Result<Option<CamTable>, CamSlotError> {
+        if slot >= CAM_SLOTS {
+            return Err(CamSlotError::NoSuchSlot { slot });
+        }
+        if let Some(a) = self
+            .axes
+            .iter()
+            .find(|a| a.cam_table_in_use() == Some(slot))
+        {
+            return Err(CamSlotError::InUse {
+                slot,
+                axis: a.name().to_string(),
+            });
+        }
+        match self.cams.get_mut(slot) {
+            Some(s) => Ok(core::mem::replace(s, table)),
+            None => Err(CamSlotError::NoSuchSlot { slot }),
+        }
+    }
+
+    /// The cam table in slot `slot`.
+    pub fn cam_table(&self, slot: usize) -> Option<&CamTable> {
+        self.cams.get(slot).and_then(Option::as_ref)
     }
 
     /// Cycle time (s).
@@ -102,17 +211,57 @@ impl Kernel {
     /// has status `Error` and changed nothing.
     pub fn submit(&mut self, axis: usize, cmd: Command) -> HandleId {
         let h = self.handles.issue(CommandStatus::Busy);
-        let status = match self.axes.get_mut(axis) {
+        let status = self.submit_inner(axis, &cmd, h);
+        let status = status.unwrap_or_else(CommandStatus::Error);
+        self.handles.set(h, status);
+        if matches!(
+            cmd,
+            Command::GearIn(_) | Command::GearInPos(_) | Command::CamIn(_)
+        ) && status != CommandStatus::Error(CommandError::NoSuchAxis { axis })
+        {
+            self.reorder();
+        }
+        h
+    }
+
+    fn submit_inner(
+        &mut self,
+        axis: usize,
+        cmd: &Command,
+        h: HandleId,
+    ) -> Result<CommandStatus, CommandError> {
+        let master = match *cmd {
+            Command::GearIn(g) => Some((g.master, g.source)),
+            Command::GearInPos(g) => Some((g.gear.master, g.gear.source)),
+            Command::CamIn(c) => Some((c.master, c.source)),
+            _ => None,
+        };
+        let mut sync = crate::axis::apply::SyncContext {
+            master: None,
+            cams: &self.cams,
+        };
+        if let Some((m, source)) = master {
+            if axis < self.axes.len() && m < self.axes.len() && self.depends_on(m, axis) {
+                return Err(CommandError::BadMaster {
+                    command: cmd.name(),
+                    master: m,
+                    why: if m == axis {
+                        "an axis cannot follow itself"
+                    } else {
+                        "it follows this axis: the relations would go round in a loop"
+                    },
+                });
+            }
+            sync.master = self.axes.get(m).map(|a| a.master_sample(source));
+        }
+        match self.axes.get_mut(axis) {
             None => Err(CommandError::NoSuchAxis { axis }),
             Some(a) => {
-                let r = a.apply(&cmd, h, &mut self.handles);
+                let r = a.apply(cmd, &sync, h, &mut self.handles);
                 a.refresh_status();
                 r
             }
-        };
-        let status = status.unwrap_or_else(CommandStatus::Error);
-        self.handles.set(h, status);
-        h
+        }
     }
 
     /// Like [`Kernel::submit`], but a refused command is returned as an error.
@@ -190,16 +339,26 @@ impl Kernel {
         self.tick += 1;
         let none = AxisFeedback::default();
         for &i in &self.order {
-            let kind = match self.axes.get(i) {
-                Some(a) => a.config().kind,
+            let (kind, following) = match self.axes.get(i) {
+                Some(a) => (a.config().kind, a.following()),
                 None => continue,
             };
             let fb = match kind {
                 AxisKind::Shadow { source } => self.shadow_feedback(source),
                 _ => *feedback.get(i).unwrap_or(&none),
             };
+            // The master was stepped before (see `order`): its values of this cycle.
+            let master: Option<MasterSample> =
+                following.and_then(|(m, source)| self.axes.get(m).map(|a| a.master_sample(source)));
             if let (Some(axis), Some(sp)) = (self.axes.get_mut(i), self.setpoints.get_mut(i)) {
-                *sp = axis.step(self.tick, self.dt, &fb, &mut self.handles);
+                *sp = axis.step(
+                    self.tick,
+                    self.dt,
+                    &fb,
+                    master.as_ref(),
+                    &self.cams,
+                    &mut self.handles,
+                );
             }
         }
         &self.setpoints

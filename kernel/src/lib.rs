@@ -21,6 +21,7 @@ pub mod homing;
 pub mod kernel;
 pub mod mechanics;
 pub mod profile;
+pub mod sync;
 
 pub use axis::{Axis, AxisConfig, AxisKind};
 pub use kernel::Kernel;

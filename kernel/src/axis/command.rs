@@ -393,6 +393,16 @@ pub enum Command {
     /// Jetter MoveHome.SetReference (seed 000 §6.3.1): the position becomes this without
     /// moving; the axis is homed and "reference set".
     SetReference(f64),
+    /// PLCopen MC_GearIn: follow a master at a ratio.
+    GearIn(crate::sync::command::GearIn),
+    /// PLCopen MC_GearInPos: follow a master at a ratio, in sync at given positions.
+    GearInPos(crate::sync::command::GearInPos),
+    /// PLCopen MC_GearOut: stop following; the axis goes on at its velocity.
+    GearOut,
+    /// PLCopen MC_CamIn: follow a master through a cam table.
+    CamIn(crate::sync::command::CamIn),
+    /// PLCopen MC_CamOut: stop following the cam; the axis goes on at its velocity.
+    CamOut,
 }
 
 impl Command {
@@ -420,6 +430,11 @@ impl Command {
             Command::MoveHome(_) => "MoveHome",
             Command::StepAbsoluteSwitch(_) => "StepAbsoluteSwitch",
             Command::SetReference(_) => "MoveHome.SetReference",
+            Command::GearIn(_) => "GearIn",
+            Command::GearInPos(_) => "GearInPos",
+            Command::GearOut => "GearOut",
+            Command::CamIn(_) => "CamIn",
+            Command::CamOut => "CamOut",
         }
     }
 }
@@ -447,6 +462,16 @@ pub enum Operand {
     Mode,
     /// Direction.
     Direction,
+    /// Gear ratio numerator or denominator.
+    Ratio,
+    /// Master or slave scaling of a cam.
+    Scaling,
+    /// Master or slave offset of a cam.
+    Offset,
+    /// Master or slave sync position of GearInPos.
+    SyncPosition,
+    /// Master start distance of GearInPos.
+    StartDistance,
 }
 
 impl Operand {
@@ -463,6 +488,11 @@ impl Operand {
             Operand::Position => "position",
             Operand::Mode => "mode",
             Operand::Direction => "direction",
+            Operand::Ratio => "ratio",
+            Operand::Scaling => "scaling",
+            Operand::Offset => "offset",
+            Operand::SyncPosition => "sync position",
+            Operand::StartDistance => "master start distance",
         }
     }
 }
@@ -712,6 +742,51 @@ pub enum CommandError {
         /// Command name.
         command: &'static str,
     },
+    /// A synchronised-motion command names a master that is missing, is the follower
+    /// itself, or follows the follower (directly or through others): the relations would
+    /// go round in a loop.
+    #[error("{command}: axis {master} cannot be this axis' master ({why})")]
+    BadMaster {
+        /// Command name.
+        command: &'static str,
+        /// The master's index.
+        master: usize,
+        /// Why not.
+        why: &'static str,
+    },
+    /// The master's values cannot be followed: its encoder or drive failed (it is in
+    /// ErrorStop).
+    #[error("{command}: master axis {master} is not available (its encoder or drive failed)")]
+    MasterNotAvailable {
+        /// Command name.
+        command: &'static str,
+        /// The master's index.
+        master: usize,
+    },
+    /// CamIn names an empty cam table slot.
+    #[error("{command}: no cam table in slot {table}")]
+    NoSuchCamTable {
+        /// Command name.
+        command: &'static str,
+        /// The slot given.
+        table: usize,
+    },
+    /// A synchronised move cannot start from here.
+    #[error("{command}: {why}")]
+    CannotSynchronise {
+        /// Command name.
+        command: &'static str,
+        /// Why not.
+        why: &'static str,
+    },
+    /// GearOut or CamOut on an axis that does not follow a master that way.
+    #[error("{command}: the axis is not {what}")]
+    NotSynchronised {
+        /// Command name.
+        command: &'static str,
+        /// "gearing" or "camming".
+        what: &'static str,
+    },
     /// No axis with that index.
     #[error("no axis with index {axis}")]
     NoSuchAxis {
@@ -789,6 +864,11 @@ impl CommandError {
             | CommandError::NothingToHomeOn { command, .. }
             | CommandError::TowardsLimitSwitch { command, .. }
             | CommandError::AxisFault { command }
+            | CommandError::BadMaster { command, .. }
+            | CommandError::MasterNotAvailable { command, .. }
+            | CommandError::NoSuchCamTable { command, .. }
+            | CommandError::CannotSynchronise { command, .. }
+            | CommandError::NotSynchronised { command, .. }
             | CommandError::LentToDrive { command, .. } => command,
             CommandError::Homing(e) => e.command(),
             CommandError::DriveProcedure(e) => e.procedure,
@@ -812,6 +892,10 @@ impl CommandError {
                 Operand::Jerk => 6,
                 Operand::DecelJerk => 7,
                 Operand::TargetWindow => 8,
+                Operand::Ratio => 2,
+                Operand::Scaling | Operand::Offset => 3,
+                Operand::SyncPosition => 3,
+                Operand::StartDistance => 4,
             },
             CommandError::ModuloModeOnNormalAxis { .. }
             | CommandError::AbsNormalOnModuloAxis { .. } => 1,

@@ -6,13 +6,14 @@
 //! cycle (no standstill cycle between them) and derives the status.
 
 pub mod command;
+mod follow;
 pub mod handle;
 pub mod lend;
 pub mod motion;
 pub mod state;
 pub mod status;
 
-mod apply;
+pub(crate) mod apply;
 
 use crate::mechanics::{Direction, Mechanics};
 use crate::profile::{KinematicState, Limits, RampType};
@@ -165,6 +166,31 @@ pub struct AxisConfig {
     /// switch's edge is refused. On in [`AxisConfig::new`]; the master turns it off for a
     /// reference switch read from an I/O module.
     pub reference_edges_latched: bool,
+    /// What a follower does when its master asks more than its limits allow.
+    pub sync_limit_reaction: SyncLimitReaction,
+}
+
+/// What a follower does when its master asks more than the follower's own speed,
+/// acceleration, deceleration or direction allow (never a silent limit violation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SyncLimitReaction {
+    /// Go to ErrorStop (the reason names the quantity) and brake with the maximum
+    /// deceleration from the last set values that kept the limits.
+    #[default]
+    ErrorStop,
+    /// Go on following and raise `sync_limit_exceeded` in the status every cycle it
+    /// happens (for machines whose drives take more than the configured limits).
+    Warning,
+}
+
+impl SyncLimitReaction {
+    /// Name for configuration and messages.
+    pub const fn name(self) -> &'static str {
+        match self {
+            SyncLimitReaction::ErrorStop => "errorstop",
+            SyncLimitReaction::Warning => "warning",
+        }
+    }
 }
 
 impl AxisConfig {
@@ -198,6 +224,7 @@ impl AxisConfig {
             move_home: None,
             limit_edges_latched: true,
             reference_edges_latched: true,
+            sync_limit_reaction: SyncLimitReaction::ErrorStop,
         }
     }
 
@@ -474,6 +501,11 @@ pub struct Axis {
     /// The lending ended since the last cycle: the set position takes the drive's actual
     /// position once more (the drive may have moved since the last feedback).
     rejoin: bool,
+    /// The master relation that produces the set values (gear, cam); while it runs
+    /// `motion` is `None`.
+    follow: Option<crate::sync::Follow>,
+    /// Status bits of the relation this cycle (in sync, end of profile, limit exceeded).
+    sync_bits: follow::SyncBits,
 }
 
 /// Dynamics of the moves of a homing run.
@@ -535,6 +567,8 @@ impl Axis {
             }),
             lent: None,
             rejoin: false,
+            follow: None,
+            sync_bits: follow::SyncBits::default(),
             cfg,
         };
         axis.normalise_frame();
@@ -636,15 +670,23 @@ impl Axis {
         now: u64,
         dt: f64,
         fb: &AxisFeedback,
+        master: Option<&crate::sync::MasterSample>,
+        cams: &[Option<crate::cam::CamTable>],
         handles: &mut HandleTable,
     ) -> AxisSetpoint {
         self.last_tick = now;
+        self.sync_bits = follow::SyncBits::default();
         if self.cfg.kind.has_feedback() {
             self.take_switches(fb);
             self.take_feedback(fb, handles);
             self.track_lent_drive();
         }
-        self.advance(now, dt, handles);
+        match (self.follow.is_some(), master) {
+            (true, Some(m)) => self.follow_step(m, cams, now, dt, handles),
+            // An encoder's or a shadow's set values are what it reads.
+            _ if !self.cfg.kind.is_commandable() => {}
+            _ => self.advance(now, dt, handles),
+        }
         if let Some(o) = self.overlay {
             self.overlay_set = o.sample(now, dt);
         }
@@ -655,7 +697,7 @@ impl Axis {
             self.actual_p = self.main.p + self.overlay_set.p;
             self.actual_v = self.main.v + self.overlay_set.v;
         }
-        if self.motion.is_none() && self.overlay.is_none() {
+        if self.motion.is_none() && self.overlay.is_none() && self.follow.is_none() {
             self.normalise_frame();
         }
         self.refresh_status();
@@ -719,6 +761,9 @@ impl Axis {
         if matches!(self.cfg.kind, AxisKind::External | AxisKind::Shadow { .. }) {
             self.main = KinematicState::at_rest(self.actual_p);
             self.main.v = fb.velocity;
+            if self.cfg.kind == AxisKind::External {
+                self.take_encoder_fault(fb, handles);
+            }
             return;
         }
         self.drive_fault = fb.fault.is_some();
@@ -974,6 +1019,9 @@ impl Axis {
         if let Some(m) = self.motion.take() {
             handles.set(m.handle, status);
         }
+        if let Some(f) = self.follow.take() {
+            handles.set(f.handle, status);
+        }
         if let Some(o) = self.overlay.take() {
             handles.set(o.handle, status);
             self.fold_overlay_values();
@@ -995,6 +1043,10 @@ impl Axis {
     /// Goes to ErrorStop: the running commands end in error and the axis decelerates
     /// with its maximum deceleration.
     fn fault(&mut self, fault: AxisFault, handles: &mut HandleTable) {
+        let running = self
+            .motion
+            .map(|m| m.command)
+            .or(self.follow.map(|f| f.command));
         let err = match fault {
             AxisFault::Command(e) => e,
             AxisFault::TargetNotReached {
@@ -1003,20 +1055,23 @@ impl Axis {
                 window,
                 timeout_s,
             } => CommandError::TargetNotReached {
-                command: self.motion.map(|m| m.command).unwrap_or("MovePtp"),
+                command: running.unwrap_or("MovePtp"),
                 target,
                 actual,
                 window,
                 timeout_s,
             },
             AxisFault::LimitSwitch { side } => CommandError::LimitSwitch {
-                command: self.motion.map(|m| m.command).unwrap_or("no command"),
+                command: running.unwrap_or("no command"),
                 side,
             },
             _ => CommandError::AxisFault {
-                command: self.motion.map(|m| m.command).unwrap_or("no command"),
+                command: running.unwrap_or("no command"),
             },
         };
+        if let Some(f) = self.follow.take() {
+            handles.set(f.handle, CommandStatus::Error(err));
+        }
         self.homing = None;
         if let Some(l) = self.lent.take() {
             handles.set(l.handle, CommandStatus::Error(err));
@@ -1044,6 +1099,10 @@ impl Axis {
         }
         // A Release given during an MC_Stop does not carry over: only Reset leaves ErrorStop.
         self.release_pending = false;
+        if !self.cfg.kind.is_commandable() {
+            // An encoder or a shadow has no set values of its own to brake.
+            return;
+        }
         // Decelerate to a stop with the axis' maximum deceleration.
         let _ = self.start_stop_motion(
             MotionKind::Stop,
@@ -1158,8 +1217,11 @@ impl Axis {
                 decelerating: slope == SlopeState::Decelerating,
                 moving: set.v.abs() > eps_v,
                 jogging: continuous_jog || self.overlay.is_some(),
-                gearing: false,
-                camming: false,
+                gearing: self.follow.is_some_and(|f| !f.is_cam()),
+                camming: self.follow.is_some_and(|f| f.is_cam()),
+                in_sync: self.sync_bits.in_sync,
+                end_of_profile: self.sync_bits.end_of_profile,
+                sync_limit_exceeded: self.sync_bits.limit_exceeded,
                 homing: self.state == AxisState::Homing,
                 stopping: self.state == AxisState::Stopping
                     || self.motion.is_some_and(|m| {
@@ -1178,6 +1240,7 @@ impl Axis {
             },
             homing: self.home_status,
             switches: self.switches,
+            master: self.follow.map(|f| f.master),
             position_offset: self.position_offset,
         };
     }

@@ -77,7 +77,11 @@ impl AxisState {
             (S::Stopping, _) => None,
             (_, Event::DiscreteMotionStarted) => Some(S::DiscreteMotion),
             (_, Event::ContinuousMotionStarted) => Some(S::ContinuousMotion),
-            (S::DiscreteMotion | S::Homing, Event::MotionDone) => Some(S::Standstill),
+            (S::Homing, Event::SynchronizedMotionStarted) => None,
+            (_, Event::SynchronizedMotionStarted) => Some(S::SynchronizedMotion),
+            (S::DiscreteMotion | S::Homing | S::SynchronizedMotion, Event::MotionDone) => {
+                Some(S::Standstill)
+            }
             (S::Standstill, Event::HomingStarted) => Some(S::Homing),
             (_, Event::HomingStarted) => None,
             (_, Event::MotionDone) => None,
@@ -99,6 +103,8 @@ pub enum Event {
     /// A move without an end starts (MoveVelocity, Jog, or a superimposed jog that still
     /// moves the axis after the move under it ended).
     ContinuousMotionStarted,
+    /// The axis begins to follow a master (GearIn, GearInPos, CamIn).
+    SynchronizedMotionStarted,
     /// Braking that locks the axis starts (MC_Stop, QuickStop, power off while moving).
     StopStarted,
     /// A move with an end is done and nothing waits behind it.
@@ -157,6 +163,17 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
         (S::Standstill, Command::Release) => true,
         (_, Command::Release) => false,
         (S::Standstill, Command::Change(..) | Command::Reverse) => false,
+        // A homing run is not aborted by a master relation: stop it first.
+        (
+            S::Homing,
+            Command::GearIn(_)
+            | Command::GearInPos(_)
+            | Command::CamIn(_)
+            | Command::GearOut
+            | Command::CamOut,
+        ) => false,
+        (S::SynchronizedMotion, Command::GearOut | Command::CamOut) => true,
+        (_, Command::GearOut | Command::CamOut) => false,
         (S::Homing | S::SynchronizedMotion, Command::Change(..) | Command::Reverse) => false,
         (
             S::Standstill

@@ -55,10 +55,19 @@ pub struct StatusBits {
     pub moving: bool,
     /// A jog runs.
     pub jogging: bool,
-    /// Gearing to a master (later issue).
+    /// Gearing to a master (GearIn, GearInPos).
     pub gearing: bool,
-    /// Camming to a master (later issue).
+    /// Camming to a master (CamIn).
     pub camming: bool,
+    /// The follower is on its relation's law: caught up (PLCopen InGear / InSync).
+    pub in_sync: bool,
+    /// A cam began another period or passed the end of its table this cycle (PLCopen
+    /// EndOfProfile, a pulse).
+    pub end_of_profile: bool,
+    /// The master asked more of this follower than its own limits allow (speed,
+    /// acceleration or direction) this cycle: with the reaction "warning" the axis goes on
+    /// and says so here; with "errorstop" (the default) it is in ErrorStop.
+    pub sync_limit_exceeded: bool,
     /// A homing run is in progress.
     pub homing: bool,
     /// Stop or QuickStop is active.
@@ -100,6 +109,8 @@ pub struct AxisStatus {
     pub homing: crate::homing::HomingStatus,
     /// The switches as the axis saw them this cycle.
     pub switches: crate::homing::SwitchInputs,
+    /// The master this axis follows (gear or cam), if any.
+    pub master: Option<usize>,
     /// Axis position minus drive position (units): what SetPosition and homing set. An
     /// absolute-encoder axis is where it was homed again at the next start when this is
     /// restored (SPEC §1), so the service saves it.
@@ -146,6 +157,42 @@ pub enum AxisFault {
         /// Which one.
         side: crate::homing::LimitSide,
     },
+    /// The master this axis followed became unavailable (its encoder or drive failed).
+    MasterLost {
+        /// The master's index.
+        master: usize,
+    },
+    /// The master asked more than this follower's limits allow.
+    SyncLimit(SyncLimit),
+}
+
+/// What a master asked of a follower beyond its limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SyncLimit {
+    /// "speed", "acceleration", "deceleration" or "direction".
+    pub quantity: &'static str,
+    /// What the relation asked (units/s, units/s²; for direction the velocity).
+    pub value: f64,
+    /// The axis' limit (for direction 0).
+    pub max: f64,
+}
+
+impl core::fmt::Display for SyncLimit {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.quantity == "direction" {
+            write!(
+                f,
+                "the master drove the follower at {} against its allowed direction",
+                self.value
+            )
+        } else {
+            write!(
+                f,
+                "the master asked {} {} of the follower, above its maximum {}",
+                self.quantity, self.value, self.max
+            )
+        }
+    }
 }
 
 impl core::fmt::Display for AxisFault {
@@ -161,6 +208,9 @@ impl core::fmt::Display for AxisFault {
             }
             AxisFault::TargetNotReached { .. } => write!(f, "{}", self.summary()),
             AxisFault::LimitSwitch { side } => write!(f, "{side}"),
+            AxisFault::MasterLost { .. } | AxisFault::SyncLimit(_) => {
+                write!(f, "{}", self.summary())
+            }
         }
     }
 }
@@ -179,6 +229,8 @@ impl AxisFault {
             }
             AxisFault::SoftwareLimit { limit } => FaultSummary::SoftwareLimit { limit },
             AxisFault::LimitSwitch { side } => FaultSummary::LimitSwitch { side },
+            AxisFault::MasterLost { master } => FaultSummary::MasterLost { master },
+            AxisFault::SyncLimit(l) => FaultSummary::SyncLimit(l),
             AxisFault::TargetNotReached {
                 target,
                 actual,
@@ -236,6 +288,13 @@ pub enum FaultSummary {
         /// Which one.
         side: crate::homing::LimitSide,
     },
+    /// The master became unavailable.
+    MasterLost {
+        /// The master's index.
+        master: usize,
+    },
+    /// The master asked more than the follower's limits allow.
+    SyncLimit(SyncLimit),
     /// No error is recorded.
     Unknown,
 }
@@ -260,6 +319,11 @@ impl core::fmt::Display for FaultSummary {
                  {timeout_s} s after the set value reached it"
             ),
             FaultSummary::LimitSwitch { side } => write!(f, "{side}"),
+            FaultSummary::MasterLost { master } => write!(
+                f,
+                "master axis {master} became unavailable (its encoder or drive failed)"
+            ),
+            FaultSummary::SyncLimit(l) => write!(f, "{l}"),
             FaultSummary::Unknown => write!(f, "no error recorded"),
         }
     }

@@ -17,7 +17,10 @@ mod power;
 mod ptp;
 mod reset;
 mod stop;
+mod sync;
 mod velocity;
+
+pub(crate) use sync::SyncContext;
 
 use super::command::{Command, CommandError};
 use super::handle::{CommandStatus, HandleId, HandleTable};
@@ -30,13 +33,36 @@ impl Axis {
     pub(crate) fn apply(
         &mut self,
         cmd: &Command,
+        sync: &SyncContext<'_>,
+        h: HandleId,
+        handles: &mut HandleTable,
+    ) -> Result<CommandStatus, CommandError> {
+        let r = self.apply_to_source(cmd, sync, h, handles);
+        if r.is_ok() && self.motion.is_some() {
+            // A move of the axis' own (MovePtp, MoveVelocity, Halt, Stop…) took over from
+            // the master relation, from the relation's last set values.
+            if let Some(f) = self.follow.take() {
+                handles.set(f.handle, CommandStatus::Aborted);
+            }
+        }
+        r
+    }
+
+    fn apply_to_source(
+        &mut self,
+        cmd: &Command,
+        sync: &SyncContext<'_>,
         h: HandleId,
         handles: &mut HandleTable,
     ) -> Result<CommandStatus, CommandError> {
         let name = cmd.name();
+        // Reset acknowledges an external axis' encoder failure as it does a drive's.
         let bookkeeping = matches!(
             cmd,
-            Command::SetPosition { .. } | Command::SetHomed(_) | Command::SetReference(_)
+            Command::SetPosition { .. }
+                | Command::SetHomed(_)
+                | Command::SetReference(_)
+                | Command::Reset
         );
         if !self.cfg.kind.is_commandable() && !bookkeeping {
             return Err(CommandError::NotCommandable {
@@ -57,8 +83,13 @@ impl Axis {
                 state: self.state,
             });
         }
-        if self.state == AxisState::Homing && queued(cmd) {
-            // A homing run has no end to buffer behind: abort it (Aborting) instead.
+        if matches!(
+            self.state,
+            AxisState::Homing | AxisState::SynchronizedMotion
+        ) && queued(cmd)
+        {
+            // A homing run or a master relation has no end to buffer behind: abort it
+            // (Aborting) instead.
             return Err(CommandError::NotAllowedInState {
                 command: name,
                 state: self.state,
@@ -85,6 +116,11 @@ impl Axis {
             Command::QuickStop => self.quick_stop(h, handles),
             Command::SetPosition { position, relative } => self.set_position(position, relative),
             Command::SetHomed(b) => self.set_homed(b),
+            Command::GearIn(g) => self.gear_in(&g, sync, h, handles),
+            Command::GearInPos(g) => self.gear_in_pos(&g, sync, h, handles),
+            Command::CamIn(c) => self.cam_in(&c, sync, h, handles),
+            Command::GearOut => self.sync_out("GearOut", false, h, handles),
+            Command::CamOut => self.sync_out("CamOut", true, h, handles),
         }
     }
 }

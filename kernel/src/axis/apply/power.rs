@@ -34,7 +34,7 @@ impl Axis {
                 Ok(CommandStatus::Done)
             }
             PowerCommand::Disable => {
-                if self.motion.is_none() && self.overlay.is_none() {
+                if self.motion.is_none() && self.overlay.is_none() && self.follow.is_none() {
                     self.power_off(handles);
                     return Ok(CommandStatus::Done);
                 }

@@ -114,6 +114,9 @@ impl Axis {
         if let Some(m) = self.motion.take() {
             handles.set(m.handle, CommandStatus::Aborted);
         }
+        if let Some(f) = self.follow.take() {
+            handles.set(f.handle, CommandStatus::Aborted);
+        }
         self.queue
             .drain(|q| handles.set(q.handle(), CommandStatus::Aborted));
     }
