@@ -126,7 +126,13 @@ impl Law {
                 let x = c.x_ref + c.master_scaling * travel;
                 let (x0, x1) = table.master_range();
                 let (cycle, phase) = CamLaw::locate(table, x, c.periodic);
-                let s = table.eval(phase);
+                let mut s = table.eval(phase);
+                if !c.periodic && phase != x {
+                    // Past the end of a non-periodic table (the relation ends this cycle):
+                    // along the end's tangent, so the last set value keeps the velocity.
+                    s.slave += s.d1 * (x - phase);
+                    s.d2 = 0.0;
+                }
                 let wrapped = c.periodic && cycle != c.cycle;
                 c.cycle = cycle;
                 let ss = c.slave_scaling;

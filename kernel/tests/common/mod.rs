@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod commands;
+pub mod sync;
 
 use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
 use gantry_kernel::axis::handle::{CommandStatus, HandleId};
