@@ -216,7 +216,7 @@ impl Kernel {
         self.handles.set(h, status);
         if matches!(
             cmd,
-            Command::GearIn(_) | Command::GearInPos(_) | Command::CamIn(_)
+            Command::GearIn(_) | Command::GearInPos(_) | Command::CamIn(_) | Command::MasterJog(_)
         ) && status != CommandStatus::Error(CommandError::NoSuchAxis { axis })
         {
             self.reorder();
@@ -234,6 +234,7 @@ impl Kernel {
             Command::GearIn(g) => Some((g.master, g.source)),
             Command::GearInPos(g) => Some((g.gear.master, g.gear.source)),
             Command::CamIn(c) => Some((c.master, c.source)),
+            Command::MasterJog(j) => Some((j.master, j.source)),
             _ => None,
         };
         let mut sync = crate::axis::apply::SyncContext {

@@ -403,6 +403,9 @@ pub enum Command {
     CamIn(crate::sync::command::CamIn),
     /// PLCopen MC_CamOut: stop following the cam; the axis goes on at its velocity.
     CamOut,
+    /// Logix MAJ driven by a master (MDAC): a jog whose speed is per master unit, with
+    /// lock position and lock direction.
+    MasterJog(crate::sync::command::MasterJog),
 }
 
 impl Command {
@@ -435,6 +438,7 @@ impl Command {
             Command::GearOut => "GearOut",
             Command::CamIn(_) => "CamIn",
             Command::CamOut => "CamOut",
+            Command::MasterJog(_) => "Jog.MasterDriven",
         }
     }
 }

@@ -1216,8 +1216,11 @@ impl Axis {
                 accelerating: slope == SlopeState::Accelerating,
                 decelerating: slope == SlopeState::Decelerating,
                 moving: set.v.abs() > eps_v,
-                jogging: continuous_jog || self.overlay.is_some(),
-                gearing: self.follow.is_some_and(|f| !f.is_cam()),
+                jogging: continuous_jog
+                    || self.overlay.is_some()
+                    || self.follow.is_some_and(|f| f.jog_lock().is_some()),
+                jog_locked: self.follow.and_then(|f| f.jog_lock()).unwrap_or(false),
+                gearing: self.follow.is_some_and(|f| f.is_gear()),
                 camming: self.follow.is_some_and(|f| f.is_cam()),
                 in_sync: self.sync_bits.in_sync,
                 end_of_profile: self.sync_bits.end_of_profile,

@@ -169,6 +169,7 @@ pub const fn accepts(state: AxisState, cmd: &Command) -> bool {
             Command::GearIn(_)
             | Command::GearInPos(_)
             | Command::CamIn(_)
+            | Command::MasterJog(_)
             | Command::GearOut
             | Command::CamOut,
         ) => false,

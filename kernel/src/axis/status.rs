@@ -55,6 +55,9 @@ pub struct StatusBits {
     pub moving: bool,
     /// A jog runs.
     pub jogging: bool,
+    /// A master-driven jog follows its master now (Logix JogLockStatus): set when the
+    /// lock direction is satisfied, cleared while the master moves the other way.
+    pub jog_locked: bool,
     /// Gearing to a master (GearIn, GearInPos).
     pub gearing: bool,
     /// Camming to a master (CamIn).

@@ -169,3 +169,79 @@ impl CamIn {
         }
     }
 }
+
+/// When a master-driven jog follows its master (Logix MAJ "Lock Direction").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum LockDirection {
+    /// Follows the master both ways from the start.
+    #[default]
+    None,
+    /// Follows from the start, only while the master moves forward; stops following when
+    /// it reverses and follows again when it moves forward again.
+    ImmediateForwardOnly,
+    /// As [`LockDirection::ImmediateForwardOnly`], backwards.
+    ImmediateReverseOnly,
+    /// Stands until the master crosses the lock position moving forward, then as
+    /// [`LockDirection::ImmediateForwardOnly`].
+    PositionForwardOnly,
+    /// Stands until the master crosses the lock position moving backwards, then as
+    /// [`LockDirection::ImmediateReverseOnly`].
+    PositionReverseOnly,
+}
+
+impl LockDirection {
+    /// Logix' name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            LockDirection::None => "None",
+            LockDirection::ImmediateForwardOnly => "ImmediateForwardOnly",
+            LockDirection::ImmediateReverseOnly => "ImmediateReverseOnly",
+            LockDirection::PositionForwardOnly => "PositionForwardOnly",
+            LockDirection::PositionReverseOnly => "PositionReverseOnly",
+        }
+    }
+
+    /// +1 forward only, −1 reverse only, 0 both ways.
+    pub const fn only(self) -> f64 {
+        match self {
+            LockDirection::None => 0.0,
+            LockDirection::ImmediateForwardOnly | LockDirection::PositionForwardOnly => 1.0,
+            LockDirection::ImmediateReverseOnly | LockDirection::PositionReverseOnly => -1.0,
+        }
+    }
+
+    /// Whether the jog waits for the master to cross the lock position.
+    pub const fn waits_for_position(self) -> bool {
+        matches!(
+            self,
+            LockDirection::PositionForwardOnly | LockDirection::PositionReverseOnly
+        )
+    }
+}
+
+/// A master-driven jog (Logix MAJ with the axis coupled to a master by MDAC): the jog's
+/// speed is in follower units per master unit, so the follower moves as the master does,
+/// at that ratio — from the start or once the master crosses the lock position, in both
+/// master directions or only one ([`LockDirection`]). With a one-way lock the follower
+/// moves in the jog's direction while the lock holds; with `None` it moves in the jog's
+/// direction while the master moves forward and back while it moves back. The follower
+/// reaches and leaves the master-driven speed with the catch-up dynamics, never with a
+/// jump. Ended like any jog (Halt, Stop, a new move).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MasterJog {
+    /// Index of the master axis.
+    pub master: usize,
+    /// Set or actual values of the master.
+    pub source: MasterValue,
+    /// Direction of the jog.
+    pub direction: crate::axis::command::MoveDirection,
+    /// Follower units per master unit (> 0).
+    pub speed: f64,
+    /// When the follower follows.
+    pub lock: LockDirection,
+    /// Master position of the Position* lock directions (master units; within the period
+    /// on a modulo master).
+    pub lock_position: f64,
+    /// How the follower reaches the master-driven speed when the lock takes hold.
+    pub catch_up: CatchUp,
+}

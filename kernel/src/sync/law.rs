@@ -1,5 +1,6 @@
 //! The law of a relation: the follower's travel as a function of the master's.
 
+use super::{MasterSample, Split};
 use crate::cam::CamTable;
 
 /// What a law gives for one master travel.
@@ -18,6 +19,8 @@ pub struct LawOut {
     pub ended: bool,
     /// A periodic cam began another period.
     pub wrapped: bool,
+    /// A master-driven jog's lock took hold in this cycle (the follower must catch up).
+    pub locked: bool,
 }
 
 /// A cam relation's placement of its table.
@@ -60,7 +63,58 @@ impl CamLaw {
     }
 }
 
-/// Gear or cam.
+/// A master-driven jog's state: it follows the master at `ratio` while its lock holds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JogLaw {
+    /// Follower units per master unit, signed by the jog's direction.
+    pub ratio: f64,
+    /// +1: only while the master moves forward; −1: only backwards; 0: both ways.
+    pub only: f64,
+    /// A Position* lock not yet reached: the master position to cross (in the direction
+    /// `only`).
+    pub wait_at: Option<Split>,
+    /// Whether it follows now (Logix JogLockStatus).
+    pub locked: bool,
+    /// Master position where the current lock began.
+    pub anchor: Split,
+    /// Follower travel of the earlier locks.
+    pub travel: f64,
+}
+
+impl JogLaw {
+    /// Updates the lock for master sample `m`; returns the follower travel, its
+    /// derivative, and whether the lock took hold in this cycle.
+    pub fn eval(&mut self, m: &MasterSample) -> (f64, f64, bool) {
+        if let Some(at) = self.wait_at {
+            if self.only * m.delta_f64(&at) >= 0.0 {
+                self.wait_at = None;
+            } else {
+                return (self.travel, 0.0, false);
+            }
+        }
+        let holds = self.only == 0.0 || m.v * self.only > 0.0;
+        let mut opened = false;
+        if holds && !self.locked {
+            self.locked = true;
+            self.anchor = m.at;
+            opened = true;
+        } else if !holds && self.locked {
+            self.travel += self.ratio * m.delta_f64(&self.anchor);
+            self.locked = false;
+        }
+        if self.locked {
+            (
+                self.travel + self.ratio * m.delta_f64(&self.anchor),
+                self.ratio,
+                opened,
+            )
+        } else {
+            (self.travel, 0.0, false)
+        }
+    }
+}
+
+/// Gear, cam or master-driven jog.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Law {
     /// Follower travel = numerator · master travel / denominator.
@@ -72,18 +126,24 @@ pub enum Law {
     },
     /// Follower travel through a cam table.
     Cam(CamLaw),
+    /// A master-driven jog (Logix MAJ locked to a master).
+    Jog(JogLaw),
 }
 
 impl Law {
     /// The follower's travel for a master travel of `k` whole periods plus `r`.
-    pub fn eval(
-        &mut self,
-        k: i64,
-        r: f64,
-        period: Option<f64>,
-        cams: &[Option<CamTable>],
-    ) -> LawOut {
+    pub fn eval(&mut self, k: i64, r: f64, m: &MasterSample, cams: &[Option<CamTable>]) -> LawOut {
+        let period = m.period;
         match self {
+            Law::Jog(j) => {
+                let (rest, d1, opened) = j.eval(m);
+                LawOut {
+                    rest,
+                    d1,
+                    locked: opened,
+                    ..LawOut::default()
+                }
+            }
             Law::Gear {
                 numerator,
                 denominator,
@@ -107,9 +167,7 @@ impl Law {
                     whole,
                     rest,
                     d1: ratio,
-                    d2: 0.0,
-                    ended: false,
-                    wrapped: false,
+                    ..LawOut::default()
                 }
             }
             Law::Cam(c) => {
@@ -143,6 +201,7 @@ impl Law {
                     d2: ss * s.d2 * c.master_scaling * c.master_scaling,
                     ended: !c.periodic && (x > x1 || x < x0),
                     wrapped,
+                    locked: false,
                 }
             }
         }
@@ -160,15 +219,19 @@ mod tests {
             denominator: 7,
         };
         // 7 · 10⁶ master turns of 360 at 3/7: exactly 3 · 10⁶ · 360.
-        let out = g.eval(7_000_000, 0.0, Some(360.0), &[]);
+        let m = MasterSample {
+            period: Some(360.0),
+            ..MasterSample::default()
+        };
+        let out = g.eval(7_000_000, 0.0, &m, &[]);
         assert_eq!(out.whole, 3_000_000.0 * 360.0);
         assert_eq!(out.rest, 0.0);
         // One turn more: 3/7 of 360, in the rest.
-        let out = g.eval(7_000_001, 0.0, Some(360.0), &[]);
+        let out = g.eval(7_000_001, 0.0, &m, &[]);
         assert_eq!(out.whole, 3_000_000.0 * 360.0);
         assert!((out.rest - 3.0 * 360.0 / 7.0).abs() < 1e-12);
         // Backwards: floor division keeps the rest non-negative.
-        let out = g.eval(-1, 0.0, Some(360.0), &[]);
+        let out = g.eval(-1, 0.0, &m, &[]);
         assert_eq!(out.whole, -360.0);
         assert!((out.rest - 4.0 * 360.0 / 7.0).abs() < 1e-12);
     }

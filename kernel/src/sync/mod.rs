@@ -151,6 +151,9 @@ pub struct Follow {
     pub handle: HandleId,
     /// The command's name, for errors.
     pub command: &'static str,
+    /// Dynamics of the catch-up (a master-driven jog catches up again each time its lock
+    /// takes hold).
+    pub catch_limits: (crate::profile::Limits, crate::profile::RampType),
 }
 
 impl Follow {
@@ -164,8 +167,39 @@ impl Follow {
         dt: f64,
     ) -> FollowOut {
         let (k, r) = m.delta(&self.master_ref);
-        let law = self.law.eval(k, r, m.period, cams);
-        let e = self.catch.sample(m.delta_f64(&self.master_ref), m, now, dt);
+        let law = self.law.eval(k, r, m, cams);
+        let mut e = self.catch.sample(m.delta_f64(&self.master_ref), m, now, dt);
+        if law.locked {
+            // The lock took hold with the master moving: catch up from the follower's
+            // velocity onto the master-driven one, starting now.
+            let start = crate::profile::KinematicState {
+                p: e.p,
+                v: e.v - law.d1 * m.v,
+                a: if m.actual { e.a } else { e.a - law.d1 * m.a },
+                j: 0.0,
+            };
+            let (limits, ramp) = self.catch_limits;
+            let limits = crate::profile::Limits {
+                vmax: limits.vmax.max(start.v.abs()),
+                ..limits
+            };
+            if let Ok(profile) =
+                crate::profile::plan_velocity(ramp, start, 0.0, &limits).or_else(|_| {
+                    crate::profile::plan_velocity(
+                        crate::profile::RampType::Trapezoid,
+                        start,
+                        0.0,
+                        &limits,
+                    )
+                })
+            {
+                self.catch = Catch::Time {
+                    profile,
+                    epoch: crate::axis::motion::Epoch::at(now),
+                };
+                e = self.catch.sample(0.0, m, now, dt);
+            }
+        }
         let at = self
             .follower_ref
             .moved(law.whole, law.rest + e.p, follower_period);
@@ -179,16 +213,29 @@ impl Follow {
         }
     }
 
-    /// Whether this relation is a cam (else a gear).
+    /// Whether this relation is a cam.
     pub const fn is_cam(&self) -> bool {
         matches!(self.law, Law::Cam(_))
+    }
+
+    /// Whether this relation is a gear.
+    pub const fn is_gear(&self) -> bool {
+        matches!(self.law, Law::Gear { .. })
+    }
+
+    /// Whether this relation is a master-driven jog, and whether its lock holds.
+    pub const fn jog_lock(&self) -> Option<bool> {
+        match self.law {
+            Law::Jog(j) => Some(j.locked),
+            _ => None,
+        }
     }
 
     /// The cam table slot this relation reads, if it is a cam.
     pub const fn cam_table(&self) -> Option<usize> {
         match self.law {
             Law::Cam(c) => Some(c.table),
-            Law::Gear { .. } => None,
+            _ => None,
         }
     }
 }

@@ -121,6 +121,7 @@ impl Axis {
             Command::CamIn(c) => self.cam_in(&c, sync, h, handles),
             Command::GearOut => self.sync_out("GearOut", false, h, handles),
             Command::CamOut => self.sync_out("CamOut", true, h, handles),
+            Command::MasterJog(j) => self.master_jog(&j, sync, h, handles),
         }
     }
 }

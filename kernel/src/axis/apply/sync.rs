@@ -10,8 +10,8 @@ use crate::axis::Axis;
 use crate::cam::CamTable;
 use crate::profile::{plan_position, plan_velocity, KinematicState, Limits, Profile, RampType};
 use crate::sync::catch::Catch;
-use crate::sync::command::{CamIn, CamStart, CatchUp, GearIn, GearInPos};
-use crate::sync::law::{CamLaw, Law};
+use crate::sync::command::{CamIn, CamStart, CatchUp, GearIn, GearInPos, MasterJog};
+use crate::sync::law::{CamLaw, JogLaw, Law};
 use crate::sync::{Follow, MasterSample, Split};
 
 /// What a synchronised-motion command needs from outside its axis: the master's values
@@ -176,6 +176,7 @@ impl Axis {
             },
             handle: h,
             command: name,
+            catch_limits: (limits, ramp),
         };
         self.start_follow(f, handles);
         Ok(CommandStatus::Active)
@@ -274,6 +275,7 @@ impl Axis {
             x -= n * pf;
             turns = turns.saturating_add(n as i64);
         }
+        let (limits, ramp) = self.catch_limits(name, &g.gear.catch_up, 0.0)?;
         let len = -start;
         let (de_dm, d2e_dm2) = if distance.is_some() || !master_moves {
             (-ratio, 0.0)
@@ -298,6 +300,7 @@ impl Axis {
             catch: Catch::quintic(x, de_dm * len, d2e_dm2 * len * len, start),
             handle: h,
             command: name,
+            catch_limits: (limits, ramp),
         };
         self.start_follow(f, handles);
         Ok(CommandStatus::Active)
@@ -384,8 +387,84 @@ impl Axis {
             },
             handle: h,
             command: name,
+            catch_limits: (limits, ramp),
         };
         self.start_follow(f, handles);
+        Ok(CommandStatus::Active)
+    }
+
+    /// A master-driven jog (Logix MAJ with MDAC): the follower moves `speed` units per
+    /// master unit in the jog's direction while its lock holds.
+    pub(super) fn master_jog(
+        &mut self,
+        j: &MasterJog,
+        sync: &SyncContext<'_>,
+        h: HandleId,
+        handles: &mut HandleTable,
+    ) -> Result<CommandStatus, CommandError> {
+        let name = "Jog.MasterDriven";
+        let m = Self::master_for(name, j.master, sync)?;
+        let speed = positive(name, Operand::Speed, j.speed, f64::MAX)?;
+        if !self.direction_allowed(j.direction.sign()) {
+            return Err(self.direction_error(name, j.direction.sign()));
+        }
+        let only = j.lock.only();
+        // The follower goes the jog's direction while the lock holds: against a master
+        // that may only lock going backwards, the ratio's sign turns.
+        let ratio = j.direction.sign() * speed * if only < 0.0 { -1.0 } else { 1.0 };
+        let wait_at = if j.lock.waits_for_position() {
+            let lp = finite(name, Operand::Position, j.lock_position)?;
+            // The lock position ahead of the master in the lock's direction.
+            let mut at = Split {
+                turns: if m.period.is_some() { m.at.turns } else { 0 },
+                p: lp,
+            };
+            if let Some(pm) = m.period {
+                if !(0.0..pm).contains(&lp) {
+                    return Err(CommandError::OperandOutOfRange {
+                        command: name,
+                        operand: Operand::Position,
+                        value: lp,
+                        problem: RangeProblem::OutsidePeriod,
+                        limit: pm,
+                    });
+                }
+                if only * (lp - m.at.p) < 0.0 {
+                    at.turns += if only > 0.0 { 1 } else { -1 };
+                }
+            }
+            Some(at)
+        } else {
+            None
+        };
+        let locked = wait_at.is_none() && (only == 0.0 || m.v * only > 0.0);
+        let d1 = if locked { ratio } else { 0.0 };
+        let start = self.catch_start(d1, 0.0, &m);
+        let (limits, ramp) = self.catch_limits(name, &j.catch_up, start.v)?;
+        let profile = Self::plan_catch(name, start, None, &limits, ramp)?;
+        let f = Follow {
+            master: j.master,
+            source: j.source,
+            law: Law::Jog(JogLaw {
+                ratio,
+                only,
+                wait_at,
+                locked,
+                anchor: m.at,
+                travel: 0.0,
+            }),
+            master_ref: m.at,
+            follower_ref: self.set_split(),
+            catch: Catch::Time {
+                profile,
+                epoch: Epoch::at(self.last_tick),
+            },
+            handle: h,
+            command: name,
+            catch_limits: (limits, ramp),
+        };
+        self.start_follow(f, handles);
+        self.last_direction = j.direction.sign();
         Ok(CommandStatus::Active)
     }
 
@@ -399,7 +478,7 @@ impl Axis {
     ) -> Result<CommandStatus, CommandError> {
         let what = if cam { "camming" } else { "gearing" };
         let f = match self.follow {
-            Some(f) if f.is_cam() == cam => f,
+            Some(f) if (cam && f.is_cam()) || (!cam && f.is_gear()) => f,
             _ => {
                 return Err(CommandError::NotSynchronised {
                     command: name,
