@@ -594,7 +594,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .lines()
             .next()
             .unwrap(),
-        "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
+        "c.toml:8: name2: unknown field `name2`, expected one of `name`, `type`, `source`, `encoder_input`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
          `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`"
     );

@@ -225,6 +225,9 @@ fn axis(
     let [speed, acceleration, jerk] = defaults;
     AxisSection {
         name: name.into(),
+        axis_type: gantry::config::AxisType::Real,
+        source: None,
+        encoder_input: None,
         drive,
         node: None,
         eds: None,
