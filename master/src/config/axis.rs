@@ -74,9 +74,10 @@ pub struct AxisSection {
     /// Deceleration of a quick stop (default: max.deceleration).
     #[serde(default)]
     pub quick_stop_deceleration: Option<f64>,
-    /// Absolute moves need a homed axis.
-    #[serde(default = "yes")]
-    pub homing_required: bool,
+    /// Absolute moves need a homed axis (default: yes, but for a virtual axis, which has
+    /// no position to lose).
+    #[serde(default)]
+    pub homing_required: Option<bool>,
     /// When a move is Done: once the drive is in position (default), or as soon as the
     /// set value reaches the target.
     #[serde(default)]
@@ -236,9 +237,6 @@ fn both() -> String {
 fn csp() -> String {
     "csp".into()
 }
-fn yes() -> bool {
-    true
-}
 
 /// `[axis.scaling]`.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
@@ -332,17 +330,24 @@ impl AxisSection {
                 return refuse("eds", "has no drive; remove eds");
             }
             if self.drive_homing.is_some() {
-                return refuse("drive_homing", "has no drive to home; remove [axis.drive_homing]");
+                return refuse(
+                    "drive_homing",
+                    "has no drive to home; remove [axis.drive_homing]",
+                );
             }
             if self.switches != super::switches::SwitchesSection::default() {
                 return refuse(
                     "switches",
-                    "reads no switches (they are read from a drive or an I/O module for a                      real axis); remove [axis.switches]",
+                    "reads no switches (they are read from a drive or an I/O module for a \
+                     real axis); remove [axis.switches]",
                 );
             }
         }
         if t != AxisType::Shadow && self.source.is_some() {
-            return refuse("source", "mirrors nothing (only a shadow axis has a source)");
+            return refuse(
+                "source",
+                "mirrors nothing (only a shadow axis has a source)",
+            );
         }
         if t != AxisType::External && self.encoder_input.is_some() {
             return refuse(
@@ -357,7 +362,8 @@ impl AxisSection {
                 return Err((
                     "scaling".into(),
                     format!(
-                        "missing: a {name} axis counts encoder counts (scaling = {{                          counts_per_motor_rev = N, units_per_load_rev = X }})"
+                        "missing: a {name} axis counts encoder counts (scaling = {{ \
+                         counts_per_motor_rev = N, units_per_load_rev = X }})"
                     ),
                 ))
             }
@@ -371,7 +377,8 @@ impl AxisSection {
                 return Err((
                     "max".into(),
                     format!(
-                        "missing: what a {name} axis may be commanded (max = {{ speed = V,                          acceleration = A, jerk = J }})"
+                        "missing: what a {name} axis may be commanded (max = {{ speed = V, \
+                         acceleration = A, jerk = J }})"
                     ),
                 ))
             }
@@ -382,7 +389,8 @@ impl AxisSection {
                 let Some(e) = self.encoder_input else {
                     return Err((
                         "encoder_input".into(),
-                        "missing: the encoder module an external axis reads                          ([axis.encoder_input] slave = N, its EtherCAT position)"
+                        "missing: the encoder module an external axis reads \
+                         ([axis.encoder_input] slave = N, its EtherCAT position)"
                             .into(),
                     ));
                 };
@@ -391,7 +399,8 @@ impl AxisSection {
                     return Err((
                         "encoder_input.freeze_timeout_ms".into(),
                         format!(
-                            "{ms} is not a time > 0 (ms without a new value from the module                              before the axis is lost)"
+                            "{ms} is not a time > 0 (ms without a new value from the module \
+                             before the axis is lost)"
                         ),
                     ));
                 }
@@ -399,7 +408,8 @@ impl AxisSection {
                     return Err((
                         "encoder_input.freeze_timeout_ms".into(),
                         format!(
-                            "{ms} ms is shorter than the bus cycle ({cycle_us} µs): the module                              cannot toggle faster than the master reads it"
+                            "{ms} ms is shorter than the bus cycle ({cycle_us} µs): the module \
+                             cannot toggle faster than the master reads it"
                         ),
                     ));
                 }
@@ -545,7 +555,8 @@ impl AxisSection {
             c.defaults.target_window = w;
         }
         c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
-        c.homing_required = self.homing_required;
+        // Unless given, the kernel's default for the kind (a virtual axis needs no homing).
+        c.homing_required = self.homing_required.unwrap_or(c.homing_required);
         c.limit_edges_latched = self.switches.probe_source()?.is_some();
         c.reference_edges_latched = self.switches.reference_latched()?;
         let tm = self.target_monitoring;

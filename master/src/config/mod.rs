@@ -14,8 +14,7 @@ mod switches;
 
 pub use axis::{
     AxisSection, AxisType, DefaultsSection, Encoder, EncoderInputSection, MaxSection,
-    ScalingSection, DEFAULT_FREEZE_TIMEOUT_MS, DRIVE_UNSET, MAX_UNSET, SCALING_UNSET,
-    UNIT_SCALING,
+    ScalingSection, DEFAULT_FREEZE_TIMEOUT_MS, DRIVE_UNSET, MAX_UNSET, SCALING_UNSET, UNIT_SCALING,
 };
 pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
@@ -109,7 +108,11 @@ impl Config {
     /// the `k`-th of them is on bus position `k`.
     pub fn drive_axes(&self) -> Vec<usize> {
         (0..self.axes.len())
-            .filter(|&i| self.axes.get(i).is_some_and(|a| a.axis_type == AxisType::Real))
+            .filter(|&i| {
+                self.axes
+                    .get(i)
+                    .is_some_and(|a| a.axis_type == AxisType::Real)
+            })
             .collect()
     }
 
@@ -200,7 +203,8 @@ impl Config {
                     return Err(at(
                         span,
                         key("type"),
-                        "an external axis reads an EtherCAT encoder module                          ([axis.encoder_input] slave = N); CANopen encoders are not supported"
+                        "an external axis reads an EtherCAT encoder module \
+                         ([axis.encoder_input] slave = N); CANopen encoders are not supported"
                             .into(),
                     ));
                 }
@@ -274,7 +278,10 @@ impl Config {
                     }
                     // Bus position: the axis' rank among the real axes (see
                     // `AxisSection::drive`).
-                    a.drive = axes.iter().filter(|b: &&AxisSection| b.axis_type == AxisType::Real).count();
+                    a.drive = axes
+                        .iter()
+                        .filter(|b: &&AxisSection| b.axis_type == AxisType::Real)
+                        .count();
                 }
                 (BusKind::Canopen, _, _) => {
                     return Err(at(
@@ -419,8 +426,11 @@ impl Config {
                     )
                 })?;
             let name = a.name.clone();
-            let units = axes.get(source).map(|b| (b.units.clone(), b.kind.clone(), b.modulo));
-            if let (Some(k), Some(src)) = (kernel_axes.get(source).cloned(), kernel_axes.get_mut(i)) {
+            let units = axes
+                .get(source)
+                .map(|b| (b.units.clone(), b.kind.clone(), b.modulo));
+            if let (Some(k), Some(src)) = (kernel_axes.get(source).cloned(), kernel_axes.get_mut(i))
+            {
                 *src = AxisConfig {
                     name,
                     kind: gantry_kernel::AxisKind::Shadow { source },

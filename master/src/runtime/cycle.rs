@@ -10,8 +10,8 @@ use thiserror::Error;
 
 use super::bus::{CycleBus, DriveError};
 use super::encoder_input::{self, EncoderInput};
-use crate::config::{AxisType, Config};
 use crate::config::ModuleInput;
+use crate::config::{AxisType, Config};
 use crate::drive_axis::AxisChannel;
 use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::csp::{
@@ -203,14 +203,9 @@ impl Cycle {
                         });
                     }
                     let scaling = a.scaling().map_err(axis_error)?;
-                    let input = EncoderInput::new(
-                        e.slave,
-                        scaling,
-                        a.modulo,
-                        e.freeze_timeout_ms,
-                        cycle_s,
-                    )
-                    .map_err(|err| axis_error(("modulo".into(), err.to_string())))?;
+                    let input =
+                        EncoderInput::new(e.slave, scaling, a.modulo, e.freeze_timeout_ms, cycle_s)
+                            .map_err(|err| axis_error(("modulo".into(), err.to_string())))?;
                     channels.push(None);
                     encoders.push(Some(input));
                     modules.push(ModuleSwitches::default());

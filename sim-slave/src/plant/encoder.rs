@@ -389,7 +389,10 @@ mod tests {
         outputs(&mut mem, 0, 1_000_000);
         e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, latch) = inputs(&mem);
-        assert_eq!((st & !status::TXPDO_TOGGLE, c, latch), (status::INPUT_C, 4096, 0));
+        assert_eq!(
+            (st & !status::TXPDO_TOGGLE, c, latch),
+            (status::INPUT_C, 4096, 0)
+        );
         outputs(&mut mem, control::SET_COUNTER, 1_000_000);
         e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
@@ -472,7 +475,11 @@ mod tests {
         e.set_frozen(true);
         for _ in 0..5 {
             e.step(&mut mem, 0.001, Exchange::OP);
-            assert_eq!(inputs(&mem), before, "counter, status and toggle stand still");
+            assert_eq!(
+                inputs(&mem),
+                before,
+                "counter, status and toggle stand still"
+            );
         }
         e.set_frozen(false);
         e.step(&mut mem, 0.001, Exchange::OP);

@@ -258,7 +258,7 @@ fn axis(
             target_window: None,
         },
         quick_stop_deceleration: None,
-        homing_required: true,
+        homing_required: Some(true),
         target_monitoring: Default::default(),
         pdo: "csp".into(),
         switches: Default::default(),
