@@ -39,7 +39,7 @@ use gantry_drives::csp::MODE_CSP;
 use gantry_kernel::axis::command::CommandError;
 use thiserror::Error;
 
-use crate::config::Config;
+use crate::config::{AxisSection, AxisType, Config};
 use crate::runtime::bus::{BusCounters, CycleBus, Reply, Restored, Unreachable};
 
 /// Error code (0x603F) of a target that stepped further than the axis' maximum speed
@@ -271,9 +271,20 @@ impl SimulatedBus {
     /// looked at: there is no wire to configure).
     pub fn of_config(config: &Config) -> Result<Self, SimulatedError> {
         let cycle_s = f64::from(config.bus.cycle_us) * 1e-6;
-        let positions = config.axes.iter().map(|a| a.drive + 1).max().unwrap_or(0);
+        // Only real axes have a drive (the others have `drive` unset).
+        let real = |a: &&AxisSection| a.axis_type == AxisType::Real;
+        let positions = config
+            .axes
+            .iter()
+            .filter(real)
+            .map(|a| a.drive.saturating_add(1))
+            .max()
+            .unwrap_or(0);
         let mut drives = vec![None; positions];
         for (a, k) in config.axes.iter().zip(&config.kernel_axes) {
+            if a.axis_type != AxisType::Real {
+                continue;
+            }
             let axis_error = |(key, reason)| SimulatedError::Axis {
                 path: config.path.clone(),
                 axis: a.name.clone(),

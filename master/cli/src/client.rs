@@ -184,15 +184,16 @@ pub fn status(
     .map_err(io)?;
     writeln!(
         out,
-        "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} error",
-        "axis", "state", "position", "set", "velocity", "homed", "switches"
+        "{:<6} {:<9} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} error",
+        "axis", "type", "state", "position", "set", "velocity", "homed", "switches"
     )
     .map_err(io)?;
     for a in s["axes"].as_array().into_iter().flatten() {
         writeln!(
             out,
-            "{:<6} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} {}",
+            "{:<6} {:<9} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} {}",
             a["name"].as_str().unwrap_or("?"),
+            a["type"].as_str().unwrap_or("real"),
             a["state"].as_str().unwrap_or("?"),
             f(&a["position"]),
             f(&a["set_position"]),

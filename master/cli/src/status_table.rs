@@ -10,6 +10,8 @@ use gantry_kernel::axis::status::AxisStatus;
 pub struct Row {
     /// Axis name.
     pub axis: String,
+    /// Axis type ("real", "simulated", "virtual", "external", "shadow").
+    pub axis_type: &'static str,
     /// The axis' status.
     pub status: AxisStatus,
     /// Status of the axis' last command ("Busy", "Done", …).
@@ -24,15 +26,16 @@ pub fn render(time_s: f64, rows: &[Row]) -> String {
     let _ = writeln!(s, "t = {time_s:7.3} s");
     let _ = writeln!(
         s,
-        "{:<5} {:<18} {:<14} {:>11} {:>10} {:>10} {:<6} {:<15} error",
-        "axis", "state", "slope", "position", "velocity", "accel", "homed", "command"
+        "{:<5} {:<9} {:<18} {:<14} {:>11} {:>10} {:>10} {:<6} {:<15} error",
+        "axis", "type", "state", "slope", "position", "velocity", "accel", "homed", "command"
     );
     for r in rows {
         let st = &r.status;
         let _ = writeln!(
             s,
-            "{:<5} {:<18} {:<14} {:>11.4} {:>10.3} {:>10.2} {:<6} {:<15} {}",
+            "{:<5} {:<9} {:<18} {:<14} {:>11.4} {:>10.3} {:>10.2} {:<6} {:<15} {}",
             r.axis,
+            r.axis_type,
             st.state.name(),
             st.slope.name(),
             st.set.p,
@@ -83,6 +86,7 @@ mod tests {
     fn renders_one_line_per_axis_and_redraws_in_place_on_a_tty() {
         let row = Row {
             axis: "x".into(),
+            axis_type: "real",
             status: AxisStatus::default(),
             command: "Done".into(),
             error: String::new(),
@@ -93,12 +97,14 @@ mod tests {
                 row.clone(),
                 Row {
                     axis: "y".into(),
+                    axis_type: "virtual",
                     ..row
                 },
             ],
         );
         assert_eq!(f.lines().count(), 4);
         assert!(f.contains("Disabled") && f.contains("Stopped"));
+        assert!(f.contains(" type ") && f.contains(" virtual "), "{f}");
         let mut live = Live::new(true);
         assert!(!live.frame(&f).contains('\x1b'));
         assert!(live.frame(&f).starts_with("\x1b[4A"));

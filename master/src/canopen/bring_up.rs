@@ -564,11 +564,14 @@ impl ExpectedIdentity {
     }
 }
 
-/// The drives of `config`, in axis order (bus position `i` = axis `i`), then the I/O
-/// modules its switches read (their positions after the drives'), after the load check.
+/// The drives of `config`, in the order of its real axes (bus position `k` = the `k`-th
+/// real axis; axes of other types have no drive), then the I/O modules its switches read
+/// (their positions after the drives'), after the load check.
 pub fn drive_setups(config: &Config) -> Result<Vec<DriveSetup>, StartError> {
     BusLoad::of_config(config)?.check()?;
-    let mut setups = (0..config.axes.len())
+    let mut setups = config
+        .drive_axes()
+        .into_iter()
         .map(|i| drive_setup(config, i))
         .collect::<Result<Vec<_>, _>>()?;
     for m in config.module_nodes() {
@@ -605,7 +608,10 @@ pub fn axis_plans(config: &Config) -> Result<Vec<DrivePlan>, StartError> {
     used.push(config.bus.master_node());
     let mut pool = CobIdPool::new(&used);
     let mut plans = Vec::with_capacity(config.axes.len());
-    for (i, a) in config.axes.iter().enumerate() {
+    for i in config.drive_axes() {
+        let Some(a) = config.axes.get(i) else {
+            continue;
+        };
         let (node, layout) = axis_node_layout(config, i)?;
         let mut plan = DrivePlan::on_node(&layout, node).map_err(|source| LoadError::Layout {
             axis: a.name.clone(),
@@ -630,9 +636,10 @@ pub fn drive_setup(config: &Config, axis: usize) -> Result<DriveSetup, StartErro
     let a = config.axes.get(axis).ok_or_else(|| StartError::NoNode {
         axis: format!("#{axis}"),
     })?;
+    // Plans are by bus position: the axis' drive.
     let plan = axis_plans(config)?
         .into_iter()
-        .nth(axis)
+        .nth(a.drive)
         .ok_or_else(|| StartError::NoNode {
             axis: a.name.clone(),
         })?;

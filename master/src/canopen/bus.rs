@@ -403,7 +403,7 @@ impl CanopenBus {
                 ..
             } = s;
             let mut reads = [None; 3];
-            if let Some(a) = config.axes.get(i) {
+            if let Some((_, a)) = config.axis_on_drive(i) {
                 let inputs = a.switches.module_inputs().unwrap_or_default();
                 for (dst, m) in reads.iter_mut().zip(inputs) {
                     *dst = m.map(|m| m.slave);

@@ -82,7 +82,11 @@ impl BusLoad {
     /// (CANopen: `bitrate` given).
     pub fn of_config(config: &Config) -> Result<Self, LoadError> {
         let mut plans = Vec::with_capacity(config.axes.len());
-        for a in &config.axes {
+        for a in config
+            .axes
+            .iter()
+            .filter(|a| a.axis_type == crate::config::AxisType::Real)
+        {
             let layout = a.pdo_layout().map_err(|(_, reason)| LoadError::Pdo {
                 axis: a.name.clone(),
                 reason,

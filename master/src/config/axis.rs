@@ -13,6 +13,19 @@ use serde::Deserialize;
 pub struct AxisSection {
     /// Name used by commands (`gantry move x …`).
     pub name: String,
+    /// What kind of axis (seed 000 §2, SPEC §1): `"real"` (default: a drive on the bus),
+    /// `"simulated"` (configured like a real axis, no drive: actual = set), `"virtual"` (a
+    /// set-value generator, no drive), `"external"` (an encoder module's input, never
+    /// commanded) or `"shadow"` (mirrors the axis named by `source`). Not to be confused
+    /// with `kind` (linear or rotary).
+    #[serde(rename = "type", default)]
+    pub axis_type: AxisType,
+    /// Shadow axes: the name of the (non-shadow) axis it mirrors.
+    #[serde(default)]
+    pub source: Option<String>,
+    /// External axes: the encoder module it reads (`[axis.encoder_input]`).
+    #[serde(default)]
+    pub encoder_input: Option<EncoderInputSection>,
     /// Position of its drive on the bus: on EtherCAT the slave's position in the chain
     /// (0 = next to the master), written in the file. On CANopen it is not written: the
     /// configuration sets it to the axis' own position in the file (axis `i` is on bus
@@ -46,9 +59,14 @@ pub struct AxisSection {
     /// `[min, max]` in units, active once homed.
     #[serde(default)]
     pub software_limits: Option<[f64; 2]>,
-    /// Units ⇄ encoder counts.
+    /// Units ⇄ encoder counts (required for real and external axes; optional for simulated
+    /// and virtual ones, which count nothing; refused for shadows, which are their
+    /// source's). [`SCALING_UNSET`] when the file does not give it.
+    #[serde(default = "scaling_unset")]
     pub scaling: ScalingSection,
-    /// What the axis may ever be commanded.
+    /// What the axis may ever be commanded (required but for external and shadow axes,
+    /// which are never commanded). [`MAX_UNSET`] when the file does not give it.
+    #[serde(default = "max_unset")]
     pub max: MaxSection,
     /// Dynamics of commands that leave them out (default: the maxima).
     #[serde(default)]
@@ -56,9 +74,10 @@ pub struct AxisSection {
     /// Deceleration of a quick stop (default: max.deceleration).
     #[serde(default)]
     pub quick_stop_deceleration: Option<f64>,
-    /// Absolute moves need a homed axis.
-    #[serde(default = "yes")]
-    pub homing_required: bool,
+    /// Absolute moves need a homed axis (default: yes, but for a virtual axis, which has
+    /// no position to lose).
+    #[serde(default)]
+    pub homing_required: Option<bool>,
     /// When a move is Done: once the drive is in position (default), or as soon as the
     /// set value reaches the target.
     #[serde(default)]
@@ -103,6 +122,106 @@ pub enum Encoder {
 /// `drive` as read when the file does not give it.
 pub const DRIVE_UNSET: usize = usize::MAX;
 
+/// `scaling` as read when the file does not give it (no scaling has 0 counts per
+/// revolution); replaced by [`UNIT_SCALING`] for the axis types that need none.
+pub const SCALING_UNSET: ScalingSection = ScalingSection {
+    counts_per_motor_rev: 0,
+    motor_revs: 1,
+    load_revs: 1,
+    units_per_load_rev: 0.0,
+    invert: false,
+};
+
+/// One count per unit: the scaling of an axis that counts nothing (simulated, virtual,
+/// shadow axes without a `scaling`).
+pub const UNIT_SCALING: ScalingSection = ScalingSection {
+    counts_per_motor_rev: 1,
+    motor_revs: 1,
+    load_revs: 1,
+    units_per_load_rev: 1.0,
+    invert: false,
+};
+
+/// `max` as read when the file does not give it (no limit is 0).
+pub const MAX_UNSET: MaxSection = MaxSection {
+    speed: 0.0,
+    acceleration: 0.0,
+    deceleration: None,
+    jerk: 0.0,
+};
+
+fn scaling_unset() -> ScalingSection {
+    SCALING_UNSET
+}
+fn max_unset() -> MaxSection {
+    MAX_UNSET
+}
+
+/// `type` of `[[axis]]` (seed 000 §2 "轴的类型").
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisType {
+    /// A drive on the bus (`drive`/`node`).
+    #[default]
+    Real,
+    /// Configured like a real axis, no drive: the kernel sets actual = set.
+    Simulated,
+    /// No drive: a pure set-value generator (a master for gearing and camming).
+    Virtual,
+    /// An encoder module's counter (`[axis.encoder_input]`): never enabled or commanded.
+    External,
+    /// Mirrors the set and actual values of the axis named by `source`.
+    Shadow,
+}
+
+impl AxisType {
+    /// The name as written in the file (and shown by `gantry status`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            AxisType::Real => "real",
+            AxisType::Simulated => "simulated",
+            AxisType::Virtual => "virtual",
+            AxisType::External => "external",
+            AxisType::Shadow => "shadow",
+        }
+    }
+
+    /// The kernel's kind (a shadow's source index is set by the caller).
+    pub const fn kernel_kind(self, shadow_source: usize) -> AxisKind {
+        match self {
+            AxisType::Real => AxisKind::Real,
+            AxisType::Simulated => AxisKind::Simulated,
+            AxisType::Virtual => AxisKind::Virtual,
+            AxisType::External => AxisKind::External,
+            AxisType::Shadow => AxisKind::Shadow {
+                source: shadow_source,
+            },
+        }
+    }
+}
+
+/// Default of `freeze_timeout_ms`: ten 1 ms cycles without a new value from the module.
+pub const DEFAULT_FREEZE_TIMEOUT_MS: f64 = 10.0;
+
+fn default_freeze_timeout_ms() -> f64 {
+    DEFAULT_FREEZE_TIMEOUT_MS
+}
+
+/// `[axis.encoder_input]` of an external axis: the encoder module (an EL5101-like
+/// incremental encoder terminal: 0x6000 status, 0x6000:11 counter value u32) it reads.
+/// Its counts become units through the axis' `scaling` (`counts_per_motor_rev` = the
+/// encoder's counts per revolution) and wrap at the axis' `modulo`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EncoderInputSection {
+    /// EtherCAT position of the encoder module in the chain (0 = next to the master).
+    pub slave: usize,
+    /// The axis is lost when the module's TxPDO toggle (0x6000:10) has not changed for
+    /// this long (ms, > 0; default [`DEFAULT_FREEZE_TIMEOUT_MS`], at least one cycle).
+    #[serde(default = "default_freeze_timeout_ms")]
+    pub freeze_timeout_ms: f64,
+}
+
 fn drive_unset() -> usize {
     DRIVE_UNSET
 }
@@ -117,9 +236,6 @@ fn both() -> String {
 }
 fn csp() -> String {
     "csp".into()
-}
-fn yes() -> bool {
-    true
 }
 
 /// `[axis.scaling]`.
@@ -194,6 +310,137 @@ pub struct TargetMonitoringSection {
 }
 
 impl AxisSection {
+    /// The rules of the axis' `type` that need no bus (seed 000 §2): what each type must
+    /// have and may not have, as `(key, reason)`; fills in the scaling and the maxima the
+    /// type does not need. `cycle_us` is the bus' cycle time (a freeze timeout shorter
+    /// than a cycle would lose every encoder). A real axis' drive is checked by the bus'
+    /// rules (see `Config::parse`).
+    pub fn check_type(&mut self, cycle_us: u32) -> Result<(), (String, String)> {
+        let t = self.axis_type;
+        let name = t.name();
+        let refuse = |key: &str, why: &str| Err((key.to_string(), format!("a {name} axis {why}")));
+        if t != AxisType::Real {
+            if self.drive != DRIVE_UNSET {
+                return refuse("drive", "has no drive; remove drive");
+            }
+            if self.node.is_some() {
+                return refuse("node", "has no drive; remove node");
+            }
+            if self.eds.is_some() {
+                return refuse("eds", "has no drive; remove eds");
+            }
+            if self.drive_homing.is_some() {
+                return refuse(
+                    "drive_homing",
+                    "has no drive to home; remove [axis.drive_homing]",
+                );
+            }
+            if self.switches != super::switches::SwitchesSection::default() {
+                return refuse(
+                    "switches",
+                    "reads no switches (they are read from a drive or an I/O module for a \
+                     real axis); remove [axis.switches]",
+                );
+            }
+        }
+        if t != AxisType::Shadow && self.source.is_some() {
+            return refuse(
+                "source",
+                "mirrors nothing (only a shadow axis has a source)",
+            );
+        }
+        if t != AxisType::External && self.encoder_input.is_some() {
+            return refuse(
+                "encoder_input",
+                "reads no encoder module (only an external axis has [axis.encoder_input])",
+            );
+        }
+        let scaling_given = self.scaling != SCALING_UNSET;
+        let max_given = self.max != MAX_UNSET;
+        match t {
+            AxisType::Real | AxisType::External if !scaling_given => {
+                return Err((
+                    "scaling".into(),
+                    format!(
+                        "missing: a {name} axis counts encoder counts (scaling = {{ \
+                         counts_per_motor_rev = N, units_per_load_rev = X }})"
+                    ),
+                ))
+            }
+            AxisType::Simulated | AxisType::Virtual if !scaling_given => {
+                self.scaling = UNIT_SCALING;
+            }
+            _ => {}
+        }
+        match t {
+            AxisType::Real | AxisType::Simulated | AxisType::Virtual if !max_given => {
+                return Err((
+                    "max".into(),
+                    format!(
+                        "missing: what a {name} axis may be commanded (max = {{ speed = V, \
+                         acceleration = A, jerk = J }})"
+                    ),
+                ))
+            }
+            _ => {}
+        }
+        match t {
+            AxisType::External => {
+                let Some(e) = self.encoder_input else {
+                    return Err((
+                        "encoder_input".into(),
+                        "missing: the encoder module an external axis reads \
+                         ([axis.encoder_input] slave = N, its EtherCAT position)"
+                            .into(),
+                    ));
+                };
+                let ms = e.freeze_timeout_ms;
+                if !(ms.is_finite() && ms > 0.0) {
+                    return Err((
+                        "encoder_input.freeze_timeout_ms".into(),
+                        format!(
+                            "{ms} is not a time > 0 (ms without a new value from the module \
+                             before the axis is lost)"
+                        ),
+                    ));
+                }
+                if ms * 1000.0 < f64::from(cycle_us) {
+                    return Err((
+                        "encoder_input.freeze_timeout_ms".into(),
+                        format!(
+                            "{ms} ms is shorter than the bus cycle ({cycle_us} µs): the module \
+                             cannot toggle faster than the master reads it"
+                        ),
+                    ));
+                }
+            }
+            AxisType::Shadow => {
+                if self.source.is_none() {
+                    return Err((
+                        "source".into(),
+                        "missing: the name of the axis a shadow axis mirrors".into(),
+                    ));
+                }
+                for (key, given) in [
+                    ("scaling", scaling_given),
+                    ("max", max_given),
+                    ("modulo", self.modulo.is_some()),
+                    ("software_limits", self.software_limits.is_some()),
+                ] {
+                    if given {
+                        return refuse(
+                            key,
+                            &format!("takes its {key} from its source; remove {key}"),
+                        );
+                    }
+                }
+                self.scaling = UNIT_SCALING;
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
     /// The scaling (checked).
     pub fn scaling(&self) -> Result<Scaling, (String, String)> {
         let s = self.scaling;
@@ -248,7 +495,8 @@ impl AxisSection {
         self.pdo_layout()?;
         self.drive_homing_params()?;
         self.commutation.objects()?;
-        let mut c = AxisConfig::new(&self.name, AxisKind::Real);
+        // A shadow's source index is set by `Config::parse`, which knows the other axes.
+        let mut c = AxisConfig::new(&self.name, self.axis_type.kernel_kind(usize::MAX));
         let kind = match self.kind.as_str() {
             "linear" => MotionKind::Linear,
             "rotary" => MotionKind::Rotary,
@@ -281,12 +529,15 @@ impl AxisSection {
             direction,
             software_limits: self.software_limits.map(|[a, b]| (a, b)),
         };
-        c.max = Limits {
-            vmax: self.max.speed,
-            amax: self.max.acceleration,
-            dmax: self.max.deceleration.unwrap_or(self.max.acceleration),
-            jmax: self.max.jerk,
-        };
+        // External and shadow axes are never commanded: without `max`, the kernel's own.
+        if self.max != MAX_UNSET {
+            c.max = Limits {
+                vmax: self.max.speed,
+                amax: self.max.acceleration,
+                dmax: self.max.deceleration.unwrap_or(self.max.acceleration),
+                jmax: self.max.jerk,
+            };
+        }
         let d = &self.defaults;
         c.defaults.speed = d.speed.unwrap_or(c.max.vmax);
         c.defaults.acceleration = d.acceleration.unwrap_or(c.max.amax);
@@ -304,7 +555,8 @@ impl AxisSection {
             c.defaults.target_window = w;
         }
         c.quick_stop_deceleration = self.quick_stop_deceleration.unwrap_or(c.max.dmax);
-        c.homing_required = self.homing_required;
+        // Unless given, the kernel's default for the kind (a virtual axis needs no homing).
+        c.homing_required = self.homing_required.unwrap_or(c.homing_required);
         c.limit_edges_latched = self.switches.probe_source()?.is_some();
         c.reference_edges_latched = self.switches.reference_latched()?;
         let tm = self.target_monitoring;

@@ -12,7 +12,10 @@ mod error;
 mod service;
 mod switches;
 
-pub use axis::{AxisSection, DefaultsSection, Encoder, MaxSection, ScalingSection, DRIVE_UNSET};
+pub use axis::{
+    AxisSection, AxisType, DefaultsSection, Encoder, EncoderInputSection, MaxSection,
+    ScalingSection, DEFAULT_FREEZE_TIMEOUT_MS, DRIVE_UNSET, MAX_UNSET, SCALING_UNSET, UNIT_SCALING,
+};
 pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE,
@@ -101,6 +104,26 @@ impl Config {
         out
     }
 
+    /// The indices of the axes that have a drive (type "real"), in file order: on CANopen
+    /// the `k`-th of them is on bus position `k`.
+    pub fn drive_axes(&self) -> Vec<usize> {
+        (0..self.axes.len())
+            .filter(|&i| {
+                self.axes
+                    .get(i)
+                    .is_some_and(|a| a.axis_type == AxisType::Real)
+            })
+            .collect()
+    }
+
+    /// The axis whose drive is at bus position `drive`, and its index.
+    pub fn axis_on_drive(&self, drive: usize) -> Option<(usize, &AxisSection)> {
+        self.axes
+            .iter()
+            .enumerate()
+            .find(|(_, a)| a.axis_type == AxisType::Real && a.drive == drive)
+    }
+
     /// The EDS of axis `axis`, when it names one.
     pub fn eds_of(&self, axis: usize) -> Option<&Eds> {
         self.eds.get(axis).and_then(|e| e.as_deref())
@@ -161,12 +184,43 @@ impl Config {
         // CANopen I/O modules the switches name: node, the axis and key that named it
         // first, its span.
         let mut module_nodes: Vec<(u8, usize, String, std::ops::Range<usize>)> = Vec::new();
-        let file_axes = file.axes.len();
+        // On CANopen the drives are the real axes' nodes, at bus positions 0.., the I/O
+        // modules after them.
+        let real_axes = file
+            .axes
+            .iter()
+            .filter(|a| a.get_ref().axis_type == AxisType::Real)
+            .count();
         for (i, spanned) in file.axes.into_iter().enumerate() {
             let span = spanned.span();
             let mut a = spanned.into_inner();
             let key = |k: &str| format!("axis[{i}].{k}");
+            a.check_type(bus.cycle_us)
+                .map_err(|(k, reason)| at(span.clone(), key(&k), reason))?;
+            let real = a.axis_type == AxisType::Real;
+            if a.axis_type == AxisType::External {
+                if kind == BusKind::Canopen {
+                    return Err(at(
+                        span,
+                        key("type"),
+                        "an external axis reads an EtherCAT encoder module \
+                         ([axis.encoder_input] slave = N); CANopen encoders are not supported"
+                            .into(),
+                    ));
+                }
+                let slave = a.encoder_input.map_or(0, |e| e.slave);
+                if let Some(other) = axes.iter().position(|b: &AxisSection| {
+                    b.drive == slave || b.encoder_input.is_some_and(|e| e.slave == slave)
+                }) {
+                    return Err(at(
+                        span,
+                        key("encoder_input.slave"),
+                        format!("slave {slave} is also axis[{other}]'s"),
+                    ));
+                }
+            }
             match (kind, a.drive, a.node) {
+                _ if !real => {}
                 (BusKind::Ethercat, DRIVE_UNSET, _) => {
                     return Err(at(
                         span,
@@ -222,8 +276,12 @@ impl Config {
                             ),
                         ));
                     }
-                    // Bus position i: the i-th axis' node (see `AxisSection::drive`).
-                    a.drive = i;
+                    // Bus position: the axis' rank among the real axes (see
+                    // `AxisSection::drive`).
+                    a.drive = axes
+                        .iter()
+                        .filter(|b: &&AxisSection| b.axis_type == AxisType::Real)
+                        .count();
                 }
                 (BusKind::Canopen, _, _) => {
                     return Err(at(
@@ -242,7 +300,9 @@ impl Config {
                     format!("{:?} is also axis[{other}]", a.name),
                 ));
             }
-            if let Some(other) = axes.iter().position(|b: &AxisSection| b.drive == a.drive) {
+            if let Some(other) = axes.iter().position(|b: &AxisSection| {
+                real && (b.drive == a.drive || b.encoder_input.is_some_and(|e| e.slave == a.drive))
+            }) {
                 return Err(at(
                     span,
                     key("drive"),
@@ -310,7 +370,7 @@ impl Config {
                 }
             }
             if kind == BusKind::Canopen {
-                let n_axes = file_axes;
+                let n_axes = real_axes;
                 let nodes: Vec<u8> = module_nodes.iter().map(|(n, ..)| *n).collect();
                 a.switches.place_modules(|node| {
                     n_axes + nodes.iter().position(|n| *n == node).unwrap_or(nodes.len())
@@ -343,6 +403,46 @@ impl Config {
             spans.push(span);
             kernel_axes.push(k);
             axes.push(a);
+        }
+        // A shadow's source: a non-shadow axis of the file, by name; the shadow takes its
+        // mechanics, limits and units (seed 000 §5.6: it inherits the source's settings).
+        for (i, span) in spans.iter().enumerate() {
+            let Some(a) = axes.get(i).filter(|a| a.axis_type == AxisType::Shadow) else {
+                continue;
+            };
+            let wanted = a.source.clone().unwrap_or_default();
+            let source = axes
+                .iter()
+                .position(|b| b.name == wanted)
+                .filter(|&s| axes.get(s).is_some_and(|b| b.axis_type != AxisType::Shadow))
+                .ok_or_else(|| {
+                    at(
+                        span.clone(),
+                        format!("axis[{i}].source"),
+                        format!(
+                            "{wanted:?} is not a non-shadow axis of this file (a shadow mirrors \
+                             a real, simulated, virtual or external axis)"
+                        ),
+                    )
+                })?;
+            let name = a.name.clone();
+            let units = axes
+                .get(source)
+                .map(|b| (b.units.clone(), b.kind.clone(), b.modulo));
+            if let (Some(k), Some(src)) = (kernel_axes.get(source).cloned(), kernel_axes.get_mut(i))
+            {
+                *src = AxisConfig {
+                    name,
+                    kind: gantry_kernel::AxisKind::Shadow { source },
+                    homing_required: false,
+                    ..k
+                };
+            }
+            if let (Some((units, mkind, modulo)), Some(a)) = (units, axes.get_mut(i)) {
+                a.units = units;
+                a.kind = mkind;
+                a.modulo = modulo;
+            }
         }
         // A module is a node of its own: not an axis' drive.
         for (node, axis, sw, span) in &module_nodes {

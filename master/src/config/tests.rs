@@ -1,4 +1,5 @@
 use super::*;
+use gantry_kernel::AxisKind;
 
 const EXAMPLE: &str = include_str!("../../../deploy/examples/veth-4-axes.toml");
 
@@ -594,7 +595,7 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .lines()
             .next()
             .unwrap(),
-        "c.toml:8: name2: unknown field `name2`, expected one of `name`, `drive`, `node`, \
+        "c.toml:8: name2: unknown field `name2`, expected one of `name`, `type`, `source`, `encoder_input`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
          `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`"
     );
@@ -1122,4 +1123,235 @@ fn sdo_max_bytes_defaults_to_64_kib_and_is_bounded() {
             "{e}"
         );
     }
+}
+
+/// An EtherCAT file with a real axis "x" on drive 0 and `extra` after it.
+fn typed(extra: &str) -> String {
+    format!(
+        "[bus]\nkind = \"ethercat\"\ninterface = \"none\"\ncycle_us = 1000\n\
+         [[axis]]\nname = \"x\"\ndrive = 0\n\
+         scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n\
+         max = {{ speed = 10.0, acceleration = 100.0, jerk = 1000.0 }}\n\
+         {extra}"
+    )
+}
+
+/// `typed(extra)`'s error text.
+fn typed_error(extra: &str) -> String {
+    Config::parse(&typed(extra), "k.toml")
+        .unwrap_err()
+        .to_string()
+}
+
+const MAX: &str = "max = { speed = 5.0, acceleration = 50.0, jerk = 500.0 }\n";
+const EXTERNAL: &str = "[[axis]]\nname = \"e\"\ntype = \"external\"\nkind = \"rotary\"\n\
+     modulo = 360.0\nscaling = { counts_per_motor_rev = 4096, units_per_load_rev = 360.0 }\n\
+     [axis.encoder_input]\nslave = 2\n";
+
+#[test]
+fn every_axis_type_is_read_with_its_kernel_kind_and_bus_position() {
+    let text = typed(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\n{MAX}\
+         [[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}\
+         {EXTERNAL}\
+         [[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"e\"\n"
+    ));
+    let c = Config::parse(&text, "k.toml").unwrap();
+    let kinds: Vec<_> = c.kernel_axes.iter().map(|k| k.kind).collect();
+    assert_eq!(
+        kinds,
+        [
+            AxisKind::Real,
+            AxisKind::Simulated,
+            AxisKind::Virtual,
+            AxisKind::External,
+            AxisKind::Shadow { source: 3 }
+        ]
+    );
+    let types: Vec<_> = c.axes.iter().map(|a| a.axis_type.name()).collect();
+    assert_eq!(
+        types,
+        ["real", "simulated", "virtual", "external", "shadow"]
+    );
+    assert_eq!(c.drive_axes(), [0], "only the real axis has a drive");
+    assert!(c.axes[1..].iter().all(|a| a.drive == DRIVE_UNSET));
+    assert_eq!(c.axes[3].encoder_input.unwrap().slave, 2);
+    assert_eq!(
+        c.axes[3].encoder_input.unwrap().freeze_timeout_ms,
+        DEFAULT_FREEZE_TIMEOUT_MS
+    );
+    // Without scaling a simulated or virtual axis counts one count per unit; a virtual
+    // axis needs no homing; the shadow takes its source's mechanics and units.
+    assert_eq!(c.axes[2].scaling, UNIT_SCALING);
+    assert!(!c.kernel_axes[2].homing_required);
+    assert_eq!(c.kernel_axes[4].mechanics, c.kernel_axes[3].mechanics);
+    assert_eq!(c.axes[4].modulo, Some(360.0));
+    assert_eq!(c.kernel_axes[4].name, "h");
+    // An external axis without `max` has the kernel's limits (it is never commanded).
+    assert_eq!(
+        c.kernel_axes[3].max,
+        AxisConfig::new("e", AxisKind::External).max
+    );
+}
+
+#[test]
+fn each_type_rule_is_refused_naming_file_axis_key_and_reason() {
+    let cases: &[(String, &str)] = &[
+        (
+            format!("[[axis]]\nname = \"s\"\ntype = \"simulated\"\ndrive = 1\n{MAX}"),
+            "axis[1].drive: a simulated axis has no drive; remove drive",
+        ),
+        (
+            format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\ndrive = 1\n{MAX}"),
+            "axis[1].drive: a virtual axis has no drive; remove drive",
+        ),
+        (
+            format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\nnode = 3\n{MAX}"),
+            "axis[1].node: a virtual axis has no drive; remove node",
+        ),
+        (
+            "[[axis]]\nname = \"v\"\ntype = \"virtual\"\n".into(),
+            "axis[1].max: missing: what a virtual axis may be commanded (max = { \
+             speed = V, acceleration = A, jerk = J })",
+        ),
+        (
+            format!("[[axis]]\nname = \"s\"\ntype = \"simulated\"\nsource = \"x\"\n{MAX}"),
+            "axis[1].source: a simulated axis mirrors nothing (only a shadow axis \
+             has a source)",
+        ),
+        (
+            format!(
+                "[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}[axis.encoder_input]\nslave = 1\n"
+            ),
+            "axis[1].encoder_input: a virtual axis reads no encoder module (only an \
+             external axis has [axis.encoder_input])",
+        ),
+        (
+            "[[axis]]\nname = \"e\"\ntype = \"external\"\n\
+             scaling = { counts_per_motor_rev = 4096, units_per_load_rev = 1.0 }\n"
+                .into(),
+            "axis[1].encoder_input: missing: the encoder module an external axis \
+             reads ([axis.encoder_input] slave = N, its EtherCAT position)",
+        ),
+        (
+            "[[axis]]\nname = \"e\"\ntype = \"external\"\n[axis.encoder_input]\nslave = 1\n"
+                .into(),
+            "axis[1].scaling: missing: a external axis counts encoder counts \
+             (scaling = { counts_per_motor_rev = N, units_per_load_rev = X })",
+        ),
+        (
+            EXTERNAL.replace("slave = 2\n", "slave = 2\nfreeze_timeout_ms = 0\n"),
+            "axis[1].encoder_input.freeze_timeout_ms: 0 is not a time > 0 (ms without \
+             a new value from the module before the axis is lost)",
+        ),
+        (
+            EXTERNAL.replace("slave = 2\n", "slave = 2\nfreeze_timeout_ms = -3.0\n"),
+            "axis[1].encoder_input.freeze_timeout_ms: -3 is not a time > 0 (ms \
+             without a new value from the module before the axis is lost)",
+        ),
+        (
+            EXTERNAL.replace("slave = 2\n", "slave = 2\nfreeze_timeout_ms = 0.5\n"),
+            "axis[1].encoder_input.freeze_timeout_ms: 0.5 ms is shorter than the bus \
+             cycle (1000 µs): the module cannot toggle faster than the master reads it",
+        ),
+        (
+            EXTERNAL.replace("slave = 2", "slave = 0"),
+            "axis[1].encoder_input.slave: slave 0 is also axis[0]'s",
+        ),
+        (
+            format!("{EXTERNAL}[[axis]]\nname = \"y\"\ndrive = 2\n{MAX}scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n"),
+            "axis[2].drive: drive 2 is also axis[1]'s",
+        ),
+        (
+            "[[axis]]\nname = \"h\"\ntype = \"shadow\"\n".into(),
+            "axis[1].source: missing: the name of the axis a shadow axis mirrors",
+        ),
+        (
+            "[[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"nope\"\n".into(),
+            "axis[1].source: \"nope\" is not a non-shadow axis of this file (a shadow \
+             mirrors a real, simulated, virtual or external axis)",
+        ),
+        (
+            "[[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"x\"\n\
+             [[axis]]\nname = \"h2\"\ntype = \"shadow\"\nsource = \"h\"\n"
+                .into(),
+            "axis[2].source: \"h\" is not a non-shadow axis of this file (a shadow \
+             mirrors a real, simulated, virtual or external axis)",
+        ),
+        (
+            format!("[[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"x\"\n{MAX}"),
+            "axis[1].max: a shadow axis takes its max from its source; remove max",
+        ),
+        (
+            "[[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"x\"\nmodulo = 360.0\n".into(),
+            "axis[1].modulo: a shadow axis takes its modulo from its source; remove \
+             modulo",
+        ),
+        (
+            format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}[axis.drive_homing]\nmethod = 35\nspeed_switch = 1.0\nspeed_zero = 0.5\nacceleration = 10.0\n"),
+            "axis[1].drive_homing: a virtual axis has no drive to home; remove \
+             [axis.drive_homing]",
+        ),
+        (
+            format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}[axis.switches]\ntouch_probe = true\n"),
+            "axis[1].switches: a virtual axis reads no switches (they are read from a \
+             drive or an I/O module for a real axis); remove [axis.switches]",
+        ),
+    ];
+    for (extra, want) in cases {
+        let got = typed_error(extra);
+        let (at, rest) = got.split_once(": ").unwrap();
+        assert!(at.starts_with("k.toml:"), "{got}");
+        assert_eq!(rest, *want, "{extra}");
+    }
+    // The line is the key's.
+    let e = typed_error(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\ndrive = 1\n{MAX}"
+    ));
+    assert!(e.starts_with("k.toml:13: axis[1].drive: "), "{e}");
+    // A type that does not exist: serde names the ones that do.
+    let e = typed_error("[[axis]]\nname = \"q\"\ntype = \"servo\"\n");
+    assert!(
+        e.starts_with(
+            "k.toml:12: type: unknown variant `servo`, expected one of `real`, \
+             `simulated`, `virtual`, `external`, `shadow`"
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn on_canopen_only_real_axes_are_nodes_and_external_axes_are_refused() {
+    let axis = |name: &str, node: u8| {
+        format!(
+            "[[axis]]\nname = \"{name}\"\nnode = {node}\n\
+             scaling = {{ counts_per_motor_rev = 1000, units_per_load_rev = 1.0 }}\n{MAX}"
+        )
+    };
+    let head =
+        "[bus]\nkind = \"canopen\"\ninterface = \"vcan0\"\ncycle_us = 2000\nbitrate = 1000000\n";
+    let text = format!(
+        "{head}[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}{}\
+         [[axis]]\nname = \"s\"\ntype = \"simulated\"\n{MAX}{}",
+        axis("a", 5),
+        axis("b", 6)
+    );
+    let c = Config::parse(&text, "c.toml").unwrap();
+    let drives: Vec<_> = c.axes.iter().map(|a| a.drive).collect();
+    assert_eq!(drives, [DRIVE_UNSET, 0, DRIVE_UNSET, 1]);
+    assert_eq!(c.drive_axes(), [1, 3]);
+    assert_eq!(
+        c.axis_on_drive(1).map(|(i, a)| (i, a.name.as_str())),
+        Some((3, "b"))
+    );
+    let setups = crate::canopen::bring_up::drive_setups(&c).unwrap();
+    let nodes: Vec<_> = setups.iter().map(|s| s.node.get()).collect();
+    assert_eq!(nodes, [5, 6]);
+    let e = Config::parse(&format!("{head}{}", EXTERNAL), "c.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("axis[0].type: an external axis reads an EtherCAT encoder module"),
+        "{e}"
+    );
 }

@@ -642,7 +642,13 @@ fn map_axes_pdos(
     replies: &AtomicU64,
     out: &mut (dyn Write + Send),
 ) -> Result<(), StartError> {
-    for a in &config.axes {
+    // Axes without a drive (simulated, virtual, external, shadow) map nothing: an
+    // external axis' encoder module has fixed PDOs (its SII's).
+    for a in config
+        .axes
+        .iter()
+        .filter(|a| a.axis_type == crate::config::AxisType::Real)
+    {
         if a.drive >= group.len() {
             return Err(SetupError::MissingDrive {
                 path: config.path.clone(),

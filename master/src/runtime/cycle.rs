@@ -9,8 +9,9 @@ use gantry_kernel::Kernel;
 use thiserror::Error;
 
 use super::bus::{CycleBus, DriveError};
-use crate::config::Config;
+use super::encoder_input::{self, EncoderInput};
 use crate::config::ModuleInput;
+use crate::config::{AxisType, Config};
 use crate::drive_axis::AxisChannel;
 use gantry_drives::cia402::procedure::ProcedureOutputs;
 use gantry_drives::csp::{
@@ -106,17 +107,23 @@ pub enum CycleError {
     NoDrive(usize),
 }
 
-/// The kernel and one CSP channel per axis, each axis on its drive's position on the
-/// bus.
+/// The kernel and, per axis, where its actual values come from: a CSP channel on its
+/// drive's position on the bus (real axes), an encoder module's counter (external axes),
+/// or nothing (simulated and virtual axes: the kernel sets actual = set; shadow axes: the
+/// kernel feeds them their source's values). Axes are mapped to bus positions by the
+/// configuration, not by index.
 #[derive(Debug)]
 pub struct Cycle {
     /// The motion kernel.
     pub kernel: Kernel,
-    channels: Vec<CspChannel>,
+    /// Per axis, its drive's channel (`None`: the axis has no drive).
+    channels: Vec<Option<CspChannel>>,
+    /// Per axis, its encoder module (external axes).
+    encoders: Vec<Option<EncoderInput>>,
     inputs: Vec<CspInputs>,
     feedback: Vec<AxisFeedback>,
     setpoints: Vec<AxisSetpoint>,
-    /// The bus position of each axis' drive.
+    /// The bus position of each axis' drive or encoder module (`usize::MAX`: none).
     drives: Vec<usize>,
     /// Drives lent to a procedure: what they get instead of their CSP outputs (see
     /// [`Cycle::set_procedure_outputs`]).
@@ -149,7 +156,8 @@ impl Cycle {
         let n = channels.len();
         Self {
             kernel,
-            channels,
+            channels: channels.into_iter().map(Some).collect(),
+            encoders: vec![None; n],
             inputs: vec![CspInputs::default(); n],
             feedback: vec![AxisFeedback::default(); n],
             setpoints: vec![AxisSetpoint::default(); n],
@@ -165,8 +173,53 @@ impl Cycle {
     /// bus carries for that drive. Allocates; build it before the drives go operational.
     pub fn from_config(config: &Config, bus: &impl CycleBus) -> Result<Self, SetupError> {
         let mut channels = Vec::with_capacity(config.axes.len());
+        let mut encoders = Vec::with_capacity(config.axes.len());
         let mut modules = Vec::with_capacity(config.axes.len());
+        let mut drives = Vec::with_capacity(config.axes.len());
+        let cycle_s = f64::from(config.bus.cycle_us) * 1e-6;
         for a in &config.axes {
+            let axis_error = |(key, reason)| SetupError::Axis {
+                axis: a.name.clone(),
+                key,
+                reason,
+            };
+            match (a.axis_type, a.encoder_input) {
+                (AxisType::Real, _) => {}
+                (AxisType::External, Some(e)) => {
+                    let bytes = bus.inputs(e.slave).len();
+                    if e.slave >= bus.drives() || bytes < encoder_input::INPUT_BYTES {
+                        return Err(SetupError::Axis {
+                            axis: a.name.clone(),
+                            key: "encoder_input.slave".into(),
+                            reason: format!(
+                                "slave {}: the bus has {} slaves, slave {} {} input bytes (an \
+                                 encoder module has at least {}: status, counter value)",
+                                e.slave,
+                                bus.drives(),
+                                e.slave,
+                                bytes,
+                                encoder_input::INPUT_BYTES
+                            ),
+                        });
+                    }
+                    let scaling = a.scaling().map_err(axis_error)?;
+                    let input =
+                        EncoderInput::new(e.slave, scaling, a.modulo, e.freeze_timeout_ms, cycle_s)
+                            .map_err(|err| axis_error(("modulo".into(), err.to_string())))?;
+                    channels.push(None);
+                    encoders.push(Some(input));
+                    modules.push(ModuleSwitches::default());
+                    drives.push(e.slave);
+                    continue;
+                }
+                _ => {
+                    channels.push(None);
+                    encoders.push(None);
+                    modules.push(ModuleSwitches::default());
+                    drives.push(usize::MAX);
+                    continue;
+                }
+            }
             if a.drive >= bus.drives() {
                 return Err(SetupError::MissingDrive {
                     path: config.path.clone(),
@@ -175,11 +228,6 @@ impl Cycle {
                     slaves: bus.drives(),
                 });
             }
-            let axis_error = |(key, reason)| SetupError::Axis {
-                axis: a.name.clone(),
-                key,
-                reason,
-            };
             let setup_error = |e: Cause| SetupError::Setup {
                 what: format!("axis {:?}", a.name),
                 source: e,
@@ -209,7 +257,9 @@ impl Cycle {
             if outputs < need {
                 return Err(short("output", outputs, need));
             }
-            channels.push(channel);
+            channels.push(Some(channel));
+            encoders.push(None);
+            drives.push(a.drive);
             // Switches on I/O modules: the module there, its input in its process data.
             let inputs = a.switches.module_inputs().map_err(axis_error)?;
             let names = ["negative_limit", "positive_limit", "reference"];
@@ -243,14 +293,30 @@ impl Cycle {
                 what: "the motion kernel".into(),
                 source: e.into(),
             })?;
-        let mut cycle = Self::new(kernel, channels);
-        cycle.drives = config.axes.iter().map(|a| a.drive).collect();
-        cycle.modules = modules;
+        let n = channels.len();
+        let mut cycle = Self {
+            kernel,
+            channels,
+            encoders,
+            inputs: vec![CspInputs::default(); n],
+            feedback: vec![AxisFeedback::default(); n],
+            setpoints: vec![AxisSetpoint::default(); n],
+            drives,
+            modules,
+            procedures: vec![None; n],
+        };
+        for (channel, axis) in cycle.channels.iter_mut().zip(cycle.kernel.axes()) {
+            if let Some(channel) = channel {
+                // Checked above (refused by name): cannot fail here.
+                let _ = channel.set_modulo(axis.config().mechanics.modulo);
+            }
+        }
         Ok(cycle)
     }
 
-    /// The bus position of `axis`' drive (`usize::MAX`, no drive, if there is no such
-    /// axis).
+    /// The bus position of `axis`' drive, or of its encoder module for an external axis
+    /// (`usize::MAX` for an axis without either, or no such axis): where its bus faults
+    /// and a reset's recovery are.
     pub fn drive_of(&self, axis: usize) -> usize {
         self.drives.get(axis).copied().unwrap_or(usize::MAX)
     }
@@ -261,6 +327,19 @@ impl Cycle {
     pub fn read_from(&mut self, bus: &impl CycleBus) -> Result<(), CycleError> {
         for axis in 0..self.drives.len() {
             let drive = self.drive_of(axis);
+            if let Some(e) = self.encoders.get_mut(axis).and_then(Option::as_mut) {
+                let unreachable = bus.fault(drive).is_some();
+                let fresh = bus.inputs_fresh(drive).then(|| bus.inputs(drive));
+                let fb = *e.read(unreachable, fresh);
+                if let Some(dst) = self.feedback.get_mut(axis) {
+                    *dst = fb;
+                }
+                continue;
+            }
+            if self.channels.get(axis).is_none_or(Option::is_none) {
+                // No drive: the kernel makes the actual values (or a shadow's source).
+                continue;
+            }
             if bus.fault(drive).is_some() {
                 self.comm_fault(axis)?;
                 continue;
@@ -340,30 +419,43 @@ impl Cycle {
     /// Encodes every axis' outputs into its drive's bytes on `bus`.
     pub fn write_to(&mut self, bus: &mut impl CycleBus) -> Result<(), CycleError> {
         for axis in 0..self.drives.len() {
+            if self.channels.get(axis).is_none_or(Option::is_none) {
+                continue;
+            }
             let drive = self.drive_of(axis);
             self.write_outputs(axis, bus.outputs_mut(drive))?;
         }
         Ok(())
     }
 
-    /// Number of drives.
+    /// Number of axes.
     pub fn len(&self) -> usize {
         self.channels.len()
     }
 
-    /// Whether there is no drive.
+    /// Whether there is no axis.
     pub fn is_empty(&self) -> bool {
         self.channels.is_empty()
     }
 
-    /// The channel of drive `i`.
+    /// The channel of axis `i`'s drive (`None`: no such axis, or an axis without a drive).
     pub fn channel(&self, i: usize) -> Option<&CspChannel> {
-        self.channels.get(i)
+        self.channels.get(i).and_then(Option::as_ref)
     }
 
-    /// The channel of drive `i`, to change.
+    /// The channel of axis `i`'s drive, to change.
     pub fn channel_mut(&mut self, i: usize) -> Option<&mut CspChannel> {
-        self.channels.get_mut(i)
+        self.channels.get_mut(i).and_then(Option::as_mut)
+    }
+
+    /// The encoder input of external axis `i`.
+    pub fn encoder_input(&self, i: usize) -> Option<&EncoderInput> {
+        self.encoders.get(i).and_then(Option::as_ref)
+    }
+
+    /// The feedback axis `i` gets at the next [`Cycle::step`] (as read so far).
+    pub fn feedback(&self, i: usize) -> Option<&AxisFeedback> {
+        self.feedback.get(i)
     }
 
     /// The last decoded inputs of drive `i`.
@@ -373,7 +465,11 @@ impl Cycle {
 
     /// Takes drive `i`'s inputs from the process image.
     pub fn read_inputs(&mut self, i: usize, bytes: &[u8]) -> Result<(), CycleError> {
-        let channel = self.channels.get_mut(i).ok_or(CycleError::NoDrive(i))?;
+        let channel = self
+            .channels
+            .get_mut(i)
+            .and_then(Option::as_mut)
+            .ok_or(CycleError::NoDrive(i))?;
         let decoded = channel.decode(bytes).ok_or(CycleError::ShortInputs {
             drive: i,
             got: bytes.len(),
@@ -401,9 +497,12 @@ impl Cycle {
             .channels
             .get(i)
             .ok_or(CycleError::NoDrive(i))?
-            .last_target_position();
+            .as_ref()
+            .map(CspChannel::last_target_position);
         let feedback = self.feedback.get_mut(i).ok_or(CycleError::NoDrive(i))?;
-        feedback.position = held;
+        if let Some(held) = held {
+            feedback.position = held;
+        }
         feedback.operation_enabled = false;
         feedback.fault = Some(COMMUNICATION_FAULT);
         Ok(())
@@ -449,6 +548,7 @@ impl Cycle {
         let need = self
             .channels
             .get(i)
+            .and_then(Option::as_ref)
             .ok_or(CycleError::NoDrive(i))?
             .offsets
             .output_bytes;
@@ -460,7 +560,10 @@ impl Cycle {
             });
         }
         let (channel, sp, inputs) = (
-            self.channels.get_mut(i).ok_or(CycleError::NoDrive(i))?,
+            self.channels
+                .get_mut(i)
+                .and_then(Option::as_mut)
+                .ok_or(CycleError::NoDrive(i))?,
             self.setpoints.get(i).ok_or(CycleError::NoDrive(i))?,
             self.inputs.get(i).ok_or(CycleError::NoDrive(i))?,
         );

@@ -462,7 +462,9 @@ impl<B: CycleBus> Engine<B> {
     /// [`Engine::reset`] past the overrun stop: waits for the bus, or for the kernel to
     /// see the drive, or resets the axis now.
     fn reset_when_seen(&mut self, id: u64, axis: usize) -> Entry {
-        let waiting = if self.bus.any_fault() {
+        // An axis with nothing on the bus does not wait for the bus.
+        let on_bus = self.cycle.drive_of(axis) != usize::MAX;
+        let waiting = if on_bus && self.bus.any_fault() {
             self.resets.get_mut(axis)
         } else if !self.kernel_saw_the_drive(axis) {
             self.unseen_resets.get_mut(axis)
@@ -489,9 +491,10 @@ impl<B: CycleBus> Engine<B> {
     fn mark_forced_faults(&mut self) {
         for axis in 0..self.forced_faults_at.len() {
             let drive = self.cycle.drive_of(axis);
+            // An axis with nothing on the bus (simulated, virtual, shadow) has no inputs.
+            let on_bus = drive != usize::MAX;
             let forced = self.overrun_stop
-                || self.bus.fault(drive).is_some()
-                || !self.bus.inputs_fresh(drive);
+                || (on_bus && (self.bus.fault(drive).is_some() || !self.bus.inputs_fresh(drive)));
             if let (true, Some(at)) = (forced, self.forced_faults_at.get_mut(axis)) {
                 *at = Some(self.cycles);
             }

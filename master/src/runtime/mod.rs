@@ -6,6 +6,7 @@ pub mod bus;
 pub mod clock;
 pub mod controller;
 pub mod cycle;
+pub mod encoder_input;
 pub mod engine;
 pub mod histogram;
 pub mod phase;

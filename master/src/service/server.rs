@@ -29,7 +29,7 @@ use super::protocol::{
 use crate::commission::{
     CommissionError, CommutationSettings, Procedure, ProcedureHandle, ProcedureOutcome, Reversing,
 };
-use crate::config::{Config, DriveHomingSection};
+use crate::config::{AxisType, Config, DriveHomingSection};
 use crate::error_chain::Chain;
 use crate::persist::{Saved, StepSwitchNotGiven};
 use crate::runtime::controller::{CommandHandle, ControlError, Controller};
@@ -930,6 +930,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         .map(|(cfg, s)| {
             json!({
                 "name": cfg.name,
+                "type": cfg.axis_type.name(),
                 "units": cfg.units,
                 "state": s.state.name(),
                 "position": s.actual_position,
@@ -953,15 +954,25 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
             })
         })
         .collect();
+    // Axes with something on the bus: a real axis' drive, an external axis' encoder module
+    // (its bus position; its state and statusword are a drive's, so none).
     let drives: Vec<Value> = state
         .config
         .axes
         .iter()
         .zip(&snap.drives)
-        .map(|(cfg, d)| {
+        .filter_map(|(cfg, d)| {
+            let position = match (cfg.axis_type, cfg.encoder_input) {
+                (AxisType::Real, _) => cfg.drive,
+                (AxisType::External, Some(e)) => e.slave,
+                _ => return None,
+            };
+            Some((cfg, d, position))
+        })
+        .map(|(cfg, d, position)| {
             json!({
                 "axis": cfg.name,
-                "drive": cfg.drive,
+                "drive": position,
                 "state": d.state.map(|s| s.name()),
                 "statusword": format!("{:#06x}", d.statusword),
                 "error_code": d.error_code.filter(|c| *c != 0).map(|c| format!("{c:#06x}: {}", describe(c))),

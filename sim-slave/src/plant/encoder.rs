@@ -14,6 +14,14 @@
 //! overflow/underflow bits follow the EL5101's rule: overflow is set when the counter wraps
 //! from 0xFFFF_FFFF to 0 and cleared once it passes a third of the range or underflows;
 //! underflow mirrors it.
+//!
+//! Like the EL5101, status bit 15 (0x6000:10 "TxPDO Toggle") toggles with every new
+//! counter value the module publishes (here: every step), and bit 14 (0x6000:0F "TxPDO
+//! State") is set while the data are invalid (an encoder fault: a broken wire, no supply).
+//! A master watches both to know the encoder is alive. Fault injection: the error bit on or
+//! off ([`EncoderModule::set_data_invalid`]) and a frozen module whose counter and toggle
+//! stop updating ([`EncoderModule::set_frozen`]); an unreachable module is a chain fault
+//! ([`crate::fault::Faults`]).
 
 use super::Exchange;
 use crate::esc::memory::Memory;
@@ -54,6 +62,10 @@ pub mod status {
     pub const COUNTER_OVERFLOW: u16 = 1 << 4;
     /// 0x6000:0B status of input C (the index track is high).
     pub const INPUT_C: u16 = 1 << 10;
+    /// 0x6000:0F TxPDO State: the inputs are invalid (the encoder is faulted).
+    pub const TXPDO_STATE: u16 = 1 << 14;
+    /// 0x6000:10 TxPDO Toggle: toggles with each new value the module publishes.
+    pub const TXPDO_TOGGLE: u16 = 1 << 15;
 }
 
 /// A third and two thirds of the counter range: where overflow and underflow flags clear.
@@ -79,6 +91,10 @@ pub struct EncoderModule {
     latch: u32,
     status: u16,
     last_control: u16,
+    /// Injected: the encoder is faulted (TxPDO State set).
+    data_invalid: bool,
+    /// Injected: the module publishes nothing new (counter and toggle stand still).
+    frozen: bool,
 }
 
 impl EncoderModule {
@@ -95,7 +111,26 @@ impl EncoderModule {
             latch: 0,
             status: 0,
             last_control: 0,
+            data_invalid: false,
+            frozen: false,
         }
+    }
+
+    /// Sets the counter to `value` now, as a set-counter command would (the shaft stays
+    /// where it is): e.g. near the wrap, for a test of the master's unwrapping.
+    pub fn preset_counter(&mut self, value: u32) {
+        self.counter = value;
+    }
+
+    /// Injects (or clears) an encoder fault: TxPDO State (status bit 14) is set while on.
+    pub fn set_data_invalid(&mut self, on: bool) {
+        self.data_invalid = on;
+    }
+
+    /// Freezes (or thaws) the module: while frozen its inputs are not updated (counter,
+    /// status and the toggle stand still); the shaft still turns and is counted on thaw.
+    pub fn set_frozen(&mut self, on: bool) {
+        self.frozen = on;
     }
 
     /// Puts the shaft at `revs` revolutions (counted at the next step).
@@ -205,6 +240,10 @@ impl EncoderModule {
         if self.shaft_speed_rev_s != 0.0 {
             self.drive(self.shaft_speed_rev_s, dt_s);
         }
+        if self.frozen {
+            // Nothing new is published: the last inputs stay in the process data.
+            return;
+        }
         self.count(control);
         // Latch C is re-armed by clearing the enable bit.
         if control & control::ENABLE_LATCH_C == 0 {
@@ -219,6 +258,13 @@ impl EncoderModule {
             self.status &= !status::SET_COUNTER_DONE;
         }
         self.last_control = control;
+        if self.data_invalid {
+            self.status |= status::TXPDO_STATE;
+        } else {
+            self.status &= !status::TXPDO_STATE;
+        }
+        // A new value each step.
+        self.status ^= status::TXPDO_TOGGLE;
         let mut inp = [0u8; INPUT_BYTES];
         inp[0..2].copy_from_slice(&self.status.to_le_bytes());
         inp[2..6].copy_from_slice(&self.counter.to_le_bytes());
@@ -342,7 +388,11 @@ mod tests {
         e.set_shaft_position(1.0);
         outputs(&mut mem, 0, 1_000_000);
         e.step(&mut mem, 0.001, Exchange::OP);
-        assert_eq!(inputs(&mem), (status::INPUT_C, 4096, 0));
+        let (st, c, latch) = inputs(&mem);
+        assert_eq!(
+            (st & !status::TXPDO_TOGGLE, c, latch),
+            (status::INPUT_C, 4096, 0)
+        );
         outputs(&mut mem, control::SET_COUNTER, 1_000_000);
         e.step(&mut mem, 0.001, Exchange::OP);
         let (st, c, _) = inputs(&mem);
@@ -387,5 +437,64 @@ mod tests {
         e.step(&mut mem, 0.001, Exchange::OP);
         assert_eq!(inputs(&mem).2, 8192);
         assert_ne!(inputs(&mem).0 & status::LATCH_C_VALID, 0);
+    }
+
+    #[test]
+    fn the_txpdo_toggle_flips_with_every_new_value() {
+        let (mut mem, mut e) = module();
+        let mut last = None;
+        for _ in 0..6 {
+            e.step(&mut mem, 0.001, Exchange::OP);
+            let toggle = inputs(&mem).0 & status::TXPDO_TOGGLE != 0;
+            assert_ne!(Some(toggle), last, "toggled");
+            last = Some(toggle);
+        }
+    }
+
+    #[test]
+    fn the_txpdo_state_bit_follows_the_injected_encoder_fault() {
+        let (mut mem, mut e) = module();
+        e.step(&mut mem, 0.001, Exchange::OP);
+        assert_eq!(inputs(&mem).0 & status::TXPDO_STATE, 0);
+        e.set_data_invalid(true);
+        e.step(&mut mem, 0.001, Exchange::OP);
+        assert_ne!(inputs(&mem).0 & status::TXPDO_STATE, 0);
+        e.step(&mut mem, 0.001, Exchange::OP);
+        assert_ne!(inputs(&mem).0 & status::TXPDO_STATE, 0, "held while on");
+        e.set_data_invalid(false);
+        e.step(&mut mem, 0.001, Exchange::OP);
+        assert_eq!(inputs(&mem).0 & status::TXPDO_STATE, 0);
+    }
+
+    #[test]
+    fn a_frozen_module_publishes_nothing_new_and_counts_the_shaft_on_thaw() {
+        let (mut mem, mut e) = module();
+        e.shaft_speed_rev_s = 1.0;
+        e.step(&mut mem, 0.001, Exchange::OP);
+        let before = inputs(&mem);
+        e.set_frozen(true);
+        for _ in 0..5 {
+            e.step(&mut mem, 0.001, Exchange::OP);
+            assert_eq!(
+                inputs(&mem),
+                before,
+                "counter, status and toggle stand still"
+            );
+        }
+        e.set_frozen(false);
+        e.step(&mut mem, 0.001, Exchange::OP);
+        let (st, c, _) = inputs(&mem);
+        // Six steps of 4.096 counts since the first: 4 + 6 · 4.096 = 28.576 → 28.
+        assert_eq!(c, 28);
+        assert_ne!(st & status::TXPDO_TOGGLE, before.0 & status::TXPDO_TOGGLE);
+    }
+
+    #[test]
+    fn a_preset_counter_counts_on_through_the_wrap() {
+        let (mut mem, mut e) = module();
+        e.preset_counter(0xFFFF_FFF0);
+        e.set_shaft_position(32.0 / 4096.0);
+        e.step(&mut mem, 0.001, Exchange::OP);
+        assert_eq!(inputs(&mem).1, 0x10, "0xFFFF_FFF0 + 32 wraps to 0x10");
     }
 }

@@ -225,6 +225,9 @@ fn axis(
     let [speed, acceleration, jerk] = defaults;
     AxisSection {
         name: name.into(),
+        axis_type: gantry::config::AxisType::Real,
+        source: None,
+        encoder_input: None,
         drive,
         node: None,
         eds: None,
@@ -255,7 +258,7 @@ fn axis(
             target_window: None,
         },
         quick_stop_deceleration: None,
-        homing_required: true,
+        homing_required: Some(true),
         target_monitoring: Default::default(),
         pdo: "csp".into(),
         switches: Default::default(),

@@ -54,6 +54,8 @@ pub struct Limits {
 /// What the script keeps while it runs.
 pub struct Runner {
     names: Vec<String>,
+    /// Each axis' type, for the table.
+    types: Vec<&'static str>,
     speed: f64,
     started: Instant,
     live: Live,
@@ -72,6 +74,7 @@ impl Runner {
     pub fn new(config: &Config, speed: f64, frame_cycles: u64, error_codes: bool) -> Self {
         Self {
             names: config.axes.iter().map(|a| a.name.clone()).collect(),
+            types: config.axes.iter().map(|a| a.axis_type.name()).collect(),
             speed,
             started: Instant::now(),
             live: Live::new(std::io::stdout().is_terminal()),
@@ -127,6 +130,7 @@ impl Runner {
                     .and_then(|k| snap.status_of(k.handle.id()));
                 Row {
                     axis: name.clone(),
+                    axis_type: self.types.get(i).copied().unwrap_or("real"),
                     status,
                     command: command.map(|c| c.name().to_string()).unwrap_or_default(),
                     error: status.error.map(|e| describe_fault(&e)).unwrap_or_default(),
