@@ -8,6 +8,10 @@ use gantry_kernel::axis::status::AxisFault;
 pub fn describe_fault(fault: &AxisFault) -> String {
     match fault {
         AxisFault::Drive { code } => format!("drive fault 0x{code:04X}: {}", describe(*code)),
+        AxisFault::Encoder { code } => format!(
+            "encoder input failed 0x{code:04X}: {}",
+            crate::runtime::encoder_input::describe(*code)
+        ),
         other => other.to_string(),
     }
 }

@@ -4,8 +4,11 @@
 //! test turns at a set speed) and `h`, the shadow of `x`. The external axis follows the
 //! shaft exactly in counts through the 32-bit counter's wrap; each type takes the commands
 //! it may and refuses the others by name; the encoder's loss by each of its three reasons
-//! reaches the external axis' feedback with its code and keeps its last good position.
-//! One test: the EtherCAT bus starts once per process.
+//! reaches the external axis' feedback with its code, keeps its last good position and
+//! puts the axis in ErrorStop until a Reset after the loss is gone. With the encoder as
+//! master (seed 001): its direct follower `d` goes to ErrorStop naming it, while `v`, a
+//! virtual axis between the encoder and `s`, ramps down and `s` comes down with it in
+//! sync. One test: the EtherCAT bus starts once per process.
 
 use gantry::runtime::cycle::COMMUNICATION_FAULT;
 use gantry::runtime::encoder_input::{ENCODER_DATA_INVALID, ENCODER_FROZEN};
@@ -15,6 +18,8 @@ use gantry_kernel::axis::command::{
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
+use gantry_kernel::axis::status::{AxisFault, AxisStatus};
+use gantry_kernel::sync::command::GearIn;
 use gantry_sim::plant::encoder::EncoderModule;
 use gantry_sim::plant::DeviceModel;
 use gantry_tests::rig::Rig;
@@ -25,6 +30,7 @@ const S: usize = 1;
 const V: usize = 2;
 const E: usize = 3;
 const H: usize = 4;
+const D: usize = 5;
 /// Encoder counts per revolution of the shaft (and per 360 units of `e`).
 const COUNTS_PER_REV: f64 = 4096.0;
 
@@ -34,15 +40,20 @@ fn config() -> gantry::config::Config {
          [[slave]]\nkind = \"encoder\"\ncounts_per_rev = 4096\n"
     );
     let max = "max = { speed = 20.0, acceleration = 200.0, jerk = 4000.0 }\n";
+    // The intermediate virtual axis ramps down (ErrorStop) with its maximum deceleration
+    // and jerk: slow enough for s, which follows it at 2:1 with at most 200.
+    let max_v =
+        "max = { speed = 20.0, acceleration = 200.0, deceleration = 80.0, jerk = 1000.0 }\n";
     let axes = format!(
         "[[axis]]\nname = \"x\"\ndrive = 0\npdo = \"csp-minimal\"\nhoming_required = false\n\
          scaling = {{ counts_per_motor_rev = 131072, units_per_load_rev = 5.0 }}\n{max}\
          [[axis]]\nname = \"s\"\ntype = \"simulated\"\nhoming_required = false\n{max}\
-         [[axis]]\nname = \"v\"\ntype = \"virtual\"\n{max}\
+         [[axis]]\nname = \"v\"\ntype = \"virtual\"\n{max_v}\
          [[axis]]\nname = \"e\"\ntype = \"external\"\nunits = \"deg\"\n\
          scaling = {{ counts_per_motor_rev = 4096, units_per_load_rev = 360.0 }}\n\
          [axis.encoder_input]\nslave = 1\nfreeze_timeout_ms = 10\n\
-         [[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"x\"\n"
+         [[axis]]\nname = \"h\"\ntype = \"shadow\"\nsource = \"x\"\n\
+         [[axis]]\nname = \"d\"\ntype = \"simulated\"\nhoming_required = false\n{max}"
     );
     sim_config_text(1000, &slaves, "", &axes)
 }
@@ -80,8 +91,24 @@ fn refused(status: CommandStatus, command: &str, kind: &str) {
     );
     assert_eq!(
         e.to_string(),
-        format!("{command}: a {kind} axis cannot be commanded")
+        format!("{command}: the axis is of type {kind}, which takes no motion or power commands")
     );
+}
+
+fn status(rig: &Rig, axis: usize) -> AxisStatus {
+    *rig.engine.cycle.kernel.axis_status(axis).expect("axis")
+}
+
+/// The external axis is in ErrorStop for the encoder's `code`; once the loss is gone
+/// (`clear`), Reset brings it back (Disabled: an encoder is never enabled).
+fn assert_lost_then_reset(rig: &mut Rig, code: u16, clear: impl FnOnce(&mut Rig)) {
+    let e = status(rig, E);
+    assert_eq!(e.state, AxisState::ErrorStop);
+    assert_eq!(e.error, Some(AxisFault::Encoder { code }));
+    clear(rig);
+    rig.run(3);
+    assert_eq!(rig.command(E, Command::Reset), CommandStatus::Done);
+    assert_eq!(status(rig, E).state, AxisState::Disabled);
 }
 
 #[test]
@@ -204,14 +231,16 @@ fn every_axis_type_on_one_chain() {
                 deceleration: None,
             },
             Command::Stop { deceleration: None },
-            Command::Reset,
+            Command::GearIn(GearIn::new(X, 1, 1)),
         ];
         for c in commands {
             let name = c.name();
             refused(rig.command(axis, c), name, kind);
         }
+        // Reset (nothing to acknowledge) is done at once.
+        assert_eq!(rig.command(axis, Command::Reset), CommandStatus::Done);
         let h = rig.ctl.reset(axis).expect("queued");
-        refused(rig.finish(&h, 100), "Reset", kind);
+        assert_eq!(rig.finish(&h, 100), CommandStatus::Done, "{kind}");
         let set = Command::SetPosition {
             position: 10.0,
             relative: true,
@@ -219,22 +248,87 @@ fn every_axis_type_on_one_chain() {
         assert_eq!(rig.command(axis, set), CommandStatus::Done, "{kind}");
     }
 
+    // The encoder as master: d follows it directly, v through a gear and s follows v.
+    encoder(&rig, |e| e.shaft_speed_rev_s = 2.0); // 720 °/s
+    rig.run(20);
+    for axis in [V, S, D] {
+        assert_eq!(
+            rig.command(axis, Command::Power(PowerCommand::Enable)),
+            CommandStatus::Done
+        );
+    }
+    for (axis, master, num, den) in [(D, E, 1, 100), (V, E, 1, 100), (S, V, 2, 1)] {
+        let h = rig
+            .ctl
+            .command(axis, Command::GearIn(GearIn::new(master, num, den)))
+            .expect("queued");
+        // Each caught up before the next (s at twice v's catching up would exceed its own
+        // acceleration: an ErrorStop, rightly).
+        rig.run(500);
+        assert_eq!(
+            rig.status_now(&h),
+            Some(CommandStatus::Active),
+            "axis {axis}"
+        );
+    }
+    for axis in [V, S, D] {
+        let st = status(&rig, axis);
+        assert!(st.bits.gearing && st.bits.in_sync, "axis {axis}: {st:?}");
+        assert_eq!(st.state, AxisState::SynchronizedMotion);
+    }
+    assert!(
+        (status(&rig, S).set.v - 14.4).abs() < 0.5,
+        "{:?}",
+        status(&rig, S)
+    );
+
     // Encoder loss, reason (b): the module's error bit (TxPDO State).
-    let held = rig.engine.cycle.feedback(E).expect("e").position;
-    encoder(&rig, |e| {
-        e.shaft_speed_rev_s = 2.0;
-        e.set_data_invalid(true);
-    });
-    rig.run(3);
+    let (v0, s0) = (status(&rig, V), status(&rig, S));
+    encoder(&rig, |e| e.set_data_invalid(true));
+    let mut down = Vec::new();
+    let mut held = None;
+    for _ in 0..300 {
+        rig.cycle();
+        let fb = rig.engine.cycle.feedback(E).expect("e");
+        if fb.fault.is_some() {
+            held.get_or_insert(fb.position);
+        }
+        down.push((status(&rig, V), status(&rig, S)));
+    }
+    let held = held.expect("the loss was seen");
     assert_eq!(feedback_fault(&rig), Some(ENCODER_DATA_INVALID));
     assert_eq!(
         rig.engine.cycle.feedback(E).expect("e").position,
         held,
         "no jump"
     );
-    encoder(&rig, |e| e.set_data_invalid(false));
-    rig.run(3);
+    // The direct follower: ErrorStop, naming its master.
+    let d = status(&rig, D);
+    assert_eq!(d.state, AxisState::ErrorStop);
+    assert_eq!(d.error, Some(AxisFault::MasterLost { master: E }));
+    assert_eq!(d.set.v, 0.0);
+    // The virtual axis ramped down (its maximum deceleration 80 and jerk 1000: 7.2 → 0
+    // in about 0.17 s, not at once) and s came down with it, in gear all the way.
+    let (v1, s1) = down.last().expect("cycles");
+    assert_eq!(v1.state, AxisState::ErrorStop);
+    assert_eq!(v1.error, Some(AxisFault::MasterLost { master: E }));
+    assert_eq!(v1.set.v, 0.0);
+    let ramp = down.iter().filter(|(v, _)| v.set.v.abs() > 1e-9).count();
+    assert!((120..=220).contains(&ramp), "ramped over {ramp} cycles");
+    assert_eq!(s1.state, AxisState::SynchronizedMotion, "{s1:?}");
+    assert_eq!(s1.set.v, 0.0);
+    for (v, s) in &down {
+        let dv = v.set.p - v0.set.p;
+        assert!(((s.set.p - s0.set.p) - 2.0 * dv).abs() < 1e-9, "s left v");
+    }
+    assert_lost_then_reset(&mut rig, ENCODER_DATA_INVALID, |rig| {
+        encoder(rig, |e| e.set_data_invalid(false))
+    });
     assert_eq!(feedback_fault(&rig), None, "back once the bit clears");
+    for axis in [V, D] {
+        assert_eq!(rig.command(axis, Command::Reset), CommandStatus::Done);
+        assert_eq!(status(&rig, axis).state, AxisState::Standstill);
+    }
     // The shaft turns on at 2 rev/s (8.2 counts a cycle): within two steps of it.
     let behind = (encoder(&rig, |e| e.position_counts()) - shaft1) - (master_count(&rig) - count1);
     assert!(
@@ -256,8 +350,9 @@ fn every_axis_type_on_one_chain() {
         held,
         "no jump"
     );
-    encoder(&rig, |e| e.set_frozen(false));
-    rig.run(3);
+    assert_lost_then_reset(&mut rig, ENCODER_FROZEN, |rig| {
+        encoder(rig, |e| e.set_frozen(false))
+    });
     assert_eq!(feedback_fault(&rig), None);
 
     // Reason (a): unreachable — the module stops exchanging process data; the bus faults
@@ -279,13 +374,20 @@ fn every_axis_type_on_one_chain() {
     // (A process-data working counter cannot tell which slave failed to take part: the
     // bus faults the servo's axis too, as it does for any such loss.)
     rig.chain.lock().expect("the chain").stop_process_data(None);
-    // A reset of the external axis brings its module back on the bus (the kernel's own
-    // Reset of an external axis is refused today: not asserted here).
+    // A reset of the external axis brings its module back on the bus and acknowledges
+    // the loss: the axis leaves ErrorStop.
+    assert_eq!(
+        status(&rig, E).error,
+        Some(AxisFault::Encoder {
+            code: COMMUNICATION_FAULT
+        })
+    );
     let h = rig.ctl.reset(E).expect("queued");
-    let _ = rig.finish(&h, 2000);
+    assert_eq!(rig.finish(&h, 2000), CommandStatus::Done);
     rig.run(5);
     assert_eq!(rig.bus_fault(E), None);
     assert_eq!(feedback_fault(&rig), None, "the module is back");
+    assert_eq!(status(&rig, E).state, AxisState::Disabled);
     encoder(&rig, |e| e.shaft_speed_rev_s = 0.0);
     rig.run(5);
     assert_eq!(

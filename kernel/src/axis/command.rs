@@ -667,8 +667,9 @@ pub enum CommandError {
         /// Command name.
         command: &'static str,
     },
-    /// The axis kind takes no such command (external and shadow axes are never commanded).
-    #[error("{command}: a {kind} axis cannot be commanded")]
+    /// The axis kind takes no such command (external and shadow axes are never commanded;
+    /// they take SetPosition and, for an encoder's failure, Reset).
+    #[error("{command}: the axis is of type {kind}, which takes no motion or power commands")]
     NotCommandable {
         /// Command name.
         command: &'static str,

@@ -231,7 +231,7 @@ impl Axis {
         }
         if let Some(code) = fb.fault {
             if self.state != super::state::AxisState::ErrorStop {
-                self.fault(AxisFault::Drive { code }, handles);
+                self.fault(AxisFault::Encoder { code }, handles);
             }
         }
     }

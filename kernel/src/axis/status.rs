@@ -160,6 +160,12 @@ pub enum AxisFault {
         /// Which one.
         side: crate::homing::LimitSide,
     },
+    /// An external axis' encoder input failed (module unreachable, its error bit, its
+    /// values frozen): the master layer's code says which.
+    Encoder {
+        /// Error code (CiA 301 emergency class: 0x7300 sensor, 0x8100 communication…).
+        code: u16,
+    },
     /// The master this axis followed became unavailable (its encoder or drive failed).
     MasterLost {
         /// The master's index.
@@ -211,7 +217,7 @@ impl core::fmt::Display for AxisFault {
             }
             AxisFault::TargetNotReached { .. } => write!(f, "{}", self.summary()),
             AxisFault::LimitSwitch { side } => write!(f, "{side}"),
-            AxisFault::MasterLost { .. } | AxisFault::SyncLimit(_) => {
+            AxisFault::Encoder { .. } | AxisFault::MasterLost { .. } | AxisFault::SyncLimit(_) => {
                 write!(f, "{}", self.summary())
             }
         }
@@ -232,6 +238,7 @@ impl AxisFault {
             }
             AxisFault::SoftwareLimit { limit } => FaultSummary::SoftwareLimit { limit },
             AxisFault::LimitSwitch { side } => FaultSummary::LimitSwitch { side },
+            AxisFault::Encoder { code } => FaultSummary::Encoder { code },
             AxisFault::MasterLost { master } => FaultSummary::MasterLost { master },
             AxisFault::SyncLimit(l) => FaultSummary::SyncLimit(l),
             AxisFault::TargetNotReached {
@@ -291,6 +298,11 @@ pub enum FaultSummary {
         /// Which one.
         side: crate::homing::LimitSide,
     },
+    /// The encoder input failed.
+    Encoder {
+        /// Error code.
+        code: u16,
+    },
     /// The master became unavailable.
     MasterLost {
         /// The master's index.
@@ -322,6 +334,9 @@ impl core::fmt::Display for FaultSummary {
                  {timeout_s} s after the set value reached it"
             ),
             FaultSummary::LimitSwitch { side } => write!(f, "{side}"),
+            FaultSummary::Encoder { code } => {
+                write!(f, "encoder input failed, error code 0x{code:04X}")
+            }
             FaultSummary::MasterLost { master } => write!(
                 f,
                 "master axis {master} became unavailable (its encoder or drive failed)"

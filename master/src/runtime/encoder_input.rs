@@ -37,6 +37,16 @@ pub const ENCODER_FROZEN: u16 = 0x8130;
 
 /// Status bit 14 of 0x6000 (0x6000:0F TxPDO State): the inputs are invalid.
 pub const STATUS_TXPDO_STATE: u16 = 1 << 14;
+
+/// What an encoder-loss code means, for the status and the CLI.
+pub const fn describe(code: u16) -> &'static str {
+    match code {
+        ENCODER_DATA_INVALID => "the module flags its encoder data invalid (TxPDO State)",
+        ENCODER_FROZEN => "the module's values stopped changing (TxPDO Toggle frozen)",
+        crate::runtime::cycle::COMMUNICATION_FAULT => "the module is unreachable on the bus",
+        _ => "unknown encoder fault",
+    }
+}
 /// Status bit 15 of 0x6000 (0x6000:10 TxPDO Toggle): toggles with each new value.
 pub const STATUS_TXPDO_TOGGLE: u16 = 1 << 15;
 
