@@ -17,7 +17,7 @@ pub const CYCLE_RANGE_S: (f64, f64) = (50e-6, 0.1);
 pub const CAM_SLOTS: usize = 32;
 
 /// Why a cam table could not be put into or taken out of a slot.
-#[derive(Clone, Debug, thiserror::Error, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, thiserror::Error, PartialEq, Eq)]
 pub enum CamSlotError {
     /// The slot is beyond [`CAM_SLOTS`].
     #[error("cam table slot {slot} does not exist (slots 0..{CAM_SLOTS})")]
@@ -25,13 +25,14 @@ pub enum CamSlotError {
         /// The slot given.
         slot: usize,
     },
-    /// An axis cams on the table in that slot.
-    #[error("cam table slot {slot} is in use by axis {axis}; CamOut first")]
+    /// An axis cams on the table in that slot. Carries the axis' index, not its name, so
+    /// that the refusal allocates nothing in the cycle thread; the caller names the axis.
+    #[error("cam table slot {slot} is in use by axis #{axis}; CamOut first")]
     InUse {
         /// The slot.
         slot: usize,
-        /// The axis' name.
-        axis: String,
+        /// Index of the axis camming on it.
+        axis: usize,
     },
 }
 
@@ -155,15 +156,12 @@ impl Kernel {
         if slot >= CAM_SLOTS {
             return Err(CamSlotError::NoSuchSlot { slot });
         }
-        if let Some(a) = self
+        if let Some(axis) = self
             .axes
             .iter()
-            .find(|a| a.cam_table_in_use() == Some(slot))
+            .position(|a| a.cam_table_in_use() == Some(slot))
         {
-            return Err(CamSlotError::InUse {
-                slot,
-                axis: a.name().to_string(),
-            });
+            return Err(CamSlotError::InUse { slot, axis });
         }
         match self.cams.get_mut(slot) {
             Some(s) => Ok(core::mem::replace(s, table)),

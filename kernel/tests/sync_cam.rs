@@ -84,7 +84,7 @@ fn a_periodic_cam_follows_the_table_across_unrelated_modulo_wraps() {
         // The table is in use: it cannot be replaced until CamOut.
         assert!(matches!(
             k.set_cam_table(3, None),
-            Err(CamSlotError::InUse { slot: 3, .. })
+            Err(CamSlotError::InUse { slot: 3, axis: 1 })
         ));
         let out = k.command(1, Command::CamOut).unwrap();
         assert_eq!(k.command_status(out), CommandStatus::Done);
