@@ -6,6 +6,7 @@
 
 mod axis;
 mod bus;
+mod cam;
 mod commutation;
 mod drive_homing;
 mod error;
@@ -20,6 +21,7 @@ pub use bus::{
     BusKind, BusSection, FaultsSection, RtSection, CIA_102_BITRATES, DEFAULT_HEARTBEAT_MS,
     DEFAULT_MASTER_NODE,
 };
+pub use cam::{CamConfig, CamSection};
 pub use commutation::CommutationSection;
 pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
@@ -48,6 +50,8 @@ struct File {
     service: ServiceSection,
     #[serde(rename = "axis", default)]
     axes: Vec<Spanned<AxisSection>>,
+    #[serde(rename = "cam", default)]
+    cams: Vec<Spanned<CamSection>>,
 }
 
 /// A checked configuration.
@@ -67,6 +71,8 @@ pub struct Config {
     pub kernel_axes: Vec<AxisConfig>,
     /// Each axis' EDS as read from its `eds` file (CANopen), in axis order.
     pub eds: Vec<Option<Arc<Eds>>>,
+    /// The cam tables (`[[cam]]`), loaded; the `i`-th goes into the kernel's cam slot `i`.
+    pub cams: Vec<CamConfig>,
 }
 
 impl Config {
@@ -457,6 +463,15 @@ impl Config {
                 ));
             }
         }
+        let mut cams: Vec<CamConfig> = Vec::with_capacity(file.cams.len());
+        for (i, spanned) in file.cams.into_iter().enumerate() {
+            let span = spanned.span();
+            let cam = spanned
+                .into_inner()
+                .load(i, &cams, path)
+                .map_err(|(k, reason)| at(span, format!("cam[{i}].{k}"), reason))?;
+            cams.push(cam);
+        }
         let config = Self {
             path: path.into(),
             bus,
@@ -465,6 +480,7 @@ impl Config {
             axes,
             kernel_axes,
             eds,
+            cams,
         };
         if kind == BusKind::Canopen {
             // The cycle's frames must fit the bit rate (issue 12 §2: refused with the figure).

@@ -1,4 +1,5 @@
 use super::*;
+use gantry_kernel::cam::Interpolation;
 use gantry_kernel::AxisKind;
 
 const EXAMPLE: &str = include_str!("../../../deploy/examples/veth-4-axes.toml");
@@ -1352,6 +1353,160 @@ fn on_canopen_only_real_axes_are_nodes_and_external_axes_are_refused() {
         .to_string();
     assert!(
         e.contains("axis[0].type: an external axis reads an EtherCAT encoder module"),
+        "{e}"
+    );
+}
+
+/// The example with `cams` (`[[cam]]` sections) appended, written to a fresh directory
+/// beside the shipped cam files (`cams/`); the loaded configuration or its error text.
+fn with_cams(tag: &str, cams: &str) -> (Result<Config, String>, std::path::PathBuf, String) {
+    let dir = std::env::temp_dir().join(format!("gantry-config-cam-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("cams")).unwrap();
+    for f in ["flying_knife.csv", "eccentric.toml"] {
+        let from = concat!(env!("CARGO_MANIFEST_DIR"), "/../deploy/cams/");
+        std::fs::copy(format!("{from}{f}"), dir.join("cams").join(f)).unwrap();
+    }
+    let text = format!("{EXAMPLE}\n{cams}");
+    let path = dir.join("g.toml");
+    std::fs::write(&path, &text).unwrap();
+    let loaded = Config::load(&path.display().to_string()).map_err(|e| e.to_string());
+    (loaded, dir, text)
+}
+
+fn line_in(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn cam_tables_are_loaded_relative_to_the_configuration_in_slot_order() {
+    let (c, dir, _) = with_cams(
+        "ok",
+        "[[cam]]\nname = \"knife\"\nfile = \"cams/flying_knife.csv\"\ninterpolation = \"quintic\"\n\n\
+         [[cam]]\nname = \"press\"\nfile = \"cams/eccentric.toml\"\nperiodic = true\n",
+    );
+    let c = c.unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(c.cams.len(), 2);
+    let knife = &c.cams[0];
+    assert_eq!((knife.name.as_str(), knife.slot), ("knife", 0));
+    assert_eq!(
+        knife.file,
+        dir.join("cams/flying_knife.csv").display().to_string()
+    );
+    assert_eq!(knife.table.points().len(), 25);
+    assert_eq!(knife.table.interpolation(), Interpolation::Quintic);
+    assert!(!knife.table.is_periodic());
+    assert_eq!(knife.table.master_range(), (0.0, 600.0));
+    let press = &c.cams[1];
+    assert_eq!((press.name.as_str(), press.slot), ("press", 1));
+    assert!(press.table.is_periodic());
+    assert_eq!(press.table.interpolation(), Interpolation::Cubic);
+    assert!(
+        Config::parse(EXAMPLE, "g.toml").unwrap().cams.is_empty(),
+        "no [[cam]]: no tables"
+    );
+}
+
+#[test]
+fn cam_section_mistakes_name_file_line_section_key_and_reason() {
+    let cases: [(&str, &str, &str, &str); 7] = [
+        (
+            "empty",
+            "[[cam]]\nname = \" \"\nfile = \"cams/flying_knife.csv\"\n",
+            "name = \" \"",
+            "cam[0].name: is empty: name the table",
+        ),
+        (
+            "twice",
+            "[[cam]]\nname = \"k\"\nfile = \"cams/flying_knife.csv\"\n\n[[cam]]\nname  = \"k\"\nfile = \"cams/eccentric.toml\"\n",
+            "name  = \"k\"",
+            "cam[1].name: \"k\" is also cam[0]",
+        ),
+        (
+            "interp",
+            "[[cam]]\nname = \"k\"\nfile = \"cams/flying_knife.csv\"\ninterpolation = \"spline\"\n",
+            "interpolation = \"spline\"",
+            "cam[0].interpolation: \"spline\" is none of linear, cubic, quintic",
+        ),
+        (
+            "missing",
+            "[[cam]]\nname = \"k\"\nfile = \"cams/nowhere.csv\"\n",
+            "file = \"cams/nowhere.csv\"",
+            "cam[0].file: cannot read cam file ",
+        ),
+        (
+            "ext",
+            "[[cam]]\nname = \"k\"\nfile = \"cams/flying_knife.txt\"\n",
+            "file = \"cams/flying_knife.txt\"",
+            "cam[0].file: cam file ",
+        ),
+        (
+            "conflict",
+            "[[cam]]\nname = \"press\"\nfile = \"cams/eccentric.toml\"\nperiodic = false\n",
+            "file = \"cams/eccentric.toml\"",
+            "cam[0].file: ",
+        ),
+        (
+            "unknown",
+            "[[cam]]\nname = \"k\"\nfile = \"cams/flying_knife.csv\"\nperiodical = true\n",
+            "periodical = true",
+            "periodical: unknown field `periodical`",
+        ),
+    ];
+    for (tag, cams, at, says) in cases {
+        let (c, dir, text) = with_cams(tag, cams);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = c.unwrap_err();
+        let line = line_in(&text, at);
+        let want = format!("{}:{line}: {says}", dir.join("g.toml").display());
+        assert!(e.starts_with(&want), "{tag}: {e}\n wanted {want}");
+    }
+    // The conflict says what disagrees with what.
+    let (c, dir, _) = with_cams(
+        "conflict-text",
+        "[[cam]]\nname = \"press\"\nfile = \"cams/eccentric.toml\"\nperiodic = false\n",
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    let e = c.unwrap_err();
+    assert!(
+        e.contains("eccentric.toml") && e.contains("periodic"),
+        "{e}"
+    );
+    // A table the kernel refuses (master not increasing) names the file and the point.
+    let dir = std::env::temp_dir().join(format!("gantry-config-cam-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.csv"), "0,0\n10,1\n5,2\n").unwrap();
+    let text = format!("{EXAMPLE}\n[[cam]]\nname = \"bad\"\nfile = \"bad.csv\"\n");
+    std::fs::write(dir.join("g.toml"), &text).unwrap();
+    let e = Config::load(&dir.join("g.toml").display().to_string())
+        .unwrap_err()
+        .to_string();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let line = line_in(&text, "file = \"bad.csv\"");
+    assert!(e.contains(&format!("g.toml:{line}: cam[0].file: ")), "{e}");
+    assert!(e.contains("bad.csv"), "{e}");
+}
+
+#[test]
+fn at_most_cam_slots_tables() {
+    use gantry_kernel::kernel::CAM_SLOTS;
+    let section =
+        |i: usize| format!("[[cam]]\nname = \"t{i}\"\nfile = \"cams/flying_knife.csv\"\n\n");
+    let full: String = (0..CAM_SLOTS).map(section).collect();
+    let (c, dir, _) = with_cams("full", &full);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let c = c.unwrap();
+    assert_eq!(c.cams.len(), CAM_SLOTS);
+    assert_eq!(c.cams[CAM_SLOTS - 1].slot, CAM_SLOTS - 1);
+    let over = format!("{full}{}", section(CAM_SLOTS));
+    let (c, dir, text) = with_cams("over", &over);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let e = c.unwrap_err();
+    let line = line_in(&text, &format!("name = \"t{CAM_SLOTS}\""));
+    assert!(
+        e.ends_with(&format!(
+            ":{line}: cam[{CAM_SLOTS}].name: {CAM_SLOTS} cam tables at most (the kernel's cam slots)"
+        )),
         "{e}"
     );
 }
