@@ -12,8 +12,11 @@ use std::time::{Duration, Instant};
 
 use gantry_kernel::axis::command::Command;
 use gantry_kernel::axis::handle::CommandStatus;
+use gantry_kernel::cam::CamTable;
+use gantry_kernel::kernel::{CamSlotError, CAM_SLOTS};
 use thiserror::Error;
 
+use super::cam::{CamDone, CamInfo, CamJob};
 use super::engine::AppEnds;
 use super::protocol::{Request, SdoDone, SdoJob, Snapshot, TraceSample};
 use super::sdo::{
@@ -39,6 +42,37 @@ pub enum ControlError {
     /// The cycle thread has ended: nothing more will be answered.
     #[error("the cycle has ended (the service is shutting down)")]
     Ended,
+    /// No cam table of that name.
+    #[error("no cam table named {0:?}")]
+    NoCam(String),
+    /// A cam table needs a name.
+    #[error("a cam table needs a name")]
+    CamUnnamed,
+    /// Every cam slot holds a table: a new name finds none free.
+    #[error(
+        "no free cam slot for {name:?}: all {CAM_SLOTS} hold tables (remove one, or replace          a table by loading it under its name)"
+    )]
+    CamSlotsFull {
+        /// The new table's name.
+        name: String,
+    },
+    /// An axis cams on the table: it cannot be replaced or removed.
+    #[error("cam table {name} is in use by axis {axis}; CamOut first")]
+    CamInUse {
+        /// The table.
+        name: String,
+        /// The axis camming on it.
+        axis: String,
+    },
+    /// The kernel refused the slot (not reached through [`Controller::load_cam`], which
+    /// only names slots that exist).
+    #[error("cam table {name}: {source}")]
+    CamSlot {
+        /// The table.
+        name: String,
+        /// The kernel's reason.
+        source: CamSlotError,
+    },
 }
 
 /// The application's ends of the SDO channels, the outcomes that arrived for handles
@@ -65,6 +99,89 @@ impl SdoEnds {
     }
 }
 
+/// The application's ends of the cam channels and what it knows of the kernel's cam
+/// slots. Tables handed back by the cycle thread are dropped here.
+struct CamEnds {
+    jobs: rtrb::Producer<CamJob>,
+    done: rtrb::Consumer<CamDone>,
+    /// By slot: the table there, as the cycle thread last confirmed it.
+    slots: Vec<Option<CamInfo>>,
+    /// Jobs sent and not answered: id, slot, what the slot holds once done (`None`: a
+    /// removal).
+    pending: Vec<(u64, usize, Option<CamInfo>)>,
+    /// Outcomes for handles not asking yet: id, the slot or why not.
+    arrived: Vec<(u64, Result<usize, ControlError>)>,
+}
+
+impl CamEnds {
+    /// The slot of table `name`: its own, or the one a load under way gives it.
+    fn slot_of(&self, name: &str) -> Option<usize> {
+        self.slots
+            .iter()
+            .flatten()
+            .find(|c| c.name == name)
+            .map(|c| c.slot)
+            .or_else(|| {
+                self.pending
+                    .iter()
+                    .find(|(_, _, c)| c.as_ref().is_some_and(|c| c.name == name))
+                    .map(|&(_, slot, _)| slot)
+            })
+    }
+
+    /// A slot holding no table and no load under way.
+    fn free_slot(&self) -> Option<usize> {
+        (0..CAM_SLOTS).find(|&s| {
+            self.slots.get(s).is_some_and(Option::is_none)
+                && !self.pending.iter().any(|&(_, p, _)| p == s)
+        })
+    }
+
+    /// Takes what the cycle thread handed back: slots updated, outcomes kept for their
+    /// handles, tables dropped. `axes` names the axes for a refusal.
+    fn drain(&mut self, axes: &[String]) {
+        while let Ok(done) = self.done.pop() {
+            let CamDone { id, result, table } = done;
+            drop(table);
+            let Some(at) = self.pending.iter().position(|(i, ..)| *i == id) else {
+                continue;
+            };
+            let (_, slot, info) = self.pending.remove(at);
+            let name = self
+                .slots
+                .get(slot)
+                .and_then(Option::as_ref)
+                .or(info.as_ref())
+                .map(|c| c.name.clone())
+                .unwrap_or_default();
+            let outcome = match result {
+                Ok(()) => {
+                    if let Some(s) = self.slots.get_mut(slot) {
+                        *s = info;
+                    }
+                    Ok(slot)
+                }
+                Err(CamSlotError::InUse { axis, .. }) => Err(ControlError::CamInUse {
+                    name,
+                    axis: axes
+                        .get(axis)
+                        .cloned()
+                        .unwrap_or_else(|| format!("#{axis}")),
+                }),
+                Err(source) => Err(ControlError::CamSlot { name, source }),
+            };
+            if self.arrived.len() == CAM_ARRIVED_KEEP {
+                // The oldest, of a handle given up.
+                drop(self.arrived.remove(0));
+            }
+            self.arrived.push((id, outcome));
+        }
+    }
+}
+
+/// Cam outcomes kept for handles not asking yet (the oldest drop out).
+const CAM_ARRIVED_KEEP: usize = 32;
+
 /// Outcomes kept for handles not asking yet (the oldest, of handles given up, drop out).
 const SDO_ARRIVED_KEEP: usize = 32;
 
@@ -78,6 +195,7 @@ struct Shared {
     trace: Mutex<rtrb::Consumer<TraceSample>>,
     figures: Mutex<FigureBook>,
     sdo: Mutex<SdoEnds>,
+    cams: Mutex<CamEnds>,
     next_id: AtomicU64,
     axes: Vec<String>,
 }
@@ -106,6 +224,12 @@ impl Controller {
     /// thread with a transfer is allocated here, once, at that size.
     pub fn with_sdo_max_bytes(ends: AppEnds, axes: Vec<String>, sdo_max_bytes: usize) -> Self {
         let max_bytes = sdo_max_bytes.clamp(SDO_MIN_BYTES, SDO_LIMIT_BYTES);
+        let mut slots = vec![None; CAM_SLOTS];
+        for info in ends.cams {
+            if let Some(s) = slots.get_mut(info.slot) {
+                *s = Some(info);
+            }
+        }
         Self {
             shared: Arc::new(Shared {
                 requests: Mutex::new(ends.requests),
@@ -118,6 +242,13 @@ impl Controller {
                     arrived: Vec::with_capacity(SDO_ARRIVED_KEEP),
                     free: vec![SdoBuffer::with_capacity(max_bytes)],
                     max_bytes,
+                }),
+                cams: Mutex::new(CamEnds {
+                    jobs: ends.cam_jobs,
+                    done: ends.cam_done,
+                    slots,
+                    pending: Vec::new(),
+                    arrived: Vec::with_capacity(CAM_ARRIVED_KEEP),
                 }),
                 next_id: AtomicU64::new(1),
                 axes,
@@ -304,6 +435,78 @@ impl Controller {
         Some(ends.arrived.remove(at).1)
     }
 
+    /// The slot of cam table `name` (what `CamIn` names), once it is loaded.
+    pub fn cam_slot(&self, name: &str) -> Option<usize> {
+        let mut cams = lock(&self.shared.cams);
+        cams.drain(&self.shared.axes);
+        cams.slots
+            .iter()
+            .flatten()
+            .find(|c| c.name == name)
+            .map(|c| c.slot)
+    }
+
+    /// The cam tables loaded, by slot.
+    pub fn cam_tables(&self) -> Vec<CamInfo> {
+        let mut cams = lock(&self.shared.cams);
+        cams.drain(&self.shared.axes);
+        cams.slots.iter().flatten().cloned().collect()
+    }
+
+    /// Loads `table` as cam table `name`: a new name takes a free slot, a known one has its
+    /// table replaced. The table goes to the cycle thread, which puts it into the slot
+    /// between two cycles; the handle says when, or why not (an axis cams on the table:
+    /// [`ControlError::CamInUse`]).
+    pub fn load_cam(&self, name: &str, table: CamTable) -> Result<CamHandle, ControlError> {
+        if name.trim().is_empty() {
+            return Err(ControlError::CamUnnamed);
+        }
+        let mut cams = lock(&self.shared.cams);
+        cams.drain(&self.shared.axes);
+        let slot = cams
+            .slot_of(name)
+            .or_else(|| cams.free_slot())
+            .ok_or_else(|| ControlError::CamSlotsFull { name: name.into() })?;
+        let info = CamInfo::of(name, slot, &table);
+        self.send_cam(&mut cams, slot, Some(table), Some(info))
+    }
+
+    /// Removes cam table `name`, freeing its slot (refused while an axis cams on it).
+    pub fn remove_cam(&self, name: &str) -> Result<CamHandle, ControlError> {
+        let mut cams = lock(&self.shared.cams);
+        cams.drain(&self.shared.axes);
+        let slot = cams
+            .slot_of(name)
+            .ok_or_else(|| ControlError::NoCam(name.into()))?;
+        self.send_cam(&mut cams, slot, None, None)
+    }
+
+    fn send_cam(
+        &self,
+        cams: &mut CamEnds,
+        slot: usize,
+        table: Option<CamTable>,
+        info: Option<CamInfo>,
+    ) -> Result<CamHandle, ControlError> {
+        let id = self.shared.next_id.fetch_add(1, Ordering::Relaxed);
+        cams.jobs
+            .push(CamJob { id, slot, table })
+            .map_err(|_| ControlError::QueueFull)?;
+        cams.pending.push((id, slot, info));
+        Ok(CamHandle {
+            id,
+            controller: self.clone(),
+        })
+    }
+
+    /// The outcome of cam job `id`, once the cycle thread has handed it back.
+    fn cam_outcome(&self, id: u64) -> Option<Result<usize, ControlError>> {
+        let mut cams = lock(&self.shared.cams);
+        cams.drain(&self.shared.axes);
+        let at = cams.arrived.iter().position(|(i, _)| *i == id)?;
+        Some(cams.arrived.remove(at).1)
+    }
+
     fn status_of(&self, id: u64) -> Option<CommandStatus> {
         lock(&self.shared.snapshot).read().status_of(id)
     }
@@ -388,6 +591,50 @@ impl SdoHandle {
                 return Err(ControlError::Timeout(timeout));
             }
             std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+/// A cam table load (or removal) on its way.
+#[derive(Clone)]
+pub struct CamHandle {
+    id: u64,
+    controller: Controller,
+}
+
+impl CamHandle {
+    /// How it ended, once it has (taken once): the table's slot, or why not.
+    pub fn outcome(&self) -> Option<Result<usize, ControlError>> {
+        self.controller.cam_outcome(self.id)
+    }
+
+    /// Blocks until it ends, the cycle ends, or `timeout` passes: the table's slot.
+    pub fn wait(&self, timeout: Duration) -> Result<usize, ControlError> {
+        let end = Instant::now() + timeout;
+        loop {
+            if let Some(r) = self.outcome() {
+                return r;
+            }
+            if lock(&self.controller.shared.snapshot).read().ended {
+                return Err(ControlError::Ended);
+            }
+            if Instant::now() >= end {
+                return Err(ControlError::Timeout(timeout));
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Resolves when it ends, or with [`ControlError::Ended`] once the cycle has.
+    pub async fn done(&self) -> Result<usize, ControlError> {
+        loop {
+            if let Some(r) = self.outcome() {
+                return r;
+            }
+            if lock(&self.controller.shared.snapshot).read().ended {
+                return Err(ControlError::Ended);
+            }
+            tokio::time::sleep(Duration::from_millis(1)).await;
         }
     }
 }

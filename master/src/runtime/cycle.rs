@@ -131,6 +131,9 @@ pub struct Cycle {
     /// Per axis, the switches read from I/O modules (negative limit, positive limit,
     /// reference) and their last levels.
     modules: Vec<ModuleSwitches>,
+    /// The configuration's cam tables' names, by slot (for the application; the cycle
+    /// never reads them).
+    cam_names: Vec<(usize, String)>,
 }
 
 /// An axis' switches read from I/O modules on the bus, and what they read last.
@@ -164,6 +167,7 @@ impl Cycle {
             drives: (0..n).collect(),
             modules: vec![ModuleSwitches::default(); n],
             procedures: vec![None; n],
+            cam_names: Vec::new(),
         }
     }
 
@@ -288,11 +292,22 @@ impl Cycle {
             });
         }
         let dt = f64::from(config.bus.cycle_us) * 1e-6;
-        let kernel =
+        let mut kernel =
             Kernel::new(dt, config.kernel_axes.clone()).map_err(|e| SetupError::Setup {
                 what: "the motion kernel".into(),
                 source: e.into(),
             })?;
+        // The configuration's cam tables, each into its slot (`[[cam]]` order).
+        let mut cam_names = Vec::with_capacity(config.cams.len());
+        for cam in &config.cams {
+            kernel
+                .set_cam_table(cam.slot, Some(cam.table.clone()))
+                .map_err(|e| SetupError::Setup {
+                    what: format!("{}: cam table {:?} ({})", config.path, cam.name, cam.file),
+                    source: e.into(),
+                })?;
+            cam_names.push((cam.slot, cam.name.clone()));
+        }
         let n = channels.len();
         let mut cycle = Self {
             kernel,
@@ -304,6 +319,7 @@ impl Cycle {
             drives,
             modules,
             procedures: vec![None; n],
+            cam_names,
         };
         for (channel, axis) in cycle.channels.iter_mut().zip(cycle.kernel.axes()) {
             if let Some(channel) = channel {
@@ -312,6 +328,12 @@ impl Cycle {
             }
         }
         Ok(cycle)
+    }
+
+    /// The configuration's cam tables' names and slots (none for a cycle made with
+    /// [`Cycle::new`]).
+    pub fn cam_names(&self) -> &[(usize, String)] {
+        &self.cam_names
     }
 
     /// The bus position of `axis`' drive, or of its encoder module for an external axis

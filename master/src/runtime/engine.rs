@@ -9,6 +9,7 @@ use gantry_kernel::axis::handle::{CommandStatus, HandleId};
 use gantry_kernel::axis::state::AxisState;
 
 use super::bus::{CycleBus, Reply, Restored};
+use super::cam::{CamDone, CamInfo, CamJob, CAM_QUEUE};
 use super::clock::{now_ns, Clock, CycleClock, Wake};
 use super::cycle::{Cycle, COMMUNICATION_FAULT};
 use super::phase::PhaseLock;
@@ -22,6 +23,7 @@ use super::stats::{CycleCounters, CycleFigures, CycleSample, CycleStats};
 use gantry_drives::cia402::objects;
 use gantry_drives::cia402::procedure::{ModeSwitch, ProcedureInputs};
 use gantry_drives::cia402::ModeOfOperation;
+use gantry_kernel::kernel::{CamSlotError, CAM_SLOTS};
 
 /// Requests taken per cycle at most (bounded work; the rest wait for the next cycle).
 const REQUESTS_PER_CYCLE: usize = 32;
@@ -98,6 +100,12 @@ pub struct AppEnds {
     pub sdo_jobs: rtrb::Producer<SdoJob>,
     /// How they ended.
     pub sdo_done: rtrb::Consumer<SdoDone>,
+    /// Cam tables to the cycle.
+    pub cam_jobs: rtrb::Producer<CamJob>,
+    /// How they ended, with the tables to drop.
+    pub cam_done: rtrb::Consumer<CamDone>,
+    /// The cam tables the cycle starts with (the configuration's).
+    pub cams: Vec<CamInfo>,
 }
 
 /// The channels between the cycle thread and the application, made before the bus goes
@@ -116,6 +124,8 @@ pub struct Channels {
     stats: (CycleStats, rtrb::Consumer<CycleSample>),
     sdo_jobs: (rtrb::Producer<SdoJob>, rtrb::Consumer<SdoJob>),
     sdo_done: (rtrb::Producer<SdoDone>, rtrb::Consumer<SdoDone>),
+    cam_jobs: (rtrb::Producer<CamJob>, rtrb::Consumer<CamJob>),
+    cam_done: (rtrb::Producer<CamDone>, rtrb::Consumer<CamDone>),
 }
 
 impl Channels {
@@ -128,6 +138,8 @@ impl Channels {
             stats: CycleStats::new(),
             sdo_jobs: rtrb::RingBuffer::new(SDO_QUEUE),
             sdo_done: rtrb::RingBuffer::new(SDO_QUEUE),
+            cam_jobs: rtrb::RingBuffer::new(CAM_QUEUE),
+            cam_done: rtrb::RingBuffer::new(CAM_QUEUE),
         }
     }
 }
@@ -187,6 +199,11 @@ pub struct Engine<B: CycleBus> {
     procedure_buffer: Option<SdoBuffer>,
     /// Procedures running on the axes' drives (see [`super::procedure`]).
     procedures: Vec<Option<Running>>,
+    cam_jobs: rtrb::Consumer<CamJob>,
+    cam_done: rtrb::Producer<CamDone>,
+    /// A cam outcome the application's queue had no room for, with its table: kept (never
+    /// dropped here) and handed on first; no other cam job is taken meanwhile.
+    cam_unsent: Option<CamDone>,
 }
 
 /// Who an SDO transfer is for.
@@ -236,6 +253,8 @@ impl<B: CycleBus> Engine<B> {
             stats: (stats, samples),
             sdo_jobs: (sdo_tx, sdo_rx),
             sdo_done: (done_tx, done_rx),
+            cam_jobs: (cam_tx, cam_rx),
+            cam_done: (cam_done_tx, cam_done_rx),
         } = channels;
         let axes = cycle.len();
         // Channels made for another number of axes: a snapshot that fits.
@@ -243,6 +262,14 @@ impl<B: CycleBus> Engine<B> {
             (snap_in, snap_out) = triple_buffer::triple_buffer(&Snapshot::sized(axes));
         }
         let recovery_timeout_ns = bus.restore_timeout_ns();
+        let cams = cycle
+            .cam_names()
+            .iter()
+            .filter_map(|(slot, name)| {
+                let table = cycle.kernel.cam_table(*slot)?;
+                Some(CamInfo::of(name, *slot, table))
+            })
+            .collect();
         let engine = Self {
             bus,
             cycle,
@@ -282,6 +309,9 @@ impl<B: CycleBus> Engine<B> {
             sdo_unsent: None,
             procedure_buffer: Some(SdoBuffer::with_capacity(procedure::SDO_BYTES)),
             procedures: vec![None; axes],
+            cam_jobs: cam_rx,
+            cam_done: cam_done_tx,
+            cam_unsent: None,
         };
         let app = AppEnds {
             requests: req_tx,
@@ -290,6 +320,9 @@ impl<B: CycleBus> Engine<B> {
             samples,
             sdo_jobs: sdo_tx,
             sdo_done: done_rx,
+            cam_jobs: cam_tx,
+            cam_done: cam_done_rx,
+            cams,
         };
         (engine, app)
     }
@@ -359,6 +392,7 @@ impl<B: CycleBus> Engine<B> {
     pub fn step(&mut self, wake: Wake) -> bool {
         let t0 = now_ns();
         self.take_requests();
+        self.take_cam_job();
         self.apply_seen_resets();
         self.mark_forced_faults();
         let _ = self.cycle.read_from(&self.bus);
@@ -690,6 +724,62 @@ impl<B: CycleBus> Engine<B> {
         match self.bus.start_sdo(&job.transfer, job.buffer, now_ns) {
             Ok(()) => self.sdo_active = Some(SdoOwner::App(job.id, job.transfer.direction)),
             Err(ended) => self.hand_back(SdoDone { id: job.id, ended }),
+        }
+    }
+
+    /// Takes the application's next cam job, if its last outcome is handed on: the table
+    /// goes into its slot and what the slot held goes back; refused (an axis cams on the
+    /// slot), the job's own table goes back. Checked here before the kernel is asked, so
+    /// that the kernel, which drops the table it refuses, never refuses one.
+    fn take_cam_job(&mut self) {
+        if let Some(done) = self.cam_unsent.take() {
+            self.hand_back_cam(done);
+            if self.cam_unsent.is_some() {
+                return;
+            }
+        }
+        let Ok(CamJob { id, slot, table }) = self.cam_jobs.pop() else {
+            return;
+        };
+        let user = self
+            .cycle
+            .kernel
+            .axes()
+            .iter()
+            .position(|a| a.cam_table_in_use() == Some(slot));
+        let done = match user {
+            _ if slot >= CAM_SLOTS => CamDone {
+                id,
+                result: Err(CamSlotError::NoSuchSlot { slot }),
+                table,
+            },
+            Some(axis) => CamDone {
+                id,
+                result: Err(CamSlotError::InUse { slot, axis }),
+                table,
+            },
+            None => match self.cycle.kernel.set_cam_table(slot, table) {
+                Ok(old) => CamDone {
+                    id,
+                    result: Ok(()),
+                    table: old,
+                },
+                // Not reached: both refusals are checked above.
+                Err(e) => CamDone {
+                    id,
+                    result: Err(e),
+                    table: None,
+                },
+            },
+        };
+        self.hand_back_cam(done);
+    }
+
+    /// Hands a cam outcome and its table to the application, or keeps it for the next
+    /// cycle if its queue is full.
+    fn hand_back_cam(&mut self, done: CamDone) {
+        if let Err(rtrb::PushError::Full(done)) = self.cam_done.push(done) {
+            self.cam_unsent = Some(done);
         }
     }
 

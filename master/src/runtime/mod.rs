@@ -3,6 +3,7 @@
 //! records.
 
 pub mod bus;
+pub mod cam;
 pub mod clock;
 pub mod controller;
 pub mod cycle;
