@@ -50,7 +50,7 @@ pub enum ControlError {
     CamUnnamed,
     /// Every cam slot holds a table: a new name finds none free.
     #[error(
-        "no free cam slot for {name:?}: all {CAM_SLOTS} hold tables (remove one, or replace          a table by loading it under its name)"
+        "no free cam slot for {name:?}: all {CAM_SLOTS} hold tables (remove one, or replace a table by loading it under its name)"
     )]
     CamSlotsFull {
         /// The new table's name.
@@ -600,6 +600,12 @@ impl SdoHandle {
 pub struct CamHandle {
     id: u64,
     controller: Controller,
+}
+
+impl std::fmt::Debug for CamHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CamHandle").field("id", &self.id).finish()
+    }
 }
 
 impl CamHandle {

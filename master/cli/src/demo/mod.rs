@@ -339,6 +339,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
         eds: vec![None; axes.len()],
         axes,
         kernel_axes,
+        cams: Vec::new(),
     })
 }
 
