@@ -5,6 +5,7 @@
 //! library (`gantry`) knows nothing of the simulator.
 #![deny(missing_docs)]
 
+pub mod cam;
 pub mod can_simulator;
 pub mod client;
 pub mod dcf;

@@ -221,6 +221,11 @@ enum Cmd {
         #[command(subcommand)]
         op: SdoOp,
     },
+    /// Cam tables of a running gantry: load one, list them.
+    Cam {
+        #[command(subcommand)]
+        op: CamOp,
+    },
     /// Write the DCF (CiA 306) of what the bring-up configures on an axis' CANopen node:
     /// its EDS (the axis' eds, or the simulated node's) with the node id, bit rate and
     /// every object the bring-up writes. Offline: no bus needed.
@@ -285,6 +290,36 @@ enum Cmd {
         /// Read one JSON request per line from stdin, write one JSON answer per line.
         #[arg(long)]
         batch: bool,
+    },
+}
+
+/// What `gantry cam` does.
+#[derive(Subcommand, Debug)]
+enum CamOp {
+    /// Load a cam table from a file (.csv or .toml; read here, sent as points) under a
+    /// name: a new name takes a free slot, a known one has its table replaced (refused
+    /// while an axis cams on it).
+    Load {
+        /// The table's name.
+        name: String,
+        /// The cam file.
+        file: PathBuf,
+        /// linear, cubic or quintic (default: a TOML file's, else cubic).
+        #[arg(long)]
+        interpolation: Option<String>,
+        /// The table repeats (default: a TOML file's, else not).
+        #[arg(long, conflicts_with = "non_periodic")]
+        periodic: bool,
+        /// The table does not repeat.
+        #[arg(long)]
+        non_periodic: bool,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// The cam tables loaded: slot, name, points, interpolation, range.
+    Tables {
+        #[command(flatten)]
+        client: ClientOpts,
     },
 }
 
@@ -787,6 +822,35 @@ fn finite(text: &str) -> Result<f64, String> {
     }
 }
 
+/// `gantry cam …`.
+fn cam_command(op: CamOp) -> anyhow::Result<()> {
+    match op {
+        CamOp::Load {
+            name,
+            file,
+            interpolation,
+            periodic,
+            non_periodic,
+            client: opts,
+        } => {
+            let periodic = match (periodic, non_periodic) {
+                (true, _) => Some(true),
+                (_, true) => Some(false),
+                _ => None,
+            };
+            let request =
+                gantry_cli::cam::load_request(&name, &file, interpolation.as_deref(), periodic)?;
+            let mut c = opts.connect()?;
+            gantry_cli::cam::load(&mut c, &request, opts.json, &mut std::io::stdout())?;
+        }
+        CamOp::Tables { client: opts } => {
+            let mut c = opts.connect()?;
+            gantry_cli::cam::tables(&mut c, opts.json, &mut std::io::stdout())?;
+        }
+    }
+    Ok(())
+}
+
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     if !matches!(cli.command, Cmd::Run { .. }) {
@@ -986,6 +1050,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 &mut std::io::stdout(),
             )?;
         }
+        Cmd::Cam { op } => cam_command(op)?,
         Cmd::Dcf { config, axis, out } => {
             println!("{}", gantry_cli::dcf::run(&config, &axis, &out)?);
         }

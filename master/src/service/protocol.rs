@@ -679,6 +679,27 @@ pub enum Request {
         /// Sub-index.
         sub: u8,
     },
+    /// Load a cam table under `name` (a new name takes a free slot, a known one has its
+    /// table replaced; refused while an axis cams on it): from `file` (.csv or .toml, as
+    /// the service sees it) or from `points`, exactly one of the two.
+    CamLoad {
+        /// The table's name.
+        name: String,
+        /// A cam file the service reads.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        file: Option<String>,
+        /// Or the points, `[master, slave]`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        points: Option<Vec<[f64; 2]>>,
+        /// `linear`, `cubic` or `quintic` (default: a TOML file's, else cubic).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        interpolation: Option<String>,
+        /// Whether the table repeats (default: a TOML file's, else false).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        periodic: Option<bool>,
+    },
+    /// The cam tables loaded, by slot.
+    CamTables,
     /// Quick-stop, disable, take the bus down and end the service.
     Shutdown,
 }
@@ -706,6 +727,8 @@ impl Request {
             Self::Trace { .. } => "trace",
             Self::Sdo { .. } => "sdo",
             Self::Object { .. } => "object",
+            Self::CamLoad { .. } => "cam_load",
+            Self::CamTables => "cam_tables",
             Self::Shutdown => "shutdown",
         }
     }
@@ -731,6 +754,8 @@ impl Request {
             | Self::Command { .. }
             | Self::Wait { .. }
             | Self::Trace { .. }
+            | Self::CamLoad { .. }
+            | Self::CamTables
             | Self::Shutdown => None,
         }
     }
@@ -932,6 +957,21 @@ mod tests {
                     skip: Some(false),
                 },
             },
+            Request::CamLoad {
+                name: "knife".into(),
+                file: None,
+                points: Some(vec![[0.0, 0.0], [90.0, 2.5], [180.0, 0.0]]),
+                interpolation: Some("quintic".into()),
+                periodic: Some(true),
+            },
+            Request::CamLoad {
+                name: "press".into(),
+                file: Some("/etc/gantry/cams/press.toml".into()),
+                points: None,
+                interpolation: None,
+                periodic: None,
+            },
+            Request::CamTables,
             Request::Shutdown,
         ]
     }
@@ -962,11 +1002,13 @@ mod tests {
             Request::Commission { .. } => 17,
             Request::Procedure { .. } => 18,
             Request::DriveHome { .. } => 19,
+            Request::CamLoad { .. } => 20,
+            Request::CamTables => 21,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..20).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..22).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 20, "{words:?}");
+        assert_eq!(words.len(), 22, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

@@ -295,6 +295,15 @@ pub enum Refused {
     /// An `object` request for an object the drive's EDS does not have.
     #[error(transparent)]
     Object(crate::canopen::eds::SdoEdsError),
+    /// A `cam_load` with neither or both of `file` and `points`.
+    #[error("cam_load: give the table's file or its points, one of the two")]
+    CamSource,
+    /// An interpolation gantry does not know.
+    #[error("cam_load: interpolation {0:?} is none of linear, cubic, quintic")]
+    CamInterpolation(String),
+    /// The cam file or the points are not a table.
+    #[error(transparent)]
+    CamFile(#[from] crate::cam::CamFileError),
     /// An axis beyond those the trace records.
     #[error(
         "only the first {} axes are traced",
@@ -359,6 +368,56 @@ async fn sdo(
         .map_err(|_| Refused::Control(ControlError::Ended))??;
     let data = outcome?;
     Ok(json!({ "drive": drive, "data": to_hex(data.as_slice()) }))
+}
+
+/// A cam table as the socket shows it.
+fn cam_json(c: &crate::runtime::cam::CamInfo) -> Value {
+    json!({
+        "name": c.name,
+        "slot": c.slot,
+        "points": c.points,
+        "interpolation": c.interpolation.name(),
+        "periodic": c.periodic,
+        "master_range": [c.master_range.0, c.master_range.1],
+        "slave_rise": c.slave_rise,
+    })
+}
+
+/// `cam_load`: the table made from the file or the points, handed to the cycle thread
+/// and waited for (in a blocking thread: the controller polls its outcome); the table as
+/// loaded.
+async fn cam_load(
+    state: &ServerState,
+    name: String,
+    file: Option<String>,
+    points: Option<Vec<[f64; 2]>>,
+    interpolation: Option<String>,
+    periodic: Option<bool>,
+) -> Result<Value, Refused> {
+    let interpolation = match interpolation {
+        None => None,
+        Some(s) => Some(
+            gantry_kernel::cam::Interpolation::from_name(&s).ok_or(Refused::CamInterpolation(s))?,
+        ),
+    };
+    let table = match (file, points) {
+        (Some(file), None) => {
+            crate::cam::load_cam_file(std::path::Path::new(&file), interpolation, periodic)?
+        }
+        (None, Some(points)) => crate::cam::cam_from_points(&points, interpolation, periodic)?,
+        _ => return Err(Refused::CamSource),
+    };
+    let handle = state.controller.load_cam(&name, table)?;
+    let slot = tokio::task::spawn_blocking(move || handle.wait(Duration::from_secs(5)))
+        .await
+        .map_err(|_| Refused::Control(ControlError::Ended))??;
+    let info = state
+        .controller
+        .cam_tables()
+        .into_iter()
+        .find(|c| c.slot == slot)
+        .ok_or_else(|| Refused::Control(ControlError::NoCam(name)))?;
+    Ok(cam_json(&info))
 }
 
 /// The bus position of the drive an SDO request names, and the axis it drives (none
@@ -744,6 +803,16 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             index,
             sub,
         } => object(state, a, drive, index, sub),
+        Request::CamLoad {
+            name,
+            file,
+            points,
+            interpolation,
+            periodic,
+        } => cam_load(state, name, file, points, interpolation, periodic).await,
+        Request::CamTables => Ok(json!({
+            "tables": ctl.cam_tables().iter().map(cam_json).collect::<Vec<_>>()
+        })),
         Request::Command { handle } => {
             let h = find(state, handle)?;
             Ok(h.status().map_or(json!({"status": "Pending"}), status_name))
