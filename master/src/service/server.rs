@@ -416,7 +416,7 @@ async fn cam_load(
         .cam_tables()
         .into_iter()
         .find(|c| c.slot == slot)
-        .ok_or_else(|| Refused::Control(ControlError::NoCam(name)))?;
+        .ok_or(Refused::Control(ControlError::NoCam(name)))?;
     Ok(cam_json(&info))
 }
 
