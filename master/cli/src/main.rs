@@ -8,7 +8,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
     BufferMode, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection,
-    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams,
+    LockDirection, MasterSource, MoveMode, Request as Line, StepDirection, StepSwitchMode,
+    StepSwitchParams,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -88,16 +89,24 @@ impl AxisCommand {
                 axis,
                 direction,
                 speed,
+                master,
+                lock,
+                lock_position,
                 client,
             } => (
                 Line::Jog {
                     axis,
                     direction,
                     speed,
+                    master,
+                    lock,
+                    lock_position,
                 },
                 true,
                 client,
             ),
+            // A gear runs until geared out: nothing to wait for (the status shows InGear).
+            AxisCmd::Gear { axis, args, client } => (args.request(axis)?, true, client),
             AxisCmd::Halt { axis, client } => (Line::Halt { axis }, false, client),
             AxisCmd::Stop { axis, client } => (Line::Stop { axis }, false, client),
             AxisCmd::Release { axis, client } => (Line::Release { axis }, false, client),
@@ -654,9 +663,31 @@ enum AxisCmd {
         /// + or - (or positive, negative).
         #[arg(long, allow_hyphen_values = true)]
         direction: JogDirection,
-        /// Speed (units/s).
+        /// Speed (units/s; with --master, units per master unit).
         #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         speed: f64,
+        /// Drive the jog by this master axis (Logix MAJ with MDAC): the axis moves --speed
+        /// of its units per master unit while the lock holds.
+        #[arg(long)]
+        master: Option<String>,
+        /// When a master-driven jog follows: none (both ways, from the start),
+        /// immediate-forward, immediate-reverse, position-forward, position-reverse.
+        #[arg(long, requires = "master")]
+        lock: Option<LockDirection>,
+        /// The master position of the position-* locks.
+        #[arg(long, requires = "master", allow_negative_numbers = true, value_parser = finite)]
+        lock_position: Option<f64>,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Gear an axis to a master at a ratio (PLCopen MC_GearIn; with --sync in sync at given
+    /// positions, MC_GearInPos), or end the gearing with --out (MC_GearOut: the axis goes
+    /// on at its velocity). Returns at once; `gantry status` shows InGear.
+    Gear {
+        /// Axis name (the follower).
+        axis: String,
+        #[command(flatten)]
+        args: Box<GearArgs>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -776,6 +807,91 @@ enum SdoOp {
 }
 
 /// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
+/// `gantry gear`'s arguments.
+#[derive(clap::Args, Debug)]
+struct GearArgs {
+    /// The master axis.
+    #[arg(long, required_unless_present = "out")]
+    master: Option<String>,
+    /// Follower units per master unit as NUMERATOR:DENOMINATOR (3:2, -1:4) or NUMERATOR.
+    #[arg(long, required_unless_present = "out", allow_hyphen_values = true, value_parser = ratio)]
+    ratio: Option<(i32, u32)>,
+    /// Follow the master's actual values (its encoder) instead of its set values.
+    #[arg(long)]
+    actual: bool,
+    /// Catch-up acceleration (units/s²; default the axis').
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Catch-up deceleration (units/s²).
+    #[arg(long, value_parser = finite)]
+    deceleration: Option<f64>,
+    /// Catch-up jerk (units/s³).
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+    /// In sync at MASTER_POSITION:SLAVE_POSITION (MC_GearInPos).
+    #[arg(long, allow_hyphen_values = true, value_parser = position_pair)]
+    sync: Option<(f64, f64)>,
+    /// With --sync: the master distance before its sync position over which the axis
+    /// catches up (it stands until then).
+    #[arg(long, requires = "sync", value_parser = finite)]
+    start_distance: Option<f64>,
+    /// End the gearing (MC_GearOut).
+    #[arg(long, conflicts_with_all = ["master", "ratio", "actual", "sync"])]
+    out: bool,
+}
+
+impl GearArgs {
+    fn request(&self, axis: String) -> Result<Line, String> {
+        if self.out {
+            return Ok(Line::GearOut { axis });
+        }
+        let (Some(master), Some((numerator, denominator))) = (self.master.clone(), self.ratio)
+        else {
+            return Err("gear: --master and --ratio are needed (or --out)".into());
+        };
+        Ok(Line::Gear {
+            axis,
+            master,
+            numerator,
+            denominator,
+            source: self.actual.then_some(MasterSource::Actual),
+            acceleration: self.acceleration,
+            deceleration: self.deceleration,
+            jerk: self.jerk,
+            master_sync_position: self.sync.map(|s| s.0),
+            slave_sync_position: self.sync.map(|s| s.1),
+            master_start_distance: self.start_distance,
+        })
+    }
+}
+
+/// A gear ratio: `N:D` or `N` (D = 1); D > 0, N ≠ 0.
+fn ratio(text: &str) -> Result<(i32, u32), String> {
+    let (n, d) = text.split_once(':').unwrap_or((text, "1"));
+    let n: i32 = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?}: the numerator {n:?} is not a whole number"))?;
+    let d: u32 = d
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?}: the denominator {d:?} is not a whole number > 0"))?;
+    if d == 0 || n == 0 {
+        return Err(format!(
+            "{text:?}: numerator and denominator must not be 0 (NUMERATOR:DENOMINATOR, e.g. 3:2)"
+        ));
+    }
+    Ok((n, d))
+}
+
+/// Two positions `A:B`.
+fn position_pair(text: &str) -> Result<(f64, f64), String> {
+    let (a, b) = text
+        .split_once(':')
+        .ok_or_else(|| format!("{text:?} is not MASTER_POSITION:SLAVE_POSITION"))?;
+    Ok((finite(a.trim())?, finite(b.trim())?))
+}
+
 fn finite(text: &str) -> Result<f64, String> {
     let value: f64 = text
         .parse()
@@ -1196,6 +1312,9 @@ mod tests {
                     axis: x(),
                     direction: JogDirection::Negative,
                     speed: 20.0,
+                    master: None,
+                    lock: None,
+                    lock_position: None,
                 },
                 true,
             ),
@@ -1205,9 +1324,85 @@ mod tests {
                     axis: x(),
                     direction: JogDirection::Positive,
                     speed: 5.0,
+                    master: None,
+                    lock: None,
+                    lock_position: None,
                 },
                 true,
             ),
+            (
+                &[
+                    "jog",
+                    "x",
+                    "--direction",
+                    "+",
+                    "--speed",
+                    "0.5",
+                    "--master",
+                    "m",
+                    "--lock",
+                    "position-forward",
+                    "--lock-position",
+                    "-90",
+                ],
+                Line::Jog {
+                    axis: x(),
+                    direction: JogDirection::Positive,
+                    speed: 0.5,
+                    master: Some("m".into()),
+                    lock: Some(LockDirection::PositionForward),
+                    lock_position: Some(-90.0),
+                },
+                true,
+            ),
+            (
+                &["gear", "x", "--master", "m", "--ratio", "-3:2", "--actual"],
+                Line::Gear {
+                    axis: x(),
+                    master: "m".into(),
+                    numerator: -3,
+                    denominator: 2,
+                    source: Some(MasterSource::Actual),
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    master_sync_position: None,
+                    slave_sync_position: None,
+                    master_start_distance: None,
+                },
+                true,
+            ),
+            (
+                &[
+                    "gear",
+                    "x",
+                    "--master",
+                    "m",
+                    "--ratio",
+                    "2",
+                    "--sync",
+                    "90:-10",
+                    "--start-distance",
+                    "45",
+                    "--acceleration",
+                    "100",
+                ],
+                Line::Gear {
+                    axis: x(),
+                    master: "m".into(),
+                    numerator: 2,
+                    denominator: 1,
+                    source: None,
+                    acceleration: Some(100.0),
+                    deceleration: None,
+                    jerk: None,
+                    master_sync_position: Some(90.0),
+                    slave_sync_position: Some(-10.0),
+                    master_start_distance: Some(45.0),
+                },
+                true,
+            ),
+            (&["gear", "x", "--out"], Line::GearOut { axis: x() }, true),
             (
                 &[
                     "home",

@@ -236,6 +236,12 @@ impl Controller {
         }
     }
 
+    /// The slot of the cam table called `name` (names come with the cam tables).
+    pub fn cam_slot(&self, name: &str) -> Option<usize> {
+        let _ = name;
+        None
+    }
+
     /// Starts an SDO transfer on the bus, beside the process data
     /// ([`crate::runtime::bus::CycleBus::start_sdo`]); its outcome follows on the handle.
     /// Data to write larger than [`Controller::sdo_max_bytes`] ends at once with
