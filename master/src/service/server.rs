@@ -1178,3 +1178,38 @@ pub fn default_socket() -> PathBuf {
             PathBuf::from(format!("/tmp/gantry-{uid}.sock"))
         })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_master_named_by_index_is_named_by_its_axis_name_too() {
+        let axes: Vec<String> = ["x", "y", "z", "e"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(
+            fault_text(&AxisFault::MasterLost { master: 3 }, &axes),
+            "master axis 3 (e) became unavailable (its encoder or drive failed)"
+        );
+        let e = CommandError::BadMaster {
+            command: "GearIn",
+            master: 0,
+            why: "it follows this axis: the relations would go round in a loop",
+        };
+        assert_eq!(
+            command_error_text(&e, &axes),
+            "GearIn: axis 0 (x) cannot be this axis' master (it follows this axis: the \
+             relations would go round in a loop)"
+        );
+        // An index the service does not know stays as the kernel wrote it.
+        let e = CommandError::MasterNotAvailable {
+            command: "CamIn",
+            master: 9,
+        };
+        assert_eq!(command_error_text(&e, &axes), e.to_string());
+        assert_eq!(
+            fault_text(&AxisFault::Encoder { code: 0x8130 }, &axes),
+            "encoder input failed 0x8130: the module's values stopped changing (TxPDO Toggle \
+             frozen)"
+        );
+    }
+}
