@@ -597,7 +597,8 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `type`, `source`, `encoder_input`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`, \
+         `sync_limit`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -1352,6 +1353,31 @@ fn on_canopen_only_real_axes_are_nodes_and_external_axes_are_refused() {
         .to_string();
     assert!(
         e.contains("axis[0].type: an external axis reads an EtherCAT encoder module"),
+        "{e}"
+    );
+}
+
+#[test]
+fn sync_limit_is_errorstop_by_default_warning_when_told_and_a_wrong_word_is_named() {
+    use gantry_kernel::axis::SyncLimitReaction;
+    let text = typed(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\nsync_limit = \"warning\"\n{MAX}"
+    ));
+    let c = Config::parse(&text, "k.toml").unwrap();
+    assert_eq!(
+        c.kernel_axes[0].sync_limit_reaction,
+        SyncLimitReaction::ErrorStop
+    );
+    assert_eq!(
+        c.kernel_axes[1].sync_limit_reaction,
+        SyncLimitReaction::Warning
+    );
+    let bad = typed(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\nsync_limit = \"ignore\"\n{MAX}"
+    ));
+    let e = Config::parse(&bad, "k.toml").unwrap_err().to_string();
+    assert!(
+        e.contains("sync_limit") && e.contains("ignore") && e.contains("warning"),
         "{e}"
     );
 }
