@@ -17,6 +17,9 @@ use crate::profile::{KinematicState, Profile};
 use super::MasterSample;
 
 /// The catch-up of a relation.
+// Inline on purpose (the profile is the largest): boxed, starting a relation in the cycle
+// would allocate.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Catch {
     /// `e` runs a profile in time from `epoch`.

@@ -95,6 +95,31 @@ impl Client {
         }
     }
 
+    /// Waits until the cycle has taken command `handle` (its status is no longer Pending
+    /// or Busy), at most `timeout`; an Error status is returned as the error.
+    pub fn taken(&mut self, handle: u64, timeout: Duration) -> Result<(), ClientError> {
+        let end = Instant::now() + timeout;
+        loop {
+            let s = self.request(&Request::Command { handle })?;
+            match s["status"].as_str() {
+                Some("Error") if s["names_cause"] == json!(true) => {
+                    return Err(ClientError::Explained(
+                        s["error"].as_str().unwrap_or("error").to_string(),
+                    ))
+                }
+                Some("Error") => {
+                    return Err(ClientError::Failed(
+                        s["error"].as_str().unwrap_or("error").to_string(),
+                    ))
+                }
+                Some("Pending" | "Busy") if Instant::now() < end => {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+                _ => return Ok(()),
+            }
+        }
+    }
+
     /// Waits for `handle` to be final; on a terminal, shows `progress` every 100 ms.
     pub fn wait(
         &mut self,
@@ -376,12 +401,22 @@ pub fn command(
     // last).
     let step_switch = sent["method"].as_str() == Some("step-to-switch");
     if no_wait {
+        // Not waiting for the end, but for the cycle to take it: a refusal (no such
+        // master, a loop, not allowed in this state) is this command's error.
+        client.taken(handle, Duration::from_secs(5))?;
         if json_out {
             writeln!(out, "{}", json!({"handle": handle})).map_err(io)?;
         } else if cmd == "jog" {
             writeln!(
                 out,
                 "{axis}: jogging (handle {handle}); `gantry halt {axis}` stops it"
+            )
+            .map_err(io)?;
+        } else if cmd == "gear" || cmd == "cam" {
+            writeln!(
+                out,
+                "{axis}: following (handle {handle}); `gantry status` shows when it is in \
+                 sync, `gantry {cmd} {axis} --out` ends it"
             )
             .map_err(io)?;
         } else {

@@ -7,8 +7,9 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
-    BufferMode, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches, JogDirection,
-    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams,
+    BufferMode, CamStartMode, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches,
+    JogDirection, LockDirection, MasterSource, MoveMode, Request as Line, StepDirection,
+    StepSwitchMode, StepSwitchParams,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -88,16 +89,24 @@ impl AxisCommand {
                 axis,
                 direction,
                 speed,
+                master,
+                lock,
+                lock_position,
                 client,
             } => (
                 Line::Jog {
                     axis,
                     direction,
                     speed,
+                    master,
+                    lock,
+                    lock_position,
                 },
                 true,
                 client,
             ),
+            // A gear runs until geared out: nothing to wait for (the status shows InGear).
+            AxisCmd::Gear { axis, args, client } => (args.request(axis)?, true, client),
             AxisCmd::Halt { axis, client } => (Line::Halt { axis }, false, client),
             AxisCmd::Stop { axis, client } => (Line::Stop { axis }, false, client),
             AxisCmd::Release { axis, client } => (Line::Release { axis }, false, client),
@@ -321,6 +330,86 @@ enum CamOp {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// Cam an axis to a master through a table (PLCopen MC_CamIn). Returns once the cycle
+    /// has taken it; `gantry status` shows when it is in sync and each end of profile.
+    In {
+        /// Axis name (the follower).
+        axis: String,
+        #[command(flatten)]
+        args: Box<CamInArgs>,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// End camming (PLCopen MC_CamOut): the axis goes on at its velocity.
+    Out {
+        /// Axis name.
+        axis: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+}
+
+/// `gantry cam in`'s arguments.
+#[derive(clap::Args, Debug)]
+struct CamInArgs {
+    /// The master axis.
+    #[arg(long)]
+    master: String,
+    /// The cam table's name (`gantry cam tables`).
+    #[arg(long)]
+    table: String,
+    /// Run through the table once (EndOfProfile at its end), not periodically.
+    #[arg(long)]
+    once: bool,
+    /// Start the table where the master is and add it to the axis' position (PLCopen
+    /// relative); default absolute: the table's axes are the master's and the axis'
+    /// positions.
+    #[arg(long)]
+    relative: bool,
+    /// Follow the master's actual values (its encoder) instead of its set values.
+    #[arg(long)]
+    actual: bool,
+    /// Shift of the table's master coordinate.
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    master_offset: Option<f64>,
+    /// Shift of the axis (its units).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    slave_offset: Option<f64>,
+    /// Table master units per master unit.
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    master_scaling: Option<f64>,
+    /// Axis units per table slave unit.
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    slave_scaling: Option<f64>,
+    /// Catch-up acceleration (units/s²; default the axis').
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Catch-up deceleration (units/s²).
+    #[arg(long, value_parser = finite)]
+    deceleration: Option<f64>,
+    /// Catch-up jerk (units/s³).
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+}
+
+impl CamInArgs {
+    fn request(&self, axis: String) -> Line {
+        Line::Cam {
+            axis,
+            master: self.master.clone(),
+            table: self.table.clone(),
+            periodic: self.once.then_some(false),
+            start: self.relative.then_some(CamStartMode::Relative),
+            source: self.actual.then_some(MasterSource::Actual),
+            master_offset: self.master_offset,
+            slave_offset: self.slave_offset,
+            master_scaling: self.master_scaling,
+            slave_scaling: self.slave_scaling,
+            acceleration: self.acceleration,
+            deceleration: self.deceleration,
+            jerk: self.jerk,
+        }
+    }
 }
 
 /// What `gantry commission` does.
@@ -689,9 +778,31 @@ enum AxisCmd {
         /// + or - (or positive, negative).
         #[arg(long, allow_hyphen_values = true)]
         direction: JogDirection,
-        /// Speed (units/s).
+        /// Speed (units/s; with --master, units per master unit).
         #[arg(long, allow_negative_numbers = true, value_parser = finite)]
         speed: f64,
+        /// Drive the jog by this master axis (Logix MAJ with MDAC): the axis moves --speed
+        /// of its units per master unit while the lock holds.
+        #[arg(long)]
+        master: Option<String>,
+        /// When a master-driven jog follows: none (both ways, from the start),
+        /// immediate-forward, immediate-reverse, position-forward, position-reverse.
+        #[arg(long, requires = "master")]
+        lock: Option<LockDirection>,
+        /// The master position of the position-* locks.
+        #[arg(long, requires = "master", allow_negative_numbers = true, value_parser = finite)]
+        lock_position: Option<f64>,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Gear an axis to a master at a ratio (PLCopen MC_GearIn; with --sync in sync at given
+    /// positions, MC_GearInPos), or end the gearing with --out (MC_GearOut: the axis goes
+    /// on at its velocity). Returns at once; `gantry status` shows InGear.
+    Gear {
+        /// Axis name (the follower).
+        axis: String,
+        #[command(flatten)]
+        args: Box<GearArgs>,
         #[command(flatten)]
         client: ClientOpts,
     },
@@ -811,6 +922,91 @@ enum SdoOp {
 }
 
 /// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
+/// `gantry gear`'s arguments.
+#[derive(clap::Args, Debug)]
+struct GearArgs {
+    /// The master axis.
+    #[arg(long, required_unless_present = "out")]
+    master: Option<String>,
+    /// Follower units per master unit as NUMERATOR:DENOMINATOR (3:2, -1:4) or NUMERATOR.
+    #[arg(long, required_unless_present = "out", allow_hyphen_values = true, value_parser = ratio)]
+    ratio: Option<(i32, u32)>,
+    /// Follow the master's actual values (its encoder) instead of its set values.
+    #[arg(long)]
+    actual: bool,
+    /// Catch-up acceleration (units/s²; default the axis').
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Catch-up deceleration (units/s²).
+    #[arg(long, value_parser = finite)]
+    deceleration: Option<f64>,
+    /// Catch-up jerk (units/s³).
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+    /// In sync at MASTER_POSITION:SLAVE_POSITION (MC_GearInPos).
+    #[arg(long, allow_hyphen_values = true, value_parser = position_pair)]
+    sync: Option<(f64, f64)>,
+    /// With --sync: the master distance before its sync position over which the axis
+    /// catches up (it stands until then).
+    #[arg(long, requires = "sync", value_parser = finite)]
+    start_distance: Option<f64>,
+    /// End the gearing (MC_GearOut).
+    #[arg(long, conflicts_with_all = ["master", "ratio", "actual", "sync"])]
+    out: bool,
+}
+
+impl GearArgs {
+    fn request(&self, axis: String) -> Result<Line, String> {
+        if self.out {
+            return Ok(Line::GearOut { axis });
+        }
+        let (Some(master), Some((numerator, denominator))) = (self.master.clone(), self.ratio)
+        else {
+            return Err("gear: --master and --ratio are needed (or --out)".into());
+        };
+        Ok(Line::Gear {
+            axis,
+            master,
+            numerator,
+            denominator,
+            source: self.actual.then_some(MasterSource::Actual),
+            acceleration: self.acceleration,
+            deceleration: self.deceleration,
+            jerk: self.jerk,
+            master_sync_position: self.sync.map(|s| s.0),
+            slave_sync_position: self.sync.map(|s| s.1),
+            master_start_distance: self.start_distance,
+        })
+    }
+}
+
+/// A gear ratio: `N:D` or `N` (D = 1); D > 0, N ≠ 0.
+fn ratio(text: &str) -> Result<(i32, u32), String> {
+    let (n, d) = text.split_once(':').unwrap_or((text, "1"));
+    let n: i32 = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?}: the numerator {n:?} is not a whole number"))?;
+    let d: u32 = d
+        .trim()
+        .parse()
+        .map_err(|_| format!("{text:?}: the denominator {d:?} is not a whole number > 0"))?;
+    if d == 0 || n == 0 {
+        return Err(format!(
+            "{text:?}: numerator and denominator must not be 0 (NUMERATOR:DENOMINATOR, e.g. 3:2)"
+        ));
+    }
+    Ok((n, d))
+}
+
+/// Two positions `A:B`.
+fn position_pair(text: &str) -> Result<(f64, f64), String> {
+    let (a, b) = text
+        .split_once(':')
+        .ok_or_else(|| format!("{text:?} is not MASTER_POSITION:SLAVE_POSITION"))?;
+    Ok((finite(a.trim())?, finite(b.trim())?))
+}
+
 fn finite(text: &str) -> Result<f64, String> {
     let value: f64 = text
         .parse()
@@ -847,8 +1043,32 @@ fn cam_command(op: CamOp) -> anyhow::Result<()> {
             let mut c = opts.connect()?;
             gantry_cli::cam::tables(&mut c, opts.json, &mut std::io::stdout())?;
         }
+        op @ (CamOp::In { .. } | CamOp::Out { .. }) => {
+            if let Some(c) = cam_axis_command(op) {
+                c.send()?;
+            }
+        }
     }
     Ok(())
+}
+
+/// `gantry cam in` / `gantry cam out` as the one-axis command they are (`None` for the
+/// table commands). A cam runs until cammed out (or a non-periodic table's end): nothing
+/// to wait for but the cycle taking it.
+fn cam_axis_command(op: CamOp) -> Option<AxisCommand> {
+    match op {
+        CamOp::In { axis, args, client } => Some(AxisCommand {
+            request: args.request(axis),
+            no_wait: true,
+            opts: client,
+        }),
+        CamOp::Out { axis, client } => Some(AxisCommand {
+            request: Line::CamOut { axis },
+            no_wait: true,
+            opts: client,
+        }),
+        CamOp::Load { .. } | CamOp::Tables { .. } => None,
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -1165,10 +1385,13 @@ mod tests {
     fn sent(args: &[&str]) -> (Line, bool) {
         let cli = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))
             .unwrap_or_else(|e| panic!("{args:?}: {e}"));
-        let Cmd::Axis(cmd) = cli.command else {
-            panic!("{args:?} is not a one-axis command");
+        let command = match cli.command {
+            Cmd::Axis(cmd) => AxisCommand::of(cmd).unwrap_or_else(|e| panic!("{args:?}: {e}")),
+            Cmd::Cam { op } => {
+                cam_axis_command(op).unwrap_or_else(|| panic!("{args:?}: a table command"))
+            }
+            _ => panic!("{args:?} is not a one-axis command"),
         };
-        let command = AxisCommand::of(cmd).unwrap_or_else(|e| panic!("{args:?}: {e}"));
         let line = command.request.to_line().unwrap();
         let parsed = protocol::parse(&line).unwrap_or_else(|e| panic!("{line}: {e}"));
         assert_eq!(parsed, command.request, "{line}");
@@ -1261,6 +1484,9 @@ mod tests {
                     axis: x(),
                     direction: JogDirection::Negative,
                     speed: 20.0,
+                    master: None,
+                    lock: None,
+                    lock_position: None,
                 },
                 true,
             ),
@@ -1270,9 +1496,119 @@ mod tests {
                     axis: x(),
                     direction: JogDirection::Positive,
                     speed: 5.0,
+                    master: None,
+                    lock: None,
+                    lock_position: None,
                 },
                 true,
             ),
+            (
+                &[
+                    "jog",
+                    "x",
+                    "--direction",
+                    "+",
+                    "--speed",
+                    "0.5",
+                    "--master",
+                    "m",
+                    "--lock",
+                    "position-forward",
+                    "--lock-position",
+                    "-90",
+                ],
+                Line::Jog {
+                    axis: x(),
+                    direction: JogDirection::Positive,
+                    speed: 0.5,
+                    master: Some("m".into()),
+                    lock: Some(LockDirection::PositionForward),
+                    lock_position: Some(-90.0),
+                },
+                true,
+            ),
+            (
+                &["gear", "x", "--master", "m", "--ratio", "-3:2", "--actual"],
+                Line::Gear {
+                    axis: x(),
+                    master: "m".into(),
+                    numerator: -3,
+                    denominator: 2,
+                    source: Some(MasterSource::Actual),
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    master_sync_position: None,
+                    slave_sync_position: None,
+                    master_start_distance: None,
+                },
+                true,
+            ),
+            (
+                &[
+                    "gear",
+                    "x",
+                    "--master",
+                    "m",
+                    "--ratio",
+                    "2",
+                    "--sync",
+                    "90:-10",
+                    "--start-distance",
+                    "45",
+                    "--acceleration",
+                    "100",
+                ],
+                Line::Gear {
+                    axis: x(),
+                    master: "m".into(),
+                    numerator: 2,
+                    denominator: 1,
+                    source: None,
+                    acceleration: Some(100.0),
+                    deceleration: None,
+                    jerk: None,
+                    master_sync_position: Some(90.0),
+                    slave_sync_position: Some(-10.0),
+                    master_start_distance: Some(45.0),
+                },
+                true,
+            ),
+            (&["gear", "x", "--out"], Line::GearOut { axis: x() }, true),
+            (
+                &[
+                    "cam",
+                    "in",
+                    "x",
+                    "--master",
+                    "m",
+                    "--table",
+                    "knife",
+                    "--once",
+                    "--relative",
+                    "--slave-offset",
+                    "-5",
+                    "--master-scaling",
+                    "0.5",
+                ],
+                Line::Cam {
+                    axis: x(),
+                    master: "m".into(),
+                    table: "knife".into(),
+                    periodic: Some(false),
+                    start: Some(CamStartMode::Relative),
+                    source: None,
+                    master_offset: None,
+                    slave_offset: Some(-5.0),
+                    master_scaling: Some(0.5),
+                    slave_scaling: None,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                },
+                true,
+            ),
+            (&["cam", "out", "x"], Line::CamOut { axis: x() }, true),
             (
                 &[
                     "home",

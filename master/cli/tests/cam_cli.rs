@@ -6,7 +6,7 @@
 
 mod support;
 
-use support::Service;
+use support::{chain_riding_through_stalls, riding_through_stalls, Service};
 
 fn cams(file: &str) -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/../../deploy/cams/").to_string() + file
@@ -104,4 +104,85 @@ fn gantry_cam_loads_and_lists_tables_of_a_running_service() {
     assert_eq!(listed["tables"].as_array().unwrap().len(), 3, "{listed}");
     let (status, out) = svc.terminate();
     assert!(status.success(), "{out}");
+}
+
+/// The example with a cam table `press` (50·(1 − cos θ) over 0..360°, periodic) and a
+/// virtual rotary master `m` after its axes.
+fn with_press_and_master(config: String) -> String {
+    let press = cams("eccentric.toml");
+    format!(
+        "{config}\n[[cam]]\nname = \"press\"\nfile = {press:?}\n\n\
+         [[axis]]\nname = \"m\"\ntype = \"virtual\"\nkind = \"rotary\"\nunits = \"deg\"\n\
+         modulo = 360.0\nmax = {{ speed = 360.0, acceleration = 3600.0, jerk = 36000.0 }}\n"
+    )
+}
+
+#[test]
+fn gantry_cam_in_and_out_follow_the_table_on_the_drives() {
+    let mut svc = Service::start_edited(
+        "cam-in-cli",
+        |c| with_press_and_master(riding_through_stalls(c)),
+        chain_riding_through_stalls,
+    );
+    for a in ["x", "y", "z", "c", "m"] {
+        svc.ok(&["enable", a]);
+    }
+    svc.ok(&["jog", "m", "--direction", "+", "--speed", "90"]);
+    let out = svc.ok(&["cam", "in", "y", "--master", "m", "--table", "press"]);
+    assert!(out.contains("y: following"), "{out}");
+    // Every drive of the example takes part (the drive invariant judges them all).
+    svc.ok(&["gear", "x", "--master", "m", "--ratio", "1:10"]);
+    svc.ok(&["gear", "z", "--master", "m", "--ratio", "1:20"]);
+    svc.ok(&[
+        "cam",
+        "in",
+        "c",
+        "--master",
+        "m",
+        "--table",
+        "press",
+        "--relative",
+    ]);
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    let st = svc.status();
+    let axis = |name: &str| {
+        st["axes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|a| a["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    let (y, m) = (axis("y"), axis("m"));
+    assert_eq!(y["sync"]["camming"], true, "{y}");
+    assert_eq!(y["sync"]["in_sync"], true, "{y}");
+    assert_eq!(y["sync"]["master"], "m", "{y}");
+    // On the table: the eccentric's stroke at the master's angle (the table's 13 points
+    // are within 0.011 mm of the cosine).
+    let theta = m["set_position"].as_f64().unwrap().to_radians();
+    let stroke = 50.0 * (1.0 - theta.cos());
+    let got = y["set_position"].as_f64().unwrap();
+    assert!(
+        (got - stroke).abs() < 0.011,
+        "y {got} at m {theta} rad: {stroke}"
+    );
+    // A table in use is not replaced.
+    let e = svc.fails(&["cam", "load", "press", &cams("eccentric.toml")]);
+    assert!(e.contains("in use by axis"), "{e}");
+    // A table that is not there.
+    let e = svc.fails(&["cam", "in", "z", "--master", "m", "--table", "nope"]);
+    assert!(e.contains("no cam table \"nope\""), "{e}");
+    // Cam out: y goes on at its velocity (ContinuousMotion), then everything halts.
+    svc.ok(&["cam", "out", "y"]);
+    let y = svc.axis("y");
+    assert_eq!(y["state"], "ContinuousMotion", "{y}");
+    let e = svc.fails(&["cam", "out", "y"]);
+    assert!(e.contains("CamOut"), "{e}");
+    for a in ["x", "y", "z", "c", "m"] {
+        svc.ok(&["halt", a]);
+    }
+    let (status, out) = svc.terminate();
+    assert!(status.success(), "{out}");
+    svc.assert_drive_invariant();
 }

@@ -106,6 +106,12 @@ pub struct AxisSection {
     /// only when told so"). Refused for an incremental encoder.
     #[serde(default)]
     pub homed_at_start: bool,
+    /// What the axis does when a master it follows (gear, cam, master-driven jog) asks
+    /// more than its own speed, acceleration, deceleration or direction allow:
+    /// `"errorstop"` (default: ErrorStop naming the quantity, braking from the last values
+    /// within the limits) or `"warning"` (it follows on and its status says so).
+    #[serde(default)]
+    pub sync_limit: SyncLimit,
 }
 
 /// `encoder` of `[[axis]]`.
@@ -117,6 +123,17 @@ pub enum Encoder {
     Incremental,
     /// Reads the same at the same place after a power-off (multi-turn absolute).
     Absolute,
+}
+
+/// `sync_limit` of `[[axis]]`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum SyncLimit {
+    /// ErrorStop.
+    #[default]
+    ErrorStop,
+    /// Follow on, status bit set.
+    Warning,
 }
 
 /// `drive` as read when the file does not give it.
@@ -563,6 +580,10 @@ impl AxisSection {
         c.target_monitoring.enabled = tm.enabled.unwrap_or(c.target_monitoring.enabled);
         c.target_monitoring.dwell_s = tm.dwell_s.unwrap_or(c.target_monitoring.dwell_s);
         c.target_monitoring.timeout_s = tm.timeout_s.unwrap_or(c.target_monitoring.timeout_s);
+        c.sync_limit_reaction = match self.sync_limit {
+            SyncLimit::ErrorStop => gantry_kernel::axis::SyncLimitReaction::ErrorStop,
+            SyncLimit::Warning => gantry_kernel::axis::SyncLimitReaction::Warning,
+        };
         c.validate().map_err(|e| {
             use gantry_kernel::axis::ConfigError as K;
             match &e {

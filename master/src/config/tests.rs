@@ -598,7 +598,8 @@ fn canopen_mistakes_name_file_line_key_and_reason() {
             .unwrap(),
         "c.toml:8: name2: unknown field `name2`, expected one of `name`, `type`, `source`, `encoder_input`, `drive`, `node`, \
          `eds`, `kind`, `units`, `modulo`, `direction`, `software_limits`, `scaling`, `max`, \
-         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`"
+         `defaults`, `quick_stop_deceleration`, `homing_required`, `target_monitoring`, `pdo`, `switches`, `drive_homing`, `commutation`, `encoder`, `homed_at_start`, \
+         `sync_limit`"
     );
     assert!(e(&["", ""], "bitrate = 1000000")
         .ends_with("axis[0].node: missing: the CANopen node id of the axis' drive (1..=127)"));
@@ -1507,6 +1508,31 @@ fn at_most_cam_slots_tables() {
         e.ends_with(&format!(
             ":{line}: cam[{CAM_SLOTS}].name: {CAM_SLOTS} cam tables at most (the kernel's cam slots)"
         )),
+        "{e}"
+    );
+}
+
+#[test]
+fn sync_limit_is_errorstop_by_default_warning_when_told_and_a_wrong_word_is_named() {
+    use gantry_kernel::axis::SyncLimitReaction;
+    let text = typed(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\nsync_limit = \"warning\"\n{MAX}"
+    ));
+    let c = Config::parse(&text, "k.toml").unwrap();
+    assert_eq!(
+        c.kernel_axes[0].sync_limit_reaction,
+        SyncLimitReaction::ErrorStop
+    );
+    assert_eq!(
+        c.kernel_axes[1].sync_limit_reaction,
+        SyncLimitReaction::Warning
+    );
+    let bad = typed(&format!(
+        "[[axis]]\nname = \"s\"\ntype = \"simulated\"\nsync_limit = \"ignore\"\n{MAX}"
+    ));
+    let e = Config::parse(&bad, "k.toml").unwrap_err().to_string();
+    assert!(
+        e.contains("sync_limit") && e.contains("ignore") && e.contains("warning"),
         "{e}"
     );
 }

@@ -5,6 +5,7 @@
 
 pub mod protocol;
 pub mod server;
+pub mod sync;
 
 use std::io::Write;
 use std::path::PathBuf;

@@ -10,7 +10,8 @@
 //! ← {"v":1,"ok":false,"error":"invalid request: unknown variant `frobnicate`, expected one of …"}
 //! ```
 //!
-//! Commands: `status`, `enable`, `disable`, `move`, `jog`, `halt`, `stop`, `release`,
+//! Commands: `status`, `enable`, `disable`, `move`, `jog`, `gear`, `gear_out`, `cam`,
+//! `cam_out`, `halt`, `stop`, `release`,
 //! `set_position`, `reset`, `home`, `commission` (a commissioning procedure), `procedure` (its
 //! progress), `command` (status of a handle), `wait`, `trace`, `sdo`, `shutdown`. A malformed or
 //! hostile request gets an error reply; nothing of it reaches the cycle thread.
@@ -469,6 +470,67 @@ impl Word for JogDirection {
 }
 word_impls!(JogDirection);
 
+/// Which of a master's values a follower follows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MasterSource {
+    /// Its set values.
+    #[default]
+    Set,
+    /// Its actual values (its encoder).
+    Actual,
+}
+
+impl Word for MasterSource {
+    const FIELD: &'static str = "source";
+    const NAMES: &'static [(&'static str, Self)] = &[("set", Self::Set), ("actual", Self::Actual)];
+}
+word_impls!(MasterSource);
+
+/// How a cam is placed (PLCopen MC_CamIn's start mode).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CamStartMode {
+    /// The table's axes are the master's and the follower's positions.
+    #[default]
+    Absolute,
+    /// The table starts where the master is and adds to the follower's position.
+    Relative,
+}
+
+impl Word for CamStartMode {
+    const FIELD: &'static str = "start";
+    const NAMES: &'static [(&'static str, Self)] =
+        &[("absolute", Self::Absolute), ("relative", Self::Relative)];
+}
+word_impls!(CamStartMode);
+
+/// When a master-driven jog follows its master (Logix MAJ Lock Direction).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LockDirection {
+    /// Both ways, from the start.
+    #[default]
+    None,
+    /// From the start, while the master moves forward.
+    ImmediateForward,
+    /// From the start, while the master moves backwards.
+    ImmediateReverse,
+    /// Once the master crosses the lock position forward, then while it moves forward.
+    PositionForward,
+    /// Once the master crosses the lock position backwards, then while it moves so.
+    PositionReverse,
+}
+
+impl Word for LockDirection {
+    const FIELD: &'static str = "lock";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("none", Self::None),
+        ("immediate-forward", Self::ImmediateForward),
+        ("immediate-reverse", Self::ImmediateReverse),
+        ("position-forward", Self::PositionForward),
+        ("position-reverse", Self::PositionReverse),
+    ];
+}
+word_impls!(LockDirection);
+
 /// Which way an SDO transfer goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SdoDirection {
@@ -535,14 +597,109 @@ pub enum Request {
         #[serde(default, deserialize_with = "null_is_default")]
         buffer: BufferMode,
     },
-    /// Jog until halted.
+    /// Jog until halted. With `master`, a master-driven jog (Logix MAJ with MDAC): the
+    /// speed is in the axis' units per master unit, and `lock` / `lock_position` say when
+    /// it follows.
     Jog {
         /// Axis name.
         axis: String,
         /// Which way.
         direction: JogDirection,
-        /// Speed (units/s).
+        /// Speed (units/s; with `master`, units per master unit).
         speed: f64,
+        /// The master that drives the jog.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        master: Option<String>,
+        /// When it follows (default `none`: both ways from the start).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        lock: Option<LockDirection>,
+        /// Master position of the `position-*` locks.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        lock_position: Option<f64>,
+    },
+    /// Follow a master at `numerator / denominator` (PLCopen MC_GearIn); with
+    /// `master_sync_position` and `slave_sync_position`, in sync at those positions
+    /// (MC_GearInPos). Catch-up dynamics left out are the axis' defaults.
+    Gear {
+        /// Axis name (the follower).
+        axis: String,
+        /// The master's name.
+        master: String,
+        /// Ratio numerator (negative: the other way).
+        numerator: i32,
+        /// Ratio denominator (> 0).
+        denominator: u32,
+        /// The master's set or actual values (default `set`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        source: Option<MasterSource>,
+        /// Catch-up acceleration (units/s²).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64>,
+        /// Catch-up deceleration (units/s²).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        deceleration: Option<f64>,
+        /// Catch-up jerk (units/s³).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        jerk: Option<f64>,
+        /// GearInPos: the master's position where the follower is in sync.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        master_sync_position: Option<f64>,
+        /// GearInPos: the follower's position there.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        slave_sync_position: Option<f64>,
+        /// GearInPos: master distance before its sync position over which the follower
+        /// catches up (default: from where the master is).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        master_start_distance: Option<f64>,
+    },
+    /// Stop gearing (PLCopen MC_GearOut): the axis goes on at its velocity.
+    GearOut {
+        /// Axis name.
+        axis: String,
+    },
+    /// Follow a master through a cam table (PLCopen MC_CamIn).
+    Cam {
+        /// Axis name (the follower).
+        axis: String,
+        /// The master's name.
+        master: String,
+        /// The cam table's name.
+        table: String,
+        /// Whether the table repeats (default true).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        periodic: Option<bool>,
+        /// Absolute or relative placement (default `absolute`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        start: Option<CamStartMode>,
+        /// The master's set or actual values (default `set`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        source: Option<MasterSource>,
+        /// Shift of the table's master coordinate.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        master_offset: Option<f64>,
+        /// Shift of the follower.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        slave_offset: Option<f64>,
+        /// Table master units per master unit (default 1).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        master_scaling: Option<f64>,
+        /// Follower units per table slave unit (default 1).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        slave_scaling: Option<f64>,
+        /// Catch-up acceleration (units/s²).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64>,
+        /// Catch-up deceleration (units/s²).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        deceleration: Option<f64>,
+        /// Catch-up jerk (units/s³).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        jerk: Option<f64>,
+    },
+    /// Stop camming (PLCopen MC_CamOut): the axis goes on at its velocity.
+    CamOut {
+        /// Axis name.
+        axis: String,
     },
     /// Decelerate to a stop (the axis takes new moves at once).
     Halt {
@@ -713,6 +870,10 @@ impl Request {
             Self::Disable { .. } => "disable",
             Self::Move { .. } => "move",
             Self::Jog { .. } => "jog",
+            Self::Gear { .. } => "gear",
+            Self::GearOut { .. } => "gear_out",
+            Self::Cam { .. } => "cam",
+            Self::CamOut { .. } => "cam_out",
             Self::Halt { .. } => "halt",
             Self::Stop { .. } => "stop",
             Self::Release { .. } => "release",
@@ -740,6 +901,10 @@ impl Request {
             | Self::Disable { axis }
             | Self::Move { axis, .. }
             | Self::Jog { axis, .. }
+            | Self::Gear { axis, .. }
+            | Self::GearOut { axis }
+            | Self::Cam { axis, .. }
+            | Self::CamOut { axis }
             | Self::Halt { axis }
             | Self::Stop { axis }
             | Self::Release { axis }
@@ -856,7 +1021,48 @@ mod tests {
                 axis: axis(),
                 direction: JogDirection::Negative,
                 speed: 20.0,
+                master: None,
+                lock: None,
+                lock_position: None,
             },
+            Request::Jog {
+                axis: axis(),
+                direction: JogDirection::Positive,
+                speed: 0.5,
+                master: Some("m".into()),
+                lock: Some(LockDirection::PositionForward),
+                lock_position: Some(90.0),
+            },
+            Request::Gear {
+                axis: axis(),
+                master: "m".into(),
+                numerator: -3,
+                denominator: 2,
+                source: Some(MasterSource::Actual),
+                acceleration: Some(100.0),
+                deceleration: None,
+                jerk: Some(1e4),
+                master_sync_position: Some(90.0),
+                slave_sync_position: Some(10.0),
+                master_start_distance: Some(45.0),
+            },
+            Request::GearOut { axis: axis() },
+            Request::Cam {
+                axis: axis(),
+                master: "m".into(),
+                table: "knife".into(),
+                periodic: Some(false),
+                start: Some(CamStartMode::Relative),
+                source: None,
+                master_offset: Some(1.0),
+                slave_offset: Some(-2.0),
+                master_scaling: Some(0.5),
+                slave_scaling: Some(2.0),
+                acceleration: None,
+                deceleration: Some(10.0),
+                jerk: None,
+            },
+            Request::CamOut { axis: axis() },
             Request::Halt { axis: axis() },
             Request::Stop { axis: axis() },
             Request::Release { axis: axis() },
@@ -1004,11 +1210,15 @@ mod tests {
             Request::DriveHome { .. } => 19,
             Request::CamLoad { .. } => 20,
             Request::CamTables => 21,
+            Request::Gear { .. } => 22,
+            Request::GearOut { .. } => 23,
+            Request::Cam { .. } => 24,
+            Request::CamOut { .. } => 25,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..22).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..26).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 22, "{words:?}");
+        assert_eq!(words.len(), 26, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");
@@ -1042,12 +1252,29 @@ mod tests {
                 axis: "a".into(),
                 direction,
                 speed: 1.0,
+                master: None,
+                lock: None,
+                lock_position: None,
             };
             assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
             // Aliases read as the value they name; it goes out under its canonical word.
             assert_eq!(word.parse::<JogDirection>().unwrap(), direction);
         }
         assert_eq!(JogDirection::Positive.to_string(), "+");
+        for &(word, lock) in LockDirection::NAMES {
+            assert_eq!(word.parse::<LockDirection>().unwrap(), lock);
+        }
+        for &(word, source) in MasterSource::NAMES {
+            assert_eq!(word.parse::<MasterSource>().unwrap(), source);
+        }
+        for &(word, start) in CamStartMode::NAMES {
+            assert_eq!(word.parse::<CamStartMode>().unwrap(), start);
+        }
+        assert_eq!(
+            "sideways".parse::<LockDirection>().unwrap_err().to_string(),
+            "lock \"sideways\" is not one of \"none\", \"immediate-forward\", \
+             \"immediate-reverse\", \"position-forward\", \"position-reverse\""
+        );
         assert_eq!(BufferMode::BlendingHigh.to_string(), "blending-high");
         for &(word, direction) in StepDirection::NAMES {
             for &(_, switch_mode) in StepSwitchMode::NAMES {
@@ -1154,7 +1381,10 @@ mod tests {
             Request::Jog {
                 axis: "x".into(),
                 direction: JogDirection::Negative,
-                speed: 20.0
+                speed: 20.0,
+                master: None,
+                lock: None,
+                lock_position: None,
             }
         );
         // Absent optional fields are their defaults.

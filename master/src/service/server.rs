@@ -17,6 +17,7 @@ use gantry_kernel::axis::command::{
 };
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
+use gantry_kernel::axis::status::AxisFault;
 use serde_json::{json, Value};
 use thiserror::Error;
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
@@ -194,16 +195,51 @@ async fn client(stream: UnixStream, state: Arc<ServerState>) {
     }
 }
 
-fn status_name(s: CommandStatus) -> Value {
+fn status_name(s: CommandStatus, axes: &[String]) -> Value {
     match s {
         // `names_cause`: the text already says why the axis is in ErrorStop (a refusal
         // there), so a client need not add the axis' error to it.
         CommandStatus::Error(e) => json!({
             "status": "Error",
-            "error": e.to_string(),
+            "error": command_error_text(&e, axes),
             "names_cause": matches!(e, CommandError::InErrorStop { .. }),
         }),
         other => json!({ "status": format!("{other:?}") }),
+    }
+}
+
+/// A command's error as the client reads it: a master named by the kernel's index is
+/// named by its axis name too.
+fn command_error_text(e: &CommandError, axes: &[String]) -> String {
+    let text = e.to_string();
+    let master = match *e {
+        CommandError::BadMaster { master, .. }
+        | CommandError::MasterNotAvailable { master, .. } => master,
+        _ => return text,
+    };
+    match axes.get(master) {
+        Some(name) => text.replacen(
+            &format!("axis {master} "),
+            &format!("axis {master} ({name}) "),
+            1,
+        ),
+        None => text,
+    }
+}
+
+/// An axis' fault as the status shows it, a lost master named.
+fn fault_text(fault: &AxisFault, axes: &[String]) -> String {
+    let text = describe_fault(fault);
+    match *fault {
+        AxisFault::MasterLost { master } => match axes.get(master) {
+            Some(name) => text.replacen(
+                &format!("axis {master} "),
+                &format!("axis {master} ({name}) "),
+                1,
+            ),
+            None => text,
+        },
+        _ => text,
     }
 }
 
@@ -250,6 +286,12 @@ pub enum Refused {
         /// Why.
         reason: String,
     },
+    /// A synchronised-motion request whose fields do not go together.
+    #[error("{0}")]
+    Sync(&'static str),
+    /// A cam request names a table the service does not have.
+    #[error("no cam table {0:?} (`gantry cam tables` lists them)")]
+    NoCamTable(String),
     /// No such handle.
     #[error("no handle {0} (handles are per service run)")]
     NoHandle(u64),
@@ -670,7 +712,41 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             axis: a,
             direction,
             speed,
+            master: Some(m),
+            lock,
+            lock_position,
         } => {
+            let i = axis(&a)?;
+            let d = state
+                .config
+                .kernel_axes
+                .get(i)
+                .map(|c| c.defaults)
+                .ok_or(Refused::NoConfig(a))?;
+            let catch_up = super::sync::catch_up(Some(d.acceleration), Some(d.deceleration), None)?;
+            let cmd = super::sync::master_jog(
+                axis(&m)?,
+                direction,
+                speed,
+                lock,
+                lock_position,
+                catch_up,
+            )?;
+            sent(ctl.command(i, cmd))
+        }
+        Request::Jog {
+            axis: a,
+            direction,
+            speed,
+            master: None,
+            lock,
+            lock_position,
+        } => {
+            if lock.is_some() || lock_position.is_some() {
+                return Err(Refused::Sync(
+                    "lock and lock_position are for a jog with a master",
+                ));
+            }
             let i = axis(&a)?;
             let d = state
                 .config
@@ -686,6 +762,62 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             );
             sent(ctl.command(i, Command::Jog(jog)))
         }
+        Request::Gear {
+            axis: a,
+            master,
+            numerator,
+            denominator,
+            source,
+            acceleration,
+            deceleration,
+            jerk,
+            master_sync_position,
+            slave_sync_position,
+            master_start_distance,
+        } => {
+            let i = axis(&a)?;
+            let gear = super::sync::GearRequest {
+                master: axis(&master)?,
+                numerator,
+                denominator,
+                source,
+                catch_up: super::sync::catch_up(acceleration, deceleration, jerk)?,
+                master_sync_position,
+                slave_sync_position,
+                master_start_distance,
+            };
+            sent(ctl.command(i, gear.command()?))
+        }
+        Request::GearOut { axis: a } => sent(ctl.command(axis(&a)?, Command::GearOut)),
+        Request::Cam {
+            axis: a,
+            master,
+            table,
+            periodic,
+            start,
+            source,
+            master_offset,
+            slave_offset,
+            master_scaling,
+            slave_scaling,
+            acceleration,
+            deceleration,
+            jerk,
+        } => {
+            let i = axis(&a)?;
+            let slot = ctl.cam_slot(&table).ok_or(Refused::NoCamTable(table))?;
+            let cam = super::sync::CamRequest {
+                master: axis(&master)?,
+                table: slot,
+                periodic,
+                start,
+                source,
+                placement: [master_offset, slave_offset, master_scaling, slave_scaling],
+                catch_up: super::sync::catch_up(acceleration, deceleration, jerk)?,
+            };
+            sent(ctl.command(i, cam.command()?))
+        }
+        Request::CamOut { axis: a } => sent(ctl.command(axis(&a)?, Command::CamOut)),
         Request::Halt { axis: a } => sent(ctl.command(
             axis(&a)?,
             Command::Halt {
@@ -815,14 +947,16 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
         })),
         Request::Command { handle } => {
             let h = find(state, handle)?;
-            Ok(h.status().map_or(json!({"status": "Pending"}), status_name))
+            let axes = ctl.axes();
+            Ok(h.status()
+                .map_or(json!({"status": "Pending"}), |s| status_name(s, axes)))
         }
         Request::Wait { handle, timeout_s } => {
             let h = find(state, handle)?;
             let timeout =
                 Duration::from_secs_f64(number("timeout_s", timeout_s)?.clamp(0.0, 3600.0));
             match tokio::time::timeout(timeout, h.done()).await {
-                Ok(s) => Ok(status_name(s)),
+                Ok(s) => Ok(status_name(s, ctl.axes())),
                 Err(_) => Err(Refused::NotFinal { handle, timeout_s }),
             }
         }
@@ -989,6 +1123,24 @@ fn find(state: &ServerState, id: u64) -> Result<CommandHandle, Refused> {
         .ok_or(Refused::NoHandle(id))
 }
 
+/// A follower's relation to its master (`null` when it follows none and no bit is set).
+fn sync_json(axes: &[String], s: &gantry_kernel::axis::status::AxisStatus) -> Value {
+    let b = &s.bits;
+    if s.master.is_none() && !b.sync_limit_exceeded {
+        return Value::Null;
+    }
+    json!({
+        "master": s.master.and_then(|m| axes.get(m)),
+        "gearing": b.gearing,
+        "camming": b.camming,
+        "jogging": b.jogging,
+        "in_sync": b.in_sync,
+        "jog_locked": b.jog_locked,
+        "end_of_profile": b.end_of_profile,
+        "limit_exceeded": b.sync_limit_exceeded,
+    })
+}
+
 /// The `status` reply.
 pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
     let axes: Vec<Value> = state
@@ -1019,7 +1171,8 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                     "positive_limit": s.switches.positive_limit,
                     "reference": s.switches.reference,
                 },
-                "error": s.error.as_ref().map(describe_fault),
+                "error": s.error.as_ref().map(|f| fault_text(f, state.controller.axes())),
+                "sync": sync_json(state.controller.axes(), s),
             })
         })
         .collect();
@@ -1093,4 +1246,39 @@ pub fn default_socket() -> PathBuf {
             let uid = unsafe { libc::getuid() };
             PathBuf::from(format!("/tmp/gantry-{uid}.sock"))
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_master_named_by_index_is_named_by_its_axis_name_too() {
+        let axes: Vec<String> = ["x", "y", "z", "e"].iter().map(|s| s.to_string()).collect();
+        assert_eq!(
+            fault_text(&AxisFault::MasterLost { master: 3 }, &axes),
+            "master axis 3 (e) became unavailable (its encoder or drive failed)"
+        );
+        let e = CommandError::BadMaster {
+            command: "GearIn",
+            master: 0,
+            why: "it follows this axis: the relations would go round in a loop",
+        };
+        assert_eq!(
+            command_error_text(&e, &axes),
+            "GearIn: axis 0 (x) cannot be this axis' master (it follows this axis: the \
+             relations would go round in a loop)"
+        );
+        // An index the service does not know stays as the kernel wrote it.
+        let e = CommandError::MasterNotAvailable {
+            command: "CamIn",
+            master: 9,
+        };
+        assert_eq!(command_error_text(&e, &axes), e.to_string());
+        assert_eq!(
+            fault_text(&AxisFault::Encoder { code: 0x8130 }, &axes),
+            "encoder input failed 0x8130: the module's values stopped changing (TxPDO Toggle \
+             frozen)"
+        );
+    }
 }

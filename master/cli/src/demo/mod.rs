@@ -264,6 +264,7 @@ fn axis(
         switches: Default::default(),
         encoder: Default::default(),
         homed_at_start: false,
+        sync_limit: Default::default(),
         drive_homing: None,
         commutation: Default::default(),
     }

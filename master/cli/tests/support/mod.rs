@@ -252,3 +252,35 @@ impl Service {
         }
     }
 }
+
+/// The example configuration riding through this host's stalls: what a test of the binary
+/// claims is its command's effect, not the host's timing. Without real time (`--no-rt`)
+/// on a loaded host the 1 ms cycle overruns and loses frames now and then, and the axes
+/// would stop: a 4 ms cycle and a thousand overruns, lost frames or wrong working
+/// counters in a row before the stop (as `persist_cli.rs`).
+pub fn riding_through_stalls(config: String) -> String {
+    for needle in [
+        "cycle_us = 1000 ",
+        "overrun_limit = 10 ",
+        "lost_frames_limit = 3 ",
+        "working_counter_limit = 3 ",
+    ] {
+        assert!(config.contains(needle), "the example has {needle:?}");
+    }
+    config
+        .replacen("cycle_us = 1000 ", "cycle_us = 4000 ", 1)
+        .replacen("overrun_limit = 10 ", "overrun_limit = 1000 ", 1)
+        .replacen("lost_frames_limit = 3 ", "lost_frames_limit = 1000 ", 1)
+        .replacen(
+            "working_counter_limit = 3 ",
+            "working_counter_limit = 1000 ",
+            1,
+        )
+}
+
+/// The example's simulated chain riding through the same stalls: its drives tolerate far
+/// more missed sync periods than the example's.
+pub fn chain_riding_through_stalls(chain: String) -> String {
+    assert!(chain.contains("sync_error_limit = 32"));
+    chain.replace("sync_error_limit = 32", "sync_error_limit = 1000")
+}
