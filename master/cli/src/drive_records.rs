@@ -63,13 +63,14 @@ pub struct AxisLimit {
 }
 
 impl AxisLimit {
-    /// Every axis of a gantry configuration; the error names an axis whose scaling cannot
-    /// be.
+    /// Every real axis of a gantry configuration (the others have no drive whose record
+    /// could be judged); the error names an axis whose scaling cannot be.
     pub fn of_config(config: &Config) -> Result<Vec<Self>, String> {
         config
             .axes
             .iter()
             .zip(&config.kernel_axes)
+            .filter(|(a, _)| a.axis_type == gantry::config::AxisType::Real)
             .map(|(a, k)| {
                 let scaling = a
                     .scaling()
