@@ -30,6 +30,7 @@ pub mod canopen;
 pub mod ethercat;
 pub mod lockstep;
 pub mod runner;
+pub mod sync;
 
 use crate::plot::{self, Panel};
 use gantry::config::{
@@ -147,6 +148,12 @@ pub enum DemoError {
     /// step beyond `vmax · T`, a following-error fault, a missed or doubled setpoint.
     #[error("drive invariant broken: {0}")]
     Invariant(String),
+    /// The demo's cam table file was refused (a bug in the demo).
+    #[error(transparent)]
+    Cam(#[from] gantry::cam::CamFileError),
+    /// The demo's cam table could not be put into the kernel (a bug in the demo).
+    #[error(transparent)]
+    CamSlot(#[from] gantry_kernel::kernel::CamSlotError),
     /// Creating the output folder or writing the plot failed.
     #[error("cannot write {path}")]
     Io {
