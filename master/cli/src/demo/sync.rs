@@ -383,7 +383,7 @@ impl SyncCheck {
                 .filter_map(|d| f.laws.get(d).map(|&law| (d, law)))
                 .min_by(|a, b| (fu + lag - a.1).abs().total_cmp(&(fu + lag - b.1).abs()))
                 .unwrap_or((0, ideal));
-            let actual_error = (f.in_sync >= SETTLE_CYCLES).then(|| fu + lag - then);
+            let actual_error = (f.in_sync >= SETTLE_CYCLES).then_some(fu + lag - then);
             f.in_sync += 1;
             f.worst_set = f.worst_set.max(set_error.abs());
             let actual_error = actual_error.unwrap_or(0.0);
@@ -417,13 +417,14 @@ impl SyncCheck {
             let _ = writeln!(
                 out,
                 ">> {}: on its {} for {seconds:.3} s: set within {:.1e}{unit} of it, actual \
-                 within {:.4}{unit} of it {} cycles before; peak speed {:.1} \
+                 within {:.4}{unit} of it {}..{} cycles before; peak speed {:.1} \
                  of {:.0}, peak acceleration {:.0} of {:.0}",
                 f.name,
                 f.law_name(),
                 f.worst_set,
                 f.worst_actual,
-                format!("{}..{}", self.delays.start(), self.delays.end()),
+                self.delays.start(),
+                self.delays.end(),
                 f.peak_v,
                 f.max.vmax,
                 f.peak_a,
