@@ -6,15 +6,12 @@ mod common;
 
 use common::sync::*;
 use common::*;
-use gantry_kernel::axis::command::{
-    Command, CommandError, MoveDirection, MovePtp, MoveVelocity, PositioningMode,
-};
+use gantry_kernel::axis::command::{Command, CommandError, MovePtp, PositioningMode};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::status::{AxisFault, AxisStatus};
 use gantry_kernel::axis::{AxisFeedback, SyncLimitReaction};
 use gantry_kernel::mechanics::Modulo;
-use gantry_kernel::profile::RampType;
 use gantry_kernel::sync::command::{CatchUp, GearIn, GearInPos};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 
@@ -187,7 +184,7 @@ fn gear_in_pos_is_at_the_slave_sync_position_when_the_master_is_at_its_own() {
     let dm = (ms.set.p - 90.0 + 180.0).rem_euclid(360.0) - 180.0;
     let df = (fs.set.p - 30.0 + 50.0).rem_euclid(100.0) - 50.0;
     assert!(
-        dm >= 0.0 && dm <= 180.0 * DT * 1.01,
+        (0.0..=180.0 * DT * 1.01).contains(&dm),
         "master {} past 90",
         ms.set.p
     );

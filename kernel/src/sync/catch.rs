@@ -17,6 +17,8 @@ use crate::profile::{KinematicState, Profile};
 use super::MasterSample;
 
 /// The catch-up of a relation.
+// The profile stays inline: boxing it would allocate when a relation starts, in `step`.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Catch {
     /// `e` runs a profile in time from `epoch`.
