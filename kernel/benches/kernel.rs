@@ -1,10 +1,20 @@
-//! Cost of `Kernel::step` per axis per cycle, for 1, 8 and 64 axes all running S-curve
-//! PTP moves; and, as the baseline in the same run, the bare closed-form sampling of the
-//! same profiles (what any kernel must at least do). The README reports both and their
-//! ratio.
+//! Cost of `Kernel::step` per axis per cycle, for 1, 4, 8, 16 and 64 axes all running
+//! S-curve PTP moves; and, as the baseline in the same run, the bare closed-form sampling
+//! of the same profiles (what any kernel must at least do). The README reports both and
+//! their ratio.
+//!
+//! Synchronised motion in the same run: one virtual master at constant velocity and 1, 4
+//! or 16 followers geared to it (`sync_gear`) or cammed on a 20-point periodic cubic table
+//! (`sync_cam`). divan's items are the followers, so its throughput column is followers per
+//! second; the README divides the median step time by N (the master's own step included)
+//! and compares it with `step` at the same N.
 
-use gantry_kernel::axis::command::{Command, MovePtp, PositioningMode, PowerCommand};
+use gantry_kernel::axis::command::{
+    Command, MoveDirection, MovePtp, MoveVelocity, PositioningMode, PowerCommand,
+};
+use gantry_kernel::cam::{CamPoint, CamTable, Interpolation};
 use gantry_kernel::profile::{plan_position, KinematicState, Limits, Profile, RampType};
+use gantry_kernel::sync::command::{CamIn, GearIn};
 use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 
 fn main() {
@@ -155,7 +165,7 @@ fn busy_kernel(n: usize) -> Kernel {
     k
 }
 
-#[divan::bench(args = [1, 8, 64])]
+#[divan::bench(args = [1, 4, 8, 16, 64])]
 fn step(bencher: divan::Bencher, n: usize) {
     let mut k = busy_kernel(n);
     bencher
@@ -191,4 +201,125 @@ fn baseline_sample_only(bencher: divan::Bencher, n: usize) {
             }
             divan::black_box(acc);
         });
+}
+
+/// Master velocity of the synchronised benches (units/s): about 2.8 cam periods per second.
+const MASTER_SPEED: f64 = 1000.0;
+
+/// How the followers of [`synced_kernel`] follow the master.
+#[derive(Clone, Copy)]
+enum Coupling {
+    /// GearIn at ratios cycling through 1:1, −1:2, 3:7 and 5:4.
+    Gear,
+    /// CamIn, periodic, on the table of [`bench_cam`].
+    Cam,
+}
+
+/// A periodic cubic cam over 360 master units through 20 points: the eccentric stroke
+/// 50·(1 − cos θ) (as deploy/cams/eccentric.toml, sampled more finely).
+fn bench_cam() -> CamTable {
+    let points = (0..20)
+        .map(|i| {
+            let master = 360.0 * i as f64 / 19.0;
+            CamPoint {
+                master,
+                slave: 50.0 * (1.0 - master.to_radians().cos()),
+            }
+        })
+        .collect();
+    CamTable::new(points, Interpolation::Cubic, true).expect("cam table")
+}
+
+/// A kernel with a virtual master (axis 0) at [`MASTER_SPEED`] and `n` simulated
+/// followers coupled to it, stepped until every follower has caught up (InSync).
+fn synced_kernel(n: usize, coupling: Coupling) -> Kernel {
+    let mut master = AxisConfig::new("m", AxisKind::Virtual);
+    master.homing_required = false;
+    master.max = Limits {
+        vmax: 2.0 * MASTER_SPEED,
+        amax: 10_000.0,
+        dmax: 10_000.0,
+        jmax: 1e6,
+    };
+    let mut configs = vec![master];
+    configs.extend((0..n).map(|i| {
+        let mut c = AxisConfig::new(&format!("f{i}"), AxisKind::Simulated);
+        c.homing_required = false;
+        c.max = Limits {
+            vmax: 5_000.0,
+            amax: 1e5,
+            dmax: 1e5,
+            jmax: 1e8,
+        };
+        c.defaults.acceleration = 10_000.0;
+        c.defaults.deceleration = 10_000.0;
+        c.defaults.jerk = 1e6;
+        c.defaults.ramp = RampType::SCurve;
+        c
+    }));
+    let mut k = Kernel::new(DT, configs).expect("config");
+    k.set_cam_table(0, Some(bench_cam())).expect("cam slot");
+    for i in 0..=n {
+        k.command(i, Command::Power(PowerCommand::Enable))
+            .expect("enable");
+    }
+    k.command(
+        0,
+        Command::MoveVelocity(MoveVelocity {
+            acceleration: Some(10_000.0),
+            deceleration: Some(10_000.0),
+            jerk: Some(1e6),
+            ..MoveVelocity::new(MoveDirection::Positive, MASTER_SPEED)
+        }),
+    )
+    .expect("master velocity");
+    const RATIOS: [(i32, u32); 4] = [(1, 1), (-1, 2), (3, 7), (5, 4)];
+    for i in 1..=n {
+        let command = match coupling {
+            Coupling::Gear => {
+                let (num, den) = RATIOS[i % RATIOS.len()];
+                Command::GearIn(GearIn::new(0, num, den))
+            }
+            Coupling::Cam => Command::CamIn(CamIn::new(0, 0, true)),
+        };
+        k.command(i, command).expect("couple");
+    }
+    for _ in 0..3_000 {
+        k.step(&[]);
+    }
+    for i in 1..=n {
+        let s = k.axis_status(i).expect("follower");
+        assert!(s.bits.in_sync, "follower {i} not in sync after 3 s: {s:?}");
+    }
+    k
+}
+
+#[divan::bench(args = [1, 4, 16])]
+fn sync_gear(bencher: divan::Bencher, n: usize) {
+    let mut k = synced_kernel(n, Coupling::Gear);
+    bencher
+        .counter(divan::counter::ItemsCount::new(n))
+        .bench_local(|| {
+            divan::black_box(k.step(&[]));
+        });
+}
+
+#[divan::bench(args = [1, 4, 16])]
+fn sync_cam(bencher: divan::Bencher, n: usize) {
+    let mut k = synced_kernel(n, Coupling::Cam);
+    bencher
+        .counter(divan::counter::ItemsCount::new(n))
+        .bench_local(|| {
+            divan::black_box(k.step(&[]));
+        });
+}
+
+/// The master alone at constant velocity: what [`sync_gear`] and [`sync_cam`] pay besides
+/// their followers.
+#[divan::bench]
+fn sync_master_only(bencher: divan::Bencher) {
+    let mut k = synced_kernel(0, Coupling::Gear);
+    bencher.bench_local(|| {
+        divan::black_box(k.step(&[]));
+    });
 }

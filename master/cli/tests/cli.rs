@@ -176,7 +176,7 @@ fn demo_moves_simulated_drives_over_the_in_process_network() {
     // invariant broken (issue 10 §6), which `demo` turns into a failure here; it says so
     // when it holds.
     let text = demo(&dir, &[]);
-    assert!(text.contains("found 3 EtherCAT slaves"), "{text}");
+    assert!(text.contains("found 6 EtherCAT slaves"), "{text}");
     assert!(
         text.contains(">> the drives' verdict (drive-records.json): no fault"),
         "{text}"
@@ -191,7 +191,7 @@ fn demo_moves_simulated_drives_over_the_in_process_network() {
     // The drives' own records are written beside the trace.
     let records = json(&std::fs::read(dir.join("drive-records.json")).unwrap());
     let records = records.as_array().unwrap();
-    assert_eq!(records.len(), 3);
+    assert_eq!(records.len(), 6);
     for r in records {
         assert!(r["targets"].as_u64().unwrap() > 1000, "{r}");
         assert_eq!(r["faults"], 0, "{r}");
@@ -210,7 +210,60 @@ fn demo_moves_simulated_drives_over_the_in_process_network() {
         let off = (end + 180.0).rem_euclid(360.0) - 180.0;
         assert!(off.abs() < 0.01 && end > 359.0, "{name} ends at {end}");
     }
+    // The synchronised axes: home at the end too (the ram at 0 mm, the rotary ones at 0°).
+    for name in [
+        "ram.set",
+        "ram.actual",
+        "m.set",
+        "g1.set",
+        "g1.actual",
+        "g2.set",
+    ] {
+        let end = *trace[name].last().unwrap();
+        let off = (end + 180.0).rem_euclid(360.0) - 180.0;
+        assert!(off.abs() < 0.01, "{name} ends at {end}");
+    }
+    // From 1.5 s to 4.5 s (in gear and on the cam, through m's reversal) the trace, read
+    // apart from the demo's own check: g1 travels as m, g2 half of it backwards, and the
+    // ram is the eccentric's 50·(1 − cos m), which the cubic table follows to 0.011 mm.
+    let times = &trace["time_s"];
+    let window: Vec<usize> = (0..times.len())
+        .filter(|&k| (1.5..=4.5).contains(&times[k]))
+        .collect();
+    assert!(window.len() > 2900, "{} samples", window.len());
+    let (m, g1, g2) = (
+        &trace["m.set_unwrapped"],
+        &trace["g1.set_unwrapped"],
+        &trace["g2.set_unwrapped"],
+    );
+    let k0 = window[0];
+    let (lo, hi) = window.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &k| {
+        (lo.min(m[k]), hi.max(m[k]))
+    });
+    assert!(hi - lo > 500.0, "m turned {lo}..{hi}");
+    for &k in &window {
+        let dm = m[k] - m[k0];
+        assert!(((g1[k] - g1[k0]) - dm).abs() < 1e-6, "g1 at {}", times[k]);
+        assert!(
+            ((g2[k] - g2[k0]) + 0.5 * dm).abs() < 1e-6,
+            "g2 at {}",
+            times[k]
+        );
+        let stroke = 50.0 * (1.0 - trace["m.set"][k].to_radians().cos());
+        let ram = trace["ram.set"][k];
+        assert!((ram - stroke).abs() < 0.011, "ram {ram} at {}", times[k]);
+    }
+    // The demo's own check said so, with the followers' errors and peaks.
+    for (axis, law) in [
+        ("g1", "gear 1:1 with m"),
+        ("g2", "gear -1:2 with m"),
+        ("ram", "cam (eccentric.toml) on m"),
+    ] {
+        let l = line(&text, &format!(">> {axis}: on its {law} for "));
+        assert!(l.contains(" cycles before; peak speed "), "{l}");
+    }
     assert!(dir.join("plot.svg").exists());
+    assert!(dir.join("eccentric.toml").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -222,7 +275,7 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
     let dir = std::env::temp_dir().join(format!("gantry-cli-bus-{}", std::process::id()));
     let text = demo(&dir, &["--bus", "ethercat"]);
     // The slaves found: position, station address, name, vendor and product.
-    for i in 0..3 {
+    for i in 0..6 {
         let l = line(&text, &format!("  {i}: "));
         assert!(
             l.starts_with(&format!(
@@ -239,6 +292,9 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
         (0, "x", "24", "8"),
         (1, "y", "15", "7"),
         (2, "c", "15", "7"),
+        (3, "g1", "15", "7"),
+        (4, "g2", "15", "7"),
+        (5, "ram", "15", "7"),
     ] {
         let l = line(&text, &format!("   {i}      "));
         let words: Vec<&str> = l.split_whitespace().collect();
@@ -250,12 +306,14 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
     }
     let image = line(&text, ">> process data: ");
     assert!(
-        image.starts_with(">> process data: 76 B in 1 LRW datagram(s), expected working counter 9"),
+        image.starts_with(
+            ">> process data: 142 B in 1 LRW datagram(s), expected working counter 18"
+        ),
         "{image}"
     );
     // Bytes on the wire: the image and every header, the same at start and at the end.
     let wire = number_before(image, " B on the wire per cycle");
-    assert!(wire >= 76.0 + 14.0 + 2.0 + 10.0 + 2.0 + 4.0, "{image}");
+    assert!(wire >= 142.0 + 14.0 + 2.0 + 10.0 + 2.0 + 4.0, "{image}");
     // x homed on its reference cam and the index pulse beyond it: x = 0 mm is the index
     // pulse at drive count 1000, as the simulated drive recorded crossing it.
     line(
@@ -287,7 +345,7 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
     assert!(number_before(cycles, " (") > 3000.0, "{cycles}");
     // Every axis at the end, at home, its drive still enabled before the shutdown.
     line(&text, ">> the axes at the end:");
-    for axis in ["x", "y", "c"] {
+    for axis in ["x", "y", "c", "g1", "g2", "ram"] {
         let l = line(&text, &format!("   {axis}: "));
         assert!(
             l.starts_with(&format!("   {axis}: Standstill, set 0.0000, actual ")),
@@ -295,6 +353,11 @@ fn demo_prints_the_bus_and_turns_the_modulo_axis_across_its_wrap_without_a_step(
         );
         assert!(l.ends_with("drive Operation enabled"), "{l}");
     }
+    let l = line(&text, "   m: ");
+    assert_eq!(
+        l, "   m: Standstill, set 0.0000, actual 0.0000, no drive (virtual)",
+        "{l}"
+    );
     let said = line(&text, ">> c: crossed its wrap (360 → 0) ");
     // The kernel's set position of c wraps, forward at positive speed and backward at
     // negative, as the demo says.

@@ -77,7 +77,7 @@ fn start(
 /// The EtherCAT demo's script, with a fourth axis, z, enabled, homed and moved down and
 /// back beside the others.
 pub fn script() -> Vec<Step> {
-    let mut steps = ethercat::script();
+    let mut steps = ethercat::motion_script();
     let at = |steps: &[Step], label: &str| {
         steps
             .iter()
@@ -138,7 +138,7 @@ pub fn script() -> Vec<Step> {
 pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, DemoError> {
     let config = write_files_and_load(
         &args.out,
-        [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, SERVOS_TOML)],
+        &[(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, SERVOS_TOML)],
         None,
     )?;
     let _ = writeln!(

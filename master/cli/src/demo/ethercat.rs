@@ -36,6 +36,7 @@ use gantry_sim::plant::servo::ServoDrive;
 
 use super::lockstep::{Advance, Lockstep};
 use super::runner::{Limits, Runner, Watch};
+use super::sync::{self, SyncCheck};
 use super::{step, DemoArgs, DemoError, DemoReport, Step, Wait};
 use crate::drive_records::{judge, AxisBound, Conditions, Verdict};
 use crate::plot::{self, Panel};
@@ -165,8 +166,16 @@ pub(super) fn homing_verdict(x: &ServoDrive, out: &mut dyn Write) -> Result<(), 
     }
 }
 
-/// The script, sent through the [`Controller`] as an application would.
+/// The script, sent through the [`Controller`] as an application would: the moves of x, y
+/// and c ([`motion_script`]) and, beside them, the synchronised axes' ([`super::sync`]).
 pub fn script() -> Vec<Step> {
+    let mut steps = motion_script();
+    super::sync::insert(&mut steps);
+    steps
+}
+
+/// The moves of x, y and c (the CANopen demo runs them too).
+pub fn motion_script() -> Vec<Step> {
     use PositioningMode::*;
     let enable = Command::Power(PowerCommand::Enable);
     let set = |position| Command::SetPosition {
@@ -311,25 +320,30 @@ pub fn script() -> Vec<Step> {
 fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config, DemoError> {
     write_files_and_load(
         dir,
-        [(CONFIG_FILE, CONFIG_TOML), (SERVOS_FILE, servos)],
+        &[
+            (CONFIG_FILE, CONFIG_TOML),
+            (SERVOS_FILE, servos),
+            (sync::CAM_FILE, sync::CAM_TOML),
+        ],
         pcap,
     )
 }
 
-/// Writes a demo's configuration and its simulated chain (`files`: the configuration
-/// first) to `dir` and loads the configuration from there, as `gantry run --config`
-/// would; with a capture to `pcap`.
+/// Writes a demo's configuration and the files beside it — its simulated chain, a cam
+/// table — (`files`: the configuration first) to `dir` and loads the configuration from
+/// there, as `gantry run --config` would; with a capture to `pcap`.
 pub(super) fn write_files_and_load(
     dir: &Path,
-    files: [(&str, &str); 2],
+    files: &[(&str, &str)],
     pcap: Option<&Path>,
 ) -> Result<Config, DemoError> {
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-    for (name, text) in files {
+    for &(name, text) in files {
         let path = dir.join(name);
         std::fs::write(&path, text).map_err(io_error(&path))?;
     }
-    let mut config = Config::load(&dir.join(files[0].0).display().to_string())?;
+    let first = files.first().map_or("", |f| f.0);
+    let mut config = Config::load(&dir.join(first).display().to_string())?;
     if let Some(path) = pcap {
         // Said here with the file's name, before anything else is done.
         std::fs::File::create(path).map_err(io_error(path))?;
@@ -363,13 +377,31 @@ pub fn run_on(
         out,
         ">> gantry demo: {} CiA-402 servos simulated on an in-process EtherCAT network, \
          driven by gantry's engine in lockstep (configuration: {})",
-        config.axes.len(),
+        config
+            .axes
+            .iter()
+            .filter(|a| a.axis_type == gantry::config::AxisType::Real)
+            .count(),
         args.out.join(CONFIG_FILE).display()
     );
     let _ = writeln!(out, ">> EtherCAT bring-up");
     let (mut net, chain) = start(&config, out)?;
+    // The ram's cam table: the configuration's `[[cam]]`, read from the file written
+    // beside it and put into its kernel slot at start, as `gantry run` does.
+    let cam = sync::configured_cam(&config)?;
+    let _ = writeln!(
+        out,
+        ">> cam table {:?} from {} ({} points, {}, periodic: {}) in the kernel's slot {}",
+        cam.name,
+        cam.file,
+        cam.table.points().len(),
+        cam.table.interpolation(),
+        cam.table.is_periodic(),
+        cam.slot
+    );
+    let check = SyncCheck::of_config(&config, cam.table.clone())?;
     let mut runner = Runner::new(&config, args.speed, FRAME_CYCLES, true);
-    let mut run = Run::new(&config, "EtherCAT");
+    let mut run = Run::new(&config, "EtherCAT").with_sync(check);
     let result = run
         .wait_for_op(&mut runner, &mut net, &chain, out)
         .and_then(|()| {
@@ -426,6 +458,9 @@ pub fn run_on(
     }
     let verdict = judge_records(&records, &config)?;
     run.wraps_said(&verdict, &records, &config, out);
+    if let Some(check) = &run.sync {
+        check.said(f64::from(config.bus.cycle_us) * 1e-6, out)?;
+    }
     let (csv, svg) = run.write_files(&args.out, &config)?;
     Ok(DemoReport {
         csv,
@@ -503,6 +538,8 @@ pub(super) struct Run {
     cycle_us: u32,
     /// The bus, as the plot's title names it.
     bus: &'static str,
+    /// The synchronised axes' check (the EtherCAT demo's).
+    sync: Option<SyncCheck>,
 }
 
 impl<B: CycleBus> Watch<B> for Run {
@@ -515,6 +552,9 @@ impl<B: CycleBus> Watch<B> for Run {
         }
         if n % DRAIN_EVERY == 0 {
             self.drain(&net.ctl);
+        }
+        if let Some(check) = self.sync.as_mut() {
+            check.observe(&net.engine.cycle.kernel, net.time())?;
         }
         Ok(())
     }
@@ -543,6 +583,15 @@ impl Run {
             dc_offsets: None,
             in_op: false,
             cycle_us: config.bus.cycle_us,
+            sync: None,
+        }
+    }
+
+    /// With the synchronised axes checked every cycle and plotted apart.
+    pub(super) fn with_sync(self, check: SyncCheck) -> Self {
+        Self {
+            sync: Some(check),
+            ..self
         }
     }
 
@@ -759,36 +808,69 @@ impl Run {
         let csv = dir.join("trace.csv");
         let svg = dir.join("plot.svg");
         trace.write_csv(&csv)?;
-        let linear: Vec<usize> = (0..self.names.len())
-            .filter(|&i| self.periods[i].is_none())
-            .flat_map(|i| [i * 3, i * 3 + 1])
-            .collect();
-        let rotary: Vec<usize> = (0..modulo.len())
-            .flat_map(|m| {
-                [
+        // The synchronised axes get panels of their own.
+        let (master, gears, cams) = self
+            .sync
+            .as_ref()
+            .map_or((usize::MAX, Vec::new(), Vec::new()), SyncCheck::axes);
+        let synced = |i: usize| i == master || gears.contains(&i) || cams.contains(&i);
+        // Channels of axis i: set and actual; unwrapped if it is modulo.
+        let position = |i: usize| -> [usize; 2] {
+            match modulo.iter().position(|&(a, _)| a == i) {
+                Some(m) => [
                     self.names.len() * 3 + 2 * m,
                     self.names.len() * 3 + 2 * m + 1,
-                ]
-            })
+                ],
+                None => [i * 3, i * 3 + 1],
+            }
+        };
+        let linear: Vec<usize> = (0..self.names.len())
+            .filter(|&i| self.periods[i].is_none() && !synced(i))
+            .flat_map(position)
+            .collect();
+        let rotary: Vec<usize> = modulo
+            .iter()
+            .filter(|&&(i, _)| !synced(i))
+            .flat_map(|&(i, _)| position(i))
             .collect();
         let units = |i: usize| config.axes.get(i).map_or("", |a| a.units.as_str());
-        let doc = plot::svg(
-            &trace,
-            &[
-                Panel {
-                    title: format!("set and actual position ({}) over {}", units(0), self.bus),
-                    channels: linear,
-                },
-                Panel {
-                    title: "modulo axes, unwrapped: set and actual position".into(),
-                    channels: rotary,
-                },
-                Panel {
-                    title: "set velocity (units/s)".into(),
-                    channels: (0..self.names.len()).map(|i| i * 3 + 2).collect(),
-                },
-            ],
-        );
+        let mut panels = vec![
+            Panel {
+                title: format!("set and actual position ({}) over {}", units(0), self.bus),
+                channels: linear,
+            },
+            Panel {
+                title: "modulo axes, unwrapped: set and actual position".into(),
+                channels: rotary,
+            },
+        ];
+        if self.sync.is_some() {
+            // The virtual master's actual is its set: drawn once.
+            let master_set = position(master)[0];
+            panels.push(Panel {
+                title: "gearing, unwrapped (°): virtual master m; g1 1:1, g2 -1:2 set and actual"
+                    .into(),
+                channels: std::iter::once(master_set)
+                    .chain(gears.iter().flat_map(|&i| position(i)))
+                    .collect(),
+            });
+            panels.push(Panel {
+                title: format!(
+                    "camming: ram set and actual (mm) on {}; m (°, within its turn)",
+                    sync::CAM_FILE
+                ),
+                channels: cams
+                    .iter()
+                    .flat_map(|&i| position(i))
+                    .chain([master * 3])
+                    .collect(),
+            });
+        }
+        panels.push(Panel {
+            title: "set velocity (units/s)".into(),
+            channels: (0..self.names.len()).map(|i| i * 3 + 2).collect(),
+        });
+        let doc = plot::svg(&trace, &panels);
         std::fs::write(&svg, doc).map_err(io_error(&svg))?;
         Ok((csv, svg))
     }
@@ -846,7 +928,20 @@ mod tests {
         let mut c = DriveRecord::default();
         c.target(0);
         c.target(-2622);
-        let records = [Some(ok), Some(ok), Some(c)];
+        // g1, g2 (720°/s direct: bound 263) and ram (500 mm/s on 5 mm: bound 13108); the
+        // virtual master m has no drive, so no bound.
+        assert_eq!(
+            bounds[3..]
+                .iter()
+                .map(|b| (b.axis.as_str(), b.drive, b.max_step_counts))
+                .collect::<Vec<_>>(),
+            [("g1", 3, 263), ("g2", 4, 263), ("ram", 5, 13108)]
+        );
+        let mut f = DriveRecord::default();
+        f.target(0);
+        f.target(263);
+        let followers = [Some(f); 3];
+        let records = [[Some(ok), Some(ok), Some(c)], followers].concat();
         let verdict = judge(
             &records,
             &bounds,
@@ -861,7 +956,7 @@ mod tests {
                 .starts_with("x: largest target step 6554 counts (bound 6554), 2 targets"),
             "{verdict:?}"
         );
-        let records = [Some(ok), Some(step), Some(c)];
+        let records = [[Some(ok), Some(step), Some(c)], followers].concat();
         let verdict = judge(
             &records,
             &bounds,
@@ -881,7 +976,7 @@ mod tests {
         // A fault of any kind fails the demo, with its code.
         let mut faulted = c;
         faulted.fault(0xFF01);
-        let records = [Some(ok), Some(ok), Some(faulted)];
+        let records = [[Some(ok), Some(ok), Some(faulted)], followers].concat();
         let verdict = judge(
             &records,
             &bounds,
@@ -907,12 +1002,21 @@ mod tests {
     }
 
     #[test]
-    fn the_demos_chain_file_is_a_valid_simulator_configuration_with_a_servo_per_axis() {
+    fn the_demos_chain_file_is_a_valid_simulator_configuration_with_a_servo_per_real_axis() {
         let dir = std::env::temp_dir().join(format!("gantry-demo-config-{}", std::process::id()));
         let config = write_config(&dir, SERVOS_TOML, None).unwrap();
         let sim =
             gantry_sim::config::SimConfig::load(config.bus.simulator.as_deref().unwrap()).unwrap();
-        assert_eq!(sim.chain().unwrap().slaves().len(), config.axes.len());
+        // A servo per real axis (the virtual master m has none), at its `drive` position.
+        let real: Vec<usize> = config
+            .axes
+            .iter()
+            .filter(|a| a.axis_type == gantry::config::AxisType::Real)
+            .map(|a| a.drive)
+            .collect();
+        assert_eq!(real, [0, 1, 2, 3, 4, 5]);
+        assert_eq!(sim.chain().unwrap().slaves().len(), real.len());
+        assert!(dir.join(sync::CAM_FILE).exists());
         assert_eq!(sim.cycle_us, config.bus.cycle_us);
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -30,6 +30,7 @@ pub mod canopen;
 pub mod ethercat;
 pub mod lockstep;
 pub mod runner;
+pub mod sync;
 
 use crate::plot::{self, Panel};
 use gantry::config::{
@@ -147,6 +148,14 @@ pub enum DemoError {
     /// step beyond `vmax · T`, a following-error fault, a missed or doubled setpoint.
     #[error("drive invariant broken: {0}")]
     Invariant(String),
+    /// The demo's configuration lacks its cam table (a bug in the demo).
+    #[error("the demo's configuration has no [[cam]] {name:?} in slot {slot}")]
+    NoCam {
+        /// The table's name.
+        name: &'static str,
+        /// Its slot.
+        slot: usize,
+    },
     /// Creating the output folder or writing the plot failed.
     #[error("cannot write {path}")]
     Io {

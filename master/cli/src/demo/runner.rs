@@ -229,11 +229,14 @@ impl Runner {
             };
             let _ = writeln!(
                 out,
-                "   {name}: {}, set {:.4}, actual {:.4}, drive {}",
+                "   {name}: {}, set {:.4}, actual {:.4}, {}",
                 a.state.name(),
                 a.set.p,
                 a.actual_position,
-                drive_state(d.state)
+                match self.types.get(i).copied() {
+                    Some("real") | None => format!("drive {}", drive_state(d.state)),
+                    Some(other) => format!("no drive ({other})"),
+                }
             );
         }
         Ok(())
