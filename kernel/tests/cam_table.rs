@@ -300,6 +300,29 @@ proptest! {
         }
     }
 
+    /// `eval_near` gives exactly what `eval` gives, whatever the hint and wherever the
+    /// next position is (forward, backwards, far, at the points, outside the table).
+    #[test]
+    fn eval_near_is_eval_whatever_the_hint(
+        points in arb_table(),
+        i in arb_interpolation(),
+        periodic in any::<bool>(),
+        walk in prop::collection::vec(-0.2f64..1.2, 1..60),
+        hint0 in any::<usize>(),
+    ) {
+        let Some(t) = build(points, i, periodic) else { return Ok(()) };
+        let (lo, hi) = t.master_range();
+        let mut hint = hint0;
+        let xs = walk
+            .iter()
+            .map(|a| lo + a * (hi - lo))
+            .chain(t.points().iter().map(|p| p.master));
+        for x in xs {
+            let (a, b) = (t.eval(x), t.eval_near(x, &mut hint));
+            prop_assert_eq!(a, b, "at {}", x);
+        }
+    }
+
     /// The maxima bound |d1| and |d2| at 200 samples per segment and at every point, and
     /// each is reached (to 1%) somewhere on the dense grid.
     #[test]

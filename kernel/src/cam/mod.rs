@@ -264,6 +264,36 @@ impl CamTable {
         }
     }
 
+    /// [`CamTable::eval`] for a caller that evaluates near where it did last (a follower,
+    /// cycle after cycle): `hint` is the segment of the last call (any value will do; it
+    /// is updated). The segment at the hint and the next one are tried before the binary
+    /// search, so a master moving steadily costs no search; the result is `eval`'s.
+    pub fn eval_near(&self, x: f64, hint: &mut usize) -> CamSample {
+        let (first, last) = self.master_range();
+        if x.is_nan() || x >= last {
+            return self.eval(x);
+        }
+        let x = x.max(first);
+        let holds = |i: usize| {
+            self.segments.get(i).is_some_and(|s| s.x0 <= x)
+                && self.segments.get(i + 1).is_none_or(|n| x < n.x0)
+        };
+        let i = if holds(*hint) {
+            *hint
+        } else if holds(hint.wrapping_add(1)) {
+            hint.wrapping_add(1)
+        } else {
+            self.segments
+                .partition_point(|s| s.x0 <= x)
+                .saturating_sub(1)
+        };
+        *hint = i;
+        match self.segments.get(i) {
+            Some(s) => s.sample(x),
+            None => self.end,
+        }
+    }
+
     /// The largest |d1| over the whole table, exact up to rounding (each segment's
     /// extremes, at its ends or the roots of d2), computed at construction: used to refuse
     /// a CamIn whose follower could not keep up.

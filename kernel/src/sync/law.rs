@@ -41,6 +41,8 @@ pub struct CamLaw {
     pub y_ref: f64,
     /// Table period the master was in last cycle (periodic cams).
     pub cycle: i64,
+    /// The table segment of the last cycle (where the next lookup starts).
+    pub segment: usize,
 }
 
 impl CamLaw {
@@ -184,7 +186,7 @@ impl Law {
                 let x = c.x_ref + c.master_scaling * travel;
                 let (x0, x1) = table.master_range();
                 let (cycle, phase) = CamLaw::locate(table, x, c.periodic);
-                let mut s = table.eval(phase);
+                let mut s = table.eval_near(phase, &mut c.segment);
                 if !c.periodic && phase != x {
                     // Past the end of a non-periodic table (the relation ends this cycle):
                     // along the end's tangent, so the last set value keeps the velocity.

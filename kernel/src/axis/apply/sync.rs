@@ -378,6 +378,7 @@ impl Axis {
                 x_ref,
                 y_ref,
                 cycle,
+                segment: 0,
             }),
             master_ref: m.at,
             follower_ref: self.set_split(),
