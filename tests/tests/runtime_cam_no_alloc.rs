@@ -1,9 +1,11 @@
-//! A cam table load neither allocates nor frees in the cycle thread, in the configuration
-//! `gantry run` uses (`service::start_cycle`: SCHED_FIFO, memory locked, `Engine::run`):
-//! while a counting allocator watches the cycle thread from its first cycle to its last,
-//! the application loads tables (new names and replacements of the configuration's), an
-//! axis cams on one, a replacement of that one is refused (the new table comes back to
-//! the application), the axis cams out, and a table is removed. Each table the cycle
+//! A cam table load, and gearing and camming themselves, neither allocate nor free in the
+//! cycle thread, in the configuration `gantry run` uses (`service::start_cycle`:
+//! SCHED_FIFO, memory locked, `Engine::run`): while a counting allocator watches the
+//! cycle thread from its first cycle to its last, the application loads tables (new names
+//! and replacements of the configuration's), the virtual master moves, the servo axis
+//! gears to it and the simulated axis cams on one of the tables while it does, a
+//! replacement of that table is refused (the new table comes back to the application),
+//! both axes gear and cam out, and a table is removed. Each table the cycle
 //! thread puts into a slot is allocated by the application and each one it takes out is
 //! handed back to it, so the counts are 0 and 0. Needs root (real time), as
 //! `deploy/test.sh` runs it.
@@ -17,9 +19,10 @@ use gantry::runtime::controller::{ControlError, Controller};
 use gantry::service::{start_cycle, CYCLE_STACK_BYTES, CYCLE_THREAD};
 use gantry_cli::simulator::{SimLink, Simulator};
 use gantry_kernel::axis::command::{Command, PowerCommand};
+use gantry_kernel::axis::command::{MoveDirection, MoveVelocity};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::cam::{CamTable, Interpolation};
-use gantry_kernel::sync::command::CamIn;
+use gantry_kernel::sync::command::{CamIn, GearIn};
 
 mod counting {
     include!("../../kernel/tests/common/counting_alloc.rs");
@@ -28,6 +31,7 @@ mod counting {
 #[global_allocator]
 static ALLOC: counting::Counting = counting::Counting;
 
+const X: usize = 0;
 const S: usize = 1;
 const V: usize = 2;
 
@@ -97,17 +101,31 @@ fn a_cam_load_in_flight_neither_allocates_nor_frees_in_the_cycle_thread() {
         loads += 2;
     }
     // Refused while s cams on knife: the refused table comes back to be dropped here.
-    for axis in [S, V] {
+    for axis in [X, S, V] {
         let h = ctl
             .command(axis, Command::Power(PowerCommand::Enable))
             .unwrap();
         assert_eq!(h.wait(wait), Ok(CommandStatus::Done));
     }
+    let gear_in = ctl
+        .command(X, Command::GearIn(GearIn::new(V, 1, 2)))
+        .unwrap();
     let cam_in = ctl
         .command(S, Command::CamIn(CamIn::new(V, 1, true)))
         .unwrap();
-    std::thread::sleep(Duration::from_millis(50));
+    ctl.command(
+        V,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 10.0)),
+    )
+    .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(gear_in.status(), Some(CommandStatus::Active));
     assert_eq!(cam_in.status(), Some(CommandStatus::Active));
+    let snap = ctl.snapshot();
+    for axis in [X, S] {
+        let a = &snap.axes[axis];
+        assert!(a.bits.in_sync && a.set.v.abs() > 0.1, "axis {axis}: {a:?}");
+    }
     for _ in 0..5 {
         let h = ctl
             .load_cam("knife", ramp(1000, Interpolation::Cubic))
@@ -116,6 +134,8 @@ fn a_cam_load_in_flight_neither_allocates_nor_frees_in_the_cycle_thread() {
         loads += 1;
     }
     let out = ctl.command(S, Command::CamOut).unwrap();
+    assert_eq!(out.wait(wait), Ok(CommandStatus::Done));
+    let out = ctl.command(X, Command::GearOut).unwrap();
     assert_eq!(out.wait(wait), Ok(CommandStatus::Done));
     let h = ctl.remove_cam("knife").unwrap();
     assert_eq!(h.wait(wait), Ok(1));
