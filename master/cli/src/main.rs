@@ -381,15 +381,8 @@ struct CamInArgs {
     /// Axis units per table slave unit.
     #[arg(long, allow_negative_numbers = true, value_parser = finite)]
     slave_scaling: Option<f64>,
-    /// Catch-up acceleration (units/s²; default the axis').
-    #[arg(long, value_parser = finite)]
-    acceleration: Option<f64>,
-    /// Catch-up deceleration (units/s²).
-    #[arg(long, value_parser = finite)]
-    deceleration: Option<f64>,
-    /// Catch-up jerk (units/s³).
-    #[arg(long, value_parser = finite)]
-    jerk: Option<f64>,
+    #[command(flatten)]
+    catch_up: CatchUpArgs,
 }
 
 impl CamInArgs {
@@ -405,9 +398,9 @@ impl CamInArgs {
             slave_offset: self.slave_offset,
             master_scaling: self.master_scaling,
             slave_scaling: self.slave_scaling,
-            acceleration: self.acceleration,
-            deceleration: self.deceleration,
-            jerk: self.jerk,
+            acceleration: self.catch_up.acceleration,
+            deceleration: self.catch_up.deceleration,
+            jerk: self.catch_up.jerk,
         }
     }
 }
@@ -922,6 +915,21 @@ enum SdoOp {
 }
 
 /// A number that is finite: clap takes "nan" and "inf" for an f64, the axes do not.
+/// How a follower catches up with its master (`gantry gear`, `gantry cam in`); left
+/// out, the axis' defaults.
+#[derive(clap::Args, Debug)]
+struct CatchUpArgs {
+    /// Catch-up acceleration (units/s²; default the axis').
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Catch-up deceleration (units/s²).
+    #[arg(long, value_parser = finite)]
+    deceleration: Option<f64>,
+    /// Catch-up jerk (units/s³).
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+}
+
 /// `gantry gear`'s arguments.
 #[derive(clap::Args, Debug)]
 struct GearArgs {
@@ -934,15 +942,8 @@ struct GearArgs {
     /// Follow the master's actual values (its encoder) instead of its set values.
     #[arg(long)]
     actual: bool,
-    /// Catch-up acceleration (units/s²; default the axis').
-    #[arg(long, value_parser = finite)]
-    acceleration: Option<f64>,
-    /// Catch-up deceleration (units/s²).
-    #[arg(long, value_parser = finite)]
-    deceleration: Option<f64>,
-    /// Catch-up jerk (units/s³).
-    #[arg(long, value_parser = finite)]
-    jerk: Option<f64>,
+    #[command(flatten)]
+    catch_up: CatchUpArgs,
     /// In sync at MASTER_POSITION:SLAVE_POSITION (MC_GearInPos).
     #[arg(long, allow_hyphen_values = true, value_parser = position_pair)]
     sync: Option<(f64, f64)>,
@@ -970,9 +971,9 @@ impl GearArgs {
             numerator,
             denominator,
             source: self.actual.then_some(MasterSource::Actual),
-            acceleration: self.acceleration,
-            deceleration: self.deceleration,
-            jerk: self.jerk,
+            acceleration: self.catch_up.acceleration,
+            deceleration: self.catch_up.deceleration,
+            jerk: self.catch_up.jerk,
             master_sync_position: self.sync.map(|s| s.0),
             slave_sync_position: self.sync.map(|s| s.1),
             master_start_distance: self.start_distance,

@@ -145,15 +145,7 @@ fn gantry_cam_in_and_out_follow_the_table_on_the_drives() {
     ]);
     std::thread::sleep(std::time::Duration::from_millis(2500));
     let st = svc.status();
-    let axis = |name: &str| {
-        st["axes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|a| a["name"] == name)
-            .unwrap()
-            .clone()
-    };
+    let axis = |name: &str| support::axis_of(&st, name);
     let (y, m) = (axis("y"), axis("m"));
     assert_eq!(y["sync"]["camming"], true, "{y}");
     assert_eq!(y["sync"]["in_sync"], true, "{y}");

@@ -51,15 +51,7 @@ fn gear_two_servo_axes_to_a_virtual_master() {
     s.ok(&["gear", "c", "--master", "m", "--ratio", "3"]);
     std::thread::sleep(Duration::from_millis(1500));
     let st = s.status();
-    let axis = |st: &serde_json::Value, name: &str| {
-        st["axes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|a| a["name"] == name)
-            .unwrap()
-            .clone()
-    };
+    let axis = support::axis_of;
     for (name, v) in [("x", 20.0), ("y", -40.0)] {
         let a = axis(&st, name);
         assert_eq!(a["state"], "SynchronizedMotion", "{a}");

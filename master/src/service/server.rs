@@ -712,7 +712,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             axis: a,
             direction,
             speed,
-            master: Some(m),
+            master,
             lock,
             lock_position,
         } => {
@@ -723,44 +723,28 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
                 .get(i)
                 .map(|c| c.defaults)
                 .ok_or(Refused::NoConfig(a))?;
-            let catch_up = super::sync::catch_up(Some(d.acceleration), Some(d.deceleration), None)?;
-            let cmd = super::sync::master_jog(
-                axis(&m)?,
-                direction,
-                speed,
-                lock,
-                lock_position,
-                catch_up,
-            )?;
+            let cmd = match master {
+                Some(m) => super::sync::master_jog(
+                    axis(&m)?,
+                    direction,
+                    speed,
+                    lock,
+                    lock_position,
+                    super::sync::catch_up(Some(d.acceleration), Some(d.deceleration), None)?,
+                )?,
+                None if lock.is_some() || lock_position.is_some() => {
+                    return Err(Refused::Sync(
+                        "lock and lock_position are for a jog with a master",
+                    ))
+                }
+                None => Command::Jog(Jog::new(
+                    direction.into(),
+                    number("speed", speed)?,
+                    d.acceleration,
+                    d.deceleration,
+                )),
+            };
             sent(ctl.command(i, cmd))
-        }
-        Request::Jog {
-            axis: a,
-            direction,
-            speed,
-            master: None,
-            lock,
-            lock_position,
-        } => {
-            if lock.is_some() || lock_position.is_some() {
-                return Err(Refused::Sync(
-                    "lock and lock_position are for a jog with a master",
-                ));
-            }
-            let i = axis(&a)?;
-            let d = state
-                .config
-                .kernel_axes
-                .get(i)
-                .map(|c| c.defaults)
-                .ok_or(Refused::NoConfig(a))?;
-            let jog = Jog::new(
-                direction.into(),
-                number("speed", speed)?,
-                d.acceleration,
-                d.deceleration,
-            );
-            sent(ctl.command(i, Command::Jog(jog)))
         }
         Request::Gear {
             axis: a,

@@ -10,7 +10,7 @@ use crate::axis::Axis;
 use crate::cam::CamTable;
 use crate::profile::{plan_position, plan_velocity, KinematicState, Limits, Profile, RampType};
 use crate::sync::catch::Catch;
-use crate::sync::command::{CamIn, CamStart, CatchUp, GearIn, GearInPos, MasterJog};
+use crate::sync::command::{CamIn, CamStart, CatchUp, GearIn, GearInPos, MasterJog, MasterValue};
 use crate::sync::law::{CamLaw, JogLaw, Law};
 use crate::sync::{Follow, MasterSample, Split};
 
@@ -134,6 +134,33 @@ impl Axis {
             })
     }
 
+    /// A relation whose law counts from where master and follower are now and whose
+    /// catch-up is `profile` in time, from this cycle.
+    fn relation_from_here(
+        &self,
+        name: &'static str,
+        h: HandleId,
+        (master, source): (usize, MasterValue),
+        law: Law,
+        m: &MasterSample,
+        (profile, limits, ramp): (Profile, Limits, RampType),
+    ) -> Follow {
+        Follow {
+            master,
+            source,
+            law,
+            master_ref: m.at,
+            follower_ref: self.set_split(),
+            catch: Catch::Time {
+                profile,
+                epoch: Epoch::at(self.last_tick),
+            },
+            handle: h,
+            command: name,
+            catch_limits: (limits, ramp),
+        }
+    }
+
     /// Installs a relation: the old one and any own motion end (Aborted).
     fn start_follow(&mut self, f: Follow, handles: &mut HandleTable) {
         if let Some(old) = self.follow.replace(f) {
@@ -161,23 +188,18 @@ impl Axis {
         let start = self.catch_start(ratio, 0.0, &m);
         let (limits, ramp) = self.catch_limits(name, &g.catch_up, start.v)?;
         let profile = Self::plan_catch(name, start, None, &limits, ramp)?;
-        let f = Follow {
-            master: g.master,
-            source: g.source,
-            law: Law::Gear {
-                numerator: num,
-                denominator: den,
-            },
-            master_ref: m.at,
-            follower_ref: self.set_split(),
-            catch: Catch::Time {
-                profile,
-                epoch: Epoch::at(self.last_tick),
-            },
-            handle: h,
-            command: name,
-            catch_limits: (limits, ramp),
+        let law = Law::Gear {
+            numerator: num,
+            denominator: den,
         };
+        let f = self.relation_from_here(
+            name,
+            h,
+            (g.master, g.source),
+            law,
+            &m,
+            (profile, limits, ramp),
+        );
         self.start_follow(f, handles);
         Ok(CommandStatus::Active)
     }
@@ -367,29 +389,24 @@ impl Axis {
         };
         let (limits, ramp) = self.catch_limits(name, &c.catch_up, start.v)?;
         let profile = Self::plan_catch(name, start, offset, &limits, ramp)?;
-        let f = Follow {
-            master: c.master,
-            source: c.source,
-            law: Law::Cam(CamLaw {
-                table: c.table,
-                periodic: c.periodic,
-                master_scaling: c.master_scaling,
-                slave_scaling: c.slave_scaling,
-                x_ref,
-                y_ref,
-                cycle,
-                segment: 0,
-            }),
-            master_ref: m.at,
-            follower_ref: self.set_split(),
-            catch: Catch::Time {
-                profile,
-                epoch: Epoch::at(self.last_tick),
-            },
-            handle: h,
-            command: name,
-            catch_limits: (limits, ramp),
-        };
+        let law = Law::Cam(CamLaw {
+            table: c.table,
+            periodic: c.periodic,
+            master_scaling: c.master_scaling,
+            slave_scaling: c.slave_scaling,
+            x_ref,
+            y_ref,
+            cycle,
+            segment: 0,
+        });
+        let f = self.relation_from_here(
+            name,
+            h,
+            (c.master, c.source),
+            law,
+            &m,
+            (profile, limits, ramp),
+        );
         self.start_follow(f, handles);
         Ok(CommandStatus::Active)
     }
@@ -443,27 +460,22 @@ impl Axis {
         let start = self.catch_start(d1, 0.0, &m);
         let (limits, ramp) = self.catch_limits(name, &j.catch_up, start.v)?;
         let profile = Self::plan_catch(name, start, None, &limits, ramp)?;
-        let f = Follow {
-            master: j.master,
-            source: j.source,
-            law: Law::Jog(JogLaw {
-                ratio,
-                only,
-                wait_at,
-                locked,
-                anchor: m.at,
-                travel: 0.0,
-            }),
-            master_ref: m.at,
-            follower_ref: self.set_split(),
-            catch: Catch::Time {
-                profile,
-                epoch: Epoch::at(self.last_tick),
-            },
-            handle: h,
-            command: name,
-            catch_limits: (limits, ramp),
-        };
+        let law = Law::Jog(JogLaw {
+            ratio,
+            only,
+            wait_at,
+            locked,
+            anchor: m.at,
+            travel: 0.0,
+        });
+        let f = self.relation_from_here(
+            name,
+            h,
+            (j.master, j.source),
+            law,
+            &m,
+            (profile, limits, ramp),
+        );
         self.start_follow(f, handles);
         self.last_direction = j.direction.sign();
         Ok(CommandStatus::Active)

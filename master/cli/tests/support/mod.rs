@@ -167,14 +167,19 @@ impl Service {
 
     /// Axis `name` of `gantry status --json`.
     pub fn axis(&self, name: &str) -> serde_json::Value {
-        self.status()["axes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|a| a["name"] == name)
-            .unwrap()
-            .clone()
+        axis_of(&self.status(), name)
     }
+}
+
+/// Axis `name` of a `gantry status --json` reply.
+pub fn axis_of(status: &serde_json::Value, name: &str) -> serde_json::Value {
+    status["axes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|a| a["name"] == name)
+        .unwrap_or_else(|| panic!("no axis {name} in {status}"))
+        .clone()
 }
 
 impl Service {
