@@ -908,8 +908,18 @@ fn short_way(x: f64, reference: f64, period: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// The demo's configuration as the demo loads it: written with the files beside it
+    /// (its cam table) to a folder of this test's own.
     fn config() -> Config {
-        Config::parse(CONFIG_TOML, CONFIG_FILE).expect("the demo's configuration")
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!(
+            "gantry-demo-unit-config-{}-{n}",
+            std::process::id()
+        ));
+        let config = write_config(&dir, SERVOS_TOML, None).expect("the demo's configuration");
+        let _ = std::fs::remove_dir_all(&dir);
+        config
     }
 
     #[test]
