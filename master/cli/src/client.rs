@@ -182,6 +182,46 @@ fn axis_of<'a>(status: &'a Value, axis: &str) -> Option<&'a Value> {
         .find(|a| a["name"] == json!(axis))
 }
 
+/// What an axis follows, for the status table: "gear m in sync", "cam m catching up",
+/// "jog m locked"; "-" for none; a limit exceeded (warning reaction) is flagged.
+fn follows(sync: &Value) -> String {
+    if sync.is_null() {
+        return "-".into();
+    }
+    let kind = if sync["gearing"] == json!(true) {
+        "gear"
+    } else if sync["camming"] == json!(true) {
+        "cam"
+    } else if sync["jogging"] == json!(true) {
+        "jog"
+    } else {
+        ""
+    };
+    let state = if kind == "jog" {
+        if sync["jog_locked"] == json!(true) {
+            "locked"
+        } else {
+            "waiting"
+        }
+    } else if sync["in_sync"] == json!(true) {
+        "in sync"
+    } else {
+        "catching up"
+    };
+    let mut text = match sync["master"].as_str() {
+        Some(m) => format!("{kind} {m} {state}"),
+        None => String::new(),
+    };
+    if sync["limit_exceeded"] == json!(true) {
+        text.push_str(" LIMIT");
+    }
+    if text.is_empty() {
+        "-".into()
+    } else {
+        text
+    }
+}
+
 /// `gantry status`.
 pub fn status(
     client: &mut Client,
@@ -209,17 +249,18 @@ pub fn status(
     .map_err(io)?;
     writeln!(
         out,
-        "{:<6} {:<9} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} error",
-        "axis", "type", "state", "position", "set", "velocity", "homed", "switches"
+        "{:<6} {:<9} {:<17} {:<20} {:>12} {:>12} {:>10} {:<5} {:<11} error",
+        "axis", "type", "state", "follows", "position", "set", "velocity", "homed", "switches"
     )
     .map_err(io)?;
     for a in s["axes"].as_array().into_iter().flatten() {
         writeln!(
             out,
-            "{:<6} {:<9} {:<17} {:>12} {:>12} {:>10} {:<5} {:<11} {}",
+            "{:<6} {:<9} {:<17} {:<20} {:>12} {:>12} {:>10} {:<5} {:<11} {}",
             a["name"].as_str().unwrap_or("?"),
             a["type"].as_str().unwrap_or("real"),
             a["state"].as_str().unwrap_or("?"),
+            follows(&a["sync"]),
             f(&a["position"]),
             f(&a["set_position"]),
             f(&a["velocity"]),

@@ -60,6 +60,9 @@ fn gear_two_servo_axes_to_a_virtual_master() {
         assert_eq!(a["sync"]["in_sync"], true, "{a}");
         assert!((a["velocity"].as_f64().unwrap() - v).abs() < 1e-6, "{a}");
     }
+    let table = s.ok(&["status"]);
+    let x_row = table.lines().find(|l| l.starts_with("x ")).unwrap();
+    assert!(x_row.contains("gear m in sync"), "{table}");
     // The ratio between two snapshots, each consistent in itself.
     std::thread::sleep(Duration::from_millis(500));
     let later = s.status();
