@@ -9,5 +9,7 @@
 //! as a set-value source of its axes comes with the path planner.
 
 pub mod config;
+pub mod state;
 
 pub use config::{GroupConfig, GroupConfigError, MAX_GROUP_AXES};
+pub use state::{accepts, GroupCommand, GroupEvent, GroupState};
