@@ -9,7 +9,11 @@
 //! as a set-value source of its axes comes with the path planner.
 
 pub mod config;
+pub mod enable;
 pub mod state;
 
 pub use config::{GroupConfig, GroupConfigError, MAX_GROUP_AXES};
+pub use enable::{
+    check_enable, check_move_start, AxisView, GroupEnableError, GroupMoveError, MoveView,
+};
 pub use state::{accepts, GroupCommand, GroupEvent, GroupState};
