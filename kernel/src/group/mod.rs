@@ -11,9 +11,14 @@
 pub mod config;
 pub mod enable;
 pub mod state;
+pub mod status;
 
 pub use config::{GroupConfig, GroupConfigError, MAX_GROUP_AXES};
 pub use enable::{
     check_enable, check_move_start, AxisView, GroupEnableError, GroupMoveError, MoveView,
 };
 pub use state::{accepts, GroupCommand, GroupEvent, GroupState};
+pub use status::{
+    coordinated, enabled_group_of, next_status, start_abort_cause, start_status, AbortCause,
+    FbOutputs, GroupCommandError, HandleEvent,
+};
