@@ -17,6 +17,7 @@
 
 pub mod axis;
 pub mod cam;
+pub mod group;
 pub mod homing;
 pub mod kernel;
 pub mod mechanics;
