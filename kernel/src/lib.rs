@@ -20,6 +20,7 @@ pub mod cam;
 pub mod homing;
 pub mod kernel;
 pub mod mechanics;
+pub mod path;
 pub mod profile;
 pub mod sync;
 
