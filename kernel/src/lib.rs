@@ -21,6 +21,7 @@ pub mod group;
 pub mod homing;
 pub mod kernel;
 pub mod mechanics;
+pub mod path;
 pub mod profile;
 pub mod sync;
 
