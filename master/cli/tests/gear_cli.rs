@@ -87,6 +87,16 @@ fn gear_two_servo_axes_to_a_virtual_master() {
     assert!(e.contains("nobody"), "{e}");
     let e = s.fails(&["gear", "z", "--master", "m", "--ratio", "1:0"]);
     assert!(e.contains("must not be 0"), "{e}");
+    // A virtual axis has no drive: what needs one says so.
+    let e = s.fails(&["sdo", "upload", "--axis", "m", "0x6041:0", "--type", "u16"]);
+    assert!(
+        e.contains("m is a virtual axis: it has no drive for an SDO transfer"),
+        "{e}"
+    );
+    let e = s.fails(&["home", "m", "--drive"]);
+    assert!(e.contains("m is a virtual axis: it has no drive"), "{e}");
+    let e = s.fails(&["commission", "m", "commutation"]);
+    assert!(e.contains("m is a virtual axis: it has no drive"), "{e}");
     let e = s.fails(&["gear", "m", "--out"]);
     assert!(e.contains("GearOut"), "{e}");
 

@@ -286,6 +286,16 @@ pub enum Refused {
         /// Why.
         reason: String,
     },
+    /// A request that needs the axis' drive, for an axis without one.
+    #[error("{axis} is a {axis_type} axis: it has no drive for {what}")]
+    NoDrive {
+        /// The axis.
+        axis: String,
+        /// Its type.
+        axis_type: &'static str,
+        /// What needed the drive.
+        what: &'static str,
+    },
     /// A synchronised-motion request whose fields do not go together.
     #[error("{0}")]
     Sync(&'static str),
@@ -462,6 +472,29 @@ async fn cam_load(
     Ok(cam_json(&info))
 }
 
+/// Axis `a` and its configuration, when it has a drive for `what` to reach (a real
+/// axis); another type is refused by name (a virtual axis has no drive to talk to).
+fn drive_axis<'s>(
+    state: &'s ServerState,
+    a: &str,
+    what: &'static str,
+) -> Result<(usize, &'s crate::config::AxisSection), Refused> {
+    let i = state.controller.axis(a)?;
+    let section = state
+        .config
+        .axes
+        .get(i)
+        .ok_or_else(|| Refused::NoConfig(a.to_string()))?;
+    if section.axis_type != AxisType::Real {
+        return Err(Refused::NoDrive {
+            axis: a.to_string(),
+            axis_type: section.axis_type.name(),
+            what,
+        });
+    }
+    Ok((i, section))
+}
+
 /// The bus position of the drive an SDO request names, and the axis it drives (none
 /// when a drive position is no axis').
 fn sdo_drive(
@@ -471,14 +504,8 @@ fn sdo_drive(
 ) -> Result<(usize, Option<usize>), Refused> {
     match (axis, drive) {
         (Some(a), None) => {
-            let i = state.controller.axis(&a)?;
-            let d = state
-                .config
-                .axes
-                .get(i)
-                .map(|c| c.drive)
-                .ok_or(Refused::NoConfig(a))?;
-            Ok((d, Some(i)))
+            let (i, section) = drive_axis(state, &a, "an SDO transfer")?;
+            Ok((section.drive, Some(i)))
         }
         (None, Some(d)) => Ok((d, state.config.axes.iter().position(|c| c.drive == d))),
         _ => Err(Refused::SdoTarget),
@@ -577,6 +604,9 @@ fn commission(
             reason: "is required".into(),
         })
     };
+    if kind == CommissionKind::Commutation {
+        drive_axis(state, &a, "a commutation measurement")?;
+    }
     let procedure = match kind {
         CommissionKind::Commutation => Procedure::Commutation(CommutationSettings {
             drive: section.drive,
@@ -895,12 +925,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             Ok(reply)
         }
         Request::DriveHome { axis: a, params } => {
-            let i = axis(&a)?;
-            let cfg = state
-                .config
-                .axes
-                .get(i)
-                .ok_or(Refused::NoConfig(a.clone()))?;
+            let (i, cfg) = drive_axis(state, &a, "homing by the drive")?;
             let params = drive_home_params(cfg, &params)?;
             sent(ctl.drive_procedure(i, DriveProcedure::Homing(DriveHoming::new(params))))
         }
