@@ -8,6 +8,10 @@ use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::status::AxisStatus;
 use crate::axis::{Axis, AxisConfig, AxisFeedback, AxisKind, AxisSetpoint, ConfigError};
 use crate::cam::CamTable;
+use crate::group::run::{Drive, Group, GroupCmd};
+use crate::group::{check_enable, check_move_start, AxisView, GroupConfig, MoveView};
+use crate::path::{AxisLimits, MAX_AXES};
+use crate::profile::KinematicState;
 use crate::sync::MasterSample;
 
 /// Shortest and longest cycle time the kernel accepts (s).
@@ -47,6 +51,10 @@ pub struct Kernel {
     depth: Vec<usize>,
     /// Cam tables by slot.
     cams: Vec<Option<CamTable>>,
+    /// Axis groups.
+    groups: Vec<Group>,
+    /// Per axis, the set values its group's path gives this cycle.
+    group_drive: Vec<Option<KinematicState>>,
     setpoints: Vec<AxisSetpoint>,
     handles: HandleTable,
     dt: f64,
@@ -89,6 +97,8 @@ impl Kernel {
             order: (0..n).collect(),
             depth: vec![0; n],
             cams: (0..CAM_SLOTS).map(|_| None).collect(),
+            groups: Vec::new(),
+            group_drive: vec![None; n],
             handles: HandleTable::new(),
             dt: cycle_s,
             tick: 0,
@@ -166,6 +176,176 @@ impl Kernel {
         match self.cams.get_mut(slot) {
             Some(s) => Ok(core::mem::replace(s, table)),
             None => Err(CamSlotError::NoSuchSlot { slot }),
+        }
+    }
+
+    /// Adds an axis group (at set-up, not in the cycle: it allocates); its index.
+    pub fn add_group(&mut self, cfg: GroupConfig) -> Result<usize, crate::group::GroupConfigError> {
+        let kinds: Vec<AxisKind> = self.axes.iter().map(|a| a.config().kind).collect();
+        cfg.validate(&kinds)?;
+        let mut limits = [AxisLimits {
+            vmax: 1.0,
+            amax: 1.0,
+            jmax: 1.0,
+        }; MAX_AXES];
+        for (l, &i) in limits.iter_mut().zip(&cfg.axes) {
+            if let Some(a) = self.axes.get(i) {
+                let m = a.config().max;
+                *l = AxisLimits {
+                    vmax: m.vmax,
+                    amax: m.amax.min(m.dmax),
+                    jmax: m.jmax,
+                };
+            }
+        }
+        self.groups.push(Group::new(cfg, limits));
+        Ok(self.groups.len() - 1)
+    }
+
+    /// The groups.
+    pub fn groups(&self) -> &[Group] {
+        &self.groups
+    }
+
+    /// Submits a command to group `g` (as [`Kernel::submit`] does for an axis).
+    pub fn group_command(&mut self, g: usize, cmd: GroupCmd) -> Result<HandleId, CommandError> {
+        let h = self.handles.issue(CommandStatus::Busy);
+        let status = self
+            .group_apply(g, cmd, h)
+            .unwrap_or_else(CommandStatus::Error);
+        self.handles.set(h, status);
+        for a in &mut self.axes {
+            a.refresh_status();
+        }
+        match status {
+            CommandStatus::Error(e) => Err(e),
+            _ => Ok(h),
+        }
+    }
+
+    fn group_apply(
+        &mut self,
+        g: usize,
+        cmd: GroupCmd,
+        h: HandleId,
+    ) -> Result<CommandStatus, CommandError> {
+        let group = self
+            .groups
+            .get(g)
+            .ok_or(CommandError::NoSuchGroup { group: g })?;
+        group.check_state(&cmd)?;
+        let members = group.config().axes.clone();
+        match cmd {
+            GroupCmd::Enable => {
+                if group.state() != crate::group::GroupState::Disabled {
+                    return Ok(CommandStatus::Done);
+                }
+                let views: Vec<AxisView> =
+                    (0..self.axes.len()).map(|i| self.axis_view(i, g)).collect();
+                check_enable(group.config(), &views).map_err(|e| CommandError::Group(e.into()))?;
+                if let Some(group) = self.groups.get_mut(g) {
+                    group.enable();
+                }
+                self.set_coordinated(&members, true);
+                Ok(CommandStatus::Done)
+            }
+            GroupCmd::Disable => {
+                if let Some(group) = self.groups.get_mut(g) {
+                    group.disable(&mut self.handles)?;
+                }
+                self.set_coordinated(&members, false);
+                Ok(CommandStatus::Done)
+            }
+            GroupCmd::Move(m) => {
+                let views: Vec<MoveView> = members
+                    .iter()
+                    .filter_map(|&i| {
+                        let s = self.axes.get(i)?.status();
+                        Some(MoveView {
+                            axis: i,
+                            homed: s.bits.homed,
+                            switches: s.switches,
+                        })
+                    })
+                    .collect();
+                check_move_start(&views).map_err(|error| {
+                    CommandError::Group(crate::group::GroupCommandError::MoveStart {
+                        command: m.name(),
+                        error,
+                    })
+                })?;
+                let moving = group.drives_axes();
+                let mut from = [0.0; MAX_AXES];
+                for (f, &i) in from.iter_mut().zip(&members) {
+                    let a = self
+                        .axes
+                        .get(i)
+                        .ok_or(CommandError::NoSuchAxis { axis: i })?;
+                    if a.config().mechanics.modulo.is_some() {
+                        return Err(CommandError::GroupPath {
+                            command: m.name(),
+                            error: crate::axis::command::GroupPathError::ModuloAxis { axis: i },
+                        });
+                    }
+                    if !moving && a.state() != crate::axis::state::AxisState::Standstill {
+                        return Err(CommandError::NotAllowedInState {
+                            command: m.name(),
+                            state: a.state(),
+                        });
+                    }
+                    *f = a.status().set.p;
+                }
+                let tick = self.tick;
+                let status = match self.groups.get_mut(g) {
+                    Some(group) => group.start_move(m, from, h, tick)?,
+                    None => return Err(CommandError::NoSuchGroup { group: g }),
+                };
+                if !moving {
+                    for &i in &members {
+                        if let Some(a) = self.axes.get_mut(i) {
+                            a.begin_group_motion(g);
+                        }
+                    }
+                }
+                Ok(status)
+            }
+            GroupCmd::Stop => {
+                let (tick, dt) = (self.tick, self.dt);
+                match self.groups.get_mut(g) {
+                    Some(group) => Ok(group.stop(h, tick, dt, &mut self.handles)),
+                    None => Err(CommandError::NoSuchGroup { group: g }),
+                }
+            }
+            GroupCmd::Release => match self.groups.get_mut(g) {
+                Some(group) => Ok(group.release()),
+                None => Err(CommandError::NoSuchGroup { group: g }),
+            },
+            GroupCmd::Reset => match self.groups.get_mut(g) {
+                Some(group) => group.reset(),
+                None => Err(CommandError::NoSuchGroup { group: g }),
+            },
+        }
+    }
+
+    /// Axis `i` as MC_GroupEnable of group `g` sees it.
+    fn axis_view(&self, i: usize, g: usize) -> AxisView {
+        let a = self.axes.get(i);
+        AxisView {
+            state: a.map_or(crate::axis::state::AxisState::Disabled, Axis::state),
+            kind: a.map_or(AxisKind::Virtual, |a| a.config().kind),
+            homed: a.is_some_and(|a| a.status().bits.homed),
+            in_enabled_group: self.groups.iter().enumerate().position(|(k, other)| {
+                k != g && other.state().is_enabled() && other.config().axes.contains(&i)
+            }),
+        }
+    }
+
+    fn set_coordinated(&mut self, members: &[usize], on: bool) {
+        for &i in members {
+            if let Some(a) = self.axes.get_mut(i) {
+                a.set_coordinated(on);
+                a.refresh_status();
+            }
         }
     }
 
@@ -337,6 +517,19 @@ impl Kernel {
     pub fn step(&mut self, feedback: &[AxisFeedback]) -> &[AxisSetpoint] {
         self.tick += 1;
         let none = AxisFeedback::default();
+        // Groups first: their paths give their axes' set values of this cycle.
+        for d in self.group_drive.iter_mut() {
+            *d = None;
+        }
+        for group in &mut self.groups {
+            if let Drive::Axes(states) = group.step(self.tick, self.dt, &mut self.handles) {
+                for (s, &i) in states.iter().zip(&group.config().axes) {
+                    if let Some(d) = self.group_drive.get_mut(i) {
+                        *d = Some(*s);
+                    }
+                }
+            }
+        }
         for &i in &self.order {
             let (kind, following) = match self.axes.get(i) {
                 Some(a) => (a.config().kind, a.following()),
@@ -350,14 +543,29 @@ impl Kernel {
             let master: Option<MasterSample> =
                 following.and_then(|(m, source)| self.axes.get(m).map(|a| a.master_sample(source)));
             if let (Some(axis), Some(sp)) = (self.axes.get_mut(i), self.setpoints.get_mut(i)) {
+                let path = self.group_drive.get(i).copied().flatten();
                 *sp = axis.step(
                     self.tick,
                     self.dt,
                     &fb,
                     master.as_ref(),
+                    path.as_ref(),
                     &self.cams,
                     &mut self.handles,
                 );
+            }
+        }
+        // A group whose axis left its path (a fault, its own stop) goes to ErrorStop and
+        // brakes the others along the path.
+        for (g, group) in self.groups.iter_mut().enumerate() {
+            let left = group.drives_axes()
+                && group.config().axes.iter().any(|&i| {
+                    self.axes
+                        .get(i)
+                        .is_some_and(|a| a.driven_by_group() != Some(g))
+                });
+            if left && group.state() == crate::group::GroupState::Moving {
+                group.axis_left(self.tick, self.dt, &mut self.handles);
             }
         }
         &self.setpoints

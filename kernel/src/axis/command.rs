@@ -792,6 +792,31 @@ pub enum CommandError {
         /// "gearing" or "camming".
         what: &'static str,
     },
+    /// A group command failed at its start (state, enable rules, a move's start checks).
+    #[error(transparent)]
+    Group(#[from] crate::group::GroupCommandError),
+    /// A group move's path cannot be made or planned (the circular rules, the limits).
+    #[error("{command}: {error}")]
+    GroupPath {
+        /// Function block name.
+        command: &'static str,
+        /// Why.
+        error: GroupPathError,
+    },
+    /// A single-axis command on an axis its group moves.
+    #[error("{command}: the axis moves with group {group}; stop the group first")]
+    MovesWithGroup {
+        /// Command name.
+        command: &'static str,
+        /// The group's index.
+        group: usize,
+    },
+    /// No group with that index.
+    #[error("no group with index {group}")]
+    NoSuchGroup {
+        /// The index given.
+        group: usize,
+    },
     /// No axis with that index.
     #[error("no axis with index {axis}")]
     NoSuchAxis {
@@ -829,6 +854,23 @@ pub enum CommandError {
         id: u16,
         /// What went wrong, in the bus' terms.
         problem: &'static str,
+    },
+}
+
+/// Why a group move's path cannot be made or planned.
+#[derive(Clone, Copy, Debug, Error, PartialEq)]
+pub enum GroupPathError {
+    /// The segment's geometry (MC_MoveCircular2D's rules, the circular axes).
+    #[error(transparent)]
+    Segment(#[from] crate::path::SegmentError),
+    /// Its planning under the axes' limits.
+    #[error(transparent)]
+    Plan(#[from] crate::path::PathPlanError),
+    /// A circular move on a modulo axis (Omron 544A).
+    #[error("axis {axis} is a modulo axis: a circular move needs linear axes")]
+    ModuloAxis {
+        /// The axis' kernel index.
+        axis: usize,
     },
 }
 
@@ -874,13 +916,16 @@ impl CommandError {
             | CommandError::NoSuchCamTable { command, .. }
             | CommandError::CannotSynchronise { command, .. }
             | CommandError::NotSynchronised { command, .. }
+            | CommandError::GroupPath { command, .. }
+            | CommandError::MovesWithGroup { command, .. }
             | CommandError::LentToDrive { command, .. } => command,
             CommandError::Homing(e) => e.command(),
             CommandError::DriveProcedure(e) => e.procedure,
             CommandError::DriveResetFailed { .. }
             | CommandError::SlaveNotOperational { .. }
             | CommandError::DriveNotOperational { .. } => "Reset",
-            CommandError::NoSuchAxis { .. } => "a command",
+            CommandError::NoSuchAxis { .. } | CommandError::NoSuchGroup { .. } => "a command",
+            CommandError::Group(_) => "a group command",
         }
     }
 

@@ -69,6 +69,37 @@ impl Axis {
         self.main.p = at.p;
     }
 
+    /// Whether a group's path drives the axis, and which group.
+    pub fn driven_by_group(&self) -> Option<usize> {
+        self.group
+    }
+
+    /// The group `g` takes the axis over for a move (from Standstill; the kernel checked).
+    pub(crate) fn begin_group_motion(&mut self, g: usize) {
+        self.group = Some(g);
+        self.enter(Event::SynchronizedMotionStarted);
+    }
+
+    /// The axis' group is enabled or disabled.
+    pub(crate) fn set_coordinated(&mut self, on: bool) {
+        self.coordinated = on;
+    }
+
+    /// One cycle under a group: its path's set values; none means the group stands now
+    /// (its move or its braking ended), and the axis with it.
+    pub(super) fn group_step(&mut self, path: Option<&KinematicState>) {
+        match path {
+            Some(s) => self.main = *s,
+            None => {
+                self.group = None;
+                self.main = KinematicState::at_rest(self.main.p);
+                if self.state == super::state::AxisState::SynchronizedMotion {
+                    self.enter(Event::MotionDone);
+                }
+            }
+        }
+    }
+
     /// One cycle of a follower.
     pub(super) fn follow_step(
         &mut self,

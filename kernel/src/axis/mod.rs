@@ -506,6 +506,10 @@ pub struct Axis {
     follow: Option<crate::sync::Follow>,
     /// Status bits of the relation this cycle (in sync, end of profile, limit exceeded).
     sync_bits: follow::SyncBits,
+    /// The group whose path drives the set values (a group move or its braking).
+    group: Option<usize>,
+    /// The axis' group is enabled (Omron Status.Coordinated).
+    coordinated: bool,
 }
 
 /// Dynamics of the moves of a homing run.
@@ -569,6 +573,8 @@ impl Axis {
             rejoin: false,
             follow: None,
             sync_bits: follow::SyncBits::default(),
+            group: None,
+            coordinated: false,
             cfg,
         };
         axis.normalise_frame();
@@ -671,6 +677,7 @@ impl Axis {
         dt: f64,
         fb: &AxisFeedback,
         master: Option<&crate::sync::MasterSample>,
+        path: Option<&KinematicState>,
         cams: &[Option<crate::cam::CamTable>],
         handles: &mut HandleTable,
     ) -> AxisSetpoint {
@@ -682,6 +689,7 @@ impl Axis {
             self.track_lent_drive();
         }
         match (self.follow.is_some(), master) {
+            _ if self.group.is_some() => self.group_step(path),
             (true, Some(m)) => self.follow_step(m, cams, now, dt, handles),
             // An encoder's or a shadow's set values are what it reads.
             _ if !self.cfg.kind.is_commandable() => {}
@@ -697,7 +705,11 @@ impl Axis {
             self.actual_p = self.main.p + self.overlay_set.p;
             self.actual_v = self.main.v + self.overlay_set.v;
         }
-        if self.motion.is_none() && self.overlay.is_none() && self.follow.is_none() {
+        if self.motion.is_none()
+            && self.overlay.is_none()
+            && self.follow.is_none()
+            && self.group.is_none()
+        {
             self.normalise_frame();
         }
         self.refresh_status();
@@ -1072,6 +1084,8 @@ impl Axis {
         if let Some(f) = self.follow.take() {
             handles.set(f.handle, CommandStatus::Error(err));
         }
+        // Off its group's path: the group sees it and goes to ErrorStop.
+        self.group = None;
         self.homing = None;
         if let Some(l) = self.lent.take() {
             handles.set(l.handle, CommandStatus::Error(err));
@@ -1222,6 +1236,7 @@ impl Axis {
                 jog_locked: self.follow.and_then(|f| f.jog_lock()).unwrap_or(false),
                 gearing: self.follow.is_some_and(|f| f.is_gear()),
                 camming: self.follow.is_some_and(|f| f.is_cam()),
+                coordinated: self.coordinated,
                 in_sync: self.sync_bits.in_sync,
                 end_of_profile: self.sync_bits.end_of_profile,
                 sync_limit_exceeded: self.sync_bits.limit_exceeded,

@@ -62,6 +62,9 @@ pub struct StatusBits {
     pub gearing: bool,
     /// Camming to a master (CamIn).
     pub camming: bool,
+    /// The axis' group is enabled (Omron Status.Coordinated): it belongs to that group
+    /// and no other may take it; while the group moves, its path drives the axis.
+    pub coordinated: bool,
     /// The follower is on its relation's law: caught up (PLCopen InGear / InSync).
     pub in_sync: bool,
     /// A cam began another period or passed the end of its table this cycle (PLCopen

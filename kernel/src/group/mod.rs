@@ -10,6 +10,7 @@
 
 pub mod config;
 pub mod enable;
+pub mod run;
 pub mod state;
 pub mod status;
 

@@ -16,5 +16,5 @@ pub mod segment;
 
 pub use circle::{circular_2d, Arc2, CircMode, CircularError, PathChoice, Segment2};
 pub use limits::{path_limits, AxisLimits, PathLimits, PathLimitsError};
-pub use profile::{PathPlanError, PathProfile};
+pub use profile::{along, PathPlanError, PathProfile};
 pub use segment::{CircAxes, PathDerivatives, PathSegment, SegmentError, MAX_AXES};

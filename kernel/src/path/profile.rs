@@ -84,19 +84,25 @@ impl PathProfile {
     /// (`t <= 0`: the start at rest; past the end: the end at rest). Axes beyond the
     /// group's stand at their start.
     pub fn sample(&self, t: f64) -> [KinematicState; MAX_AXES] {
-        let s = self.path.sample(t);
-        let g = self.segment.derivatives_at(s.p);
-        let mut out = [KinematicState::default(); MAX_AXES];
-        for (i, k) in out.iter_mut().enumerate() {
-            let at = |a: &[f64; MAX_AXES]| a.get(i).copied().unwrap_or(0.0);
-            let (p, d1, d2, d3) = (at(&g.p), at(&g.d1), at(&g.d2), at(&g.d3));
-            *k = KinematicState {
-                p,
-                v: d1 * s.v,
-                a: d2 * s.v * s.v + d1 * s.a,
-                j: d3 * s.v * s.v * s.v + 3.0 * d2 * s.v * s.a + d1 * s.j,
-            };
-        }
-        out
+        along(&self.segment, &self.path.sample(t))
     }
+}
+
+/// Every axis' position, velocity, acceleration and jerk where the path parameter is `s`
+/// (s, ṡ, s̈, s⃛): the chain rule through the segment's geometry. Also what a group that
+/// brakes along its path (MC_GroupStop) samples, with a braking profile of its own.
+pub fn along(segment: &PathSegment, s: &KinematicState) -> [KinematicState; MAX_AXES] {
+    let g = segment.derivatives_at(s.p);
+    let mut out = [KinematicState::default(); MAX_AXES];
+    for (i, k) in out.iter_mut().enumerate() {
+        let at = |a: &[f64; MAX_AXES]| a.get(i).copied().unwrap_or(0.0);
+        let (p, d1, d2, d3) = (at(&g.p), at(&g.d1), at(&g.d2), at(&g.d3));
+        *k = KinematicState {
+            p,
+            v: d1 * s.v,
+            a: d2 * s.v * s.v + d1 * s.a,
+            j: d3 * s.v * s.v * s.v + 3.0 * d2 * s.v * s.a + d1 * s.j,
+        };
+    }
+    out
 }

@@ -22,7 +22,7 @@ mod velocity;
 
 pub(crate) use sync::SyncContext;
 
-use super::command::{Command, CommandError};
+use super::command::{Command, CommandError, PowerCommand};
 use super::handle::{CommandStatus, HandleId, HandleTable};
 use super::state::{accepts, AxisState};
 use super::Axis;
@@ -97,6 +97,24 @@ impl Axis {
         }
         if let Some(r) = self.lent_command(cmd, handles) {
             return r;
+        }
+        if let Some(group) = self.group {
+            match cmd {
+                // Braking and power off take the axis off its group's path (the group then
+                // goes to ErrorStop and brakes its other axes along the path).
+                Command::Stop { .. }
+                | Command::QuickStop
+                | Command::Power(PowerCommand::Disable | PowerCommand::DisableForced) => {
+                    self.group = None;
+                }
+                Command::Reset | Command::SetHomed(_) => {}
+                _ => {
+                    return Err(CommandError::MovesWithGroup {
+                        command: name,
+                        group,
+                    })
+                }
+            }
         }
         self.check_towards_limit(cmd)?;
         match *cmd {
