@@ -2,6 +2,7 @@
 //! MC_MoveCircular2D; SPEC §7): every circular-interpolation rule and error of the seed,
 //! and seeded property tests that a planned line or arc never takes any axis beyond its
 //! own speed, acceleration or jerk, stays continuous and ends exactly on its target.
+//! Planning and sampling run under a counting allocator.
 
 use core::f64::consts::{FRAC_PI_2, FRAC_PI_3, PI, TAU};
 use gantry_kernel::path::{
@@ -9,6 +10,13 @@ use gantry_kernel::path::{
     PathLimits, PathProfile, PathSegment, Segment2, SegmentError, MAX_AXES,
 };
 use proptest::prelude::*;
+
+mod counting {
+    include!("common/counting_alloc.rs");
+}
+
+#[global_allocator]
+static ALLOC: counting::Counting = counting::Counting;
 
 const CW: PathChoice = PathChoice::Cw;
 const CCW: PathChoice = PathChoice::Ccw;
@@ -523,6 +531,51 @@ fn a_line_to_where_the_group_is_plans_an_empty_move() {
     assert_eq!(plan.duration(), 0.0);
     let s = plan.sample(0.5);
     assert_eq!((s[0].p, s[1].p, s[0].v), (1.0, 2.0, 0.0));
+}
+
+#[test]
+fn geometry_planning_and_sampling_do_not_allocate() {
+    let lim = [AxisLimits {
+        vmax: 10.0,
+        amax: 100.0,
+        jmax: 1000.0,
+    }; 4];
+    let cmd = PathLimits {
+        v: 5.0,
+        a: f64::INFINITY,
+        d: 50.0,
+        j: f64::INFINITY,
+    };
+    let circ = CircAxes::new(1, 3, 4).unwrap();
+    let mut sum = 0.0;
+    counting::watch(true);
+    for mode in [CircMode::Border, CircMode::Center, CircMode::Radius] {
+        let seg = PathSegment::circular_2d(
+            [0.0, 1.0, 2.0, 3.0],
+            4,
+            circ,
+            [2.5, 4.0],
+            [4.0, 3.0],
+            mode,
+            CW,
+        )
+        .unwrap();
+        let line = PathSegment::line([0.0; 4], [1.0, -2.0, 3.0, 0.5], 4).unwrap();
+        for seg in [seg, line] {
+            let plan = PathProfile::plan(seg, &lim, &cmd).unwrap();
+            for k in 0..=1000 {
+                let s = plan.sample(plan.duration() * k as f64 / 1000.0);
+                sum += s.iter().map(|s| s.p + s.v + s.a + s.j).sum::<f64>();
+            }
+        }
+    }
+    counting::watch(false);
+    assert_eq!(
+        counting::take_count(),
+        0,
+        "path planning or sampling allocated"
+    );
+    assert!(sum.is_finite());
 }
 
 // ---- Planned paths: limits, continuity, exact end (property tests) ----

@@ -14,7 +14,7 @@
 //! | Border | otherwise | the arc through aux; direction follows from the points, `PathChoice` ignored (seed: only the full circle takes it) |
 //! | Center | start = center | [`CircularError::CenterAtStart`] (seed silent: a circle of radius 0) |
 //! | Center | start = end | full circle around the center, direction from `PathChoice` |
-//! | Center | otherwise | radius = mean of |center−start| and |center−end|, center recomputed as in radius mode on the side of the chord the given center lies (on the chord's line: the short arc); direction from `PathChoice` |
+//! | Center | otherwise | radius = mean of the distances center–start and center–end, center recomputed as in radius mode on the side of the chord the given center lies (on the chord's line: the short arc); direction from `PathChoice` |
 //! | Radius | radius = 0 | [`CircularError::ZeroRadius`] |
 //! | Radius | start = end | [`CircularError::StartEqualsEnd`] |
 //! | Radius | \|radius\| < half the chord | [`CircularError::RadiusTooSmall`] |
