@@ -14,7 +14,7 @@
 //! | Border | otherwise | the arc through aux; direction follows from the points, `PathChoice` ignored (seed: only the full circle takes it) |
 //! | Center | start = center | [`CircularError::CenterAtStart`] (seed silent: a circle of radius 0) |
 //! | Center | start = end | full circle around the center, direction from `PathChoice` |
-//! | Center | otherwise | radius = mean of |center−start| and |center−end|, center recomputed as in radius mode on the side of the chord the given center lies (on the chord's line: the short arc); direction from `PathChoice` |
+//! | Center | otherwise | radius = mean of the distances center–start and center–end, center recomputed as in radius mode on the side of the chord the given center lies (on the chord's line: the short arc); direction from `PathChoice` |
 //! | Radius | radius = 0 | [`CircularError::ZeroRadius`] |
 //! | Radius | start = end | [`CircularError::StartEqualsEnd`] |
 //! | Radius | \|radius\| < half the chord | [`CircularError::RadiusTooSmall`] |
@@ -502,9 +502,19 @@ fn dist(a: Point2, b: Point2) -> f64 {
     norm(sub(a, b))
 }
 
-/// `a + (b − a)·λ` written so that λ = 0 gives `a` and λ = 1 gives `b` exactly.
 fn lerp2(a: Point2, b: Point2, l: f64) -> Point2 {
-    [a[0] * (1.0 - l) + b[0] * l, a[1] * (1.0 - l) + b[1] * l]
+    [lerp(a[0], b[0], l), lerp(a[1], b[1], l)]
+}
+
+/// `a + (b − a)·λ`, computed from the nearer end so that λ = 0 gives `a` and λ = 1 gives
+/// `b` to the bit, and `a = b` gives `a` for every λ (an axis that does not move stays
+/// exactly where it is).
+pub fn lerp(a: f64, b: f64, l: f64) -> f64 {
+    if l < 0.5 {
+        a + (b - a) * l
+    } else {
+        b - (b - a) * (1.0 - l)
+    }
 }
 
 #[cfg(test)]

@@ -41,6 +41,15 @@ impl PathProfile {
         cmd: &PathLimits,
     ) -> Result<Self, PathPlanError> {
         let limits = path_limits(&segment, axes, cmd)?;
+        // A move to where the group is: nothing to plan (the 1-D planner would still
+        // return a sub-millisecond wiggle for a zero distance).
+        if segment.length() <= 0.0 {
+            return Ok(Self {
+                segment,
+                limits,
+                path: Profile::new(KinematicState::at_rest(0.0)),
+            });
+        }
         let path = plan_position(
             RampType::SCurve,
             KinematicState::at_rest(0.0),

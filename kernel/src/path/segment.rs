@@ -342,8 +342,7 @@ fn check_points(from: &GroupPoint, to: &GroupPoint, axes: usize) -> Result<(), S
     Ok(())
 }
 
-/// Linear interpolation at `s` of `len`, exact at both ends (`s = len` gives `to` to the
-/// bit: `from·0 + to·1`).
+/// Linear interpolation at `s` of `len`, exact at both ends and on axes that do not move.
 fn lerp(from: &GroupPoint, to: &GroupPoint, s: f64, len: f64) -> GroupPoint {
     if len <= 0.0 || s <= 0.0 {
         return *from;
@@ -354,7 +353,7 @@ fn lerp(from: &GroupPoint, to: &GroupPoint, s: f64, len: f64) -> GroupPoint {
     let l = s / len;
     let mut p = [0.0; MAX_AXES];
     for ((p, f), t) in p.iter_mut().zip(from).zip(to) {
-        *p = f * (1.0 - l) + t * l;
+        *p = circle::lerp(*f, *t, l);
     }
     p
 }
