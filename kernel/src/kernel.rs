@@ -55,6 +55,9 @@ pub struct Kernel {
     groups: Vec<Group>,
     /// Per axis, the set values its group's path gives this cycle.
     group_drive: Vec<Option<KinematicState>>,
+    /// Scratch for MC_GroupEnable's check: every axis as it sees them (filled in place,
+    /// so a group command allocates nothing).
+    enable_views: Vec<AxisView>,
     setpoints: Vec<AxisSetpoint>,
     handles: HandleTable,
     dt: f64,
@@ -99,6 +102,15 @@ impl Kernel {
             cams: (0..CAM_SLOTS).map(|_| None).collect(),
             groups: Vec::new(),
             group_drive: vec![None; n],
+            enable_views: vec![
+                AxisView {
+                    state: crate::axis::state::AxisState::Disabled,
+                    kind: AxisKind::Virtual,
+                    homed: false,
+                    in_enabled_group: None,
+                };
+                n
+            ],
             handles: HandleTable::new(),
             dt: cycle_s,
             tick: 0,
@@ -234,41 +246,62 @@ impl Kernel {
             .get(g)
             .ok_or(CommandError::NoSuchGroup { group: g })?;
         group.check_state(&cmd)?;
-        let members = group.config().axes.clone();
+        // The members as a fixed array: a group command allocates nothing.
+        let mut member_buf = [0usize; MAX_AXES];
+        let count = group.config().axes.len().min(MAX_AXES);
+        for (m, &i) in member_buf.iter_mut().zip(&group.config().axes) {
+            *m = i;
+        }
+        let members = member_buf.get(..count).unwrap_or(&[]);
         match cmd {
             GroupCmd::Enable => {
                 if group.state() != crate::group::GroupState::Disabled {
                     return Ok(CommandStatus::Done);
                 }
-                let views: Vec<AxisView> =
-                    (0..self.axes.len()).map(|i| self.axis_view(i, g)).collect();
-                check_enable(group.config(), &views).map_err(|e| CommandError::Group(e.into()))?;
+                for i in 0..self.axes.len() {
+                    let v = self.axis_view(i, g);
+                    if let Some(slot) = self.enable_views.get_mut(i) {
+                        *slot = v;
+                    }
+                }
+                let group = self
+                    .groups
+                    .get(g)
+                    .ok_or(CommandError::NoSuchGroup { group: g })?;
+                check_enable(group.config(), &self.enable_views)
+                    .map_err(|e| CommandError::Group(e.into()))?;
                 if let Some(group) = self.groups.get_mut(g) {
                     group.enable();
                 }
-                self.set_coordinated(&members, true);
+                self.set_coordinated(members, true);
                 Ok(CommandStatus::Done)
             }
             GroupCmd::Disable => {
                 if let Some(group) = self.groups.get_mut(g) {
                     group.disable(&mut self.handles)?;
                 }
-                self.set_coordinated(&members, false);
+                self.set_coordinated(members, false);
                 Ok(CommandStatus::Done)
             }
             GroupCmd::Move(m) => {
-                let views: Vec<MoveView> = members
-                    .iter()
-                    .filter_map(|&i| {
-                        let s = self.axes.get(i)?.status();
-                        Some(MoveView {
-                            axis: i,
-                            homed: s.bits.homed,
-                            switches: s.switches,
-                        })
-                    })
-                    .collect();
-                check_move_start(&views).map_err(|error| {
+                let mut views = [MoveView {
+                    axis: 0,
+                    homed: false,
+                    switches: Default::default(),
+                }; MAX_AXES];
+                for (v, &i) in views.iter_mut().zip(members) {
+                    let s = self
+                        .axes
+                        .get(i)
+                        .ok_or(CommandError::NoSuchAxis { axis: i })?
+                        .status();
+                    *v = MoveView {
+                        axis: i,
+                        homed: s.bits.homed,
+                        switches: s.switches,
+                    };
+                }
+                check_move_start(views.get(..count).unwrap_or(&[])).map_err(|error| {
                     CommandError::Group(crate::group::GroupCommandError::MoveStart {
                         command: m.name(),
                         error,
@@ -276,7 +309,7 @@ impl Kernel {
                 })?;
                 let moving = group.drives_axes();
                 let mut from = [0.0; MAX_AXES];
-                for (f, &i) in from.iter_mut().zip(&members) {
+                for (f, &i) in from.iter_mut().zip(members) {
                     let a = self
                         .axes
                         .get(i)
@@ -301,7 +334,7 @@ impl Kernel {
                     None => return Err(CommandError::NoSuchGroup { group: g }),
                 };
                 if !moving {
-                    for &i in &members {
+                    for &i in members {
                         if let Some(a) = self.axes.get_mut(i) {
                             a.begin_group_motion(g);
                         }
@@ -544,15 +577,12 @@ impl Kernel {
                 following.and_then(|(m, source)| self.axes.get(m).map(|a| a.master_sample(source)));
             if let (Some(axis), Some(sp)) = (self.axes.get_mut(i), self.setpoints.get_mut(i)) {
                 let path = self.group_drive.get(i).copied().flatten();
-                *sp = axis.step(
-                    self.tick,
-                    self.dt,
-                    &fb,
-                    master.as_ref(),
-                    path.as_ref(),
-                    &self.cams,
-                    &mut self.handles,
-                );
+                let from = crate::axis::Sources {
+                    master: master.as_ref(),
+                    path: path.as_ref(),
+                    cams: &self.cams,
+                };
+                *sp = axis.step(self.tick, self.dt, &fb, &from, &mut self.handles);
             }
         }
         // A group whose axis left its path (a fault, its own stop) goes to ErrorStop and

@@ -141,3 +141,100 @@ fn homing_runs_and_limit_switch_stops_do_not_allocate() {
     assert!(matches!(rig.k.command_status(h3), CommandStatus::Error(_)));
     assert!(cycles > 10_000);
 }
+
+#[test]
+fn gears_cams_and_group_paths_do_not_allocate() {
+    use gantry_kernel::axis::command::MoveVelocity;
+    use gantry_kernel::axis::handle::CommandStatus;
+    use gantry_kernel::cam::{CamPoint, CamTable, Interpolation};
+    use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+    use gantry_kernel::group::GroupConfig;
+    use gantry_kernel::path::{CircMode, PathChoice, PathLimits};
+    use gantry_kernel::sync::command::{CamIn, GearIn};
+    let mut axes: Vec<_> = ["m", "g", "c", "x", "y"]
+        .iter()
+        .map(|n| linear(n))
+        .collect();
+    axes[0].kind = gantry_kernel::AxisKind::Virtual;
+    let mut k = kernel(axes);
+    for i in 3..5 {
+        k.command(
+            i,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        )
+        .unwrap();
+    }
+    let table = CamTable::new(
+        [(0.0, 0.0), (5.0, 1.0), (10.0, 0.0)]
+            .iter()
+            .map(|&(master, slave)| CamPoint { master, slave })
+            .collect(),
+        Interpolation::Cubic,
+        true,
+    )
+    .unwrap();
+    k.set_cam_table(0, Some(table)).unwrap();
+    k.add_group(GroupConfig::new("xy", &[3, 4])).unwrap();
+    let dynamics = PathLimits {
+        v: 8.0,
+        a: f64::INFINITY,
+        d: f64::INFINITY,
+        j: f64::INFINITY,
+    };
+    let line = |x: f64, y: f64| {
+        GroupCmd::Move(GroupMove {
+            path: GroupPathKind::Linear {
+                target: [x, y, 0.0, 0.0],
+            },
+            relative: false,
+            dynamics,
+            buffered: true,
+        })
+    };
+    counting::watch(true);
+    let enable = k.group_command(0, GroupCmd::Enable);
+    let gear = k.submit(1, Command::GearIn(GearIn::new(0, 2, 3)));
+    let cam = k.submit(2, Command::CamIn(CamIn::new(0, 0, true)));
+    let _ = k.submit(
+        0,
+        Command::MoveVelocity(MoveVelocity::new(MoveDirection::Positive, 5.0)),
+    );
+    let moves = [
+        k.group_command(0, line(10.0, 0.0)),
+        k.group_command(
+            0,
+            GroupCmd::Move(GroupMove {
+                path: GroupPathKind::Circular {
+                    circ: (0, 1),
+                    aux: [10.0, 5.0],
+                    end: [10.0, 10.0],
+                    mode: CircMode::Center,
+                    choice: PathChoice::Ccw,
+                },
+                relative: false,
+                dynamics,
+                buffered: true,
+            }),
+        ),
+        k.group_command(0, line(0.0, 0.0)),
+    ];
+    for _ in 0..20_000 {
+        k.step(&[]);
+    }
+    let stop = k.group_command(0, GroupCmd::Stop);
+    for _ in 0..100 {
+        k.step(&[]);
+    }
+    counting::watch(false);
+    let n = counting::take_count();
+    assert_eq!(n, 0, "{n} allocations");
+    assert!(enable.is_ok() && stop.is_ok());
+    for h in moves {
+        assert_eq!(k.command_status(h.unwrap()), CommandStatus::Done);
+    }
+    assert_eq!(k.command_status(gear), CommandStatus::Active);
+    assert_eq!(k.command_status(cam), CommandStatus::Active);
+}

@@ -411,6 +411,18 @@ enum SettleStep {
     },
 }
 
+/// What an axis' step may take its set values from besides its own motion: its master's
+/// values (a gear, a cam), its group's path, the cam tables.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sources<'a> {
+    /// The master's values this cycle, if the axis follows one.
+    pub master: Option<&'a crate::sync::MasterSample>,
+    /// Its group's set values this cycle, if a group moves it.
+    pub path: Option<&'a KinematicState>,
+    /// The kernel's cam tables.
+    pub cams: &'a [Option<crate::cam::CamTable>],
+}
+
 /// Cycles a Reset waits for the drive to clear its fault before it reports failure.
 pub const DRIVE_RESET_TICKS: u64 = 1000;
 
@@ -676,11 +688,10 @@ impl Axis {
         now: u64,
         dt: f64,
         fb: &AxisFeedback,
-        master: Option<&crate::sync::MasterSample>,
-        path: Option<&KinematicState>,
-        cams: &[Option<crate::cam::CamTable>],
+        from: &Sources<'_>,
         handles: &mut HandleTable,
     ) -> AxisSetpoint {
+        let (master, path, cams) = (from.master, from.path, from.cams);
         self.last_tick = now;
         self.sync_bits = follow::SyncBits::default();
         if self.cfg.kind.has_feedback() {
