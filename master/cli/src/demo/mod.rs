@@ -110,9 +110,9 @@ pub enum DemoError {
         axis: &'static str,
         /// Command name.
         command: &'static str,
-        /// The error.
+        /// The error (boxed: the kernel's error is large, this one travels far).
         #[source]
-        error: gantry_kernel::axis::command::CommandError,
+        error: Box<gantry_kernel::axis::command::CommandError>,
     },
     /// The script waited for a step that never finished.
     #[error("demo step {0} did not finish within the time limit")]

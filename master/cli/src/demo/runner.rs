@@ -311,7 +311,7 @@ fn check(
                 label: i.step.label,
                 axis: i.step.axis,
                 command: i.step.command.name(),
-                error,
+                error: Box::new(error),
             });
         }
     }
