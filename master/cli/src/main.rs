@@ -7,9 +7,9 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
-    BufferMode, CamStartMode, CommissionKind, DriveHomeParams, HomeMode, HomeParams, HomeSwitches,
-    JogDirection, LockDirection, MasterSource, MoveMode, Request as Line, StepDirection,
-    StepSwitchMode, StepSwitchParams,
+    BufferMode, CamStartMode, CircularDirection, CircularMode, CommissionKind, DriveHomeParams,
+    GroupOp, HomeMode, HomeParams, HomeSwitches, JogDirection, LockDirection, MasterSource,
+    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -230,6 +230,12 @@ enum Cmd {
         #[command(subcommand)]
         op: SdoOp,
     },
+    /// Axis groups (`[[group]]`): enable, disable, stop, release, reset; coordinated
+    /// linear and circular moves (PLCopen MC_MoveLinear, MC_MoveCircular2D).
+    Group {
+        #[command(subcommand)]
+        op: GroupSub,
+    },
     /// Cam tables of a running gantry: load one, list them.
     Cam {
         #[command(subcommand)]
@@ -347,6 +353,223 @@ enum CamOp {
         #[command(flatten)]
         client: ClientOpts,
     },
+}
+
+/// What `gantry group` does.
+#[derive(Subcommand, Debug)]
+enum GroupSub {
+    /// MC_GroupEnable: every axis standing still, none in another enabled group.
+    Enable {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// MC_GroupDisable.
+    Disable {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// MC_GroupStop: brake along the path and lock until `gantry group release`.
+    Stop {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// Release a stopped group.
+    Release {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// MC_GroupReset: leave ErrorStop.
+    Reset {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
+    /// MC_MoveLinear: the group's axes along a straight line, showing progress.
+    Line {
+        /// The group's name.
+        group: String,
+        /// Target of each of the group's axes, A0 first: 10,20 (or distances with
+        /// --relative).
+        #[arg(long, allow_hyphen_values = true, value_parser = positions)]
+        to: Positions,
+        #[command(flatten)]
+        path: Box<PathArgs>,
+    },
+    /// MC_MoveCircular2D: an arc in two of the group's axes (A0 and A1 unless --axes),
+    /// showing progress.
+    Arc {
+        /// The group's name.
+        group: String,
+        /// End point x,y.
+        #[arg(long, allow_hyphen_values = true, value_parser = position_xy)]
+        end: (f64, f64),
+        /// The arc's center x,y.
+        #[arg(long, allow_hyphen_values = true, value_parser = position_xy, group = "how")]
+        center: Option<(f64, f64)>,
+        /// A point x,y the arc passes through.
+        #[arg(long, allow_hyphen_values = true, value_parser = position_xy, group = "how")]
+        through: Option<(f64, f64)>,
+        /// The radius (negative: the long arc).
+        #[arg(long, allow_negative_numbers = true, value_parser = finite, group = "how")]
+        radius: Option<f64>,
+        /// Clockwise (default counter-clockwise).
+        #[arg(long)]
+        cw: bool,
+        /// The two circular axes as logical axes of the group: 0,1.
+        #[arg(long, value_parser = logical_pair)]
+        axes: Option<(usize, usize)>,
+        #[command(flatten)]
+        path: Box<PathArgs>,
+    },
+}
+
+/// What `gantry group line` and `arc` share.
+#[derive(clap::Args, Debug)]
+struct PathArgs {
+    /// Path velocity (units/s, required).
+    #[arg(long, value_parser = finite)]
+    velocity: f64,
+    /// Path acceleration (default: the axes' limits decide).
+    #[arg(long, value_parser = finite)]
+    acceleration: Option<f64>,
+    /// Path deceleration.
+    #[arg(long, value_parser = finite)]
+    deceleration: Option<f64>,
+    /// Path jerk.
+    #[arg(long, value_parser = finite)]
+    jerk: Option<f64>,
+    /// The positions are distances from where the move starts.
+    #[arg(long)]
+    relative: bool,
+    /// Wait behind the group's running move (and return at once).
+    #[arg(long)]
+    buffered: bool,
+    /// Return at once with the command's handle.
+    #[arg(long)]
+    no_wait: bool,
+    #[command(flatten)]
+    client: ClientOpts,
+}
+
+impl GroupSub {
+    /// The request, whether to return at once, and where to send it.
+    fn command(self) -> Result<AxisCommand, String> {
+        let op = |group, op, client| AxisCommand {
+            request: Line::Group { group, op },
+            no_wait: false,
+            opts: client,
+        };
+        Ok(match self {
+            GroupSub::Enable { group, client } => op(group, GroupOp::Enable, client),
+            GroupSub::Disable { group, client } => op(group, GroupOp::Disable, client),
+            GroupSub::Stop { group, client } => op(group, GroupOp::Stop, client),
+            GroupSub::Release { group, client } => op(group, GroupOp::Release, client),
+            GroupSub::Reset { group, client } => op(group, GroupOp::Reset, client),
+            GroupSub::Line { group, to, path } => {
+                let p = *path;
+                AxisCommand {
+                    request: Line::MoveLinear {
+                        group,
+                        to: to.0,
+                        velocity: p.velocity,
+                        acceleration: p.acceleration,
+                        deceleration: p.deceleration,
+                        jerk: p.jerk,
+                        relative: p.relative,
+                        buffered: p.buffered,
+                    },
+                    no_wait: p.no_wait || p.buffered,
+                    opts: p.client,
+                }
+            }
+            GroupSub::Arc {
+                group,
+                end,
+                center,
+                through,
+                radius,
+                cw,
+                axes,
+                path,
+            } => {
+                let (mode, aux) = match (center, through, radius) {
+                    (Some(c), None, None) => (CircularMode::Center, [c.0, c.1]),
+                    (None, Some(t), None) => (CircularMode::Border, [t.0, t.1]),
+                    (None, None, Some(r)) => (CircularMode::Radius, [r, 0.0]),
+                    _ => return Err("arc: give one of --center, --through, --radius".into()),
+                };
+                let p = *path;
+                AxisCommand {
+                    request: Line::MoveCircular {
+                        group,
+                        mode,
+                        aux,
+                        end: [end.0, end.1],
+                        direction: if cw {
+                            CircularDirection::Cw
+                        } else {
+                            CircularDirection::Ccw
+                        },
+                        axes: axes.map(|(a, b)| [a, b]),
+                        velocity: p.velocity,
+                        acceleration: p.acceleration,
+                        deceleration: p.deceleration,
+                        jerk: p.jerk,
+                        relative: p.relative,
+                        buffered: p.buffered,
+                    },
+                    no_wait: p.no_wait || p.buffered,
+                    opts: p.client,
+                }
+            }
+        })
+    }
+}
+
+/// One to four positions, A0 first (one argument: clap would read a `Vec` as repeats).
+#[derive(Clone, Debug, PartialEq)]
+struct Positions(Vec<f64>);
+
+/// Positions `a,b[,c[,d]]`.
+fn positions(text: &str) -> Result<Positions, String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|p| finite(p.trim()))
+        .collect::<Result<_, _>>()?;
+    if v.is_empty() || v.len() > 4 {
+        return Err(format!("{text:?}: one to four positions, comma-separated"));
+    }
+    Ok(Positions(v))
+}
+
+/// A point `x,y`.
+fn position_xy(text: &str) -> Result<(f64, f64), String> {
+    let (a, b) = text
+        .split_once(',')
+        .ok_or_else(|| format!("{text:?} is not x,y"))?;
+    Ok((finite(a.trim())?, finite(b.trim())?))
+}
+
+/// Two logical axes `a,b`.
+fn logical_pair(text: &str) -> Result<(usize, usize), String> {
+    let (a, b) = text
+        .split_once(',')
+        .ok_or_else(|| format!("{text:?} is not two logical axes a,b (0 to 3)"))?;
+    let n = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("{s:?} is not a logical axis (0 to 3)"))
+    };
+    Ok((n(a)?, n(b)?))
 }
 
 /// `gantry cam in`'s arguments.
@@ -1272,6 +1495,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             )?;
         }
         Cmd::Cam { op } => cam_command(op)?,
+        Cmd::Group { op } => op.command().map_err(anyhow::Error::msg)?.send()?,
         Cmd::Dcf { config, axis, out } => {
             println!("{}", gantry_cli::dcf::run(&config, &axis, &out)?);
         }
@@ -1391,6 +1615,7 @@ mod tests {
             Cmd::Cam { op } => {
                 cam_axis_command(op).unwrap_or_else(|| panic!("{args:?}: a table command"))
             }
+            Cmd::Group { op } => op.command().unwrap_or_else(|e| panic!("{args:?}: {e}")),
             _ => panic!("{args:?} is not a one-axis command"),
         };
         let line = command.request.to_line().unwrap();
@@ -1610,6 +1835,69 @@ mod tests {
                 true,
             ),
             (&["cam", "out", "x"], Line::CamOut { axis: x() }, true),
+            (
+                &["group", "enable", "xy"],
+                Line::Group {
+                    group: "xy".into(),
+                    op: GroupOp::Enable,
+                },
+                false,
+            ),
+            (
+                &[
+                    "group",
+                    "line",
+                    "xy",
+                    "--to",
+                    "10,-20.5",
+                    "--velocity",
+                    "50",
+                    "--buffered",
+                ],
+                Line::MoveLinear {
+                    group: "xy".into(),
+                    to: vec![10.0, -20.5],
+                    velocity: 50.0,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    relative: false,
+                    buffered: true,
+                },
+                true,
+            ),
+            (
+                &[
+                    "group",
+                    "arc",
+                    "xy",
+                    "--end",
+                    "40,50",
+                    "--radius",
+                    "-30",
+                    "--cw",
+                    "--axes",
+                    "1,0",
+                    "--velocity",
+                    "40",
+                    "--relative",
+                ],
+                Line::MoveCircular {
+                    group: "xy".into(),
+                    mode: CircularMode::Radius,
+                    aux: [-30.0, 0.0],
+                    end: [40.0, 50.0],
+                    direction: CircularDirection::Cw,
+                    axes: Some([1, 0]),
+                    velocity: 40.0,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    relative: true,
+                    buffered: false,
+                },
+                false,
+            ),
             (
                 &[
                     "home",

@@ -10,6 +10,7 @@ mod cam;
 mod commutation;
 mod drive_homing;
 mod error;
+mod group;
 mod service;
 mod switches;
 
@@ -25,6 +26,7 @@ pub use cam::{CamConfig, CamSection};
 pub use commutation::CommutationSection;
 pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
+pub use group::{GroupSection, MAX_GROUPS};
 pub use service::ServiceSection;
 pub use switches::{
     ModuleInput, ModuleNode, NodeSwitch, ProbeSource, SwitchSource, SwitchesSection,
@@ -52,6 +54,8 @@ struct File {
     axes: Vec<Spanned<AxisSection>>,
     #[serde(rename = "cam", default)]
     cams: Vec<Spanned<CamSection>>,
+    #[serde(rename = "group", default)]
+    groups: Vec<Spanned<group::GroupSection>>,
 }
 
 /// A checked configuration.
@@ -73,6 +77,8 @@ pub struct Config {
     pub eds: Vec<Option<Arc<Eds>>>,
     /// The cam tables (`[[cam]]`), loaded; the `i`-th goes into the kernel's cam slot `i`.
     pub cams: Vec<CamConfig>,
+    /// The axis groups (`[[group]]`), in file order (the kernel's group indices).
+    pub groups: Vec<gantry_kernel::group::GroupConfig>,
 }
 
 impl Config {
@@ -472,6 +478,15 @@ impl Config {
                 .map_err(|(k, reason)| at(span, format!("cam[{i}].{k}"), reason))?;
             cams.push(cam);
         }
+        let mut groups = Vec::with_capacity(file.groups.len());
+        for (i, spanned) in file.groups.into_iter().enumerate() {
+            let span = spanned.span();
+            let g = spanned
+                .into_inner()
+                .resolve(&groups, &kernel_axes)
+                .map_err(|(k, reason)| at(span, format!("group[{i}].{k}"), reason))?;
+            groups.push(g);
+        }
         let config = Self {
             path: path.into(),
             bus,
@@ -481,6 +496,7 @@ impl Config {
             kernel_axes,
             eds,
             cams,
+            groups,
         };
         if kind == BusKind::Canopen {
             // The cycle's frames must fit the bit rate (issue 12 §2: refused with the figure).

@@ -1536,3 +1536,39 @@ fn sync_limit_is_errorstop_by_default_warning_when_told_and_a_wrong_word_is_name
         "{e}"
     );
 }
+
+#[test]
+fn groups_name_their_axes_and_each_mistake_is_named() {
+    let virt = format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}");
+    let text = typed(&format!(
+        "{virt}[[group]]\nname = \"xv\"\naxes = [\"x\", \"v\"]\n"
+    ));
+    let c = Config::parse(&text, "k.toml").unwrap();
+    assert_eq!(c.groups.len(), 1);
+    assert_eq!(c.groups[0].name, "xv");
+    assert_eq!(c.groups[0].axes, [0, 1]);
+    let e = typed_error(&format!(
+        "{virt}[[group]]\nname = \"g\"\naxes = [\"x\", \"w\"]\n"
+    ));
+    assert!(
+        e.contains("group[0].axes") && e.contains("\"w\" is no [[axis]]"),
+        "{e}"
+    );
+    let e = typed_error(&format!(
+        "{virt}[[group]]\nname = \"g\"\naxes = [\"x\"]\n[[group]]\nname = \"g\"\naxes = [\"v\"]\n"
+    ));
+    assert!(
+        e.contains("group[1].name") && e.contains("also group[0]"),
+        "{e}"
+    );
+    let e = typed_error(&format!(
+        "{EXTERNAL}[[group]]\nname = \"g\"\naxes = [\"x\", \"e\"]\n"
+    ));
+    assert!(e.contains("group[0].axes") && e.contains("external"), "{e}");
+    let e = typed_error(&format!(
+        "{virt}[[group]]\nname = \"g\"\naxes = [\"x\", \"x\"]\n"
+    ));
+    assert!(e.contains("group[0].axes"), "{e}");
+    let e = typed_error("[[group]]\nname = \"\"\naxes = [\"x\"]\n");
+    assert!(e.contains("group[0].name") && e.contains("empty"), "{e}");
+}

@@ -332,6 +332,16 @@ impl Controller {
         })
     }
 
+    /// Sends `command` to axis group `group` (`[[group]]` order); the handle follows it
+    /// as an axis command's does.
+    pub fn group_command(
+        &self,
+        group: usize,
+        command: gantry_kernel::group::run::GroupCmd,
+    ) -> Result<CommandHandle, ControlError> {
+        self.send(|id| Request::Group { id, group, command })
+    }
+
     /// Resets axis `axis` (its slave back to OP if needed, then the axis' Reset).
     pub fn reset(&self, axis: usize) -> Result<CommandHandle, ControlError> {
         self.send(|id| Request::Reset { id, axis })

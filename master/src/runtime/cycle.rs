@@ -308,6 +308,13 @@ impl Cycle {
                 })?;
             cam_names.push((cam.slot, cam.name.clone()));
         }
+        // The configuration's axis groups (`[[group]]` order: the kernel's group indices).
+        for g in &config.groups {
+            kernel.add_group(g.clone()).map_err(|e| SetupError::Setup {
+                what: format!("{}: group {:?}", config.path, g.name),
+                source: e.into(),
+            })?;
+        }
         let n = channels.len();
         let mut cycle = Self {
             kernel,

@@ -454,6 +454,21 @@ impl<B: CycleBus> Engine<B> {
                     let entry = self.reset(id, axis);
                     self.track(entry);
                 }
+                Request::Group { id, group, command } => {
+                    let entry = match self.cycle.kernel.group_command(group, command) {
+                        Ok(h) => Entry {
+                            id,
+                            handle: Some(h),
+                            status: self.cycle.kernel.command_status(h),
+                        },
+                        Err(e) => Entry {
+                            id,
+                            handle: None,
+                            status: CommandStatus::Error(e),
+                        },
+                    };
+                    self.track(entry);
+                }
                 Request::Shutdown => self.begin_shutdown(),
                 Request::Procedure {
                     id,
@@ -1005,6 +1020,9 @@ impl<B: CycleBus> Engine<B> {
         let snap = self.snapshot.input_buffer_mut();
         snap.cycle = self.cycles;
         snap.time_s = self.cycle.kernel.time();
+        for (i, slot) in snap.groups.iter_mut().enumerate() {
+            *slot = self.cycle.kernel.groups().get(i).map(|g| g.state());
+        }
         for i in 0..n {
             if let (Some(dst), Some(src)) = (snap.axes.get_mut(i), self.cycle.kernel.axis_status(i))
             {

@@ -39,6 +39,15 @@ pub enum Request {
         /// Axis index.
         axis: usize,
     },
+    /// A command to an axis group.
+    Group {
+        /// Request id.
+        id: u64,
+        /// Group index (`[[group]]` order).
+        group: usize,
+        /// The command.
+        command: gantry_kernel::group::run::GroupCmd,
+    },
     /// Stop moving axes, disable the drives, end the cycle.
     Shutdown,
     /// Run a procedure on an axis' drive, out of CSP (see [`super::procedure`]); the
@@ -123,6 +132,8 @@ pub struct Snapshot {
     pub time_s: f64,
     /// The axes, in configuration order.
     pub axes: Vec<AxisStatus>,
+    /// The groups' states, in configuration order (`None` past the last group).
+    pub groups: [Option<gantry_kernel::group::GroupState>; crate::config::MAX_GROUPS],
     /// The drive of each axis.
     pub drives: Vec<DriveStatus>,
     /// Frames lost since start.

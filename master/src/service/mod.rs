@@ -3,6 +3,7 @@
 //! control socket and handles signals: the first SIGINT/SIGTERM quick-stops moving axes,
 //! disables the drives and takes the bus to PreOp; a second one exits at once.
 
+pub mod group;
 pub mod protocol;
 pub mod server;
 pub mod sync;

@@ -531,6 +531,70 @@ impl Word for LockDirection {
 }
 word_impls!(LockDirection);
 
+/// What a `group` request does to an axis group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroupOp {
+    /// MC_GroupEnable.
+    Enable,
+    /// MC_GroupDisable.
+    Disable,
+    /// MC_GroupStop (brakes along the path, locks until released).
+    Stop,
+    /// MC_GroupStop's Execute falling.
+    Release,
+    /// MC_GroupReset.
+    Reset,
+}
+
+impl Word for GroupOp {
+    const FIELD: &'static str = "op";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("enable", Self::Enable),
+        ("disable", Self::Disable),
+        ("stop", Self::Stop),
+        ("release", Self::Release),
+        ("reset", Self::Reset),
+    ];
+}
+word_impls!(GroupOp);
+
+/// How a circular move's aux point is meant (Omron CircMode).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CircularMode {
+    /// A point the arc passes through.
+    Border,
+    /// The center.
+    Center,
+    /// `[radius, _]`: negative for the long arc.
+    Radius,
+}
+
+impl Word for CircularMode {
+    const FIELD: &'static str = "mode";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("border", Self::Border),
+        ("center", Self::Center),
+        ("radius", Self::Radius),
+    ];
+}
+word_impls!(CircularMode);
+
+/// Which way round a circular move goes (Omron PathChoice).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CircularDirection {
+    /// Counter-clockwise.
+    #[default]
+    Ccw,
+    /// Clockwise.
+    Cw,
+}
+
+impl Word for CircularDirection {
+    const FIELD: &'static str = "direction";
+    const NAMES: &'static [(&'static str, Self)] = &[("ccw", Self::Ccw), ("cw", Self::Cw)];
+}
+word_impls!(CircularDirection);
+
 /// Which way an SDO transfer goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SdoDirection {
@@ -651,6 +715,71 @@ pub enum Request {
         /// catches up (default: from where the master is).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         master_start_distance: Option<f64>,
+    },
+    /// MC_GroupEnable, MC_GroupDisable, MC_GroupStop (and its release), MC_GroupReset.
+    Group {
+        /// The group's name.
+        group: String,
+        /// What to do.
+        op: GroupOp,
+    },
+    /// MC_MoveLinear of a group: to `to` (A0..), at `velocity` along the path.
+    MoveLinear {
+        /// The group's name.
+        group: String,
+        /// Target (or distance with `relative`) of each of the group's axes, A0 first.
+        to: Vec<f64>,
+        /// Path velocity (units/s, required).
+        velocity: f64,
+        /// Path acceleration (default: the axes' limits decide).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64>,
+        /// Path deceleration.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        deceleration: Option<f64>,
+        /// Path jerk.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        jerk: Option<f64>,
+        /// `to` is a distance from where the move starts.
+        #[serde(default)]
+        relative: bool,
+        /// Wait behind a moving group's move instead of being refused.
+        #[serde(default)]
+        buffered: bool,
+    },
+    /// MC_MoveCircular2D of a group.
+    MoveCircular {
+        /// The group's name.
+        group: String,
+        /// How `aux` is meant.
+        mode: CircularMode,
+        /// Through point, center, or `[radius, 0]`.
+        aux: [f64; 2],
+        /// End point.
+        end: [f64; 2],
+        /// Which way round (default ccw; a border arc goes through its point).
+        #[serde(default)]
+        direction: CircularDirection,
+        /// The two circular axes as logical axes of the group (default `[0, 1]`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        axes: Option<[usize; 2]>,
+        /// Path velocity (units/s, required).
+        velocity: f64,
+        /// Path acceleration.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64>,
+        /// Path deceleration.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        deceleration: Option<f64>,
+        /// Path jerk.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        jerk: Option<f64>,
+        /// `aux` and `end` are relative to where the move starts.
+        #[serde(default)]
+        relative: bool,
+        /// Wait behind a moving group's move.
+        #[serde(default)]
+        buffered: bool,
     },
     /// Stop gearing (PLCopen MC_GearOut): the axis goes on at its velocity.
     GearOut {
@@ -872,6 +1001,9 @@ impl Request {
             Self::Jog { .. } => "jog",
             Self::Gear { .. } => "gear",
             Self::GearOut { .. } => "gear_out",
+            Self::Group { .. } => "group",
+            Self::MoveLinear { .. } => "move_linear",
+            Self::MoveCircular { .. } => "move_circular",
             Self::Cam { .. } => "cam",
             Self::CamOut { .. } => "cam_out",
             Self::Halt { .. } => "halt",
@@ -915,6 +1047,9 @@ impl Request {
             | Self::Reset { axis } => Some(axis),
             Self::Sdo { axis, .. } | Self::Object { axis, .. } => axis.as_deref(),
             Self::Status
+            | Self::Group { .. }
+            | Self::MoveLinear { .. }
+            | Self::MoveCircular { .. }
             | Self::Procedure { .. }
             | Self::Command { .. }
             | Self::Wait { .. }
@@ -1063,6 +1198,34 @@ mod tests {
                 jerk: None,
             },
             Request::CamOut { axis: axis() },
+            Request::Group {
+                group: "xy".into(),
+                op: GroupOp::Enable,
+            },
+            Request::MoveLinear {
+                group: "xy".into(),
+                to: vec![10.0, -20.0],
+                velocity: 50.0,
+                acceleration: Some(500.0),
+                deceleration: None,
+                jerk: None,
+                relative: true,
+                buffered: true,
+            },
+            Request::MoveCircular {
+                group: "xy".into(),
+                mode: CircularMode::Radius,
+                aux: [-10.0, 0.0],
+                end: [20.0, 0.0],
+                direction: CircularDirection::Cw,
+                axes: Some([1, 0]),
+                velocity: 20.0,
+                acceleration: None,
+                deceleration: Some(100.0),
+                jerk: None,
+                relative: false,
+                buffered: false,
+            },
             Request::Halt { axis: axis() },
             Request::Stop { axis: axis() },
             Request::Release { axis: axis() },
@@ -1214,11 +1377,14 @@ mod tests {
             Request::GearOut { .. } => 23,
             Request::Cam { .. } => 24,
             Request::CamOut { .. } => 25,
+            Request::Group { .. } => 26,
+            Request::MoveLinear { .. } => 27,
+            Request::MoveCircular { .. } => 28,
         };
         let kinds: std::collections::BTreeSet<usize> = requests.iter().map(kind).collect();
-        assert_eq!(kinds, (0..26).collect(), "{requests:?}");
+        assert_eq!(kinds, (0..29).collect(), "{requests:?}");
         let words: std::collections::BTreeSet<&str> = requests.iter().map(Request::cmd).collect();
-        assert_eq!(words.len(), 26, "{words:?}");
+        assert_eq!(words.len(), 29, "{words:?}");
         for r in requests {
             let line = r.to_line().unwrap();
             assert!(!line.contains('\n'), "{line}");

@@ -208,6 +208,16 @@ fn status_name(s: CommandStatus, axes: &[String]) -> Value {
     }
 }
 
+/// The index of the group called `name`.
+fn group_index(state: &ServerState, name: &str) -> Result<usize, Refused> {
+    state
+        .config
+        .groups
+        .iter()
+        .position(|g| g.name == name)
+        .ok_or_else(|| Refused::NoGroup(name.to_string()))
+}
+
 /// A command's error as the client reads it: a master named by the kernel's index is
 /// named by its axis name too.
 fn command_error_text(e: &CommandError, axes: &[String]) -> String {
@@ -299,6 +309,19 @@ pub enum Refused {
     /// A synchronised-motion request whose fields do not go together.
     #[error("{0}")]
     Sync(&'static str),
+    /// A group the configuration does not have.
+    #[error("no group {0:?} (the configuration's [[group]] sections name them)")]
+    NoGroup(String),
+    /// A group move's operand is wrong.
+    #[error("{field} = {value} {reason}")]
+    GroupOperand {
+        /// The field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// A cam request names a table the service does not have.
     #[error("no cam table {0:?} (`gantry cam tables` lists them)")]
     NoCamTable(String),
@@ -803,6 +826,59 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             sent(ctl.command(i, gear.command()?))
         }
         Request::GearOut { axis: a } => sent(ctl.command(axis(&a)?, Command::GearOut)),
+        Request::Group { group, op } => {
+            let g = group_index(state, &group)?;
+            sent(ctl.group_command(g, super::group::group_op(op)))
+        }
+        Request::MoveLinear {
+            group,
+            to,
+            velocity,
+            acceleration,
+            deceleration,
+            jerk,
+            relative,
+            buffered,
+        } => {
+            let g = group_index(state, &group)?;
+            let axes = state.config.groups.get(g).map_or(0, |c| c.axes.len());
+            let d = super::group::dynamics(velocity, acceleration, deceleration, jerk)?;
+            let cmd = super::group::move_linear(&to, axes, d, relative, buffered)?;
+            sent(ctl.group_command(g, cmd))
+        }
+        Request::MoveCircular {
+            group,
+            mode,
+            aux,
+            end,
+            direction,
+            axes,
+            velocity,
+            acceleration,
+            deceleration,
+            jerk,
+            relative,
+            buffered,
+        } => {
+            let g = group_index(state, &group)?;
+            for (field, p) in [("aux", aux), ("end", end)] {
+                for v in p {
+                    number(field, v)?;
+                }
+            }
+            let d = super::group::dynamics(velocity, acceleration, deceleration, jerk)?;
+            let cmd = super::group::move_circular(
+                mode,
+                aux,
+                end,
+                direction,
+                axes.unwrap_or([0, 1]),
+                d,
+                relative,
+                buffered,
+            );
+            sent(ctl.group_command(g, cmd))
+        }
         Request::Cam {
             axis: a,
             master,
@@ -1182,6 +1258,7 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
                 },
                 "error": s.error.as_ref().map(|f| fault_text(f, state.controller.axes())),
                 "sync": sync_json(state.controller.axes(), s),
+                "coordinated": s.bits.coordinated,
             })
         })
         .collect();
@@ -1225,9 +1302,23 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
             })
         })
         .collect();
+    let groups: Vec<Value> = state
+        .config
+        .groups
+        .iter()
+        .zip(&snap.groups)
+        .map(|(g, s)| {
+            json!({
+                "name": g.name,
+                "axes": g.axes.iter().filter_map(|&i| state.config.axes.get(i).map(|a| &a.name)).collect::<Vec<_>>(),
+                "state": s.map(|s| s.name()),
+            })
+        })
+        .collect();
     json!({
         "time_s": snap.time_s,
         "cycles": snap.cycle,
+        "groups": groups,
         "real_time": state.real_time,
         "state_dir": state.saved.store().map(|s| s.dir().display().to_string()),
         "ended": snap.ended,

@@ -350,6 +350,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
         axes,
         kernel_axes,
         cams: Vec::new(),
+        groups: Vec::new(),
     })
 }
 
