@@ -436,38 +436,16 @@ impl<B: CycleBus> Engine<B> {
             };
             match request {
                 Request::Axis { id, axis, command } => {
-                    let entry = match self.cycle.kernel.command(axis, command) {
-                        Ok(h) => Entry {
-                            id,
-                            handle: Some(h),
-                            status: self.cycle.kernel.command_status(h),
-                        },
-                        Err(e) => Entry {
-                            id,
-                            handle: None,
-                            status: CommandStatus::Error(e),
-                        },
-                    };
-                    self.track(entry);
+                    let taken = self.cycle.kernel.command(axis, command);
+                    self.track_taken(id, taken);
                 }
                 Request::Reset { id, axis } => {
                     let entry = self.reset(id, axis);
                     self.track(entry);
                 }
                 Request::Group { id, group, command } => {
-                    let entry = match self.cycle.kernel.group_command(group, command) {
-                        Ok(h) => Entry {
-                            id,
-                            handle: Some(h),
-                            status: self.cycle.kernel.command_status(h),
-                        },
-                        Err(e) => Entry {
-                            id,
-                            handle: None,
-                            status: CommandStatus::Error(e),
-                        },
-                    };
-                    self.track(entry);
+                    let taken = self.cycle.kernel.group_command(group, command);
+                    self.track_taken(id, taken);
                 }
                 Request::Shutdown => self.begin_shutdown(),
                 Request::Procedure {
@@ -1013,6 +991,30 @@ impl<B: CycleBus> Engine<B> {
         } else {
             Phase::ShuttingDown(left - 1)
         };
+    }
+
+    /// Tracks request `id` as the kernel took it: its handle, or the error that refused it.
+    fn track_taken(
+        &mut self,
+        id: u64,
+        taken: Result<
+            gantry_kernel::axis::handle::HandleId,
+            gantry_kernel::axis::command::CommandError,
+        >,
+    ) {
+        let entry = match taken {
+            Ok(h) => Entry {
+                id,
+                handle: Some(h),
+                status: self.cycle.kernel.command_status(h),
+            },
+            Err(e) => Entry {
+                id,
+                handle: None,
+                status: CommandStatus::Error(e),
+            },
+        };
+        self.track(entry);
     }
 
     fn publish(&mut self) {
