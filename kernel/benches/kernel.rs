@@ -20,6 +20,7 @@ use gantry_kernel::{AxisConfig, AxisKind, Kernel};
 fn main() {
     divan::main();
     planning_distribution();
+    path_planning_distribution();
 }
 
 /// A small fixed-seed generator so every run plans the same states.
@@ -322,4 +323,170 @@ fn sync_master_only(bencher: divan::Bencher) {
     bencher.bench_local(|| {
         divan::black_box(k.step(&[]));
     });
+}
+
+/// A kernel with four simulated axes in one group moving along a long straight line in
+/// four axes (about 2000 s: the bench samples the cruise without replanning).
+fn group_kernel() -> Kernel {
+    use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+    use gantry_kernel::group::GroupConfig;
+    use gantry_kernel::path::PathLimits;
+    let configs = (0..4)
+        .map(|i| {
+            let mut c = AxisConfig::new(&format!("a{i}"), AxisKind::Simulated);
+            c.homing_required = false;
+            c.max = Limits {
+                vmax: 100.0,
+                amax: 1000.0,
+                dmax: 1000.0,
+                jmax: 10_000.0,
+            };
+            c
+        })
+        .collect();
+    let mut k = Kernel::new(DT, configs).expect("config");
+    for i in 0..4 {
+        k.command(i, Command::Power(PowerCommand::Enable))
+            .expect("enable");
+        k.command(
+            i,
+            Command::SetPosition {
+                position: 0.0,
+                relative: false,
+            },
+        )
+        .expect("home");
+    }
+    k.step(&[]);
+    k.add_group(GroupConfig::new("g", &[0, 1, 2, 3]))
+        .expect("group");
+    k.group_command(0, GroupCmd::Enable).expect("enable");
+    k.group_command(
+        0,
+        GroupCmd::Move(GroupMove {
+            path: GroupPathKind::Linear {
+                target: [1e5, 5e4, -3e4, 2e4],
+            },
+            relative: false,
+            dynamics: PathLimits {
+                v: 60.0,
+                a: f64::INFINITY,
+                d: f64::INFINITY,
+                j: f64::INFINITY,
+            },
+            buffered: false,
+        }),
+    )
+    .expect("move");
+    for _ in 0..3_000 {
+        k.step(&[]);
+    }
+    k
+}
+
+/// One cycle of a kernel whose four axes move with their group along a line: the cost of
+/// a moving 4-axis group per cycle (compare `step` with 4 axes, each on its own PTP).
+#[divan::bench]
+fn group_moving_4_axes(bencher: divan::Bencher) {
+    let mut k = group_kernel();
+    bencher.bench_local(|| {
+        divan::black_box(k.step(&[]));
+    });
+}
+
+/// The planning cost of one group segment (`PathProfile::plan`: geometry, path limits
+/// from the axes' limits, the S-curve along the path) over 2 000 random lines in 4 axes
+/// and 2 000 random arcs (center mode, random radius and sweep) with random limits; the
+/// fastest of 5 runs per segment; median / p99 / max.
+fn path_planning_distribution() {
+    use gantry_kernel::path::{
+        AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
+    };
+    let mut r = XorShift(0x5eed_9a7e_0042_0017);
+    let mut segments = Vec::new();
+    for i in 0..4_000 {
+        let from = [
+            r.range(-100.0, 100.0),
+            r.range(-100.0, 100.0),
+            r.range(-100.0, 100.0),
+            r.range(-100.0, 100.0),
+        ];
+        let seg = if i % 2 == 0 {
+            let to = [
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+            ];
+            PathSegment::line(from, to, 4)
+        } else {
+            let radius = r.range(1.0, 50.0);
+            let a0 = r.range(0.0, std::f64::consts::TAU);
+            let sweep = r.range(0.1, 6.0);
+            let center = [from[0] - radius * a0.cos(), from[1] - radius * a0.sin()];
+            let end = [
+                center[0] + radius * (a0 + sweep).cos(),
+                center[1] + radius * (a0 + sweep).sin(),
+            ];
+            let circ = CircAxes::new(0, 1, 4).expect("axes");
+            PathSegment::circular_2d(
+                from,
+                4,
+                circ,
+                center,
+                end,
+                CircMode::Center,
+                PathChoice::Ccw,
+            )
+        };
+        let limits: Vec<AxisLimits> = (0..4)
+            .map(|_| AxisLimits {
+                vmax: r.range(10.0, 200.0),
+                amax: r.range(100.0, 2000.0),
+                jmax: r.range(1_000.0, 50_000.0),
+            })
+            .collect();
+        if let Ok(seg) = seg {
+            segments.push((seg, limits));
+        }
+    }
+    let cmd = PathLimits {
+        v: 150.0,
+        a: f64::INFINITY,
+        d: f64::INFINITY,
+        j: f64::INFINITY,
+    };
+    let time = |segments: &[(PathSegment, Vec<AxisLimits>)]| {
+        let mut ns: Vec<u64> = segments
+            .iter()
+            .map(|(seg, lim)| {
+                (0..5)
+                    .map(|_| {
+                        let t = std::time::Instant::now();
+                        let p = divan::black_box(PathProfile::plan(*seg, lim, &cmd));
+                        let e = t.elapsed().as_nanos() as u64;
+                        assert!(p.is_ok(), "{p:?}");
+                        e
+                    })
+                    .min()
+                    .unwrap_or(0)
+            })
+            .collect();
+        ns.sort_unstable();
+        let q = |f: f64| ns[((ns.len() - 1) as f64 * f) as usize];
+        (q(0.5), q(0.99), ns[ns.len() - 1])
+    };
+    let _ = time(&segments);
+    let all = time(&segments);
+    let lines: Vec<_> = segments.iter().step_by(2).cloned().collect();
+    let arcs: Vec<_> = segments.iter().skip(1).step_by(2).cloned().collect();
+    let (l, a) = (time(&lines), time(&arcs));
+    println!(
+        "group segment planning over {} random segments, fastest of 5 runs each (ns): \
+         median / p99 / max",
+        segments.len()
+    );
+    println!("  all        {:>7} / {:>7} / {:>7}", all.0, all.1, all.2);
+    println!("  lines      {:>7} / {:>7} / {:>7}", l.0, l.1, l.2);
+    println!("  arcs       {:>7} / {:>7} / {:>7}", a.0, a.1, a.2);
 }
