@@ -667,6 +667,7 @@ pub fn trace(
     axes: &[String],
     seconds: f64,
     path: &Path,
+    xy: bool,
     out: &mut impl Write,
 ) -> Result<(), ClientError> {
     let r = client.request(&Request::Trace {
@@ -694,7 +695,15 @@ pub fn trace(
         }
     }
     let svg = path.extension().is_some_and(|e| e == "svg");
-    if svg {
+    if svg && xy {
+        // Columns: x.set, x.actual, y.set, y.actual.
+        let title = format!("{} / {}: set and actual path", axes[0], axes[1]);
+        let doc = plot::xy_svg(&t, &title, &[(0, 2), (1, 3)]);
+        std::fs::write(path, doc).map_err(|source| ClientError::Write {
+            path: path.display().to_string(),
+            source,
+        })?;
+    } else if svg {
         let doc = plot::svg(
             &t,
             &[Panel {

@@ -213,8 +213,12 @@ enum Cmd {
     /// Record set and actual positions of axes, to CSV or SVG (by extension).
     Trace {
         /// Axis names.
-        #[arg(required = true)]
+        #[arg(required_unless_present = "xy")]
         axes: Vec<String>,
+        /// Two axes plotted against each other (an .svg of the path in the X-Y plane, set
+        /// and actual; equal scales): `--xy x y`.
+        #[arg(long, num_args = 2, value_names = ["X", "Y"], conflicts_with = "axes")]
+        xy: Option<Vec<String>>,
         /// Seconds to record (up to 60).
         #[arg(long, default_value_t = 5.0, value_parser = finite)]
         seconds: f64,
@@ -1501,12 +1505,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Trace {
             axes,
+            xy,
             seconds,
             out,
             client: opts,
         } => {
             let mut c = opts.connect()?;
-            client::trace(&mut c, &axes, seconds, &out, &mut std::io::stdout())?;
+            let (axes, xy) = match xy {
+                Some(pair) => (pair, true),
+                None => (axes, false),
+            };
+            client::trace(&mut c, &axes, seconds, &out, xy, &mut std::io::stdout())?;
         }
         Cmd::RtCheck {
             config,

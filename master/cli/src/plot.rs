@@ -168,6 +168,97 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
+/// Renders an XY path plot: channel pairs `(x, y)` drawn as polylines in one square
+/// frame with equal scales on both axes (a circle stays round), e.g. the set and the
+/// actual path of a group's two axes.
+pub fn xy_svg(trace: &Trace, title: &str, pairs: &[(usize, usize)]) -> String {
+    const SIZE: f64 = 600.0;
+    const MARGIN: f64 = 70.0;
+    let side = SIZE - 2.0 * MARGIN;
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for &(cx, cy) in pairs {
+        for (x, y) in trace.column(cx).zip(trace.column(cy)) {
+            if x.is_finite() && y.is_finite() {
+                (x_lo, x_hi) = (x_lo.min(x), x_hi.max(x));
+                (y_lo, y_hi) = (y_lo.min(y), y_hi.max(y));
+            }
+        }
+    }
+    if !x_lo.is_finite() || !y_lo.is_finite() {
+        (x_lo, x_hi, y_lo, y_hi) = (-1.0, 1.0, -1.0, 1.0);
+    }
+    // One scale for both: the larger span fills the square, the other is centred.
+    let span = (x_hi - x_lo).max(y_hi - y_lo).max(1e-12) * 1.05;
+    let (xc, yc) = ((x_lo + x_hi) / 2.0, (y_lo + y_hi) / 2.0);
+    let (x0, y0) = (xc - span / 2.0, yc - span / 2.0);
+    let px = |x: f64| MARGIN + (x - x0) / span * side;
+    let py = |y: f64| MARGIN + side - (y - y0) / span * side;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{SIZE}" height="{SIZE}" viewBox="0 0 {SIZE} {SIZE}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r##"<rect x="{MARGIN}" y="{MARGIN}" width="{side}" height="{side}" fill="none" stroke="#888"/>"##
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{MARGIN}" y="{}" font-weight="bold">{}</text>"#,
+        MARGIN - 12.0,
+        escape(title)
+    );
+    for i in 0..=4 {
+        let f = i as f64 / 4.0;
+        let (x, y) = (x0 + span * f, y0 + span * f);
+        let _ = writeln!(
+            s,
+            r##"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
+            px(x),
+            MARGIN + side + 16.0,
+            tick(x),
+            MARGIN - 6.0,
+            py(y) + 4.0,
+            tick(y)
+        );
+    }
+    let names = trace.channels();
+    for (k, &(cx, cy)) in pairs.iter().enumerate() {
+        let colour = COLOURS.get(k % COLOURS.len()).copied().unwrap_or("#000");
+        let points: Vec<String> = trace
+            .column(cx)
+            .zip(trace.column(cy))
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|(x, y)| format!("{:.2},{:.2}", px(x), py(y)))
+            .collect();
+        let _ = writeln!(
+            s,
+            r#"<polyline fill="none" stroke="{colour}" stroke-width="1.2" points="{}"/>"#,
+            points.join(" ")
+        );
+        let label = format!(
+            "{} / {}",
+            names.get(cx).map_or("?", String::as_str),
+            names.get(cy).map_or("?", String::as_str)
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}" fill="{colour}">{}</text>"#,
+            MARGIN + 8.0,
+            MARGIN + 16.0 + 14.0 * k as f64,
+            escape(&label)
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -210,5 +301,42 @@ mod tests {
             d.iter().any(|&(_, v)| v == 100.0),
             "the spike survives decimation"
         );
+    }
+
+    #[test]
+    fn an_xy_plot_keeps_equal_scales_so_a_circle_stays_round() {
+        let mut t = Trace::new(vec!["x.set".into(), "y.set".into()], 400);
+        for i in 0..=360 {
+            let a = (i as f64).to_radians();
+            t.push(
+                i as f64 * 0.01,
+                &[10.0 + 5.0 * a.cos(), -3.0 + 5.0 * a.sin()],
+            )
+            .unwrap();
+        }
+        let doc = xy_svg(&t, "path", &[(0, 1)]);
+        let points: Vec<(f64, f64)> = doc
+            .split("points=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap()
+            .split(' ')
+            .map(|p| {
+                let (x, y) = p.split_once(',').unwrap();
+                (x.parse().unwrap(), y.parse().unwrap())
+            })
+            .collect();
+        let (cx, cy) = points
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let (cx, cy) = (cx / points.len() as f64, cy / points.len() as f64);
+        let radii: Vec<f64> = points.iter().map(|(x, y)| (x - cx).hypot(y - cy)).collect();
+        let (lo, hi) = radii
+            .iter()
+            .fold((f64::MAX, 0.0_f64), |(l, h), r| (l.min(*r), h.max(*r)));
+        assert!(hi - lo < 0.05 * hi, "not round: {lo} .. {hi}");
+        assert!(doc.contains("x.set / y.set"));
     }
 }

@@ -75,6 +75,40 @@ fn a_group_moves_its_axes_along_a_line_and_an_arc() {
     assert!(e.contains("radius"), "{e}");
     let e = s.fails(&["group", "enable", "nope"]);
     assert!(e.contains("no group \"nope\""), "{e}");
+    // The XY plot of the path while the group moves back along a line.
+    s.ok(&[
+        "group",
+        "line",
+        "xy",
+        "--to",
+        "0,0",
+        "--velocity",
+        "30",
+        "--no-wait",
+    ]);
+    let svg = s.dir.join("path.svg");
+    let out = s.ok(&[
+        "trace",
+        "--xy",
+        "x",
+        "y",
+        "--seconds",
+        "1",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(out.contains("samples of x, y"), "{out}");
+    let doc = std::fs::read_to_string(&svg).unwrap();
+    assert!(doc.contains("x / y: set and actual path"), "{doc}");
+    assert!(doc.contains("x.set / y.set") && doc.contains("x.actual / y.actual"));
+    let longest = doc
+        .split("points=\"")
+        .skip(1)
+        .map(|p| p.split('"').next().unwrap().split(' ').count())
+        .max()
+        .unwrap();
+    assert!(longest > 100, "{longest} points");
+    std::thread::sleep(std::time::Duration::from_millis(2500));
     s.ok(&["group", "disable", "xy"]);
     assert_eq!(s.status()["groups"][0]["state"], "GroupDisabled");
     // z and c take part too (the drive invariant judges every drive).
