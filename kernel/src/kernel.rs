@@ -245,7 +245,9 @@ impl Kernel {
             .groups
             .get(g)
             .ok_or(CommandError::NoSuchGroup { group: g })?;
-        group.check_state(&cmd)?;
+        if let Some(aborted) = group.check_state(&cmd)? {
+            return Ok(aborted);
+        }
         // The members as a fixed array: a group command allocates nothing.
         let mut member_buf = [0usize; MAX_AXES];
         let count = group.config().axes.len().min(MAX_AXES);

@@ -26,8 +26,8 @@ use crate::path::{
 use crate::profile::{plan_velocity, KinematicState, Limits, Profile, RampType};
 
 use super::config::GroupConfig;
-use super::state::{accepts, GroupCommand, GroupEvent, GroupState};
-use super::status::GroupCommandError;
+use super::state::{GroupCommand, GroupEvent, GroupState};
+use super::status::{start_status, GroupCommandError};
 
 /// Where a group move goes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -202,15 +202,18 @@ impl Group {
         }
     }
 
-    /// Whether the state takes the command (PLCopen Part 4 table), as the error it is not.
-    pub(crate) fn check_state(&self, cmd: &GroupCmd) -> Result<(), CommandError> {
-        if accepts(self.state, &cmd.as_state_command()) {
-            Ok(())
-        } else {
-            Err(CommandError::Group(GroupCommandError::NotAllowedInState {
-                command: cmd.name(),
-                state: self.state,
-            }))
+    /// How the command starts in the group's state (`status::start_status`, the seed's
+    /// rules): `Ok(None)` when the state takes it, `Ok(Some(Aborted))` for a move given
+    /// while the group is in ErrorStop or Stopping (CommandAborted, not Error), the error
+    /// otherwise.
+    pub(crate) fn check_state(
+        &self,
+        cmd: &GroupCmd,
+    ) -> Result<Option<CommandStatus>, CommandError> {
+        match start_status(self.state, cmd.as_state_command(), || Ok(())) {
+            Ok(CommandStatus::Aborted) => Ok(Some(CommandStatus::Aborted)),
+            Ok(_) => Ok(None),
+            Err(e) => Err(CommandError::Group(e)),
         }
     }
 
@@ -247,10 +250,7 @@ impl Group {
         let name = m.name();
         if self.running.is_some() {
             if !m.buffered {
-                return Err(CommandError::Group(GroupCommandError::NotAllowedInState {
-                    command: name,
-                    state: self.state,
-                }));
+                return Err(CommandError::GroupMoving { command: name });
             }
             let slot =
                 self.queue

@@ -437,7 +437,8 @@ impl<B: CycleBus> Engine<B> {
             match request {
                 Request::Axis { id, axis, command } => {
                     let taken = self.cycle.kernel.command(axis, command);
-                    self.track_taken(id, taken);
+                    let entry = self.entry(id, taken);
+                    self.track(entry);
                 }
                 Request::Reset { id, axis } => {
                     let entry = self.reset(id, axis);
@@ -445,7 +446,8 @@ impl<B: CycleBus> Engine<B> {
                 }
                 Request::Group { id, group, command } => {
                     let taken = self.cycle.kernel.group_command(group, command);
-                    self.track_taken(id, taken);
+                    let entry = self.entry(id, taken);
+                    self.track(entry);
                 }
                 Request::Shutdown => self.begin_shutdown(),
                 Request::Procedure {
@@ -572,18 +574,8 @@ impl<B: CycleBus> Engine<B> {
 
     /// The kernel's Reset of `axis`, for request `id`.
     fn axis_reset(&mut self, id: u64, axis: usize) -> Entry {
-        match self.cycle.kernel.command(axis, Command::Reset) {
-            Ok(h) => Entry {
-                id,
-                handle: Some(h),
-                status: self.cycle.kernel.command_status(h),
-            },
-            Err(e) => Entry {
-                id,
-                handle: None,
-                status: CommandStatus::Error(e),
-            },
-        }
+        let taken = self.cycle.kernel.command(axis, Command::Reset);
+        self.entry(id, taken)
     }
 
     /// At start: asks the bus to take the drives to operation (EtherCAT: the slaves to OP)
@@ -993,16 +985,17 @@ impl<B: CycleBus> Engine<B> {
         };
     }
 
-    /// Tracks request `id` as the kernel took it: its handle, or the error that refused it.
-    fn track_taken(
-        &mut self,
+    /// The entry of request `id` as the kernel took it: its handle, or the error that
+    /// refused it.
+    fn entry(
+        &self,
         id: u64,
         taken: Result<
             gantry_kernel::axis::handle::HandleId,
             gantry_kernel::axis::command::CommandError,
         >,
-    ) {
-        let entry = match taken {
+    ) -> Entry {
+        match taken {
             Ok(h) => Entry {
                 id,
                 handle: Some(h),
@@ -1013,8 +1006,7 @@ impl<B: CycleBus> Engine<B> {
                 handle: None,
                 status: CommandStatus::Error(e),
             },
-        };
-        self.track(entry);
+        }
     }
 
     fn publish(&mut self) {
