@@ -1,8 +1,9 @@
 //! README, "Distributed clocks": locked to a reference clock 300 ppm fast, ~98 % of the
 //! frames reach it within 100 µs of the target — in the production configuration, a
 //! SCHED_FIFO 80 cycle thread with locked memory and PM QoS, as `gantry run` makes it
-//! (`rt::enter`). Measured on the shared, non-preemptible 2-vCPU VM while other builds ran,
-//! 13 runs: 95.3–99.6 %, median 98.5 %. The bound is 90 %.
+//! (`rt::enter`). Measured on the shared, non-preemptible 2-vCPU VM, 13 runs: 96.2–99.8 %,
+//! median 98.7 %, the misses matching the cycles the host woke over 100 µs late (printed).
+//! The bound is 90 %.
 //! Needs root (or CAP_SYS_NICE and CAP_IPC_LOCK); `deploy/test.sh` runs it.
 
 #[test]

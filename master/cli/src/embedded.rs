@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::Wake;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ethercrab::{PduRx, PduTx};
 use gantry_sim::chain::SlaveChain;
@@ -174,11 +174,14 @@ pub const SIM_THREAD: &str = "gantry-sim";
 /// Frames in flight each way on a [`SimWire`] (ethercrab has at most 16 frames).
 const WIRE_FRAMES: usize = 16;
 
-/// One frame on a [`SimWire`] (fixed size: the queues allocate once).
+/// One frame on a [`SimWire`] (fixed size: the queues allocate once), with the time it
+/// went on the wire: a real slave controller latches a frame's arrival in hardware, so the
+/// simulated chain takes it at that time and not when its thread got round to it.
 #[derive(Clone, Copy)]
 struct WireFrame {
     len: usize,
     data: [u8; MAX_FRAME],
+    sent: Instant,
 }
 
 impl WireFrame {
@@ -186,6 +189,7 @@ impl WireFrame {
         let mut w = Self {
             len: 0,
             data: [0; MAX_FRAME],
+            sent: Instant::now(),
         };
         w.len = copy_frame(frame, &mut w.data);
         w
@@ -234,8 +238,11 @@ impl SimWire {
                 let mut wire = [0u8; MAX_FRAME];
                 while !stopping.load(Ordering::Relaxed) {
                     if let Ok(mut c) = chain.lock() {
-                        clock.catch_up(&mut c);
                         while let Ok(f) = frames.pop() {
+                            // The SYNC0 edges and the reference clock as the frame met
+                            // them: the drives judge the master's timing, not this
+                            // thread's wake-up.
+                            clock.catch_up_to_arrival(&mut c, f.sent.elapsed());
                             let n = copy_frame(f.bytes(), &mut wire);
                             let frame = wire.get_mut(..n).unwrap_or_default();
                             // A frame the chain cannot parse is lost, as on a wire; so is
@@ -246,6 +253,8 @@ impl SimWire {
                                 let _ = ring.write(1);
                             }
                         }
+                        // Idle, time goes on: the devices' timers and watchdogs.
+                        clock.catch_up(&mut c);
                     }
                     // Until a frame comes, or the next application period starts.
                     let until = chain
