@@ -16,9 +16,11 @@
 //! - An axis of a moving group that leaves it (a fault, its own Stop) puts the group in
 //!   ErrorStop; the other axes brake along the path. MC_GroupReset leaves ErrorStop.
 
+pub use crate::axis::command::BufferMode;
 use crate::axis::command::{CommandError, GroupPathError};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::Epoch;
+pub use crate::path::Transition;
 use crate::path::{
     along, AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
     MAX_AXES,
@@ -62,8 +64,28 @@ pub struct GroupMove {
     /// Path velocity (required), acceleration, deceleration, jerk (`f64::INFINITY`: the
     /// axes' limits decide).
     pub dynamics: PathLimits,
-    /// Wait for the running move to end (Buffered) instead of refusing while moving.
-    pub buffered: bool,
+    /// How the move joins the one running when it is given: Aborting (brake along the
+    /// running path, then go), Buffered (start when it ends), Blending* (pass the
+    /// junction at the transit speed the mode names).
+    pub buffer: BufferMode,
+    /// How a blended junction may leave the programmed path (TransitionMode).
+    pub transition: Transition,
+    /// With CornerSuperimposed: the largest distance the blended path may pass from the
+    /// corner (units; `f64::INFINITY`: the axes' limits alone decide).
+    pub corner_deviation: f64,
+}
+
+/// What the blends of a group have done so far (since it was created).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CornerReport {
+    /// Junctions passed in motion.
+    pub blends: u32,
+    /// The last one's bound on the distance between the path and the corner (units).
+    pub last_deviation: f64,
+    /// The largest of those bounds.
+    pub max_deviation: f64,
+    /// The path speed at the last junction (0 when passed at rest).
+    pub last_transit_speed: f64,
 }
 
 impl GroupMove {
@@ -155,6 +177,7 @@ pub struct Group {
     release_pending: bool,
     /// Each group axis' own limits (A0..A3).
     limits: [AxisLimits; MAX_AXES],
+    corners: CornerReport,
 }
 
 /// What the axes need from their group this cycle.
@@ -178,6 +201,7 @@ impl Group {
             rest: [0.0; MAX_AXES],
             release_pending: false,
             limits,
+            corners: CornerReport::default(),
         }
     }
 
@@ -189,6 +213,11 @@ impl Group {
     /// The state.
     pub fn state(&self) -> GroupState {
         self.state
+    }
+
+    /// What the blends have done so far.
+    pub fn corners(&self) -> CornerReport {
+        self.corners
     }
 
     /// Whether the group drives its axes' set values (moving or braking).
@@ -249,7 +278,7 @@ impl Group {
     ) -> Result<CommandStatus, CommandError> {
         let name = m.name();
         if self.running.is_some() {
-            if !m.buffered {
+            if m.buffer == BufferMode::Aborting {
                 return Err(CommandError::GroupMoving { command: name });
             }
             let slot =

@@ -8,12 +8,16 @@
 //! - [`limits`]: the path speed, acceleration and jerk that keep every axis within its own
 //!   limits.
 //! - [`profile`]: the planned segment, sampled in closed form at any time.
+//! - [`blend`]: two segments joined in motion — the transit speed, and the superimposed
+//!   corner that keeps every axis within its limits.
 
+pub mod blend;
 pub mod circle;
 pub mod limits;
 pub mod profile;
 pub mod segment;
 
+pub use blend::Transition;
 pub use circle::{circular_2d, Arc2, CircMode, CircularError, PathChoice, Segment2};
 pub use limits::{path_limits, AxisLimits, PathLimits, PathLimitsError};
 pub use profile::{along, PathPlanError, PathProfile};
