@@ -328,7 +328,7 @@ fn sync_master_only(bencher: divan::Bencher) {
 /// A kernel with four simulated axes in one group moving along a long straight line in
 /// four axes (about 2000 s: the bench samples the cruise without replanning).
 fn group_kernel() -> Kernel {
-    use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+    use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
     use gantry_kernel::group::GroupConfig;
     use gantry_kernel::path::PathLimits;
     let configs = (0..4)
@@ -374,7 +374,9 @@ fn group_kernel() -> Kernel {
                 d: f64::INFINITY,
                 j: f64::INFINITY,
             },
-            buffered: false,
+            buffer: BufferMode::Aborting,
+            transition: Transition::None,
+            corner_deviation: f64::INFINITY,
         }),
     )
     .expect("move");

@@ -10,7 +10,7 @@ use gantry_kernel::axis::command::{Command, CommandError};
 use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 use gantry_kernel::axis::status::AxisStatus;
-use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
 use gantry_kernel::group::{GroupConfig, GroupState};
 use gantry_kernel::path::{CircMode, PathChoice, PathLimits};
 use gantry_kernel::{AxisKind, Kernel};
@@ -34,7 +34,9 @@ fn line(x: f64, y: f64, buffered: bool) -> GroupCmd {
         },
         relative: false,
         dynamics: dynamics(80.0),
-        buffered,
+        buffer: if buffered { BufferMode::Buffered } else { BufferMode::Aborting },
+        transition: Transition::None,
+        corner_deviation: f64::INFINITY,
     })
 }
 
@@ -49,7 +51,9 @@ fn arc(center: [f64; 2], end: [f64; 2], buffered: bool) -> GroupCmd {
         },
         relative: false,
         dynamics: dynamics(80.0),
-        buffered,
+        buffer: if buffered { BufferMode::Buffered } else { BufferMode::Aborting },
+        transition: Transition::None,
+        corner_deviation: f64::INFINITY,
     })
 }
 
@@ -244,7 +248,9 @@ fn enable_rules_and_group_refusals_say_why() {
         },
         relative: false,
         dynamics: dynamics(50.0),
-        buffered: true,
+        buffer: BufferMode::Buffered,
+        transition: Transition::None,
+        corner_deviation: f64::INFINITY,
     });
     let h = k.group_command(0, bad).unwrap();
     for _ in 0..5000 {

@@ -147,7 +147,7 @@ fn gears_cams_and_group_paths_do_not_allocate() {
     use gantry_kernel::axis::command::MoveVelocity;
     use gantry_kernel::axis::handle::CommandStatus;
     use gantry_kernel::cam::{CamPoint, CamTable, Interpolation};
-    use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+    use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind, Transition};
     use gantry_kernel::group::GroupConfig;
     use gantry_kernel::path::{CircMode, PathChoice, PathLimits};
     use gantry_kernel::sync::command::{CamIn, GearIn};
@@ -191,7 +191,9 @@ fn gears_cams_and_group_paths_do_not_allocate() {
             },
             relative: false,
             dynamics,
-            buffered: true,
+            buffer: BufferMode::Buffered,
+            transition: Transition::None,
+            corner_deviation: f64::INFINITY,
         })
     };
     counting::watch(true);
@@ -216,7 +218,9 @@ fn gears_cams_and_group_paths_do_not_allocate() {
                 },
                 relative: false,
                 dynamics,
-                buffered: true,
+                buffer: BufferMode::Buffered,
+                transition: Transition::None,
+                corner_deviation: f64::INFINITY,
             }),
         ),
         k.group_command(0, line(0.0, 0.0)),
