@@ -322,7 +322,15 @@ impl Kernel {
                             error: crate::axis::command::GroupPathError::ModuloAxis { axis: i },
                         });
                     }
-                    if !moving && a.state() != crate::axis::state::AxisState::Standstill {
+                    // An axis whose group ended its move this cycle stands, though it
+                    // shows Standstill only from the next one.
+                    let group_just_ended = a.state()
+                        == crate::axis::state::AxisState::SynchronizedMotion
+                        && a.driven_by_group() == Some(g);
+                    if !moving
+                        && a.state() != crate::axis::state::AxisState::Standstill
+                        && !group_just_ended
+                    {
                         return Err(CommandError::NotAllowedInState {
                             command: m.name(),
                             state: a.state(),
@@ -330,9 +338,9 @@ impl Kernel {
                     }
                     *f = a.status().set.p;
                 }
-                let tick = self.tick;
+                let (tick, dt) = (self.tick, self.dt);
                 let status = match self.groups.get_mut(g) {
-                    Some(group) => group.start_move(m, from, h, tick)?,
+                    Some(group) => group.start_move(m, from, h, tick, dt, &mut self.handles)?,
                     None => return Err(CommandError::NoSuchGroup { group: g }),
                 };
                 if !moving {

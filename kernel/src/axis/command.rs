@@ -811,15 +811,6 @@ pub enum CommandError {
         /// The group's index.
         group: usize,
     },
-    /// A move in Aborting mode given to a moving group (not written yet).
-    #[error(
-        "{command}: the group is moving and aborting its move is not supported yet; give the \
-         move buffered, or stop the group first"
-    )]
-    GroupMoving {
-        /// Function block name.
-        command: &'static str,
-    },
     /// No group with that index.
     #[error("no group with index {group}")]
     NoSuchGroup {
@@ -927,7 +918,6 @@ impl CommandError {
             | CommandError::NotSynchronised { command, .. }
             | CommandError::GroupPath { command, .. }
             | CommandError::MovesWithGroup { command, .. }
-            | CommandError::GroupMoving { command }
             | CommandError::LentToDrive { command, .. } => command,
             CommandError::Homing(e) => e.command(),
             CommandError::DriveProcedure(e) => e.procedure,

@@ -2,17 +2,25 @@
 //! waiting behind it and the braking of MC_GroupStop — the fourth kind of set-value source
 //! of an axis (beside its own profile, the homing sequencer and a master relation).
 //!
-//! What it does (and does not do yet):
+//! What it does:
 //! - MC_GroupEnable / MC_GroupDisable with the rules of `enable.rs`; the axes are
 //!   "coordinated" while the group is enabled.
-//! - MC_MoveLinear and MC_MoveCircular2D, absolute or relative, from rest to rest: each
-//!   segment is planned along its path ([`PathProfile`]) so that no axis exceeds its own
-//!   speed, acceleration or jerk; a move given while the group stands starts at once, one
-//!   given while it moves (Buffered) starts exactly when the one before ends. Blending
-//!   (BlendingLow/Previous/Next/High, CornerSuperimposed) and Aborting a moving group are
-//!   refused with a message: not written yet.
+//! - MC_MoveLinear and MC_MoveCircular2D, absolute or relative: each segment is planned
+//!   along its path ([`PathProfile`]) so that no axis exceeds its own speed, acceleration
+//!   or jerk. A move given while the group stands starts at once; on a moving group:
+//!   - Buffered: it starts exactly when the one before ends, from rest;
+//!   - BlendingLow/Previous/Next/High: the junction is passed in motion at the transit
+//!     speed the mode names, as far as the axes, both segments' lengths and the allowed
+//!     corner deviation let it (`path::blend`: the next segment is superimposed on the end
+//!     of the one before; TransitionMode None only where two lines are collinear) — else
+//!     at rest, as Buffered. The corner is decided when the move is queued behind the last
+//!     segment, or when that segment starts;
+//!   - Aborting: the segments on the way brake along their path and the move starts from
+//!     where they stop (a relative move counts from where the group was when it was
+//!     given).
 //! - MC_GroupStop: the group brakes along its path (the contour is kept) with the path
-//!   deceleration of the running segment, then stands in Stopping until released.
+//!   deceleration of the running segment, then stands in Stopping until released. In a
+//!   blend, the ending segment finishes its ramp and the starting one brakes after its own.
 //! - An axis of a moving group that leaves it (a fault, its own Stop) puts the group in
 //!   ErrorStop; the other axes brake along the path. MC_GroupReset leaves ErrorStop.
 
@@ -20,12 +28,12 @@ pub use crate::axis::command::BufferMode;
 use crate::axis::command::{CommandError, GroupPathError};
 use crate::axis::handle::{CommandStatus, HandleId, HandleTable};
 use crate::axis::motion::Epoch;
+use crate::path::blend::{transit_speed, Corner};
 pub use crate::path::Transition;
 use crate::path::{
-    along, AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
-    MAX_AXES,
+    AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment, MAX_AXES,
 };
-use crate::profile::{plan_velocity, KinematicState, Limits, Profile, RampType};
+use crate::profile::KinematicState;
 
 use super::config::GroupConfig;
 use super::state::{GroupCommand, GroupEvent, GroupState};
@@ -147,21 +155,28 @@ impl GroupCmd {
 /// How many moves may wait behind the running one.
 pub const GROUP_QUEUE: usize = 8;
 
-/// The segment the group moves along.
+/// A segment on the way, and when it started.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Running {
     profile: PathProfile,
     epoch: Epoch,
-    handle: HandleId,
+    /// Its command's handle (taken once the command is aborted).
+    handle: Option<HandleId>,
 }
 
-/// MC_GroupStop (or an error) braking along the path.
+impl Running {
+    fn elapsed(&self, now: u64, dt: f64) -> f64 {
+        self.epoch.elapsed(now, dt)
+    }
+}
+
+/// The next segment, planned with its ramp in behind the last one on the way, waiting
+/// for that one's ramp out to start.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Braking {
-    segment: PathSegment,
-    path: Profile,
-    epoch: Epoch,
-    handle: Option<HandleId>,
+struct Planned {
+    profile: PathProfile,
+    handle: HandleId,
+    corner: Corner,
 }
 
 /// One group at run time.
@@ -169,11 +184,19 @@ struct Braking {
 pub struct Group {
     cfg: GroupConfig,
     state: GroupState,
+    /// The segment the path is on; in a blend, the one ending.
     running: Option<Running>,
-    braking: Option<Braking>,
+    /// In a blend: the segment starting, superimposed on `running`.
+    incoming: Option<Running>,
+    /// Blended behind the last segment on the way, not started yet.
+    planned: Option<Planned>,
     queue: [Option<(GroupMove, HandleId)>; GROUP_QUEUE],
     /// Where the group stands when it does not move (A0..A3 set positions).
     rest: [f64; MAX_AXES],
+    /// The segments on the way brake to rest (a stop, an error, an Aborting move).
+    braking: bool,
+    /// MC_GroupStop's handle, Done once the group stands.
+    stop_handle: Option<HandleId>,
     release_pending: bool,
     /// Each group axis' own limits (A0..A3).
     limits: [AxisLimits; MAX_AXES],
@@ -196,9 +219,12 @@ impl Group {
             cfg,
             state: GroupState::Disabled,
             running: None,
-            braking: None,
+            incoming: None,
+            planned: None,
             queue: [None; GROUP_QUEUE],
             rest: [0.0; MAX_AXES],
+            braking: false,
+            stop_handle: None,
             release_pending: false,
             limits,
             corners: CornerReport::default(),
@@ -222,7 +248,7 @@ impl Group {
 
     /// Whether the group drives its axes' set values (moving or braking).
     pub fn drives_axes(&self) -> bool {
-        self.running.is_some() || self.braking.is_some()
+        self.running.is_some()
     }
 
     fn enter(&mut self, e: GroupEvent) {
@@ -259,27 +285,46 @@ impl Group {
                 state: self.state,
             }));
         }
-        self.queue
-            .iter_mut()
-            .filter_map(Option::take)
-            .for_each(|(_, h)| handles.set(h, CommandStatus::Aborted));
+        self.abort_waiting(handles);
         self.enter(GroupEvent::Disabled);
         Ok(())
     }
 
+    /// The moves waiting (queued or planned behind) end CommandAborted.
+    fn abort_waiting(&mut self, handles: &mut HandleTable) {
+        self.queue
+            .iter_mut()
+            .filter_map(Option::take)
+            .for_each(|(_, h)| handles.set(h, CommandStatus::Aborted));
+        if let Some(p) = self.planned.take() {
+            handles.set(p.handle, CommandStatus::Aborted);
+        }
+    }
+
     /// A move: planned at once from `from` (the axes' set positions) when the group
-    /// stands, queued (Buffered) when it moves.
+    /// stands; on a moving group queued (Buffered, Blending: blended into the last segment
+    /// when it can be) or, Aborting, started where the group comes to rest after braking
+    /// along its path.
     pub(crate) fn start_move(
         &mut self,
         m: GroupMove,
         from: [f64; MAX_AXES],
         h: HandleId,
         now: u64,
+        dt: f64,
+        handles: &mut HandleTable,
     ) -> Result<CommandStatus, CommandError> {
         let name = m.name();
         if self.running.is_some() {
             if m.buffer == BufferMode::Aborting {
-                return Err(CommandError::GroupMoving { command: name });
+                // Where it goes is fixed now: relative to where the axes are.
+                let m = absolute(m, from, self.cfg.axes.len());
+                self.abort_waiting(handles);
+                self.brake(now, dt, handles);
+                if let Some(slot) = self.queue.first_mut() {
+                    *slot = Some((m, h));
+                }
+                return Ok(CommandStatus::Busy);
             }
             let slot =
                 self.queue
@@ -290,16 +335,73 @@ impl Group {
                         capacity: GROUP_QUEUE,
                     })?;
             *slot = Some((m, h));
+            self.plan_blend(now, dt);
             return Ok(CommandStatus::Busy);
         }
         let profile = plan(&m, from, &self.limits, self.cfg.axes.len())?;
         self.running = Some(Running {
             profile,
             epoch: Epoch::at(now),
-            handle: h,
+            handle: Some(h),
         });
         self.enter(GroupEvent::MoveStarted);
         Ok(CommandStatus::Active)
+    }
+
+    /// When the first waiting move blends: plans it behind the last segment on the way,
+    /// the corner decided now (from that segment's state at cycle `now`).
+    fn plan_blend(&mut self, now: u64, dt: f64) {
+        if self.planned.is_some() || self.braking {
+            return;
+        }
+        let Some((m, h)) = self.queue.first().copied().flatten() else {
+            return;
+        };
+        if !matches!(
+            m.buffer,
+            BufferMode::BlendingLow
+                | BufferMode::BlendingPrevious
+                | BufferMode::BlendingNext
+                | BufferMode::BlendingHigh
+        ) {
+            return;
+        }
+        let n = self.cfg.axes.len();
+        let limits = self.limits;
+        let Some(tail) = self.incoming.as_mut().or(self.running.as_mut()) else {
+            return;
+        };
+        // A move that cannot be planned waits: its error comes when it would start.
+        let Ok(mut next) = plan(&m, tail.profile.segment().end(), &limits, n) else {
+            return;
+        };
+        let t = tail.elapsed(now, dt);
+        let wanted = transit_speed(m.buffer, tail.profile.limits().v, next.limits().v);
+        let Some(corner) = tail.profile.blend_into(
+            &mut next,
+            t,
+            wanted,
+            limits.get(..n).unwrap_or(&[]),
+            m.transition,
+            m.corner_deviation,
+        ) else {
+            return;
+        };
+        self.planned = Some(Planned {
+            profile: next,
+            handle: h,
+            corner,
+        });
+        self.pop_queue();
+    }
+
+    fn pop_queue(&mut self) -> Option<(GroupMove, HandleId)> {
+        let first = self.queue.first().copied().flatten();
+        self.queue.rotate_left(1);
+        if let Some(last) = self.queue.last_mut() {
+            *last = None;
+        }
+        first
     }
 
     /// MC_GroupStop: brakes along the path (or stands) and locks; `now` is the last cycle.
@@ -310,27 +412,21 @@ impl Group {
         dt: f64,
         handles: &mut HandleTable,
     ) -> CommandStatus {
-        self.queue
-            .iter_mut()
-            .filter_map(Option::take)
-            .for_each(|(_, q)| handles.set(q, CommandStatus::Aborted));
+        self.abort_waiting(handles);
         self.release_pending = false;
-        let braking = self.brake_along(now, dt, handles);
+        let braking = self.brake(now, dt, handles);
         self.enter(GroupEvent::StopStarted);
-        match braking {
-            true => {
-                if let Some(b) = self.braking.as_mut() {
-                    b.handle = Some(h);
-                }
-                CommandStatus::Active
-            }
-            false => CommandStatus::Done,
+        if braking {
+            self.stop_handle = Some(h);
+            CommandStatus::Active
+        } else {
+            CommandStatus::Done
         }
     }
 
     /// MC_GroupStop's Execute falling: Standby once it stands.
     pub(crate) fn release(&mut self) -> CommandStatus {
-        if self.braking.is_some() {
+        if self.running.is_some() {
             self.release_pending = true;
         } else {
             self.enter(GroupEvent::StopReleased);
@@ -343,7 +439,7 @@ impl Group {
         if self.state != GroupState::ErrorStop {
             return Ok(CommandStatus::Done);
         }
-        if self.braking.is_some() {
+        if self.running.is_some() {
             return Err(CommandError::Group(GroupCommandError::NotAllowedInState {
                 command: "GroupReset",
                 state: self.state,
@@ -356,52 +452,97 @@ impl Group {
     /// An axis of the group left it while it moved: ErrorStop, the rest brakes along the
     /// path.
     pub(crate) fn axis_left(&mut self, now: u64, dt: f64, handles: &mut HandleTable) {
-        self.queue
-            .iter_mut()
-            .filter_map(Option::take)
-            .for_each(|(_, q)| handles.set(q, CommandStatus::Aborted));
-        self.brake_along(now, dt, handles);
+        self.abort_waiting(handles);
+        self.brake(now, dt, handles);
         self.enter(GroupEvent::Error);
     }
 
-    /// Replaces the running segment by a braking profile from where the path is at cycle
-    /// `now` (with the segment's own path deceleration and jerk, which keep every axis
-    /// within its limits); false when nothing moved.
-    fn brake_along(&mut self, now: u64, dt: f64, handles: &mut HandleTable) -> bool {
-        let Some(r) = self.running.take() else {
-            return self.braking.is_some();
+    /// The segments on the way brake to rest along the path from cycle `now`, with their
+    /// own deceleration and jerk (which keep every axis within its limits); their commands
+    /// end CommandAborted. In a blend the ending segment finishes its ramp out and the
+    /// starting one brakes from the end of its ramp in (the two ramps only keep the axes
+    /// within their limits together). False when nothing moved.
+    fn brake(&mut self, now: u64, dt: f64, handles: &mut HandleTable) -> bool {
+        if let Some(p) = self.planned.take() {
+            handles.set(p.handle, CommandStatus::Aborted);
+        }
+        for r in [self.running.as_mut(), self.incoming.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            if let Some(h) = r.handle.take() {
+                handles.set(h, CommandStatus::Aborted);
+            }
+        }
+        let tail = self.incoming.as_mut().or(self.running.as_mut());
+        let Some(tail) = tail else {
+            return false;
         };
-        handles.set(r.handle, CommandStatus::Aborted);
-        let at = r.profile.path().sample(r.epoch.elapsed(now, dt));
-        let l = r.profile.limits();
-        let limits = Limits {
-            vmax: l.v.max(at.v.abs()),
-            amax: l.a,
-            dmax: l.d,
-            jmax: l.j,
-        };
-        let path = plan_velocity(RampType::SCurve, at, 0.0, &limits)
-            .or_else(|_| plan_velocity(RampType::Trapezoid, at, 0.0, &limits))
-            .unwrap_or_else(|_| Profile::new(KinematicState::at_rest(at.p)));
-        self.braking = Some(Braking {
-            segment: *r.profile.segment(),
-            path,
-            epoch: Epoch::at(now),
-            handle: None,
-        });
+        let t = tail.elapsed(now, dt);
+        let n = self.cfg.axes.len();
+        tail.profile
+            .brake_from(t, self.limits.get(..n).unwrap_or(&[]));
+        self.braking = true;
         true
     }
 
     /// The set values of the group's axes at cycle `now` (dt the cycle time).
     pub(crate) fn step(&mut self, now: u64, dt: f64, handles: &mut HandleTable) -> Drive {
-        if let Some(b) = self.braking {
-            let t = b.epoch.elapsed(now, dt);
-            let s = b.path.sample(t);
-            let out = along(&b.segment, &s);
-            if t >= b.path.duration() {
-                self.braking = None;
-                self.rest = positions(&out);
-                if let Some(h) = b.handle {
+        // Each pass samples, or hands over once: a segment ends, a blend starts, the next
+        // waiting move starts.
+        for _ in 0..(2 * GROUP_QUEUE + 4) {
+            let Some(r) = self.running.as_ref() else {
+                return Drive::None;
+            };
+            let t = r.elapsed(now, dt);
+            if let Some(inc) = self.incoming.as_ref() {
+                if t < r.profile.duration() {
+                    return Drive::Axes(superimpose(r, inc, now, dt));
+                }
+                // The corner is passed: the starting segment goes on alone.
+                if let Some(h) = r.handle {
+                    handles.set(h, CommandStatus::Done);
+                }
+                self.running = self.incoming.take();
+                continue;
+            }
+            if let (Some(out), Some(p)) = (r.profile.ramp_out_start(), self.planned) {
+                if t >= out {
+                    let epoch = r.epoch.later(out, dt);
+                    handles.set(p.handle, CommandStatus::Active);
+                    self.incoming = Some(Running {
+                        profile: p.profile,
+                        epoch,
+                        handle: Some(p.handle),
+                    });
+                    self.planned = None;
+                    let c = &mut self.corners;
+                    c.blends = c.blends.saturating_add(1);
+                    c.last_deviation = p.corner.deviation;
+                    c.max_deviation = c.max_deviation.max(p.corner.deviation);
+                    c.last_transit_speed = p.corner.speed;
+                    // The next waiting move may blend behind the new segment.
+                    self.plan_blend(now, dt);
+                    continue;
+                }
+            }
+            if t < r.profile.duration() {
+                return Drive::Axes(r.profile.sample(t));
+            }
+            // The segment ends at rest (exactly: a blend's ramps end on rounding dust).
+            let mut end = r.profile.sample(r.profile.duration());
+            for e in &mut end {
+                *e = KinematicState::at_rest(e.p);
+            }
+            let (epoch, ended) = (r.epoch.later(r.profile.duration(), dt), r.handle);
+            if let Some(h) = ended {
+                handles.set(h, CommandStatus::Done);
+            }
+            self.running = None;
+            self.rest = positions(&end);
+            if self.braking {
+                self.braking = false;
+                if let Some(h) = self.stop_handle.take() {
                     handles.set(h, CommandStatus::Done);
                 }
                 if self.release_pending {
@@ -409,53 +550,96 @@ impl Group {
                     self.enter(GroupEvent::StopReleased);
                 }
             }
-            return Drive::Axes(out);
-        }
-        // Each pass either samples the running segment or hands over to the next.
-        for _ in 0..=GROUP_QUEUE {
-            let Some(r) = self.running else {
-                return Drive::None;
+            let Some((m, h)) = self.pop_queue() else {
+                self.enter(GroupEvent::MoveDone);
+                return Drive::Axes(end);
             };
-            let t = r.epoch.elapsed(now, dt);
-            if t < r.profile.duration() {
-                return Drive::Axes(r.profile.sample(t));
-            }
-            let end = r.profile.sample(r.profile.duration());
-            handles.set(r.handle, CommandStatus::Done);
-            self.running = None;
-            self.rest = positions(&end);
-            let next = self.queue.first().copied().flatten();
-            self.queue.rotate_left(1);
-            if let Some(last) = self.queue.last_mut() {
-                *last = None;
-            }
-            match next {
-                None => {
-                    self.enter(GroupEvent::MoveDone);
-                    return Drive::Axes(end);
+            // Starts exactly where and when the one before ended (from rest).
+            match plan(&m, self.rest, &self.limits, self.cfg.axes.len()) {
+                Ok(profile) => {
+                    handles.set(h, CommandStatus::Active);
+                    self.running = Some(Running {
+                        profile,
+                        epoch,
+                        handle: Some(h),
+                    });
+                    self.plan_blend(now, dt);
                 }
-                Some((m, h)) => {
-                    // Starts exactly where and when the one before ended (rest to rest).
-                    let epoch = r.epoch.later(r.profile.duration(), dt);
-                    match plan(&m, self.rest, &self.limits, self.cfg.axes.len()) {
-                        Ok(profile) => {
-                            handles.set(h, CommandStatus::Active);
-                            self.running = Some(Running {
-                                profile,
-                                epoch,
-                                handle: h,
-                            });
-                        }
-                        Err(e) => {
-                            handles.set(h, CommandStatus::Error(e));
-                            self.enter(GroupEvent::Error);
-                            return Drive::Axes(end);
-                        }
-                    }
+                Err(e) => {
+                    handles.set(h, CommandStatus::Error(e));
+                    self.abort_waiting(handles);
+                    self.enter(GroupEvent::Error);
+                    return Drive::Axes(end);
                 }
             }
         }
         Drive::None
+    }
+}
+
+/// The axes' set values in a blend: the ending segment's motion plus the starting one's,
+/// less the corner point they share.
+fn superimpose(
+    ending: &Running,
+    starting: &Running,
+    now: u64,
+    dt: f64,
+) -> [KinematicState; MAX_AXES] {
+    let a = ending.profile.sample(ending.elapsed(now, dt));
+    let b = starting.profile.sample(starting.elapsed(now, dt));
+    let corner = ending.profile.segment().end();
+    let mut out = a;
+    for ((o, b), c) in out.iter_mut().zip(b).zip(corner) {
+        o.p += b.p - c;
+        o.v += b.v;
+        o.a += b.a;
+        o.j += b.j;
+    }
+    out
+}
+
+/// `m` with its positions made absolute from `from` (a relative move's distances count
+/// from where the group is when the move is given).
+fn absolute(m: GroupMove, from: [f64; MAX_AXES], n: usize) -> GroupMove {
+    if !m.relative {
+        return m;
+    }
+    let path = match m.path {
+        GroupPathKind::Linear { target } => {
+            let mut to = target;
+            for (t, f) in to.iter_mut().zip(from).take(n) {
+                *t += f;
+            }
+            GroupPathKind::Linear { target: to }
+        }
+        GroupPathKind::Circular {
+            circ,
+            aux,
+            end,
+            mode,
+            choice,
+        } => {
+            let base = [
+                from.get(circ.0).copied().unwrap_or(0.0),
+                from.get(circ.1).copied().unwrap_or(0.0),
+            ];
+            GroupPathKind::Circular {
+                circ,
+                aux: if mode == CircMode::Radius {
+                    aux
+                } else {
+                    [aux[0] + base[0], aux[1] + base[1]]
+                },
+                end: [end[0] + base[0], end[1] + base[1]],
+                mode,
+                choice,
+            }
+        }
+    };
+    GroupMove {
+        path,
+        relative: false,
+        ..m
     }
 }
 

@@ -8,9 +8,12 @@
 //! exact: the 1-D profile pins s = length at its end, and the segment returns its end
 //! point to the bit there.
 
+use super::blend::{corner, Corner, CornerInputs, Transition};
 use super::limits::{path_limits, AxisLimits, PathLimits, PathLimitsError};
 use super::segment::{PathSegment, MAX_AXES};
-use crate::profile::{plan_position, KinematicState, Limits, PlanError, Profile, RampType};
+use crate::profile::{
+    plan_position, plan_velocity, KinematicState, Limits, PlanError, Profile, RampType,
+};
 use thiserror::Error;
 
 /// Why a path segment cannot be planned.
@@ -25,11 +28,24 @@ pub enum PathPlanError {
 }
 
 /// A path segment with its timing: the group's set values at any time.
+///
+/// The path length over time is up to three pieces: a ramp in from rest (when the segment
+/// was blended into: the mirror of the previous segment's ramp out, see [`super::blend`]),
+/// the body, and a ramp out to rest at the end (when the next segment is blended in). The
+/// body can be planned again from a later state (a blend decided while moving, a stop).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PathProfile {
     segment: PathSegment,
+    /// The command's dynamics (what `limits` was derived from).
+    cmd: PathLimits,
     limits: PathLimits,
-    path: Profile,
+    /// The path speed the axes alone allow on this segment.
+    axis_speed: f64,
+    ramp_in: Option<Profile>,
+    /// When the body starts (s after the segment's start).
+    body_t0: f64,
+    body: Profile,
+    ramp_out: Option<Profile>,
 }
 
 impl PathProfile {
@@ -41,32 +57,64 @@ impl PathProfile {
         cmd: &PathLimits,
     ) -> Result<Self, PathPlanError> {
         let limits = path_limits(&segment, axes, cmd)?;
+        let axis_speed = path_limits(&segment, axes, &FREE)?.v;
+        let mut out = Self {
+            segment,
+            cmd: *cmd,
+            limits,
+            axis_speed,
+            ramp_in: None,
+            body_t0: 0.0,
+            body: Profile::new(KinematicState::at_rest(0.0)),
+            ramp_out: None,
+        };
         // A move to where the group is: nothing to plan (the 1-D planner would still
         // return a sub-millisecond wiggle for a zero distance).
-        if segment.length() <= 0.0 {
-            return Ok(Self {
-                segment,
-                limits,
-                path: Profile::new(KinematicState::at_rest(0.0)),
-            });
+        if segment.length() > 0.0 {
+            out.body = out.plan_body(KinematicState::at_rest(0.0), segment.length(), 0.0, axes)?;
         }
-        let path = plan_position(
+        Ok(out)
+    }
+
+    /// The body from `start` to `target` arriving at `v_end`, within this segment's
+    /// dynamics (its speed raised to `v_end` for a blend faster than the command).
+    fn plan_body(
+        &self,
+        start: KinematicState,
+        target: f64,
+        v_end: f64,
+        axes: &[AxisLimits],
+    ) -> Result<Profile, PlanError> {
+        let l = self.dynamics_up_to(start.v.abs().max(v_end), axes);
+        plan_position(
             RampType::SCurve,
-            KinematicState::at_rest(0.0),
-            segment.length(),
-            0.0,
+            start,
+            target,
+            v_end,
             &Limits {
-                vmax: limits.v,
-                amax: limits.a,
-                dmax: limits.d,
-                jmax: limits.j,
+                vmax: self.limits.v.max(v_end),
+                ..l
             },
-        )?;
-        Ok(Self {
-            segment,
-            limits,
-            path,
-        })
+        )
+    }
+
+    /// The path acceleration, deceleration and jerk that keep the axes within their limits
+    /// at path speeds up to `top`: the segment's own, or — when a blend runs it faster
+    /// than its command — those derived again at `top` (an arc's centripetal terms grow
+    /// with the speed).
+    fn dynamics_up_to(&self, top: f64, axes: &[AxisLimits]) -> Limits {
+        let l = if top > self.limits.v {
+            path_limits(&self.segment, axes, &PathLimits { v: top, ..self.cmd })
+                .unwrap_or(self.limits)
+        } else {
+            self.limits
+        };
+        Limits {
+            vmax: l.v,
+            amax: l.a,
+            dmax: l.d,
+            jmax: l.j,
+        }
     }
 
     /// The geometry.
@@ -79,23 +127,174 @@ impl PathProfile {
         &self.limits
     }
 
-    /// s(t): path length, path speed, acceleration and jerk over time.
-    pub fn path(&self) -> &Profile {
-        &self.path
+    /// The path speed the axes alone allow on this segment (a blend may pass faster than
+    /// the command, never faster than this).
+    pub fn axis_speed(&self) -> f64 {
+        self.axis_speed
+    }
+
+    /// When the body starts (the end of the ramp in; 0 without one).
+    pub fn body_start(&self) -> f64 {
+        self.body_t0
+    }
+
+    /// When the ramp out starts (the next segment's start), if the segment blends into
+    /// the next.
+    pub fn ramp_out_start(&self) -> Option<f64> {
+        self.ramp_out.map(|_| self.body_t0 + self.body.duration())
     }
 
     /// Duration (s).
     pub fn duration(&self) -> f64 {
-        self.path.duration()
+        self.body_t0 + self.body.duration() + self.ramp_out.map_or(0.0, |r| r.duration())
+    }
+
+    /// s(t): path length, path speed, acceleration and jerk `t` s after the start.
+    pub fn path_at(&self, t: f64) -> KinematicState {
+        if let Some(r) = &self.ramp_in {
+            if t < self.body_t0 {
+                return r.sample(t);
+            }
+        }
+        let tb = t - self.body_t0;
+        match &self.ramp_out {
+            Some(r) if tb >= self.body.duration() => r.sample(tb - self.body.duration()),
+            _ => self.body.sample(tb),
+        }
     }
 
     /// Every axis' position, velocity, acceleration and jerk `t` seconds after the start
-    /// (`t <= 0`: the start at rest; past the end: the end at rest). Axes beyond the
-    /// group's stand at their start.
+    /// (`t <= 0`: the start; past the end: the end at rest). Axes beyond the group's
+    /// stand at their start.
     pub fn sample(&self, t: f64) -> [KinematicState; MAX_AXES] {
-        along(&self.segment, &self.path.sample(t))
+        along(&self.segment, &self.path_at(t))
+    }
+
+    /// Where the body may be planned again from, at the earliest `t`: its time and state
+    /// (never inside the ramp in, which mirrors the previous segment's ramp out).
+    fn replan_point(&self, t: f64) -> (f64, KinematicState) {
+        let t = t.max(self.body_t0);
+        let s = self.path_at(t);
+        (t, KinematicState { j: 0.0, ..s })
+    }
+
+    /// Replaces the body from `t` on (never inside the ramp in) by a brake to rest along
+    /// the path with the segment's deceleration and jerk; drops a ramp out.
+    pub fn brake_from(&mut self, t: f64, axes: &[AxisLimits]) {
+        let (t0, at) = self.replan_point(t);
+        let limits = Limits {
+            vmax: self.limits.v.max(at.v.abs()),
+            ..self.dynamics_up_to(at.v.abs(), axes)
+        };
+        let brake = plan_velocity(RampType::SCurve, at, 0.0, &limits)
+            .or_else(|_| plan_velocity(RampType::Trapezoid, at, 0.0, &limits))
+            .unwrap_or_else(|_| Profile::new(KinematicState::at_rest(at.p)));
+        self.set_body(t0, brake);
+        self.ramp_out = None;
+    }
+
+    /// The body from `t0` on (the time before it is the past: never sampled again).
+    fn set_body(&mut self, t0: f64, body: Profile) {
+        self.body_t0 = t0;
+        self.body = body;
+    }
+
+    /// Blends `next` (planned from rest at this segment's end) into this segment from
+    /// time `t` on: the fastest corner at most `wanted` (see [`super::blend`]) whose
+    /// ramps fit both segments and which this segment can still reach from its state at
+    /// `t`. On success this segment ends with the ramp out and `next` starts with the
+    /// ramp in; `None` (nothing changed) when the junction must be passed at rest.
+    pub fn blend_into(
+        &mut self,
+        next: &mut PathProfile,
+        t: f64,
+        wanted: f64,
+        axes: &[AxisLimits],
+        transition: Transition,
+        max_deviation: f64,
+    ) -> Option<Corner> {
+        if self.ramp_out.is_some() || next.ramp_in.is_some() {
+            return None;
+        }
+        let inputs = CornerInputs {
+            first: &self.segment,
+            second: &next.segment,
+            axes,
+            accel: self.limits.d.min(next.limits.a),
+            jerk: self.limits.j.min(next.limits.j),
+            transition,
+            max_deviation,
+            stop_decel: next.limits.d,
+            stop_jerk: next.limits.j,
+        };
+        let wanted = wanted.min(self.axis_speed).min(next.axis_speed);
+        let cap = corner(&inputs, wanted)?;
+        let (t0, at) = self.replan_point(t);
+        let len = self.segment.length();
+        // The fastest corner this segment still reaches; slower ones when it is too late.
+        let attempt = |c: &Corner| -> Option<(Profile, Profile, Profile, Profile)> {
+            let target = len - c.distance;
+            if target < at.p {
+                return None;
+            }
+            let body = self.plan_body(at, target, c.speed, axes).ok()?;
+            let end = body.end_state();
+            if end.v < c.speed * (1.0 - 1e-9) || body.lowest_velocity() < -1e-9 * c.speed {
+                return None;
+            }
+            let lim = Limits {
+                vmax: c.speed,
+                amax: c.accel,
+                dmax: c.accel,
+                jmax: c.jerk,
+            };
+            let out = plan_velocity(RampType::SCurve, end, 0.0, &lim).ok()?;
+            let ramp = plan_velocity(
+                RampType::SCurve,
+                KinematicState::at_rest(0.0),
+                c.speed,
+                &lim,
+            )
+            .ok()?;
+            let next_body = next
+                .plan_body(ramp.end_state(), next.segment.length(), 0.0, axes)
+                .ok()?;
+            (next_body.lowest_velocity() >= -1e-9 * c.speed).then_some((body, out, ramp, next_body))
+        };
+        let mut found = attempt(&cap).map(|p| (cap, p));
+        if found.is_none() {
+            let (mut lo, mut hi) = (0.0, cap.speed);
+            for _ in 0..BODY_SEARCH_STEPS {
+                let mid = 0.5 * (lo + hi);
+                let tried = corner(&inputs, mid).and_then(|c| attempt(&c).map(|p| (c, p)));
+                match tried {
+                    Some(f) => {
+                        lo = mid;
+                        found = Some(f);
+                    }
+                    None => hi = mid,
+                }
+            }
+        }
+        let (c, (body, out, ramp, next_body)) = found?;
+        self.set_body(t0, body);
+        self.ramp_out = Some(out);
+        next.body_t0 = ramp.duration();
+        next.ramp_in = Some(ramp);
+        next.body = next_body;
+        Some(c)
     }
 }
+
+/// Iterations of the search for a corner the running segment still reaches.
+const BODY_SEARCH_STEPS: usize = 12;
+
+const FREE: PathLimits = PathLimits {
+    v: f64::INFINITY,
+    a: f64::INFINITY,
+    d: f64::INFINITY,
+    j: f64::INFINITY,
+};
 
 /// Every axis' position, velocity, acceleration and jerk where the path parameter is `s`
 /// (s, ṡ, s̈, s⃛): the chain rule through the segment's geometry. Also what a group that

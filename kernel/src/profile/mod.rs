@@ -356,18 +356,32 @@ impl Profile {
     /// boundaries and interior extrema).
     pub fn peaks(&self) -> Peaks {
         let mut pk = Peaks::default();
-        let mut note = |s: KinematicState| {
+        self.visit_extremes(|s| {
             pk.v = pk.v.max(s.v.abs());
             pk.a = pk.a.max(s.a.abs());
             pk.j = pk.j.max(s.j.abs());
-        };
+        });
+        pk
+    }
+
+    /// The lowest velocity (signed) over the whole profile: below zero when it goes back
+    /// at some point.
+    pub fn lowest_velocity(&self) -> f64 {
+        let mut low = f64::INFINITY;
+        self.visit_extremes(|s| low = low.min(s.v));
+        low
+    }
+
+    /// Calls `note` with every state where v, a or j can be extreme: the ends of every
+    /// segment and the interior extrema of its shape.
+    fn visit_extremes(&self, mut note: impl FnMut(KinematicState)) {
         note(self.start_state());
         for seg in self.segments() {
             note(seg.sample(0.0));
             note(seg.end());
             match seg.shape {
                 Shape::Jerk(j) => {
-                    // |v| has an interior extremum where a crosses zero.
+                    // v has an interior extremum where a crosses zero.
                     if j != 0.0 {
                         let tau = -seg.start.a / j;
                         if tau > 0.0 && tau < seg.duration {
@@ -384,7 +398,6 @@ impl Profile {
             }
         }
         note(self.end);
-        pk
     }
 }
 
