@@ -21,6 +21,7 @@ fn main() {
     divan::main();
     planning_distribution();
     path_planning_distribution();
+    blend_planning_distribution();
 }
 
 /// A small fixed-seed generator so every run plans the same states.
@@ -325,12 +326,10 @@ fn sync_master_only(bencher: divan::Bencher) {
     });
 }
 
-/// A kernel with four simulated axes in one group moving along a long straight line in
-/// four axes (about 2000 s: the bench samples the cruise without replanning).
-fn group_kernel() -> Kernel {
-    use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
+/// A kernel with four simulated axes in one enabled group, at 0.
+fn group_kernel_at_rest() -> Kernel {
+    use gantry_kernel::group::run::GroupCmd;
     use gantry_kernel::group::GroupConfig;
-    use gantry_kernel::path::PathLimits;
     let configs = (0..4)
         .map(|i| {
             let mut c = AxisConfig::new(&format!("a{i}"), AxisKind::Simulated);
@@ -361,6 +360,15 @@ fn group_kernel() -> Kernel {
     k.add_group(GroupConfig::new("g", &[0, 1, 2, 3]))
         .expect("group");
     k.group_command(0, GroupCmd::Enable).expect("enable");
+    k
+}
+
+/// A kernel with four simulated axes in one group moving along a long straight line in
+/// four axes (about 2000 s: the bench samples the cruise without replanning).
+fn group_kernel() -> Kernel {
+    use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
+    use gantry_kernel::path::PathLimits;
+    let mut k = group_kernel_at_rest();
     k.group_command(
         0,
         GroupCmd::Move(GroupMove {
@@ -384,6 +392,48 @@ fn group_kernel() -> Kernel {
         k.step(&[]);
     }
     k
+}
+
+/// One cycle of a kernel whose four-axis group is in the middle of a superimposed corner
+/// (two segments sampled and added each cycle; the ramps made a minute long so the bench
+/// stays inside the blend).
+#[divan::bench(sample_count = 100, sample_size = 100)]
+fn group_blending_4_axes(bencher: divan::Bencher) {
+    use gantry_kernel::axis::handle::CommandStatus;
+    use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
+    let mut k = group_kernel_at_rest();
+    let slow = |target: [f64; 4], buffer| {
+        GroupCmd::Move(GroupMove {
+            path: GroupPathKind::Linear { target },
+            relative: false,
+            dynamics: gantry_kernel::path::PathLimits {
+                v: 60.0,
+                a: 1.0,
+                d: 1.0,
+                j: 1.0,
+            },
+            buffer,
+            transition: Transition::CornerSuperimposed,
+            corner_deviation: f64::INFINITY,
+        })
+    };
+    k.group_command(0, slow([5000.0, 0.0, 0.0, 0.0], BufferMode::Aborting))
+        .expect("move");
+    let second = k
+        .group_command(
+            0,
+            slow([5000.0, 5000.0, 100.0, 0.0], BufferMode::BlendingNext),
+        )
+        .expect("blend");
+    while k.command_status(second) != CommandStatus::Active {
+        k.step(&[]);
+    }
+    for _ in 0..100 {
+        k.step(&[]);
+    }
+    bencher.bench_local(|| {
+        divan::black_box(k.step(&[]));
+    });
 }
 
 /// One cycle of a kernel whose four axes move with their group along a line: the cost of
@@ -491,4 +541,100 @@ fn path_planning_distribution() {
     println!("  all        {:>7} / {:>7} / {:>7}", all.0, all.1, all.2);
     println!("  lines      {:>7} / {:>7} / {:>7}", l.0, l.1, l.2);
     println!("  arcs       {:>7} / {:>7} / {:>7}", a.0, a.1, a.2);
+}
+
+/// The planning cost of a blended segment: the next segment planned from rest
+/// (`PathProfile::plan`) and the corner decided (`PathProfile::blend_into`: the fastest
+/// transit speed the axes, both lengths and the allowed deviation permit, the running
+/// segment's rest planned again to reach it) — over 2 000 random pairs (a line in 4 axes,
+/// then a line or an arc from its end), random limits, deviation 1; the fastest of 5 runs
+/// per pair; median / p99 / max, and how many pairs were blended.
+fn blend_planning_distribution() {
+    use gantry_kernel::path::{
+        AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
+        Transition,
+    };
+    let mut r = XorShift(0x0b1e_9d00_c0de_0042);
+    let cmd = PathLimits {
+        v: 150.0,
+        a: f64::INFINITY,
+        d: f64::INFINITY,
+        j: f64::INFINITY,
+    };
+    let mut pairs = Vec::new();
+    for i in 0..2_000 {
+        let mut point = || {
+            [
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+                r.range(-100.0, 100.0),
+            ]
+        };
+        let (a, b, c) = (point(), point(), point());
+        let first = PathSegment::line(a, b, 4).expect("line");
+        let second = if i % 2 == 0 {
+            PathSegment::line(b, c, 4)
+        } else {
+            let radius = r.range(1.0, 50.0);
+            let a0 = r.range(0.0, std::f64::consts::TAU);
+            let sweep = r.range(0.1, 6.0);
+            let center = [b[0] - radius * a0.cos(), b[1] - radius * a0.sin()];
+            let end = [
+                center[0] + radius * (a0 + sweep).cos(),
+                center[1] + radius * (a0 + sweep).sin(),
+            ];
+            let circ = CircAxes::new(0, 1, 4).expect("axes");
+            PathSegment::circular_2d(b, 4, circ, center, end, CircMode::Center, PathChoice::Ccw)
+        };
+        let limits: Vec<AxisLimits> = (0..4)
+            .map(|_| AxisLimits {
+                vmax: r.range(10.0, 200.0),
+                amax: r.range(100.0, 2000.0),
+                jmax: r.range(1_000.0, 50_000.0),
+            })
+            .collect();
+        if let (Ok(p), Ok(second)) = (PathProfile::plan(first, &limits, &cmd), second) {
+            pairs.push((p, second, limits));
+        }
+    }
+    let mut blended = 0;
+    let mut ns: Vec<u64> = pairs
+        .iter()
+        .map(|(p, second, lim)| {
+            let mut got = None;
+            let e = (0..5)
+                .map(|_| {
+                    let mut first = *p;
+                    let t = std::time::Instant::now();
+                    let mut next = PathProfile::plan(*second, lim, &cmd).expect("plan");
+                    let c = first.blend_into(
+                        &mut next,
+                        0.0,
+                        150.0,
+                        lim,
+                        Transition::CornerSuperimposed,
+                        1.0,
+                    );
+                    let e = t.elapsed().as_nanos() as u64;
+                    got = divan::black_box(c);
+                    e
+                })
+                .min()
+                .unwrap_or(0);
+            blended += usize::from(got.is_some());
+            e
+        })
+        .collect();
+    ns.sort_unstable();
+    let q = |f: f64| ns[((ns.len() - 1) as f64 * f) as usize];
+    println!(
+        "blended segment planning (plan + corner) over {} random pairs, {} blended, fastest \
+         of 5 runs each (ns): median {} / p99 {} / max {}",
+        ns.len(),
+        blended,
+        q(0.5),
+        q(0.99),
+        ns[ns.len() - 1]
+    );
 }

@@ -359,6 +359,13 @@ impl Kernel {
                     None => Err(CommandError::NoSuchGroup { group: g }),
                 }
             }
+            GroupCmd::Halt => {
+                let (tick, dt) = (self.tick, self.dt);
+                match self.groups.get_mut(g) {
+                    Some(group) => Ok(group.halt(h, tick, dt, &mut self.handles)),
+                    None => Err(CommandError::NoSuchGroup { group: g }),
+                }
+            }
             GroupCmd::Release => match self.groups.get_mut(g) {
                 Some(group) => Ok(group.release()),
                 None => Err(CommandError::NoSuchGroup { group: g }),

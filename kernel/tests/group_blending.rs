@@ -779,3 +779,139 @@ fn random_blended_sequences_keep_every_axis_within_its_limits() {
 fn random_blended_sequences_keep_the_limits_at_a_tenth_of_the_cycle() {
     property(fuzz_cases(64) / 4, DT / 10.0, 1);
 }
+
+/// Each cycle's status of the handles `hs`, until the group stands.
+fn statuses(k: &mut Kernel, hs: &[HandleId]) -> Vec<Vec<CommandStatus>> {
+    let mut out = Vec::new();
+    for _ in 0..20_000 {
+        k.step(&[]);
+        out.push(hs.iter().map(|h| k.command_status(*h)).collect());
+        if !k.groups()[0].drives_axes() {
+            break;
+        }
+    }
+    out
+}
+
+/// The first cycle where handle `i` shows `s`.
+fn first(trace: &[Vec<CommandStatus>], i: usize, s: CommandStatus) -> usize {
+    trace.iter().position(|c| c[i] == s).unwrap()
+}
+
+#[test]
+fn handles_follow_the_seed_charts_buffered_blended_and_halted() {
+    use CommandStatus::{Aborted, Active, Busy, Done};
+    // Buffered: the second is Busy while the first runs and Active in the cycle the first
+    // is Done.
+    let mut k = group(&[XY, XY], DT);
+    let a = k
+        .group_command(
+            0,
+            mv(to(20.0, 0.0), 50.0, BufferMode::Aborting, Transition::None),
+        )
+        .unwrap();
+    let b = k
+        .group_command(
+            0,
+            mv(to(20.0, 20.0), 50.0, BufferMode::Buffered, Transition::None),
+        )
+        .unwrap();
+    assert_eq!((k.command_status(a), k.command_status(b)), (Active, Busy));
+    let t = statuses(&mut k, &[a, b]);
+    let (a_done, b_active) = (first(&t, 0, Done), first(&t, 1, Active));
+    assert_eq!(a_done, b_active, "Buffered: Done and Active in one cycle");
+    assert!(t[..b_active].iter().all(|c| c[1] == Busy));
+    assert_eq!(t.last().unwrap(), &vec![Done, Done]);
+    assert_eq!(k.groups()[0].state(), GroupState::Standby);
+
+    // Blended: the second turns Active when its ramp starts, while the first is still
+    // Active; the first is Done when the corner is passed.
+    let mut k = group(&[XY, XY], DT);
+    let a = k
+        .group_command(
+            0,
+            mv(
+                to(20.0, 0.0),
+                50.0,
+                BufferMode::Aborting,
+                Transition::CornerSuperimposed,
+            ),
+        )
+        .unwrap();
+    let b = k
+        .group_command(
+            0,
+            mv(
+                to(20.0, 20.0),
+                50.0,
+                BufferMode::BlendingNext,
+                Transition::CornerSuperimposed,
+            ),
+        )
+        .unwrap();
+    let t = statuses(&mut k, &[a, b]);
+    let (a_done, b_active) = (first(&t, 0, Done), first(&t, 1, Active));
+    assert!(b_active < a_done, "overlap: {b_active} < {a_done}");
+    assert!(t[b_active..a_done]
+        .iter()
+        .all(|c| c[0] == Active && c[1] == Active));
+    assert_eq!(t.last().unwrap(), &vec![Done, Done]);
+    assert_eq!(k.groups()[0].corners().blends, 1);
+
+    // Halt: Active while the group brakes along the path, Done when it stands; the move it
+    // took over and the one waiting end CommandAborted at once; Standby, not locked.
+    let mut k = group(&[XY, XY], DT);
+    let a = k
+        .group_command(
+            0,
+            mv(to(100.0, 0.0), 80.0, BufferMode::Aborting, Transition::None),
+        )
+        .unwrap();
+    let b = k
+        .group_command(
+            0,
+            mv(to(0.0, 0.0), 80.0, BufferMode::Buffered, Transition::None),
+        )
+        .unwrap();
+    let mut trace = run_for(&mut k, 400);
+    let h = k.group_command(0, GroupCmd::Halt).unwrap();
+    assert_eq!(
+        (
+            k.command_status(a),
+            k.command_status(b),
+            k.command_status(h)
+        ),
+        (Aborted, Aborted, Active)
+    );
+    let mut t = Vec::new();
+    while k.groups()[0].drives_axes() && t.len() < 20_000 {
+        trace.extend(run_for(&mut k, 1));
+        t.push(k.command_status(h));
+    }
+    assert!(t[..t.len() - 1].iter().all(|c| *c == Active));
+    assert_eq!(t.last(), Some(&Done));
+    assert_eq!(k.groups()[0].state(), GroupState::Standby);
+    assert_within_limits(&trace, &[XY, XY], DT);
+    let last = trace.last().unwrap();
+    assert!(
+        last[0].set.p < 100.0 && last[1].set.p == 0.0,
+        "on the line, short of it"
+    );
+    // Not locked: the next move starts at once.
+    let c = k
+        .group_command(
+            0,
+            mv(to(0.0, 0.0), 80.0, BufferMode::Aborting, Transition::None),
+        )
+        .unwrap();
+    assert_eq!(k.command_status(c), Active);
+}
+
+fn run_for(k: &mut Kernel, cycles: usize) -> Vec<Vec<AxisStatus>> {
+    (0..cycles)
+        .map(|_| {
+            k.step(&[]);
+            vec![*k.axis_status(0).unwrap(), *k.axis_status(1).unwrap()]
+        })
+        .collect()
+}

@@ -224,10 +224,56 @@ fn gears_cams_and_group_paths_do_not_allocate() {
             }),
         ),
         k.group_command(0, line(0.0, 0.0)),
+        // Blended behind: a corner superimposed, then a collinear junction.
+        k.group_command(
+            0,
+            GroupCmd::Move(GroupMove {
+                buffer: BufferMode::BlendingNext,
+                transition: Transition::CornerSuperimposed,
+                corner_deviation: 0.5,
+                ..match line(0.0, 5.0) {
+                    GroupCmd::Move(m) => m,
+                    _ => unreachable!(),
+                }
+            }),
+        ),
+        k.group_command(
+            0,
+            GroupCmd::Move(GroupMove {
+                buffer: BufferMode::BlendingLow,
+                ..match line(0.0, 8.0) {
+                    GroupCmd::Move(m) => m,
+                    _ => unreachable!(),
+                }
+            }),
+        ),
     ];
     for _ in 0..20_000 {
         k.step(&[]);
     }
+    // Aborting a moving group, then a halt.
+    let again = k.group_command(0, line(5.0, 5.0));
+    for _ in 0..300 {
+        k.step(&[]);
+    }
+    let abort = k.group_command(
+        0,
+        GroupCmd::Move(GroupMove {
+            buffer: BufferMode::Aborting,
+            ..match line(0.0, 0.0) {
+                GroupCmd::Move(m) => m,
+                _ => unreachable!(),
+            }
+        }),
+    );
+    for _ in 0..300 {
+        k.step(&[]);
+    }
+    let halt = k.group_command(0, GroupCmd::Halt);
+    for _ in 0..5000 {
+        k.step(&[]);
+    }
+    assert_eq!(k.groups()[0].corners().blends, 2, "both junctions blended");
     let stop = k.group_command(0, GroupCmd::Stop);
     for _ in 0..100 {
         k.step(&[]);
@@ -236,6 +282,17 @@ fn gears_cams_and_group_paths_do_not_allocate() {
     let n = counting::take_count();
     assert_eq!(n, 0, "{n} allocations");
     assert!(enable.is_ok() && stop.is_ok());
+    assert_eq!(
+        k.command_status(again.unwrap()),
+        CommandStatus::Aborted,
+        "taken over by the Aborting move"
+    );
+    assert_eq!(
+        k.command_status(abort.unwrap()),
+        CommandStatus::Aborted,
+        "taken over by the halt"
+    );
+    assert_eq!(k.command_status(halt.unwrap()), CommandStatus::Done);
     for h in moves {
         assert_eq!(k.command_status(h.unwrap()), CommandStatus::Done);
     }

@@ -117,6 +117,9 @@ pub enum GroupCmd {
     Move(GroupMove),
     /// MC_GroupStop: brake along the path and lock until [`GroupCmd::Release`].
     Stop,
+    /// MC_GroupHalt: brake along the path to standstill, without locking (a move given
+    /// meanwhile takes over as it would from a moving group).
+    Halt,
     /// MC_GroupStop's Execute falling.
     Release,
     /// MC_GroupReset.
@@ -131,6 +134,7 @@ impl GroupCmd {
             GroupCmd::Disable => "GroupDisable",
             GroupCmd::Move(m) => m.name(),
             GroupCmd::Stop => "GroupStop",
+            GroupCmd::Halt => "GroupHalt",
             GroupCmd::Release => "GroupStop.Release",
             GroupCmd::Reset => "GroupReset",
         }
@@ -146,6 +150,7 @@ impl GroupCmd {
             }) => GroupCommand::MoveLinear,
             GroupCmd::Move(_) => GroupCommand::MoveCircular2D,
             GroupCmd::Stop => GroupCommand::Stop,
+            GroupCmd::Halt => GroupCommand::Halt,
             GroupCmd::Release => GroupCommand::Release,
             GroupCmd::Reset => GroupCommand::Reset,
         }
@@ -197,6 +202,8 @@ pub struct Group {
     braking: bool,
     /// MC_GroupStop's handle, Done once the group stands.
     stop_handle: Option<HandleId>,
+    /// MC_GroupHalt's handle, Done once the group stands.
+    halt_handle: Option<HandleId>,
     release_pending: bool,
     /// Each group axis' own limits (A0..A3).
     limits: [AxisLimits; MAX_AXES],
@@ -225,6 +232,7 @@ impl Group {
             rest: [0.0; MAX_AXES],
             braking: false,
             stop_handle: None,
+            halt_handle: None,
             release_pending: false,
             limits,
             corners: CornerReport::default(),
@@ -424,6 +432,24 @@ impl Group {
         }
     }
 
+    /// MC_GroupHalt: brakes along the path to standstill (Standby then), the moves waiting
+    /// aborted.
+    pub(crate) fn halt(
+        &mut self,
+        h: HandleId,
+        now: u64,
+        dt: f64,
+        handles: &mut HandleTable,
+    ) -> CommandStatus {
+        self.abort_waiting(handles);
+        if self.brake(now, dt, handles) {
+            self.halt_handle = Some(h);
+            CommandStatus::Active
+        } else {
+            CommandStatus::Done
+        }
+    }
+
     /// MC_GroupStop's Execute falling: Standby once it stands.
     pub(crate) fn release(&mut self) -> CommandStatus {
         if self.running.is_some() {
@@ -465,6 +491,10 @@ impl Group {
     fn brake(&mut self, now: u64, dt: f64, handles: &mut HandleTable) -> bool {
         if let Some(p) = self.planned.take() {
             handles.set(p.handle, CommandStatus::Aborted);
+        }
+        // A halt on the way is taken over (by a stop, an error, an Aborting move).
+        if let Some(h) = self.halt_handle.take() {
+            handles.set(h, CommandStatus::Aborted);
         }
         for r in [self.running.as_mut(), self.incoming.as_mut()]
             .into_iter()
@@ -542,7 +572,10 @@ impl Group {
             self.rest = positions(&end);
             if self.braking {
                 self.braking = false;
-                if let Some(h) = self.stop_handle.take() {
+                for h in [self.stop_handle.take(), self.halt_handle.take()]
+                    .into_iter()
+                    .flatten()
+                {
                     handles.set(h, CommandStatus::Done);
                 }
                 if self.release_pending {

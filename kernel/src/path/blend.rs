@@ -179,7 +179,7 @@ pub struct CornerInputs<'a> {
 /// The junction's geometry, for the bounds: each axis' share of both segments, the
 /// tangents where they meet and the largest curvature of each.
 #[derive(Clone, Copy, Debug)]
-struct Junction {
+pub(super) struct Junction {
     s1: [AxisShape; MAX_AXES],
     s2: [AxisShape; MAX_AXES],
     /// Tangent at the end of the first segment and at the start of the second.
@@ -194,7 +194,7 @@ struct Junction {
 }
 
 impl Junction {
-    fn new(k: &CornerInputs<'_>) -> Self {
+    pub(super) fn new(k: &CornerInputs<'_>) -> Self {
         let (s1, s2) = (shapes(k.first), shapes(k.second));
         let t1 = k.first.derivatives_at(k.first.length()).d1;
         let t2 = k.second.derivatives_at(0.0).d1;
@@ -241,16 +241,13 @@ impl Junction {
 /// Refinements of the ramps' acceleration against the tangents' change over them.
 const DELTA_PASSES: usize = 4;
 
-/// The corner at path speed `v`, if every bound holds there (see the module
-/// documentation).
-fn corner_at(k: &CornerInputs<'_>, g: &Junction, v: f64) -> Option<Corner> {
-    if k.transition == Transition::None && !g.collinear {
-        return None;
-    }
+/// The ramps' path acceleration and jerk at path speed `v` (see the module
+/// documentation), `None` when no positive pair keeps the axes within their limits.
+fn ramps_at(k: &CornerInputs<'_>, g: &Junction, v: f64) -> Option<(f64, f64)> {
     let n = k.first.axes().min(k.second.axes()).min(k.axes.len());
-    // The ramps' acceleration and jerk for a bound `d` on their length; each pass takes
-    // the length the last one gave (shorter ramps, smaller changes of the tangents: the
-    // bound of each pass holds for the next's shorter ramps).
+    // For a bound `d` on the ramps' length; each pass takes the length the last one gave
+    // (shorter ramps, smaller changes of the tangents: the bound of each pass holds for
+    // the next's shorter ramps).
     let ramps = |d: f64| -> Option<(f64, f64)> {
         let (mut a, mut j) = (k.accel, k.jerk);
         for i in 0..n {
@@ -282,6 +279,12 @@ fn corner_at(k: &CornerInputs<'_>, g: &Junction, v: f64) -> Option<Corner> {
             _ => break,
         }
     }
+    Some((a, j))
+}
+
+/// The corner at path speed `v` with ramps of acceleration `a` and jerk `j`, if its
+/// deviation and lengths fit.
+fn fit(k: &CornerInputs<'_>, g: &Junction, v: f64, a: f64, j: f64) -> Option<Corner> {
     let (_, distance, half) = ramp_metrics(v, a, j);
     // Half-way the blended point is within `half` of the path whatever the geometry; near
     // a smooth junction it is much closer (module documentation).
@@ -306,33 +309,54 @@ fn corner_at(k: &CornerInputs<'_>, g: &Junction, v: f64) -> Option<Corner> {
     })
 }
 
-/// Iterations of the search for the fastest corner (each halves the interval).
-const SEARCH_STEPS: usize = 48;
+/// The corner at path speed `v`, if every bound holds there (see the module
+/// documentation).
+pub(super) fn corner_at(k: &CornerInputs<'_>, g: &Junction, v: f64) -> Option<Corner> {
+    if k.transition == Transition::None && !g.collinear {
+        return None;
+    }
+    let (a, j) = ramps_at(k, g, v)?;
+    fit(k, g, v, a, j)
+}
+
+/// Iterations of the search for the fastest corner (each halves the interval: 2⁻³⁰ of
+/// the wanted speed).
+const SEARCH_STEPS: usize = 30;
 
 /// The fastest corner at most `wanted` that keeps every bound (see the module
 /// documentation); `None` when the junction must be passed at rest.
 pub fn corner(k: &CornerInputs<'_>, wanted: f64) -> Option<Corner> {
+    corner_in(k, &Junction::new(k), wanted)
+}
+
+/// [`corner`] with the junction's geometry worked out.
+pub(super) fn corner_in(k: &CornerInputs<'_>, g: &Junction, wanted: f64) -> Option<Corner> {
     if !(wanted.is_finite() && wanted > 0.0) {
         return None;
     }
-    let g = Junction::new(k);
-    if let Some(c) = corner_at(k, &g, wanted) {
+    if let Some(c) = corner_at(k, g, wanted) {
         return Some(c);
     }
-    // Every bound tightens as the speed grows: the feasible speeds are an interval from 0.
+    if k.transition == Transition::None && !g.collinear {
+        return None;
+    }
+    // The ramps allowed at `wanted` are allowed at every lower speed (the bounds tighten
+    // with the speed): with them fixed, the deviation and the lengths grow with the speed
+    // alone, in closed form, so the search is cheap; the corner found then takes the
+    // ramps of its own speed, which only shortens them.
+    let (a, j) = ramps_at(k, g, wanted)?;
     let (mut lo, mut hi) = (0.0, wanted);
-    let mut best = None;
     for _ in 0..SEARCH_STEPS {
         let mid = 0.5 * (lo + hi);
-        match corner_at(k, &g, mid) {
-            Some(c) => {
-                best = Some(c);
-                lo = mid;
-            }
+        match fit(k, g, mid, a, j) {
+            Some(_) => lo = mid,
             None => hi = mid,
         }
     }
-    best.filter(|c| c.speed > 1e-9 * wanted)
+    if lo <= 1e-9 * wanted {
+        return None;
+    }
+    corner_at(k, g, lo).or_else(|| fit(k, g, lo, a, j))
 }
 
 #[cfg(test)]

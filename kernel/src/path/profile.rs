@@ -8,7 +8,7 @@
 //! exact: the 1-D profile pins s = length at its end, and the segment returns its end
 //! point to the bit there.
 
-use super::blend::{corner, Corner, CornerInputs, Transition};
+use super::blend::{corner_at, corner_in, Corner, CornerInputs, Junction, Transition};
 use super::limits::{path_limits, AxisLimits, PathLimits, PathLimitsError};
 use super::segment::{PathSegment, MAX_AXES};
 use crate::profile::{
@@ -224,23 +224,40 @@ impl PathProfile {
             jerk: self.limits.j.min(next.limits.j),
             transition,
             max_deviation,
-            stop_decel: next.limits.d,
-            stop_jerk: next.limits.j,
+            stop_decel: 0.0,
+            stop_jerk: 0.0,
         };
         let wanted = wanted.min(self.axis_speed).min(next.axis_speed);
-        let cap = corner(&inputs, wanted)?;
+        // The next segment brakes with what its axes allow at the speed it comes in with.
+        let stop = next.dynamics_up_to(wanted, axes);
+        let inputs = CornerInputs {
+            stop_decel: stop.dmax,
+            stop_jerk: stop.jmax,
+            ..inputs
+        };
+        let junction = Junction::new(&inputs);
+        let cap = corner_in(&inputs, &junction, wanted)?;
         let (t0, at) = self.replan_point(t);
         let len = self.segment.length();
         // The fastest corner this segment still reaches; slower ones when it is too late.
-        let attempt = |c: &Corner| -> Option<(Profile, Profile, Profile, Profile)> {
+        // The pieces for corner `c`; when this segment cannot reach its speed, the speed
+        // it reaches instead (a corner that slow fits: its ramp is shorter, the body
+        // longer).
+        type Pieces = (Profile, Profile, Profile, Profile);
+        let attempt = |c: &Corner| -> Result<Pieces, Option<f64>> {
             let target = len - c.distance;
             if target < at.p {
-                return None;
+                return Err(None);
             }
-            let body = self.plan_body(at, target, c.speed, axes).ok()?;
+            let body = self
+                .plan_body(at, target, c.speed, axes)
+                .map_err(|_| None)?;
             let end = body.end_state();
-            if end.v < c.speed * (1.0 - 1e-9) || body.lowest_velocity() < -1e-9 * c.speed {
-                return None;
+            if body.lowest_velocity() < -1e-9 * c.speed {
+                return Err(None);
+            }
+            if end.v < c.speed * (1.0 - 1e-9) {
+                return Err(Some(end.v * (1.0 - 1e-9)));
             }
             let lim = Limits {
                 vmax: c.speed,
@@ -248,31 +265,47 @@ impl PathProfile {
                 dmax: c.accel,
                 jmax: c.jerk,
             };
-            let out = plan_velocity(RampType::SCurve, end, 0.0, &lim).ok()?;
+            let out = plan_velocity(RampType::SCurve, end, 0.0, &lim).map_err(|_| None)?;
             let ramp = plan_velocity(
                 RampType::SCurve,
                 KinematicState::at_rest(0.0),
                 c.speed,
                 &lim,
             )
-            .ok()?;
+            .map_err(|_| None)?;
             let next_body = next
                 .plan_body(ramp.end_state(), next.segment.length(), 0.0, axes)
-                .ok()?;
-            (next_body.lowest_velocity() >= -1e-9 * c.speed).then_some((body, out, ramp, next_body))
+                .map_err(|_| None)?;
+            if next_body.lowest_velocity() < -1e-9 * c.speed {
+                return Err(None);
+            }
+            Ok((body, out, ramp, next_body))
         };
-        let mut found = attempt(&cap).map(|p| (cap, p));
-        if found.is_none() {
-            let (mut lo, mut hi) = (0.0, cap.speed);
-            for _ in 0..BODY_SEARCH_STEPS {
-                let mid = 0.5 * (lo + hi);
-                let tried = corner(&inputs, mid).and_then(|c| attempt(&c).map(|p| (c, p)));
-                match tried {
-                    Some(f) => {
-                        lo = mid;
-                        found = Some(f);
+        let mut found = None;
+        match attempt(&cap) {
+            Ok(p) => found = Some((cap, p)),
+            Err(hint) => {
+                // Every bound of the corner itself holds below `cap` (they tighten with
+                // the speed): only the running segment's reach is searched, first at the
+                // speed it reaches, then by halving.
+                let mut at_speed = |v: f64| {
+                    corner_at(&inputs, &junction, v).and_then(|c| attempt(&c).ok().map(|p| (c, p)))
+                };
+                if let Some(v) = hint.filter(|v| *v > 0.0 && *v < cap.speed) {
+                    found = at_speed(v);
+                }
+                if found.is_none() {
+                    let (mut lo, mut hi) = (0.0, cap.speed);
+                    for _ in 0..BODY_SEARCH_STEPS {
+                        let mid = 0.5 * (lo + hi);
+                        match at_speed(mid) {
+                            Some(f) => {
+                                lo = mid;
+                                found = Some(f);
+                            }
+                            None => hi = mid,
+                        }
                     }
-                    None => hi = mid,
                 }
             }
         }
@@ -287,7 +320,7 @@ impl PathProfile {
 }
 
 /// Iterations of the search for a corner the running segment still reaches.
-const BODY_SEARCH_STEPS: usize = 12;
+const BODY_SEARCH_STEPS: usize = 10;
 
 const FREE: PathLimits = PathLimits {
     v: f64::INFINITY,
