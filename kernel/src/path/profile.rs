@@ -288,7 +288,7 @@ impl PathProfile {
                 // Every bound of the corner itself holds below `cap` (they tighten with
                 // the speed): only the running segment's reach is searched, first at the
                 // speed it reaches, then by halving.
-                let mut at_speed = |v: f64| {
+                let at_speed = |v: f64| {
                     corner_at(&inputs, &junction, v).and_then(|c| attempt(&c).ok().map(|p| (c, p)))
                 };
                 if let Some(v) = hint.filter(|v| *v > 0.0 && *v < cap.speed) {
