@@ -536,16 +536,18 @@ impl Group {
                 self.running = self.incoming.take();
                 continue;
             }
-            if let (Some(out), Some(p)) = (r.profile.ramp_out_start(), self.planned) {
-                if t >= out {
-                    let epoch = r.epoch.later(out, dt);
+            let corner_starts = match (r.profile.ramp_out_start(), self.planned.is_some()) {
+                (Some(out), true) if t >= out => Some(r.epoch.later(out, dt)),
+                _ => None,
+            };
+            if let Some(epoch) = corner_starts {
+                if let Some(p) = self.planned.take() {
                     handles.set(p.handle, CommandStatus::Active);
                     self.incoming = Some(Running {
                         profile: p.profile,
                         epoch,
                         handle: Some(p.handle),
                     });
-                    self.planned = None;
                     let c = &mut self.corners;
                     c.blends = c.blends.saturating_add(1);
                     c.last_deviation = p.corner.deviation;
