@@ -351,6 +351,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
         kernel_axes,
         cams: Vec::new(),
         groups: Vec::new(),
+        group_defaults: Vec::new(),
     })
 }
 
