@@ -1395,6 +1395,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 report.csv.display(),
                 report.svg.display()
             )?;
+            if let Some(xy) = &report.xy {
+                writeln!(stdout, "path:  {}", xy.display())?;
+            }
         }
         Cmd::Run {
             config,
