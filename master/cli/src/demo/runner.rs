@@ -1,9 +1,9 @@
 //! The script runner both demos share: the script's steps — axis and axis-group commands —
 //! issued through the [`Controller`](gantry::runtime::controller::Controller) as an
-//! application would, each when its [`Wait`] is over; every cycle checked (an axis in ErrorStop, a bus fault, a
-//! failed step stop the demo with what and why); the status table drawn live at the
-//! pace `--speed` asks; the engine's own shutdown at the end. What each demo records of a
-//! cycle (its trace) is its [`Watch`].
+//! application would, each when its [`Wait`] is over; every cycle checked (an axis in
+//! ErrorStop, a bus fault, a failed step stop the demo with what and why); the status
+//! table drawn live at the pace `--speed` asks; the engine's own shutdown at the end. What
+//! each demo records of a cycle (its trace) is its [`Watch`].
 
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
