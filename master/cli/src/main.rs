@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand};
 use gantry::service::protocol::{
     BufferMode, CamStartMode, CircularDirection, CircularMode, CommissionKind, DriveHomeParams,
     GroupOp, HomeMode, HomeParams, HomeSwitches, JogDirection, LockDirection, MasterSource,
-    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams,
+    MoveMode, Request as Line, StepDirection, StepSwitchMode, StepSwitchParams, TransitionMode,
 };
 use gantry::service::{self, server, RunArgs};
 use gantry_cli::client::{self, Client};
@@ -454,14 +454,44 @@ struct PathArgs {
     /// The positions are distances from where the move starts.
     #[arg(long)]
     relative: bool,
-    /// Wait behind the group's running move (and return at once).
-    #[arg(long)]
+    /// How the move joins the group's running one: aborting (on a standing group it
+    /// just starts), buffered (starts when it ends), blending-low, blending-previous,
+    /// blending-next, blending-high (passes the junction in motion). All but aborting
+    /// return at once, so that the next move can be queued.
+    #[arg(long, default_value = "aborting")]
+    buffer: BufferMode,
+    /// The same as --buffer buffered.
+    #[arg(long, conflicts_with = "buffer")]
     buffered: bool,
+    /// How a blended junction may leave the path: none (only collinear lines are passed
+    /// in motion) or corner-superimposed (the corner is rounded).
+    #[arg(long, default_value = "none")]
+    transition: TransitionMode,
+    /// With corner-superimposed: how far the rounded path may pass from the corner
+    /// (units, > 0; default the group's corner_deviation, else the axes' limits decide).
+    #[arg(long, allow_negative_numbers = true, value_parser = finite)]
+    corner_deviation: Option<f64>,
     /// Return at once with the command's handle.
     #[arg(long)]
     no_wait: bool,
     #[command(flatten)]
     client: ClientOpts,
+}
+
+impl PathArgs {
+    /// The buffer mode asked for (--buffered is --buffer buffered).
+    fn buffer(&self) -> BufferMode {
+        if self.buffered {
+            BufferMode::Buffered
+        } else {
+            self.buffer
+        }
+    }
+
+    /// Whether the command returns at once: asked to, or queued behind a running move.
+    fn no_wait(&self) -> bool {
+        self.no_wait || self.buffer() != BufferMode::Aborting
+    }
 }
 
 impl GroupSub {
@@ -489,9 +519,11 @@ impl GroupSub {
                         deceleration: p.deceleration,
                         jerk: p.jerk,
                         relative: p.relative,
-                        buffered: p.buffered,
+                        buffer: p.buffer(),
+                        transition: p.transition,
+                        corner_deviation: p.corner_deviation,
                     },
-                    no_wait: p.no_wait || p.buffered,
+                    no_wait: p.no_wait(),
                     opts: p.client,
                 }
             }
@@ -529,9 +561,11 @@ impl GroupSub {
                         deceleration: p.deceleration,
                         jerk: p.jerk,
                         relative: p.relative,
-                        buffered: p.buffered,
+                        buffer: p.buffer(),
+                        transition: p.transition,
+                        corner_deviation: p.corner_deviation,
                     },
-                    no_wait: p.no_wait || p.buffered,
+                    no_wait: p.no_wait(),
                     opts: p.client,
                 }
             }
@@ -1361,6 +1395,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 report.csv.display(),
                 report.svg.display()
             )?;
+            if let Some(xy) = &report.xy {
+                writeln!(stdout, "path:  {}", xy.display())?;
+            }
         }
         Cmd::Run {
             config,
@@ -1871,7 +1908,39 @@ mod tests {
                     deceleration: None,
                     jerk: None,
                     relative: false,
-                    buffered: true,
+                    buffer: BufferMode::Buffered,
+                    transition: TransitionMode::None,
+                    corner_deviation: None,
+                },
+                true,
+            ),
+            (
+                &[
+                    "group",
+                    "line",
+                    "xy",
+                    "--to",
+                    "10,-20.5",
+                    "--velocity",
+                    "50",
+                    "--buffer",
+                    "blending-next",
+                    "--transition",
+                    "corner-superimposed",
+                    "--corner-deviation",
+                    "0.5",
+                ],
+                Line::MoveLinear {
+                    group: "xy".into(),
+                    to: vec![10.0, -20.5],
+                    velocity: 50.0,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    relative: false,
+                    buffer: BufferMode::BlendingNext,
+                    transition: TransitionMode::CornerSuperimposed,
+                    corner_deviation: Some(0.5),
                 },
                 true,
             ),
@@ -1903,7 +1972,9 @@ mod tests {
                     deceleration: None,
                     jerk: None,
                     relative: true,
-                    buffered: false,
+                    buffer: BufferMode::Aborting,
+                    transition: TransitionMode::None,
+                    corner_deviation: None,
                 },
                 false,
             ),
@@ -2120,6 +2191,29 @@ mod tests {
     }
 
     #[test]
+    fn a_group_move_takes_buffered_or_a_buffer_mode_not_both() {
+        let e = Cli::try_parse_from([
+            "gantry",
+            "group",
+            "line",
+            "xy",
+            "--to",
+            "1,2",
+            "--velocity",
+            "5",
+            "--buffered",
+            "--buffer",
+            "blending-next",
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("'--buffered' cannot be used with '--buffer <BUFFER>'"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn a_wrong_word_on_the_command_line_names_the_option_and_the_word() {
         for (args, option, says) in [
             (
@@ -2136,6 +2230,38 @@ mod tests {
                 &["jog", "x", "--direction", "up", "--speed", "1"],
                 "'--direction <DIRECTION>'",
                 r#"direction "up" is not one of "+", "-""#,
+            ),
+            (
+                &[
+                    "group",
+                    "line",
+                    "xy",
+                    "--to",
+                    "1,2",
+                    "--velocity",
+                    "5",
+                    "--buffer",
+                    "blended",
+                ],
+                "'--buffer <BUFFER>'",
+                r#"buffer "blended" is not one of "aborting", "buffered", "blending-low""#,
+            ),
+            (
+                &[
+                    "group",
+                    "arc",
+                    "xy",
+                    "--end",
+                    "1,2",
+                    "--center",
+                    "0,1",
+                    "--velocity",
+                    "5",
+                    "--transition",
+                    "rounded",
+                ],
+                "'--transition <TRANSITION>'",
+                r#"transition "rounded" is not one of "none", "corner-superimposed""#,
             ),
         ] {
             let e = Cli::try_parse_from(std::iter::once("gantry").chain(args.iter().copied()))

@@ -264,6 +264,21 @@ fn demo_moves_simulated_drives_over_the_in_process_network() {
     }
     assert!(dir.join("plot.svg").exists());
     assert!(dir.join("eccentric.toml").exists());
+    // The axis group xy: the rounded rectangle back on its start corner, its XY path
+    // plotted beside the time plots; x along its right side (x alone never goes so far).
+    line(
+        &text,
+        ">> xy: the rounded rectangle ended on its start corner (20, 0) and the group at home",
+    );
+    let path = line(&text, "path:  ");
+    assert!(path.ends_with("xy.svg"), "{path}");
+    let xy = std::fs::read_to_string(dir.join("xy.svg")).unwrap();
+    assert!(xy.contains("x.set / y.set") && xy.contains("x.actual / y.actual"));
+    let (x, y) = (&trace["x.set"], &trace["y.set"]);
+    assert!(x
+        .iter()
+        .zip(y)
+        .any(|(&x, &y)| x > 199.9 && (20.0..100.0).contains(&y)));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

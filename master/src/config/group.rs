@@ -5,6 +5,9 @@
 //! [[group]]
 //! name = "xy"            # unique, non-empty
 //! axes = ["x", "y"]      # 1 to 4 axes that take motion (real, simulated, virtual)
+//! corner_deviation = 0.5 # optional (units): how far a rounded corner may pass from
+//!                        # the corner when a move asks for corner-superimposed and
+//!                        # names no corner_deviation of its own
 //! ```
 
 use gantry_kernel::group::GroupConfig;
@@ -22,6 +25,27 @@ pub struct GroupSection {
     pub name: String,
     /// Its axes by name, A0 first.
     pub axes: Vec<String>,
+    /// The corner deviation of a move that gives none (units; left out: the axes' limits
+    /// alone decide).
+    #[serde(default)]
+    pub corner_deviation: Option<f64>,
+}
+
+/// What a group's moves take when a request leaves it out: the `[[group]]` keys that are
+/// the service's, not the kernel's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroupMoveDefaults {
+    /// The corner deviation of a CornerSuperimposed move (units; infinite: the axes'
+    /// limits alone decide).
+    pub corner_deviation: f64,
+}
+
+impl Default for GroupMoveDefaults {
+    fn default() -> Self {
+        Self {
+            corner_deviation: f64::INFINITY,
+        }
+    }
 }
 
 impl GroupSection {
@@ -56,5 +80,22 @@ impl GroupSection {
         cfg.validate(&kinds)
             .map_err(|e| ("axes".to_string(), e.to_string()))?;
         Ok(cfg)
+    }
+
+    /// The defaults its moves take; errors name the key and the group.
+    pub fn move_defaults(&self) -> Result<GroupMoveDefaults, (String, String)> {
+        match self.corner_deviation {
+            None => Ok(GroupMoveDefaults::default()),
+            Some(d) if d.is_finite() && d > 0.0 => Ok(GroupMoveDefaults {
+                corner_deviation: d,
+            }),
+            Some(d) => Err((
+                "corner_deviation".into(),
+                format!(
+                    "group {:?}: {d} is not a corner deviation (a finite number of units > 0)",
+                    self.name
+                ),
+            )),
+        }
     }
 }

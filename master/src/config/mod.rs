@@ -26,7 +26,7 @@ pub use cam::{CamConfig, CamSection};
 pub use commutation::CommutationSection;
 pub use drive_homing::{DriveHomingSection, DEFAULT_TIMEOUT_S as DRIVE_HOMING_TIMEOUT_S};
 pub use error::ConfigError;
-pub use group::{GroupSection, MAX_GROUPS};
+pub use group::{GroupMoveDefaults, GroupSection, MAX_GROUPS};
 pub use service::ServiceSection;
 pub use switches::{
     ModuleInput, ModuleNode, NodeSwitch, ProbeSource, SwitchSource, SwitchesSection,
@@ -79,6 +79,9 @@ pub struct Config {
     pub cams: Vec<CamConfig>,
     /// The axis groups (`[[group]]`), in file order (the kernel's group indices).
     pub groups: Vec<gantry_kernel::group::GroupConfig>,
+    /// What each group's moves take when a request leaves it out, in the order of
+    /// `groups` (the keys the kernel's group configuration does not have).
+    pub group_defaults: Vec<GroupMoveDefaults>,
 }
 
 impl Config {
@@ -479,13 +482,16 @@ impl Config {
             cams.push(cam);
         }
         let mut groups = Vec::with_capacity(file.groups.len());
+        let mut group_defaults = Vec::with_capacity(file.groups.len());
         for (i, spanned) in file.groups.into_iter().enumerate() {
             let span = spanned.span();
-            let g = spanned
-                .into_inner()
+            let section = spanned.into_inner();
+            let g = section
                 .resolve(&groups, &kernel_axes)
+                .and_then(|g| Ok((g, section.move_defaults()?)))
                 .map_err(|(k, reason)| at(span, format!("group[{i}].{k}"), reason))?;
-            groups.push(g);
+            groups.push(g.0);
+            group_defaults.push(g.1);
         }
         let config = Self {
             path: path.into(),
@@ -497,6 +503,7 @@ impl Config {
             eds,
             cams,
             groups,
+            group_defaults,
         };
         if kind == BusKind::Canopen {
             // The cycle's frames must fit the bit rate (issue 12 §2: refused with the figure).

@@ -1572,3 +1572,30 @@ fn groups_name_their_axes_and_each_mistake_is_named() {
     let e = typed_error("[[group]]\nname = \"\"\naxes = [\"x\"]\n");
     assert!(e.contains("group[0].name") && e.contains("empty"), "{e}");
 }
+
+#[test]
+fn a_groups_corner_deviation_is_its_moves_default_and_a_bad_one_names_the_group() {
+    let virt = format!("[[axis]]\nname = \"v\"\ntype = \"virtual\"\n{MAX}");
+    let text = typed(&format!(
+        "{virt}[[group]]\nname = \"xv\"\naxes = [\"x\", \"v\"]\ncorner_deviation = 0.5\n\
+         [[group]]\nname = \"v\"\naxes = [\"v\"]\n"
+    ));
+    let c = Config::parse(&text, "k.toml").unwrap();
+    let deviations: Vec<f64> = c
+        .group_defaults
+        .iter()
+        .map(|d| d.corner_deviation)
+        .collect();
+    // Left out: the axes' limits alone decide.
+    assert_eq!(deviations, [0.5, f64::INFINITY]);
+    for bad in ["0", "-0.5", "nan", "inf"] {
+        let e = typed_error(&format!(
+            "{virt}[[group]]\nname = \"xv\"\naxes = [\"x\", \"v\"]\ncorner_deviation = {bad}\n"
+        ));
+        assert!(
+            e.contains("group[0].corner_deviation: group \"xv\": ")
+                && e.contains("is not a corner deviation (a finite number of units > 0)"),
+            "{bad}: {e}"
+        );
+    }
+}

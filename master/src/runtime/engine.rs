@@ -1014,8 +1014,15 @@ impl<B: CycleBus> Engine<B> {
         let snap = self.snapshot.input_buffer_mut();
         snap.cycle = self.cycles;
         snap.time_s = self.cycle.kernel.time();
-        for (i, slot) in snap.groups.iter_mut().enumerate() {
-            *slot = self.cycle.kernel.groups().get(i).map(|g| g.state());
+        for (i, (slot, corners)) in snap
+            .groups
+            .iter_mut()
+            .zip(snap.group_corners.iter_mut())
+            .enumerate()
+        {
+            let group = self.cycle.kernel.groups().get(i);
+            *slot = group.map(|g| g.state());
+            *corners = group.map(|g| g.corners()).unwrap_or_default();
         }
         for i in 0..n {
             if let (Some(dst), Some(src)) = (snap.axes.get_mut(i), self.cycle.kernel.axis_status(i))

@@ -134,6 +134,8 @@ pub struct Snapshot {
     pub axes: Vec<AxisStatus>,
     /// The groups' states, in configuration order (`None` past the last group).
     pub groups: [Option<gantry_kernel::group::GroupState>; crate::config::MAX_GROUPS],
+    /// What each group's blended junctions did, beside its state.
+    pub group_corners: [gantry_kernel::group::run::CornerReport; crate::config::MAX_GROUPS],
     /// The drive of each axis.
     pub drives: Vec<DriveStatus>,
     /// Frames lost since start.

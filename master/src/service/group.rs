@@ -3,11 +3,53 @@
 //! state, MC_GroupEnable's rules, a move's start checks, MoveCircular2D's rules, the
 //! axes' limits) and its refusal reaches the client as the command's error.
 
-use gantry_kernel::group::run::{GroupCmd, GroupMove, GroupPathKind};
+use gantry_kernel::group::run::{BufferMode, GroupCmd, GroupMove, GroupPathKind, Transition};
 use gantry_kernel::path::{CircMode, PathChoice, PathLimits, MAX_AXES};
 
-use super::protocol::{CircularDirection, CircularMode, GroupOp};
+use super::protocol::{self, CircularDirection, CircularMode, GroupOp, TransitionMode};
 use super::server::Refused;
+
+/// How a group move joins the one running when it is given (PLCopen BufferMode,
+/// TransitionMode and the allowed corner deviation), checked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Junction {
+    /// Aborting, Buffered or one of the Blending modes.
+    pub buffer: BufferMode,
+    /// None or CornerSuperimposed.
+    pub transition: Transition,
+    /// With CornerSuperimposed: how far the path may pass from the corner (units;
+    /// infinite: the axes' limits alone decide).
+    pub corner_deviation: f64,
+}
+
+/// The junction a request asks for: `corner_deviation` finite and > 0 when given, else
+/// `default` (the group's `[[group]] corner_deviation`, infinite when it has none).
+pub fn junction(
+    buffer: protocol::BufferMode,
+    transition: TransitionMode,
+    corner_deviation: Option<f64>,
+    default: f64,
+) -> Result<Junction, Refused> {
+    let corner_deviation = match corner_deviation {
+        None => default,
+        Some(v) if v.is_finite() && v > 0.0 => v,
+        Some(v) => {
+            return Err(Refused::GroupOperand {
+                field: "corner_deviation",
+                value: v,
+                reason: "must be a finite number > 0",
+            })
+        }
+    };
+    Ok(Junction {
+        buffer: buffer.into(),
+        transition: match transition {
+            TransitionMode::None => Transition::None,
+            TransitionMode::CornerSuperimposed => Transition::CornerSuperimposed,
+        },
+        corner_deviation,
+    })
+}
 
 /// A `group` request's command.
 pub fn group_op(op: GroupOp) -> GroupCmd {
@@ -54,7 +96,7 @@ pub fn move_linear(
     axes: usize,
     dynamics: PathLimits,
     relative: bool,
-    buffered: bool,
+    junction: Junction,
 ) -> Result<GroupCmd, Refused> {
     if to.len() != axes {
         return Err(Refused::GroupOperand {
@@ -77,7 +119,9 @@ pub fn move_linear(
         path: GroupPathKind::Linear { target },
         relative,
         dynamics,
-        buffered,
+        buffer: junction.buffer,
+        transition: junction.transition,
+        corner_deviation: junction.corner_deviation,
     }))
 }
 
@@ -91,7 +135,7 @@ pub fn move_circular(
     circ: [usize; 2],
     dynamics: PathLimits,
     relative: bool,
-    buffered: bool,
+    junction: Junction,
 ) -> GroupCmd {
     GroupCmd::Move(GroupMove {
         path: GroupPathKind::Circular {
@@ -110,6 +154,99 @@ pub fn move_circular(
         },
         relative,
         dynamics,
-        buffered,
+        buffer: junction.buffer,
+        transition: junction.transition,
+        corner_deviation: junction.corner_deviation,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_junction_takes_the_buffer_words_and_a_corner_deviation_given_or_the_groups() {
+        let j = junction(
+            protocol::BufferMode::BlendingNext,
+            TransitionMode::CornerSuperimposed,
+            Some(0.5),
+            2.0,
+        )
+        .unwrap();
+        assert_eq!(
+            j,
+            Junction {
+                buffer: BufferMode::BlendingNext,
+                transition: Transition::CornerSuperimposed,
+                corner_deviation: 0.5,
+            }
+        );
+        // Left out: the group's default, infinite when it has none.
+        let j = junction(
+            protocol::BufferMode::default(),
+            TransitionMode::default(),
+            None,
+            f64::INFINITY,
+        )
+        .unwrap();
+        assert_eq!(
+            (j.buffer, j.transition, j.corner_deviation),
+            (BufferMode::Aborting, Transition::None, f64::INFINITY)
+        );
+        let j = junction(
+            protocol::BufferMode::Buffered,
+            TransitionMode::CornerSuperimposed,
+            None,
+            0.25,
+        )
+        .unwrap();
+        assert_eq!(j.corner_deviation, 0.25);
+        // Refused, naming the field, whatever the group's default.
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = junction(
+                protocol::BufferMode::BlendingLow,
+                TransitionMode::CornerSuperimposed,
+                Some(bad),
+                0.5,
+            )
+            .unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                format!("corner_deviation = {bad} must be a finite number > 0")
+            );
+        }
+    }
+
+    #[test]
+    fn a_move_carries_its_junction_to_the_kernel() {
+        let j = Junction {
+            buffer: BufferMode::BlendingHigh,
+            transition: Transition::CornerSuperimposed,
+            corner_deviation: 0.1,
+        };
+        let d = dynamics(10.0, None, None, None).unwrap();
+        let GroupCmd::Move(m) = move_linear(&[1.0, 2.0], 2, d, false, j).unwrap() else {
+            panic!("not a move");
+        };
+        assert_eq!(
+            (m.buffer, m.transition, m.corner_deviation),
+            (j.buffer, j.transition, j.corner_deviation)
+        );
+        let GroupCmd::Move(m) = move_circular(
+            CircularMode::Center,
+            [0.0, 1.0],
+            [1.0, 1.0],
+            CircularDirection::Cw,
+            [0, 1],
+            d,
+            true,
+            j,
+        ) else {
+            panic!("not a move");
+        };
+        assert_eq!(
+            (m.buffer, m.transition, m.corner_deviation),
+            (j.buffer, j.transition, j.corner_deviation)
+        );
+    }
 }

@@ -18,7 +18,8 @@
 //!
 //! [`Request`] is the one description of a request: the CLI serialises it
 //! ([`Request::to_line`]), the server parses it ([`parse`]). The words of the modes, buffer
-//! modes and jog directions are typed ([`MoveMode`], [`BufferMode`], [`JogDirection`]),
+//! modes, transition modes and jog directions are typed ([`MoveMode`], [`BufferMode`],
+//! [`TransitionMode`], [`JogDirection`]),
 //! each with one table of its wire names; a wrong word is refused at parsing with the field,
 //! the word and the choices. The wire format is version 1 as before: the same fields and
 //! words, `null` still means "not given".
@@ -595,6 +596,28 @@ impl Word for CircularDirection {
 }
 word_impls!(CircularDirection);
 
+/// How a blended junction of two group moves may leave the programmed path (PLCopen
+/// Part 4 TransitionMode).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransitionMode {
+    /// The path goes through the junction: blended in motion only where two lines are
+    /// collinear, elsewhere passed at rest.
+    #[default]
+    None,
+    /// The next move starts while the one before ends: the corner is rounded, within the
+    /// move's `corner_deviation`.
+    CornerSuperimposed,
+}
+
+impl Word for TransitionMode {
+    const FIELD: &'static str = "transition";
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("none", Self::None),
+        ("corner-superimposed", Self::CornerSuperimposed),
+    ];
+}
+word_impls!(TransitionMode);
+
 /// Which way an SDO transfer goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SdoDirection {
@@ -743,9 +766,17 @@ pub enum Request {
         /// `to` is a distance from where the move starts.
         #[serde(default)]
         relative: bool,
-        /// Wait behind a moving group's move instead of being refused.
-        #[serde(default)]
-        buffered: bool,
+        /// How it joins the group's running move (default `aborting`; the words of
+        /// `move`'s `buffer`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        buffer: BufferMode,
+        /// How a blended junction may leave the path (default `none`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        transition: TransitionMode,
+        /// With `corner-superimposed`: how far the path may pass from the corner (units,
+        /// > 0; default the group's `corner_deviation`, else the axes' limits decide).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        corner_deviation: Option<f64>,
     },
     /// MC_MoveCircular2D of a group.
     MoveCircular {
@@ -777,9 +808,16 @@ pub enum Request {
         /// `aux` and `end` are relative to where the move starts.
         #[serde(default)]
         relative: bool,
-        /// Wait behind a moving group's move.
-        #[serde(default)]
-        buffered: bool,
+        /// How it joins the group's running move (default `aborting`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        buffer: BufferMode,
+        /// How a blended junction may leave the path (default `none`).
+        #[serde(default, deserialize_with = "null_is_default")]
+        transition: TransitionMode,
+        /// With `corner-superimposed`: how far the path may pass from the corner (units,
+        /// > 0; default the group's `corner_deviation`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        corner_deviation: Option<f64>,
     },
     /// Stop gearing (PLCopen MC_GearOut): the axis goes on at its velocity.
     GearOut {
@@ -1210,7 +1248,9 @@ mod tests {
                 deceleration: None,
                 jerk: None,
                 relative: true,
-                buffered: true,
+                buffer: BufferMode::BlendingNext,
+                transition: TransitionMode::CornerSuperimposed,
+                corner_deviation: Some(0.5),
             },
             Request::MoveCircular {
                 group: "xy".into(),
@@ -1224,7 +1264,9 @@ mod tests {
                 deceleration: Some(100.0),
                 jerk: None,
                 relative: false,
-                buffered: false,
+                buffer: BufferMode::Buffered,
+                transition: TransitionMode::None,
+                corner_deviation: None,
             },
             Request::Halt { axis: axis() },
             Request::Stop { axis: axis() },
@@ -1442,6 +1484,29 @@ mod tests {
              \"immediate-reverse\", \"position-forward\", \"position-reverse\""
         );
         assert_eq!(BufferMode::BlendingHigh.to_string(), "blending-high");
+        // A group move takes the axis move's buffer words, and the transition's.
+        for &(_, buffer) in BufferMode::NAMES {
+            for &(word, transition) in TransitionMode::NAMES {
+                let r = Request::MoveLinear {
+                    group: "xy".into(),
+                    to: vec![1.0, 2.0],
+                    velocity: 10.0,
+                    acceleration: None,
+                    deceleration: None,
+                    jerk: None,
+                    relative: false,
+                    buffer,
+                    transition,
+                    corner_deviation: None,
+                };
+                assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+                assert_eq!(word.parse::<TransitionMode>().unwrap(), transition);
+            }
+        }
+        assert_eq!(
+            TransitionMode::CornerSuperimposed.to_string(),
+            "corner-superimposed"
+        );
         for &(word, direction) in StepDirection::NAMES {
             for &(_, switch_mode) in StepSwitchMode::NAMES {
                 let r = Request::Home {
@@ -1567,6 +1632,26 @@ mod tests {
                 buffer: BufferMode::Aborting,
             }
         );
+        // A group move that says nothing of its junction: aborting, no transition, the
+        // group's corner deviation.
+        assert_eq!(
+            parse(
+                r#"{"v":1,"cmd":"move_linear","group":"xy","to":[1,2],"velocity":5,"buffer":null}"#
+            )
+            .unwrap(),
+            Request::MoveLinear {
+                group: "xy".into(),
+                to: vec![1.0, 2.0],
+                velocity: 5.0,
+                acceleration: None,
+                deceleration: None,
+                jerk: None,
+                relative: false,
+                buffer: BufferMode::Aborting,
+                transition: TransitionMode::None,
+                corner_deviation: None,
+            }
+        );
         assert_eq!(parse(r#"{"v":1,"cmd":"status"}"#).unwrap(), Request::Status);
     }
 
@@ -1584,6 +1669,19 @@ mod tests {
             (
                 r#"{"v":1,"cmd":"jog","axis":"x","direction":"up","speed":1}"#,
                 r#"invalid request: direction "up" is not one of "+", "-", "positive", "negative""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"move_linear","group":"xy","to":[1,2],"velocity":5,"buffer":"blended"}"#,
+                r#"invalid request: buffer "blended" is not one of "aborting", "buffered", "blending-low", "blending-previous", "blending-next", "blending-high""#,
+            ),
+            (
+                r#"{"v":1,"cmd":"move_circular","group":"xy","mode":"center","aux":[0,0],"end":[1,1],"velocity":5,"transition":"rounded"}"#,
+                r#"invalid request: transition "rounded" is not one of "none", "corner-superimposed""#,
+            ),
+            // The group moves' old flag is gone: `buffer` says it.
+            (
+                r#"{"v":1,"cmd":"move_linear","group":"xy","to":[1,2],"velocity":5,"buffered":true}"#,
+                "unknown field `buffered`",
             ),
             // Words are exact: no case folding, no padding.
             (

@@ -218,6 +218,29 @@ fn group_index(state: &ServerState, name: &str) -> Result<usize, Refused> {
         .ok_or_else(|| Refused::NoGroup(name.to_string()))
 }
 
+/// How a move of group `g` joins its running move: what the request says, the group's
+/// configured corner deviation where it says none.
+fn group_junction(
+    state: &ServerState,
+    g: usize,
+    buffer: protocol::BufferMode,
+    transition: protocol::TransitionMode,
+    corner_deviation: Option<f64>,
+) -> Result<super::group::Junction, Refused> {
+    let default = state
+        .config
+        .group_defaults
+        .get(g)
+        .copied()
+        .unwrap_or_default();
+    super::group::junction(
+        buffer,
+        transition,
+        corner_deviation,
+        default.corner_deviation,
+    )
+}
+
 /// A command's error as the client reads it: a master named by the kernel's index is
 /// named by its axis name too.
 fn command_error_text(e: &CommandError, axes: &[String]) -> String {
@@ -838,12 +861,15 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             deceleration,
             jerk,
             relative,
-            buffered,
+            buffer,
+            transition,
+            corner_deviation,
         } => {
             let g = group_index(state, &group)?;
             let axes = state.config.groups.get(g).map_or(0, |c| c.axes.len());
             let d = super::group::dynamics(velocity, acceleration, deceleration, jerk)?;
-            let cmd = super::group::move_linear(&to, axes, d, relative, buffered)?;
+            let j = group_junction(state, g, buffer, transition, corner_deviation)?;
+            let cmd = super::group::move_linear(&to, axes, d, relative, j)?;
             sent(ctl.group_command(g, cmd))
         }
         Request::MoveCircular {
@@ -858,7 +884,9 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
             deceleration,
             jerk,
             relative,
-            buffered,
+            buffer,
+            transition,
+            corner_deviation,
         } => {
             let g = group_index(state, &group)?;
             for (field, p) in [("aux", aux), ("end", end)] {
@@ -867,6 +895,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
                 }
             }
             let d = super::group::dynamics(velocity, acceleration, deceleration, jerk)?;
+            let j = group_junction(state, g, buffer, transition, corner_deviation)?;
             let cmd = super::group::move_circular(
                 mode,
                 aux,
@@ -875,7 +904,7 @@ async fn handle(state: &ServerState, request: Request) -> Result<Value, Refused>
                 axes.unwrap_or([0, 1]),
                 d,
                 relative,
-                buffered,
+                j,
             );
             sent(ctl.group_command(g, cmd))
         }
@@ -1306,12 +1335,17 @@ pub fn status_json(state: &ServerState, snap: &Snapshot) -> Value {
         .config
         .groups
         .iter()
-        .zip(&snap.groups)
-        .map(|(g, s)| {
+        .zip(snap.groups.iter().zip(&snap.group_corners))
+        .map(|(g, (s, c))| {
             json!({
                 "name": g.name,
                 "axes": g.axes.iter().filter_map(|&i| state.config.axes.get(i).map(|a| &a.name)).collect::<Vec<_>>(),
                 "state": s.map(|s| s.name()),
+                // What its blended junctions did (all 0 before the first).
+                "blends": c.blends,
+                "last_corner_deviation": c.last_deviation,
+                "max_corner_deviation": c.max_deviation,
+                "last_transit_speed": c.last_transit_speed,
             })
         })
         .collect();

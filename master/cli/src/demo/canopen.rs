@@ -219,6 +219,7 @@ pub fn run(args: &DemoArgs, out: &mut (dyn Write + Send)) -> Result<DemoReport, 
     Ok(DemoReport {
         csv,
         svg,
+        xy: None,
         simulated_s: counters.cycles as f64 * f64::from(config.bus.cycle_us) * 1e-6,
         cycles: counters.cycles,
         cycle_s: f64::from(config.bus.cycle_us) * 1e-6,

@@ -5,7 +5,9 @@
 //! kernel — with the script's moves sent
 //! as Controller commands: enable, x homed on its reference cam and index pulse (MoveHome,
 //! judged by the simulated drive's own record), set position, PTP moves buffered and blended, a modulo
-//! axis across its wrap both ways and turning several periods, a halt, a stop.
+//! axis across its wrap both ways and turning several periods, a halt, a stop; at the end x
+//! and y as an axis group tracing a rounded rectangle ([`super::group`], plotted as an XY
+//! path beside the time plots).
 //!
 //! In [`lockstep`](super::lockstep): each frame passes the simulated chain in the demo's
 //! thread and the network's time moves one cycle per cycle
@@ -34,6 +36,7 @@ use gantry_sim::plant::servo::crossings::Crossed;
 use gantry_sim::plant::servo::probe::{index_crossing, HOME_INPUT};
 use gantry_sim::plant::servo::ServoDrive;
 
+use super::group::GroupCheck;
 use super::lockstep::{Advance, Lockstep};
 use super::runner::{Limits, Runner, Watch};
 use super::sync::{self, SyncCheck};
@@ -167,10 +170,12 @@ pub(super) fn homing_verdict(x: &ServoDrive, out: &mut dyn Write) -> Result<(), 
 }
 
 /// The script, sent through the [`Controller`] as an application would: the moves of x, y
-/// and c ([`motion_script`]) and, beside them, the synchronised axes' ([`super::sync`]).
+/// and c ([`motion_script`]) and, beside them, the synchronised axes' ([`super::sync`]);
+/// at the end x and y as the axis group `xy` ([`super::group`]).
 pub fn script() -> Vec<Step> {
     let mut steps = motion_script();
     super::sync::insert(&mut steps);
+    super::group::insert(&mut steps);
     steps
 }
 
@@ -317,7 +322,11 @@ pub fn motion_script() -> Vec<Step> {
 
 /// Writes the demo's configuration and the simulated chain `servos` to `dir` and loads
 /// the configuration from there, as `gantry run --config` would; with a capture to `pcap`.
-fn write_config(dir: &Path, servos: &str, pcap: Option<&Path>) -> Result<Config, DemoError> {
+pub(super) fn write_config(
+    dir: &Path,
+    servos: &str,
+    pcap: Option<&Path>,
+) -> Result<Config, DemoError> {
     write_files_and_load(
         dir,
         &[
@@ -401,7 +410,9 @@ pub fn run_on(
     );
     let check = SyncCheck::of_config(&config, cam.table.clone())?;
     let mut runner = Runner::new(&config, args.speed, FRAME_CYCLES, true);
-    let mut run = Run::new(&config, "EtherCAT").with_sync(check);
+    let mut run = Run::new(&config, "EtherCAT")
+        .with_sync(check)
+        .with_group(GroupCheck::of_config(&config)?);
     let result = run
         .wait_for_op(&mut runner, &mut net, &chain, out)
         .and_then(|()| {
@@ -461,10 +472,15 @@ pub fn run_on(
     if let Some(check) = &run.sync {
         check.said(f64::from(config.bus.cycle_us) * 1e-6, out)?;
     }
+    if let Some(check) = &run.group {
+        check.said(out)?;
+    }
     let (csv, svg) = run.write_files(&args.out, &config)?;
+    let xy = run.write_xy(&args.out)?;
     Ok(DemoReport {
         csv,
         svg,
+        xy,
         simulated_s: counters.cycles as f64 * f64::from(config.bus.cycle_us) * 1e-6,
         cycles: counters.cycles,
         cycle_s: f64::from(config.bus.cycle_us) * 1e-6,
@@ -540,6 +556,8 @@ pub(super) struct Run {
     bus: &'static str,
     /// The synchronised axes' check (the EtherCAT demo's).
     sync: Option<SyncCheck>,
+    /// The axis group's check (the EtherCAT demo's).
+    group: Option<GroupCheck>,
 }
 
 impl<B: CycleBus> Watch<B> for Run {
@@ -554,6 +572,9 @@ impl<B: CycleBus> Watch<B> for Run {
             self.drain(&net.ctl);
         }
         if let Some(check) = self.sync.as_mut() {
+            check.observe(&net.engine.cycle.kernel, net.time())?;
+        }
+        if let Some(check) = self.group.as_mut() {
             check.observe(&net.engine.cycle.kernel, net.time())?;
         }
         Ok(())
@@ -584,6 +605,7 @@ impl Run {
             in_op: false,
             cycle_us: config.bus.cycle_us,
             sync: None,
+            group: None,
         }
     }
 
@@ -591,6 +613,14 @@ impl Run {
     pub(super) fn with_sync(self, check: SyncCheck) -> Self {
         Self {
             sync: Some(check),
+            ..self
+        }
+    }
+
+    /// With the axis group checked every cycle and its path plotted.
+    pub(super) fn with_group(self, check: GroupCheck) -> Self {
+        Self {
+            group: Some(check),
             ..self
         }
     }
@@ -875,6 +905,52 @@ impl Run {
         Ok((csv, svg))
     }
 }
+
+impl Run {
+    /// The axis group's path while it moved, set and actual, as an XY plot in `dir`
+    /// (`xy.svg`, beside the time plots), where the demo checked a group.
+    pub(super) fn write_xy(&self, dir: &Path) -> Result<Option<PathBuf>, DemoError> {
+        let Some((group, (from, to))) = self.group.as_ref().and_then(|g| Some((g, g.span()?)))
+        else {
+            return Ok(None);
+        };
+        let [a, b] = group.axes();
+        let name = |i: usize| self.names.get(i).map_or("?", String::as_str);
+        let channels = vec![
+            format!("{}.set", name(a)),
+            format!("{}.set", name(b)),
+            format!("{}.actual", name(a)),
+            format!("{}.actual", name(b)),
+        ];
+        let mut trace = Trace::new(channels, self.samples.len().max(1));
+        for s in self
+            .samples
+            .iter()
+            .filter(|s| (from..=to).contains(&s.time_s))
+        {
+            let (Some(&xs), Some(&ys), Some(&xa), Some(&ya)) =
+                (s.set.get(a), s.set.get(b), s.actual.get(a), s.actual.get(b))
+            else {
+                continue;
+            };
+            trace.push(s.time_s, &[xs, ys, xa, ya])?;
+        }
+        let svg = dir.join(XY_FILE);
+        let doc = plot::xy_svg(
+            &trace,
+            &format!(
+                "group {}: a rounded rectangle, set and actual path (mm)",
+                super::group::GROUP
+            ),
+            &[(0, 1), (2, 3)],
+        );
+        std::fs::write(&svg, doc).map_err(io_error(&svg))?;
+        Ok(Some(svg))
+    }
+}
+
+/// File name of the axis group's XY plot in the output folder.
+pub const XY_FILE: &str = "xy.svg";
 
 /// Whether axis `i`'s set position, wrapped into `[0, period)`, went across the wrap
 /// between two consecutive samples (see [`crossing`]).

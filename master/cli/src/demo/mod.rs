@@ -24,10 +24,13 @@ use gantry_kernel::axis::command::{
     BufferMode, Command, HaltMode, Jog, JogProfile, MergeSpeed, MoveDirection, MovePtp,
     MoveVelocity, PositioningMode, PowerCommand,
 };
+use gantry_kernel::group::run::GroupCmd;
 use thiserror::Error;
 
 pub mod canopen;
 pub mod ethercat;
+pub mod group;
+pub mod limits;
 pub mod lockstep;
 pub mod runner;
 pub mod sync;
@@ -74,6 +77,8 @@ pub struct DemoReport {
     pub csv: PathBuf,
     /// The SVG plot.
     pub svg: PathBuf,
+    /// The XY plot of the axis group's path (set and actual), where the demo has a group.
+    pub xy: Option<PathBuf>,
     /// Simulated time (s).
     pub simulated_s: f64,
     /// Cycles run.
@@ -174,6 +179,30 @@ pub enum Wait {
     Seconds(f64),
     /// When the command of step `label` is done.
     Done(&'static str),
+    /// When the commands of all these steps are done.
+    DoneAll(&'static [&'static str]),
+    /// This many seconds after the command of step `label` is seen done (a group's axes
+    /// take a move again once they are back in Standstill, the cycle after).
+    DoneFor(&'static str, f64),
+}
+
+/// What a step commands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Order {
+    /// A command to the axis the step names.
+    Axis(Command),
+    /// A command to the axis group the step names (`[[group]]`).
+    Group(GroupCmd),
+}
+
+impl Order {
+    /// The command's (function block's) name.
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Order::Axis(c) => c.name(),
+            Order::Group(g) => g.name(),
+        }
+    }
 }
 
 /// One step of the script.
@@ -181,10 +210,10 @@ pub enum Wait {
 pub struct Step {
     /// What to wait for before issuing it.
     pub wait: Wait,
-    /// Axis name.
+    /// Axis name (a group's name for a group command).
     pub axis: &'static str,
     /// The command.
-    pub command: Command,
+    pub command: Order,
     /// Name of the step (for `Wait::Done` and the log).
     pub label: &'static str,
     /// What the step shows, printed when it is issued.
@@ -203,7 +232,24 @@ pub const fn step(
     Step {
         wait,
         axis,
-        command,
+        command: Order::Axis(command),
+        label,
+        says,
+    }
+}
+
+/// A step of a script that commands axis group `group`.
+pub const fn group_step(
+    wait: Wait,
+    group: &'static str,
+    command: GroupCmd,
+    label: &'static str,
+    says: &'static str,
+) -> Step {
+    Step {
+        wait,
+        axis: group,
+        command: Order::Group(command),
         label,
         says,
     }
@@ -351,6 +397,7 @@ pub fn config(cycle_us: u32) -> Result<Config, DemoError> {
         kernel_axes,
         cams: Vec::new(),
         groups: Vec::new(),
+        group_defaults: Vec::new(),
     })
 }
 
@@ -614,6 +661,7 @@ pub fn run(args: &DemoArgs, out: &mut impl Write) -> Result<DemoReport, DemoErro
     Ok(DemoReport {
         csv,
         svg,
+        xy: None,
         simulated_s: net.time(),
         cycles: net.cycles(),
         cycle_s: f64::from(cycle_us) * 1e-6,

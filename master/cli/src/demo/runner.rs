@@ -1,9 +1,9 @@
-//! The script runner both demos share: the script's steps issued through the
-//! [`Controller`](gantry::runtime::controller::Controller) as an application would, each
-//! when its [`Wait`] is over; every cycle checked (an axis in ErrorStop, a bus fault, a
-//! failed step stop the demo with what and why); the status table drawn live at the
-//! pace `--speed` asks; the engine's own shutdown at the end. What each demo records of a
-//! cycle (its trace) is its [`Watch`].
+//! The script runner both demos share: the script's steps — axis and axis-group commands —
+//! issued through the [`Controller`](gantry::runtime::controller::Controller) as an
+//! application would, each when its [`Wait`] is over; every cycle checked (an axis in
+//! ErrorStop, a bus fault, a failed step stop the demo with what and why); the status
+//! table drawn live at the pace `--speed` asks; the engine's own shutdown at the end. What
+//! each demo records of a cycle (its trace) is its [`Watch`].
 
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
@@ -17,7 +17,7 @@ use gantry_kernel::axis::handle::CommandStatus;
 use gantry_kernel::axis::state::AxisState;
 
 use super::lockstep::Lockstep;
-use super::{DemoError, Step, Wait};
+use super::{DemoError, Order, Step, Wait};
 use crate::status_table::{self, Live, Row};
 
 /// Cycles between two snapshots of the engine (it publishes every 10).
@@ -63,6 +63,10 @@ pub struct Runner {
     issued: Vec<Issued>,
     /// Per axis, the index in `issued` of its last step.
     last: Vec<Option<usize>>,
+    /// The axis groups' names (`[[group]]` order).
+    groups: Vec<String>,
+    /// Per group, the index in `issued` of its last step.
+    last_group: Vec<Option<usize>>,
     frame_cycles: u64,
     /// Whether the drives report an error code (0x603F) to name when an axis stops.
     error_codes: bool,
@@ -80,6 +84,8 @@ impl Runner {
             live: Live::new(std::io::stdout().is_terminal()),
             issued: Vec::new(),
             last: vec![None; config.axes.len()],
+            groups: config.groups.iter().map(|g| g.name.clone()).collect(),
+            last_group: vec![None; config.groups.len()],
             frame_cycles,
             error_codes,
         }
@@ -171,11 +177,26 @@ impl Runner {
     ) -> Result<(), DemoError> {
         for step in script {
             let waited_from = net.time();
+            // When the step waited for was first seen done.
+            let mut done_at: Option<f64> = None;
             loop {
                 let ready = match step.wait {
                     Wait::Now => true,
                     Wait::Seconds(s) => net.time() - waited_from >= s - 1e-9,
                     Wait::Done(label) => self.done(label)?,
+                    Wait::DoneAll(labels) => {
+                        let mut all = true;
+                        for &label in labels {
+                            all &= self.done(label)?;
+                        }
+                        all
+                    }
+                    Wait::DoneFor(label, s) => {
+                        if done_at.is_none() && self.done(label)? {
+                            done_at = Some(net.time());
+                        }
+                        done_at.is_some_and(|t| net.time() - t >= s - 1e-9)
+                    }
                 };
                 if ready {
                     break;
@@ -185,20 +206,24 @@ impl Runner {
                 }
                 self.cycle(net, watch, out)?;
             }
-            let axis = self
-                .names
+            let (names, last) = match step.command {
+                Order::Axis(_) => (&self.names, &mut self.last),
+                Order::Group(_) => (&self.groups, &mut self.last_group),
+            };
+            let target = names
                 .iter()
                 .position(|n| n == step.axis)
                 .ok_or(DemoError::Script(step.axis))?;
-            let handle = net
-                .ctl
-                .command(axis, step.command)
-                .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
+            if let Some(last) = last.get_mut(target) {
+                *last = Some(self.issued.len());
+            }
+            let handle = match step.command {
+                Order::Axis(command) => net.ctl.command(target, command),
+                Order::Group(command) => net.ctl.group_command(target, command),
+            }
+            .map_err(|e| DemoError::Fault(format!("step {}: {e}", step.label)))?;
             if !step.says.is_empty() {
                 let _ = writeln!(out, ">> {}", step.says);
-            }
-            if let Some(last) = self.last.get_mut(axis) {
-                *last = Some(self.issued.len());
             }
             self.issued.push(Issued { step, handle });
         }
@@ -206,6 +231,7 @@ impl Runner {
         while self
             .last
             .iter()
+            .chain(&self.last_group)
             .flatten()
             .filter_map(|&k| self.issued.get(k))
             .any(|i| !i.handle.status().is_some_and(|s| s.is_final()))

@@ -24,6 +24,7 @@ use gantry_kernel::profile::Limits;
 use gantry_kernel::sync::command::{CamIn, GearIn};
 use gantry_kernel::Kernel;
 
+use super::limits::within_limits;
 use super::{step, DemoError, Step, Wait};
 
 /// The cam table, written to the output folder as [`CAM_FILE`] and loaded from there
@@ -460,31 +461,12 @@ impl Follower {
         }
     }
 
-    /// The follower's set speed and acceleration against its maxima (the kernel's own
-    /// rule: deceleration when the acceleration opposes the velocity).
+    /// The follower's set speed and acceleration against its maxima
+    /// ([`within_limits`]), and its peaks.
     fn limits(&mut self, s: &AxisStatus, time_s: f64) -> Result<(), DemoError> {
-        let (v, a) = (s.set.v, s.set.a);
-        self.peak_v = self.peak_v.max(v.abs());
-        self.peak_a = self.peak_a.max(a.abs());
-        let (what, max) = if a * v < 0.0 {
-            ("deceleration", self.max.dmax)
-        } else {
-            ("acceleration", self.max.amax)
-        };
-        let beyond = if v.abs() > self.max.vmax * (1.0 + 1e-9) {
-            Some(("speed", v, self.max.vmax))
-        } else if a.abs() > max * (1.0 + 1e-6) {
-            Some((what, a, max))
-        } else {
-            None
-        };
-        match beyond {
-            None => Ok(()),
-            Some((what, value, max)) => Err(DemoError::Fault(format!(
-                "{}: set {what} {value:.3} beyond its maximum {max} at t = {time_s:.3} s",
-                self.name
-            ))),
-        }
+        self.peak_v = self.peak_v.max(s.set.v.abs());
+        self.peak_a = self.peak_a.max(s.set.a.abs());
+        within_limits(&self.name, s, &self.max, time_s)
     }
 }
 
