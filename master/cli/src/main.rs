@@ -383,6 +383,14 @@ enum GroupSub {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// MC_GroupHalt: brake along the path to standstill (no lock: the next move may
+    /// follow at once).
+    Halt {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
     /// Release a stopped group.
     Release {
         /// The group's name.
@@ -506,6 +514,7 @@ impl GroupSub {
             GroupSub::Enable { group, client } => op(group, GroupOp::Enable, client),
             GroupSub::Disable { group, client } => op(group, GroupOp::Disable, client),
             GroupSub::Stop { group, client } => op(group, GroupOp::Stop, client),
+            GroupSub::Halt { group, client } => op(group, GroupOp::Halt, client),
             GroupSub::Release { group, client } => op(group, GroupOp::Release, client),
             GroupSub::Reset { group, client } => op(group, GroupOp::Reset, client),
             GroupSub::Line { group, to, path } => {

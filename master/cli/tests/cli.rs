@@ -266,9 +266,15 @@ fn demo_moves_simulated_drives_over_the_in_process_network() {
     assert!(dir.join("eccentric.toml").exists());
     // The axis group xy: the rounded rectangle back on its start corner, its XY path
     // plotted beside the time plots; x along its right side (x alone never goes so far).
-    line(
+    let l = line(
         &text,
         ">> xy: the rounded rectangle ended on its start corner (20, 0) and the group at home",
+    );
+    // Every junction of the rectangle passed in motion (the demo itself fails a path off
+    // the rectangle by more than the reported bound).
+    assert!(
+        l.contains("; 7 corners passed in motion, each within "),
+        "{l}"
     );
     let path = line(&text, "path:  ");
     assert!(path.ends_with("xy.svg"), "{path}");

@@ -276,11 +276,46 @@ fn moves_queued_blended_while_the_group_moves_end_exactly_on_target() {
     ] {
         assert!(g[field].is_number(), "{field}: {g}");
     }
-    // Whatever was blended stayed within the deviation asked for.
+    // The three junctions after the buffered line were passed in motion, each within the
+    // deviation asked for.
+    assert_eq!(g["blends"], 3, "{g}");
     assert!(
         g["max_corner_deviation"].as_f64().unwrap() <= 0.5 + 1e-9,
         "{g}"
     );
+    assert!(g["last_transit_speed"].as_f64().unwrap() > 0.0, "{g}");
+    // MC_GroupHalt: a long line halted on its way stands short of its end, on the line,
+    // in GroupStandby (not locked: the next move is taken at once).
+    s.ok(&[
+        "group",
+        "line",
+        "xy",
+        "--to",
+        "0,-300",
+        "--velocity",
+        "50",
+        "--no-wait",
+    ]);
+    std::thread::sleep(Duration::from_millis(300));
+    s.ok(&["group", "halt", "xy"]);
+    let end = Instant::now() + Duration::from_secs(30);
+    let st = loop {
+        let st = s.status();
+        let v = support::axis_of(&st, "y")["velocity"].as_f64();
+        if st["groups"][0]["state"] == "GroupStandby" && v == Some(0.0) {
+            break st;
+        }
+        assert!(Instant::now() < end, "the halt never ended: {st}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let (x, y) = (
+        support::axis_of(&st, "x")["set_position"].as_f64().unwrap(),
+        support::axis_of(&st, "y")["set_position"].as_f64().unwrap(),
+    );
+    assert_eq!(x, 0.0, "on the line");
+    assert!(y < 30.0 && y > -300.0, "halted on its way: {y}");
+    s.ok(&["group", "line", "xy", "--to", "0,0", "--velocity", "50"]);
+    wait_group_at(&s, 0, "GroupStandby", [("x", 0.0), ("y", 0.0)]);
     s.ok(&["group", "disable", "xy"]);
     // z and c take part too (the drive invariant judges every drive).
     for a in ["z", "c"] {

@@ -57,6 +57,7 @@ pub fn group_op(op: GroupOp) -> GroupCmd {
         GroupOp::Enable => GroupCmd::Enable,
         GroupOp::Disable => GroupCmd::Disable,
         GroupOp::Stop => GroupCmd::Stop,
+        GroupOp::Halt => GroupCmd::Halt,
         GroupOp::Release => GroupCmd::Release,
         GroupOp::Reset => GroupCmd::Reset,
     }

@@ -541,6 +541,8 @@ pub enum GroupOp {
     Disable,
     /// MC_GroupStop (brakes along the path, locks until released).
     Stop,
+    /// MC_GroupHalt (brakes along the path to GroupStandby, no lock).
+    Halt,
     /// MC_GroupStop's Execute falling.
     Release,
     /// MC_GroupReset.
@@ -553,6 +555,7 @@ impl Word for GroupOp {
         ("enable", Self::Enable),
         ("disable", Self::Disable),
         ("stop", Self::Stop),
+        ("halt", Self::Halt),
         ("release", Self::Release),
         ("reset", Self::Reset),
     ];

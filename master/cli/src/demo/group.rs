@@ -5,12 +5,14 @@
 //! goes from home to the rectangle's start corner, the first side starts the rectangle
 //! and the other seven are queued while the group moves, each BlendingNext with its
 //! corner superimposed within [`CORNER_DEVIATION`]; then the group goes home and is
-//! disabled. Until the kernel blends, the junctions are passed at rest.
+//! disabled.
 //!
 //! The demo checks every cycle ([`GroupCheck`]) that x and y stay within their limits
-//! ([`within_limits`], the rule the synchronised axes are held to) and that the group
-//! comes to rest exactly where the script sends it: at the start corner after the
-//! approach and after the rectangle, home at the end (within [`REST_BOUND`]).
+//! ([`within_limits`], the rule the synchronised axes are held to), that on the rectangle
+//! the path stays within the corner deviation the kernel reports of the ideal rounded
+//! rectangle, and that the group comes to rest exactly where the script sends it: at the
+//! start corner after the approach and after the rectangle, home at the end (within
+//! [`REST_BOUND`]).
 
 use std::io::Write;
 
@@ -50,9 +52,8 @@ const PATH: PathLimits = PathLimits {
     j: 20_000.0,
 };
 
-/// How long the group stands on the start corner before and after the rectangle (s):
-/// the Done of a group move comes a cycle before its axes are back in Standstill and take
-/// the next move, which a step sent on the Done alone could meet.
+/// How long the group stands on the start corner before and after the rectangle (s), so
+/// the time plots show where the rectangle begins and ends.
 const PAUSE_S: f64 = 0.1;
 
 /// The labels of the rectangle's eight moves, in order.
@@ -164,6 +165,35 @@ pub fn insert(steps: &mut Vec<Step>) {
     ));
 }
 
+/// Distance from `p` to the ideal rounded rectangle of [`rectangle`].
+fn off_rectangle(p: [f64; 2]) -> f64 {
+    let (w, h, r) = (WIDTH, HEIGHT, RADIUS);
+    let side = |a: [f64; 2], b: [f64; 2]| {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let t = (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]))
+            .clamp(0.0, 1.0);
+        (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1])
+    };
+    let sides = [
+        side([r, 0.0], [w - r, 0.0]),
+        side([w, r], [w, h - r]),
+        side([w - r, h], [r, h]),
+        side([0.0, h - r], [0.0, r]),
+    ];
+    // Each corner's quarter circle, where the point lies in its quadrant.
+    let corners = [
+        ([w - r, r], [1.0, -1.0]),
+        ([w - r, h - r], [1.0, 1.0]),
+        ([r, h - r], [-1.0, 1.0]),
+        ([r, r], [-1.0, -1.0]),
+    ];
+    let arcs = corners.iter().filter_map(|(c, q)| {
+        let inside = (p[0] - c[0]) * q[0] >= 0.0 && (p[1] - c[1]) * q[1] >= 0.0;
+        inside.then(|| ((p[0] - c[0]).hypot(p[1] - c[1]) - r).abs())
+    });
+    sides.into_iter().chain(arcs).fold(f64::INFINITY, f64::min)
+}
+
 /// One axis of the group as the check sees it.
 #[derive(Clone, Debug)]
 struct Member {
@@ -190,6 +220,8 @@ pub struct GroupCheck {
     worst_rest: f64,
     /// Its blends' figures at the last cycle.
     corners: gantry_kernel::group::run::CornerReport,
+    /// Largest distance of the path from the ideal rounded rectangle while on it (mm).
+    worst_off: f64,
 }
 
 impl GroupCheck {
@@ -230,6 +262,7 @@ impl GroupCheck {
             span: None,
             worst_rest: 0.0,
             corners: Default::default(),
+            worst_off: 0.0,
         })
     }
 
@@ -260,6 +293,20 @@ impl GroupCheck {
             .ok_or(DemoError::Script("xy: not in the kernel"))?;
         self.corners = group.corners();
         let moving = group.drives_axes();
+        // On the rectangle (after the approach came to rest, until the rectangle ends):
+        // never farther from it than the corners' reported bound.
+        if self.reached == 1 {
+            let off = off_rectangle(at);
+            self.worst_off = self.worst_off.max(off);
+            let bound = self.corners.max_deviation;
+            if off > bound + 1e-9 {
+                return Err(DemoError::Fault(format!(
+                    "xy at ({:.6}, {:.6}) at t = {time_s:.3} s is {off:.3e} mm off the rounded \
+                     rectangle, beyond the corner deviation the kernel reports ({bound:.3e} mm)",
+                    at[0], at[1]
+                )));
+            }
+        }
         if moving {
             let (first, _) = self.span.unwrap_or((time_s, time_s));
             self.span = Some((first, time_s));
@@ -302,9 +349,16 @@ impl GroupCheck {
             out,
             ">> xy: the rounded rectangle ended on its start corner ({}, {}) and the group \
              at home, each within {:.1e} mm; x and y within their limits all along; {} \
-             corners passed in motion, the largest {:.3} mm from its corner (allowed \
-             {CORNER_DEVIATION}), the last at {:.1} mm/s",
-            START[0], START[1], self.worst_rest, c.blends, c.max_deviation, c.last_transit_speed,
+             corners passed in motion, each within {:.3} mm of its corner by the kernel's \
+             bound (allowed {CORNER_DEVIATION}; the path came at most {:.3} mm off the \
+             ideal rectangle), the last at {:.1} mm/s",
+            START[0],
+            START[1],
+            self.worst_rest,
+            c.blends,
+            c.max_deviation,
+            self.worst_off,
+            c.last_transit_speed,
         );
         Ok(())
     }
@@ -503,22 +557,31 @@ mod tests {
         let (from, to) = check.span().unwrap();
         // 600 mm of path at 150 mm/s at most, and the approach and the way home.
         assert!(to - from > 600.0 / 150.0, "{from}..{to}");
-        // The rectangle's last corner left out, its left side going on down to (0, 10):
-        // the group comes to rest elsewhere, and the check says where and where it was
-        // sent.
-        let mut short = steps.clone();
-        let last = short.iter_mut().find(|s| s.label == "xy-8").unwrap();
-        last.command =
-            super::super::Order::Group(motion(line(0.0, 10.0), BufferMode::BlendingNext));
-        let mut k = kernel(&config);
-        let mut check = GroupCheck::of_config(&config).unwrap();
-        let e = run(&mut k, &mut check, &short).unwrap_err();
+        // The rectangle's last corner cut short half-way round: on the rectangle all
+        // along, the group comes to rest elsewhere, and the check says where and where it
+        // was sent.
+        let half = RADIUS - RADIUS * std::f64::consts::FRAC_1_SQRT_2;
+        let run_with_last = |last: GroupPathKind| {
+            let mut changed = steps.clone();
+            let s = changed.iter_mut().find(|s| s.label == "xy-8").unwrap();
+            s.command = super::super::Order::Group(motion(last, BufferMode::BlendingNext));
+            let mut k = kernel(&config);
+            let mut check = GroupCheck::of_config(&config).unwrap();
+            run(&mut k, &mut check, &changed).unwrap_err().to_string()
+        };
+        let e = run_with_last(arc([RADIUS, RADIUS], [half, half]));
         assert!(
-            e.to_string().starts_with(
-                "the demo stopped: xy came to rest at (0.000000000, 10.000000000) at t = "
-            ) && e
-                .to_string()
-                .ends_with(" mm from (20, 0) where the script sent it"),
+            e.starts_with(
+                "the demo stopped: xy came to rest at (5.857864376, 5.857864376) at t = "
+            ) && e.ends_with(" mm from (20, 0) where the script sent it"),
+            "{e}"
+        );
+        // Its left side going on straight down to (0, 10) instead: off the rectangle by
+        // more than any corner's bound.
+        let e = run_with_last(line(0.0, 10.0));
+        assert!(
+            e.starts_with("the demo stopped: xy at (0.000000, ")
+                && e.contains("mm off the rounded rectangle, beyond the corner deviation"),
             "{e}"
         );
         // Stopped halfway: the rectangle did not run to its end, and the check says so.
