@@ -451,9 +451,7 @@ fn group_moving_4_axes(bencher: divan::Bencher) {
 /// and 2 000 random arcs (center mode, random radius and sweep) with random limits; the
 /// fastest of 5 runs per segment; median / p99 / max.
 fn path_planning_distribution() {
-    use gantry_kernel::path::{
-        AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
-    };
+    use gantry_kernel::path::{AxisLimits, PathLimits, PathProfile, PathSegment};
     let mut r = XorShift(0x5eed_9a7e_0042_0017);
     let mut segments = Vec::new();
     for i in 0..4_000 {
@@ -472,32 +470,9 @@ fn path_planning_distribution() {
             ];
             PathSegment::line(from, to, 4)
         } else {
-            let radius = r.range(1.0, 50.0);
-            let a0 = r.range(0.0, std::f64::consts::TAU);
-            let sweep = r.range(0.1, 6.0);
-            let center = [from[0] - radius * a0.cos(), from[1] - radius * a0.sin()];
-            let end = [
-                center[0] + radius * (a0 + sweep).cos(),
-                center[1] + radius * (a0 + sweep).sin(),
-            ];
-            let circ = CircAxes::new(0, 1, 4).expect("axes");
-            PathSegment::circular_2d(
-                from,
-                4,
-                circ,
-                center,
-                end,
-                CircMode::Center,
-                PathChoice::Ccw,
-            )
+            random_arc(&mut r, from)
         };
-        let limits: Vec<AxisLimits> = (0..4)
-            .map(|_| AxisLimits {
-                vmax: r.range(10.0, 200.0),
-                amax: r.range(100.0, 2000.0),
-                jmax: r.range(1_000.0, 50_000.0),
-            })
-            .collect();
+        let limits = random_axis_limits(&mut r);
         if let Ok(seg) = seg {
             segments.push((seg, limits));
         }
@@ -550,10 +525,7 @@ fn path_planning_distribution() {
 /// then a line or an arc from its end), random limits, deviation 1; the fastest of 5 runs
 /// per pair; median / p99 / max, and how many pairs were blended.
 fn blend_planning_distribution() {
-    use gantry_kernel::path::{
-        AxisLimits, CircAxes, CircMode, PathChoice, PathLimits, PathProfile, PathSegment,
-        Transition,
-    };
+    use gantry_kernel::path::{PathLimits, PathProfile, PathSegment, Transition};
     let mut r = XorShift(0x0b1e_9d00_c0de_0042);
     let cmd = PathLimits {
         v: 150.0,
@@ -576,24 +548,9 @@ fn blend_planning_distribution() {
         let second = if i % 2 == 0 {
             PathSegment::line(b, c, 4)
         } else {
-            let radius = r.range(1.0, 50.0);
-            let a0 = r.range(0.0, std::f64::consts::TAU);
-            let sweep = r.range(0.1, 6.0);
-            let center = [b[0] - radius * a0.cos(), b[1] - radius * a0.sin()];
-            let end = [
-                center[0] + radius * (a0 + sweep).cos(),
-                center[1] + radius * (a0 + sweep).sin(),
-            ];
-            let circ = CircAxes::new(0, 1, 4).expect("axes");
-            PathSegment::circular_2d(b, 4, circ, center, end, CircMode::Center, PathChoice::Ccw)
+            random_arc(&mut r, b)
         };
-        let limits: Vec<AxisLimits> = (0..4)
-            .map(|_| AxisLimits {
-                vmax: r.range(10.0, 200.0),
-                amax: r.range(100.0, 2000.0),
-                jmax: r.range(1_000.0, 50_000.0),
-            })
-            .collect();
+        let limits = random_axis_limits(&mut r);
         if let (Ok(p), Ok(second)) = (PathProfile::plan(first, &limits, &cmd), second) {
             pairs.push((p, second, limits));
         }
@@ -637,4 +594,42 @@ fn blend_planning_distribution() {
         q(0.99),
         ns[ns.len() - 1]
     );
+}
+
+/// A counter-clockwise arc in axes 0 and 1 from `from` (center mode): random radius
+/// 1–50, start angle and sweep 0.1–6 rad.
+fn random_arc(
+    r: &mut XorShift,
+    from: [f64; 4],
+) -> Result<gantry_kernel::path::PathSegment, gantry_kernel::path::SegmentError> {
+    use gantry_kernel::path::{CircAxes, CircMode, PathChoice, PathSegment};
+    let radius = r.range(1.0, 50.0);
+    let a0 = r.range(0.0, std::f64::consts::TAU);
+    let sweep = r.range(0.1, 6.0);
+    let center = [from[0] - radius * a0.cos(), from[1] - radius * a0.sin()];
+    let end = [
+        center[0] + radius * (a0 + sweep).cos(),
+        center[1] + radius * (a0 + sweep).sin(),
+    ];
+    let circ = CircAxes::new(0, 1, 4)?;
+    PathSegment::circular_2d(
+        from,
+        4,
+        circ,
+        center,
+        end,
+        CircMode::Center,
+        PathChoice::Ccw,
+    )
+}
+
+/// Random limits of four axes.
+fn random_axis_limits(r: &mut XorShift) -> Vec<gantry_kernel::path::AxisLimits> {
+    (0..4)
+        .map(|_| gantry_kernel::path::AxisLimits {
+            vmax: r.range(10.0, 200.0),
+            amax: r.range(100.0, 2000.0),
+            jmax: r.range(1_000.0, 50_000.0),
+        })
+        .collect()
 }

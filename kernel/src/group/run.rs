@@ -420,16 +420,13 @@ impl Group {
         dt: f64,
         handles: &mut HandleTable,
     ) -> CommandStatus {
-        self.abort_waiting(handles);
         self.release_pending = false;
-        let braking = self.brake(now, dt, handles);
+        let status = self.brake_for(now, dt, handles);
         self.enter(GroupEvent::StopStarted);
-        if braking {
+        if status == CommandStatus::Active {
             self.stop_handle = Some(h);
-            CommandStatus::Active
-        } else {
-            CommandStatus::Done
         }
+        status
     }
 
     /// MC_GroupHalt: brakes along the path to standstill (Standby then), the moves waiting
@@ -441,12 +438,20 @@ impl Group {
         dt: f64,
         handles: &mut HandleTable,
     ) -> CommandStatus {
-        self.abort_waiting(handles);
-        if self.brake(now, dt, handles) {
+        let status = self.brake_for(now, dt, handles);
+        if status == CommandStatus::Active {
             self.halt_handle = Some(h);
-            CommandStatus::Active
-        } else {
-            CommandStatus::Done
+        }
+        status
+    }
+
+    /// A stop's or a halt's start: the moves waiting aborted, the segments on the way
+    /// braking; Active while they brake, Done when nothing moved.
+    fn brake_for(&mut self, now: u64, dt: f64, handles: &mut HandleTable) -> CommandStatus {
+        self.abort_waiting(handles);
+        match self.brake(now, dt, handles) {
+            true => CommandStatus::Active,
+            false => CommandStatus::Done,
         }
     }
 
