@@ -10,6 +10,7 @@ use crate::axis::{Axis, AxisConfig, AxisFeedback, AxisKind, AxisSetpoint, Config
 use crate::cam::CamTable;
 use crate::group::run::{Drive, Group, GroupCmd};
 use crate::group::{check_enable, check_move_start, AxisView, GroupConfig, MoveView};
+use crate::homing::MoveHomeCall;
 use crate::path::{AxisLimits, MAX_AXES};
 use crate::profile::KinematicState;
 use crate::sync::MasterSample;
@@ -352,6 +353,32 @@ impl Kernel {
                 }
                 Ok(status)
             }
+            GroupCmd::Home => {
+                // Each axis runs its own homing (its configured MoveHome parameters).
+                let mut runs = [None; MAX_AXES];
+                for (r, &i) in runs.iter_mut().zip(members) {
+                    let run = self.submit(i, Command::MoveHome(MoveHomeCall::default()));
+                    if let CommandStatus::Error(e) = self.command_status(run) {
+                        self.halt_runs(&runs, members);
+                        return Err(e);
+                    }
+                    *r = Some(run);
+                }
+                match self.groups.get_mut(g) {
+                    Some(group) => group.begin_homing(h, runs),
+                    None => return Err(CommandError::NoSuchGroup { group: g }),
+                }
+                Ok(CommandStatus::Active)
+            }
+            GroupCmd::Stop if group.homing().is_some() => {
+                // The homing runs are halted; the stop is Done once the axes stand.
+                let runs = group.homing().map(|hm| hm.runs).unwrap_or_default();
+                let halts = self.halt_runs(&runs, members);
+                match self.groups.get_mut(g) {
+                    Some(group) => Ok(group.stop_homing(h, halts, &mut self.handles)),
+                    None => Err(CommandError::NoSuchGroup { group: g }),
+                }
+            }
             GroupCmd::Stop => {
                 let (tick, dt) = (self.tick, self.dt);
                 match self.groups.get_mut(g) {
@@ -374,6 +401,90 @@ impl Kernel {
                 Some(group) => group.reset(),
                 None => Err(CommandError::NoSuchGroup { group: g }),
             },
+        }
+    }
+
+    /// Halts every axis of `members` whose homing run in `runs` is still on its way; the
+    /// halts' handles.
+    fn halt_runs(
+        &mut self,
+        runs: &[Option<HandleId>; MAX_AXES],
+        members: &[usize],
+    ) -> [Option<HandleId>; MAX_AXES] {
+        let mut halts = [None; MAX_AXES];
+        for ((halt, run), &i) in halts.iter_mut().zip(runs).zip(members) {
+            if run.is_some_and(|r| !self.command_status(r).is_final()) {
+                *halt = Some(self.submit(
+                    i,
+                    Command::Halt {
+                        mode: crate::axis::command::HaltMode::Normal,
+                        deceleration: None,
+                    },
+                ));
+            }
+        }
+        halts
+    }
+
+    /// MC_GroupHome's runs after a cycle: Done when every axis is homed; an axis' run that
+    /// fails or is taken over puts the group in ErrorStop and halts the others; a stopped
+    /// homing ends its stop once the halts are over.
+    fn follow_group_homing(&mut self) {
+        for g in 0..self.groups.len() {
+            let Some((hm, members)) = self.groups.get(g).and_then(|group| {
+                let mut members = [usize::MAX; MAX_AXES];
+                for (m, &i) in members.iter_mut().zip(&group.config().axes) {
+                    *m = i;
+                }
+                group.homing().map(|hm| (hm, members))
+            }) else {
+                continue;
+            };
+            let status = |h: &HandleId| self.handles.get(*h);
+            if hm.halts.iter().any(Option::is_some) {
+                let over = hm
+                    .halts
+                    .iter()
+                    .chain(&hm.runs)
+                    .flatten()
+                    .all(|h| status(h).is_final());
+                if over {
+                    if let Some(group) = self.groups.get_mut(g) {
+                        group.homing_stopped(&mut self.handles);
+                    }
+                }
+                continue;
+            }
+            let failed =
+                hm.runs
+                    .iter()
+                    .zip(members)
+                    .find_map(|(run, axis)| match run.map(|h| status(&h)) {
+                        Some(CommandStatus::Error(_)) => Some((axis, "in an error")),
+                        Some(CommandStatus::Aborted | CommandStatus::Expired) => {
+                            Some((axis, "aborted"))
+                        }
+                        _ => None,
+                    });
+            if let Some((axis, how)) = failed {
+                let count = self.groups.get(g).map_or(0, |gr| gr.config().axes.len());
+                self.halt_runs(&hm.runs, members.get(..count).unwrap_or(&[]));
+                if let Some(group) = self.groups.get_mut(g) {
+                    group.homing_failed(
+                        crate::group::GroupCommandError::HomingFailed { axis, how },
+                        &mut self.handles,
+                    );
+                }
+            } else if hm
+                .runs
+                .iter()
+                .flatten()
+                .all(|h| status(h) == CommandStatus::Done)
+            {
+                if let Some(group) = self.groups.get_mut(g) {
+                    group.homing_done(&mut self.handles);
+                }
+            }
         }
     }
 
@@ -602,6 +713,7 @@ impl Kernel {
                 *sp = axis.step(self.tick, self.dt, &fb, &from, &mut self.handles);
             }
         }
+        self.follow_group_homing();
         // A group whose axis left its path (a fault, its own stop) goes to ErrorStop and
         // brakes the others along the path.
         for (g, group) in self.groups.iter_mut().enumerate() {

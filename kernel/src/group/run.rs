@@ -120,6 +120,9 @@ pub enum GroupCmd {
     /// MC_GroupHalt: brake along the path to standstill, without locking (a move given
     /// meanwhile takes over as it would from a moving group).
     Halt,
+    /// MC_GroupHome: every axis runs its own homing (MoveHome with its configured
+    /// parameters), all at once; Done when every axis is homed.
+    Home,
     /// MC_GroupStop's Execute falling.
     Release,
     /// MC_GroupReset.
@@ -135,6 +138,7 @@ impl GroupCmd {
             GroupCmd::Move(m) => m.name(),
             GroupCmd::Stop => "GroupStop",
             GroupCmd::Halt => "GroupHalt",
+            GroupCmd::Home => "GroupHome",
             GroupCmd::Release => "GroupStop.Release",
             GroupCmd::Reset => "GroupReset",
         }
@@ -151,6 +155,7 @@ impl GroupCmd {
             GroupCmd::Move(_) => GroupCommand::MoveCircular2D,
             GroupCmd::Stop => GroupCommand::Stop,
             GroupCmd::Halt => GroupCommand::Halt,
+            GroupCmd::Home => GroupCommand::Home,
             GroupCmd::Release => GroupCommand::Release,
             GroupCmd::Reset => GroupCommand::Reset,
         }
@@ -184,6 +189,15 @@ struct Planned {
     corner: Corner,
 }
 
+/// MC_GroupHome on the way: its handle, each axis' homing run, and the halts a stop sent
+/// to the runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Homing {
+    pub(crate) handle: HandleId,
+    pub(crate) runs: [Option<HandleId>; MAX_AXES],
+    pub(crate) halts: [Option<HandleId>; MAX_AXES],
+}
+
 /// One group at run time.
 #[derive(Clone, Debug)]
 pub struct Group {
@@ -204,6 +218,8 @@ pub struct Group {
     stop_handle: Option<HandleId>,
     /// MC_GroupHalt's handle, Done once the group stands.
     halt_handle: Option<HandleId>,
+    /// MC_GroupHome's runs.
+    homing: Option<Homing>,
     release_pending: bool,
     /// Each group axis' own limits (A0..A3).
     limits: [AxisLimits; MAX_AXES],
@@ -233,6 +249,7 @@ impl Group {
             braking: false,
             stop_handle: None,
             halt_handle: None,
+            homing: None,
             release_pending: false,
             limits,
             corners: CornerReport::default(),
@@ -285,9 +302,9 @@ impl Group {
         self.enter(GroupEvent::Enabled);
     }
 
-    /// Disabled (refused while it drives its axes: stop it first).
+    /// Disabled (refused while it drives or homes its axes: stop it first).
     pub(crate) fn disable(&mut self, handles: &mut HandleTable) -> Result<(), CommandError> {
-        if self.drives_axes() {
+        if self.drives_axes() || self.homing.is_some() {
             return Err(CommandError::Group(GroupCommandError::NotAllowedInState {
                 command: "GroupDisable",
                 state: self.state,
@@ -455,9 +472,71 @@ impl Group {
         }
     }
 
+    /// MC_GroupHome started: each axis' run `runs` (A0..A3).
+    pub(crate) fn begin_homing(&mut self, h: HandleId, runs: [Option<HandleId>; MAX_AXES]) {
+        self.homing = Some(Homing {
+            handle: h,
+            runs,
+            halts: [None; MAX_AXES],
+        });
+        self.enter(GroupEvent::HomingStarted);
+    }
+
+    /// MC_GroupHome on the way, if it is.
+    pub(crate) fn homing(&self) -> Option<Homing> {
+        self.homing
+    }
+
+    /// Every axis is homed: Done, GroupStandby.
+    pub(crate) fn homing_done(&mut self, handles: &mut HandleTable) {
+        if let Some(hm) = self.homing.take() {
+            handles.set(hm.handle, CommandStatus::Done);
+            self.enter(GroupEvent::HomingDone);
+        }
+    }
+
+    /// An axis' run failed (the kernel halts the others): the handle's error, ErrorStop.
+    pub(crate) fn homing_failed(&mut self, e: GroupCommandError, handles: &mut HandleTable) {
+        if let Some(hm) = self.homing.take() {
+            handles.set(hm.handle, CommandStatus::Error(CommandError::Group(e)));
+            self.enter(GroupEvent::Error);
+        }
+    }
+
+    /// MC_GroupStop while homing: the runs are halted (`halts`, sent by the kernel); the
+    /// homing ends CommandAborted, the stop is Done once the halts are.
+    pub(crate) fn stop_homing(
+        &mut self,
+        h: HandleId,
+        halts: [Option<HandleId>; MAX_AXES],
+        handles: &mut HandleTable,
+    ) -> CommandStatus {
+        self.release_pending = false;
+        if let Some(hm) = self.homing.as_mut() {
+            handles.set(hm.handle, CommandStatus::Aborted);
+            hm.halts = halts;
+        }
+        self.stop_handle = Some(h);
+        self.enter(GroupEvent::StopStarted);
+        CommandStatus::Active
+    }
+
+    /// The halts of a stopped homing are over: the stop is Done (GroupStandby at once if
+    /// released meanwhile).
+    pub(crate) fn homing_stopped(&mut self, handles: &mut HandleTable) {
+        self.homing = None;
+        if let Some(h) = self.stop_handle.take() {
+            handles.set(h, CommandStatus::Done);
+        }
+        if self.release_pending {
+            self.release_pending = false;
+            self.enter(GroupEvent::StopReleased);
+        }
+    }
+
     /// MC_GroupStop's Execute falling: Standby once it stands.
     pub(crate) fn release(&mut self) -> CommandStatus {
-        if self.running.is_some() {
+        if self.running.is_some() || self.homing.is_some() {
             self.release_pending = true;
         } else {
             self.enter(GroupEvent::StopReleased);

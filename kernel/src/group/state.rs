@@ -14,12 +14,15 @@
 //!   MC_GroupReset (to GroupStandby) or MC_GroupDisable leave; GroupStopping returns to
 //!   GroupStandby when MC_GroupStop is Done and its Execute is FALSE; in GroupStopping
 //!   function blocks "can be called but are not executed" except MC_GroupDisable;
+//!   MC_GroupHome (the axes' own homing runs, together) leads from GroupStandby to
+//!   GroupHoming and back;
 //!   MC_GroupReset "has no effect" outside GroupErrorStop; motion function blocks lead from
 //!   GroupStandby to GroupMoving and back when the last move is done with nothing buffered.
 //! - Seed 004 (Omron): a group error does not put its axes in error (the axes keep their
 //!   own states); a move started while the group is in error or while MC_GroupStop runs
-//!   ends CommandAborted (see `status.rs`). Omron has no group homing; PLCopen's
-//!   GroupHoming (MC_GroupHome) is kept so the state set is PLCopen's.
+//!   ends CommandAborted (see `status.rs`). Omron has no group homing (its axes are homed
+//!   one by one before the group is used); PLCopen's MC_GroupHome and GroupHoming are kept
+//!   so the state set is PLCopen's.
 //! - Chosen: MC_GroupEnable on an enabled group is a no-op in GroupStandby and refused in
 //!   the motion states, where its rule (every axis standing still) cannot hold. Moves and
 //!   MC_GroupHalt are refused during GroupHoming: the run is defining the reference the path
@@ -175,6 +178,8 @@ pub enum GroupCommand {
     Stop,
     /// MC_GroupHalt: brake to standstill without locking (a move with an end).
     Halt,
+    /// MC_GroupHome: every axis of the group runs its homing.
+    Home,
     /// MC_GroupReset.
     Reset,
     /// MC_GroupStop's Execute fell: the group may leave Stopping once the stop is done
@@ -184,13 +189,14 @@ pub enum GroupCommand {
 
 impl GroupCommand {
     /// Every command.
-    pub const ALL: [GroupCommand; 8] = [
+    pub const ALL: [GroupCommand; 9] = [
         GroupCommand::Enable,
         GroupCommand::Disable,
         GroupCommand::MoveLinear,
         GroupCommand::MoveCircular2D,
         GroupCommand::Stop,
         GroupCommand::Halt,
+        GroupCommand::Home,
         GroupCommand::Reset,
         GroupCommand::Release,
     ];
@@ -204,6 +210,7 @@ impl GroupCommand {
             GroupCommand::MoveCircular2D => "MC_MoveCircular2D",
             GroupCommand::Stop => "MC_GroupStop",
             GroupCommand::Halt => "MC_GroupHalt",
+            GroupCommand::Home => "MC_GroupHome",
             GroupCommand::Reset => "MC_GroupReset",
             GroupCommand::Release => "MC_GroupStop release",
         }
@@ -219,6 +226,7 @@ impl GroupCommand {
                 | GroupCommand::MoveCircular2D
                 | GroupCommand::Stop
                 | GroupCommand::Halt
+                | GroupCommand::Home
         )
     }
 }
@@ -246,5 +254,7 @@ pub const fn accepts(state: GroupState, cmd: &GroupCommand) -> bool {
         (_, C::Stop) => true,
         (S::Homing, C::MoveLinear | C::MoveCircular2D | C::Halt) => false,
         (S::Standby | S::Moving, C::MoveLinear | C::MoveCircular2D | C::Halt) => true,
+        (S::Standby, C::Home) => true,
+        (S::Homing | S::Moving, C::Home) => false,
     }
 }

@@ -47,6 +47,14 @@ pub enum GroupCommandError {
         /// Which rule, which axis.
         error: GroupMoveError,
     },
+    /// MC_GroupHome: an axis' homing run failed or was taken over.
+    #[error("GroupHome: axis {axis}'s homing run ended {how}; the group goes to ErrorStop")]
+    HomingFailed {
+        /// The axis (kernel index).
+        axis: usize,
+        /// "in an error" or "aborted".
+        how: &'static str,
+    },
 }
 
 /// Why a group command ended CommandAborted (seed 004's list).

@@ -391,6 +391,14 @@ enum GroupSub {
         #[command(flatten)]
         client: ClientOpts,
     },
+    /// MC_GroupHome: every axis of the group runs its configured homing, together; waits
+    /// until all are homed.
+    Home {
+        /// The group's name.
+        group: String,
+        #[command(flatten)]
+        client: ClientOpts,
+    },
     /// Release a stopped group.
     Release {
         /// The group's name.
@@ -515,6 +523,7 @@ impl GroupSub {
             GroupSub::Disable { group, client } => op(group, GroupOp::Disable, client),
             GroupSub::Stop { group, client } => op(group, GroupOp::Stop, client),
             GroupSub::Halt { group, client } => op(group, GroupOp::Halt, client),
+            GroupSub::Home { group, client } => op(group, GroupOp::Home, client),
             GroupSub::Release { group, client } => op(group, GroupOp::Release, client),
             GroupSub::Reset { group, client } => op(group, GroupOp::Reset, client),
             GroupSub::Line { group, to, path } => {

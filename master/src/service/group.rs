@@ -58,6 +58,7 @@ pub fn group_op(op: GroupOp) -> GroupCmd {
         GroupOp::Disable => GroupCmd::Disable,
         GroupOp::Stop => GroupCmd::Stop,
         GroupOp::Halt => GroupCmd::Halt,
+        GroupOp::Home => GroupCmd::Home,
         GroupOp::Release => GroupCmd::Release,
         GroupOp::Reset => GroupCmd::Reset,
     }

@@ -543,6 +543,8 @@ pub enum GroupOp {
     Stop,
     /// MC_GroupHalt (brakes along the path to GroupStandby, no lock).
     Halt,
+    /// MC_GroupHome (every axis runs its configured homing, together).
+    Home,
     /// MC_GroupStop's Execute falling.
     Release,
     /// MC_GroupReset.
@@ -556,6 +558,7 @@ impl Word for GroupOp {
         ("disable", Self::Disable),
         ("stop", Self::Stop),
         ("halt", Self::Halt),
+        ("home", Self::Home),
         ("release", Self::Release),
         ("reset", Self::Reset),
     ];
