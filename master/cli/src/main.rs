@@ -1908,6 +1908,22 @@ mod tests {
                 false,
             ),
             (
+                &["group", "home", "xy"],
+                Line::Group {
+                    group: "xy".into(),
+                    op: GroupOp::Home,
+                },
+                false,
+            ),
+            (
+                &["group", "halt", "xy"],
+                Line::Group {
+                    group: "xy".into(),
+                    op: GroupOp::Halt,
+                },
+                false,
+            ),
+            (
                 &[
                     "group",
                     "line",

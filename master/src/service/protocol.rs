@@ -1461,6 +1461,14 @@ mod tests {
                 assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
             }
         }
+        for &(word, op) in GroupOp::NAMES {
+            let r = Request::Group {
+                group: "xy".into(),
+                op,
+            };
+            assert_eq!(parse(&r.to_line().unwrap()).unwrap(), r);
+            assert_eq!(word.parse::<GroupOp>().unwrap(), op);
+        }
         for &(word, direction) in JogDirection::NAMES {
             let r = Request::Jog {
                 axis: "a".into(),
