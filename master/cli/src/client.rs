@@ -222,6 +222,47 @@ fn follows(sync: &Value) -> String {
     }
 }
 
+/// The axis groups' table of `gantry status` (none without groups): state, axes, and
+/// what the blends did — corners passed in motion, the last and largest deviation bound,
+/// the last transit speed.
+fn groups(s: &Value, out: &mut impl Write) -> Result<(), ClientError> {
+    let Some(groups) = s["groups"].as_array().filter(|g| !g.is_empty()) else {
+        return Ok(());
+    };
+    let io = ClientError::Output;
+    writeln!(
+        out,
+        "{:<8} {:<15} {:<16} {:>6} {:>22} {:>10}",
+        "group", "state", "axes", "blends", "corner dev. last/max", "transit"
+    )
+    .map_err(io)?;
+    for g in groups {
+        let axes: Vec<&str> = g["axes"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(Value::as_str)
+            .collect();
+        let num = |k: &str| g[k].as_f64().unwrap_or(0.0);
+        writeln!(
+            out,
+            "{:<8} {:<15} {:<16} {:>6} {:>22} {:>10.3}",
+            g["name"].as_str().unwrap_or("?"),
+            g["state"].as_str().unwrap_or("-"),
+            axes.join(","),
+            g["blends"],
+            format!(
+                "{:.3} / {:.3}",
+                num("last_corner_deviation"),
+                num("max_corner_deviation")
+            ),
+            num("last_transit_speed")
+        )
+        .map_err(io)?;
+    }
+    Ok(())
+}
+
 /// `gantry status`.
 pub fn status(
     client: &mut Client,
@@ -309,6 +350,7 @@ pub fn status(
         .map_err(io)?;
     }
     can_nodes(&s, out)?;
+    groups(&s, out)?;
     if s["overrun_stop"] == json!(true) {
         writeln!(
             out,

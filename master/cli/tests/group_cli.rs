@@ -279,6 +279,14 @@ fn moves_queued_blended_while_the_group_moves_end_exactly_on_target() {
     // The three junctions after the buffered line were passed in motion, each within the
     // deviation asked for.
     assert_eq!(g["blends"], 3, "{g}");
+    // `gantry status` shows the group: its state, its axes, its blends.
+    let text = s.ok(&["status"]);
+    let row = text
+        .lines()
+        .find(|l| l.starts_with("xy "))
+        .unwrap_or_else(|| panic!("no group row: {text}"));
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(&cells[..4], ["xy", "GroupStandby", "x,y", "3"], "{row}");
     assert!(
         g["max_corner_deviation"].as_f64().unwrap() <= 0.5 + 1e-9,
         "{g}"
