@@ -12,7 +12,6 @@ use crate::group::run::{Drive, Group, GroupCmd};
 use crate::group::{check_enable, check_move_start, AxisView, GroupConfig, MoveView};
 use crate::homing::MoveHomeCall;
 use crate::path::{AxisLimits, MAX_AXES};
-use crate::profile::KinematicState;
 use crate::sync::MasterSample;
 
 /// Shortest and longest cycle time the kernel accepts (s).
@@ -55,7 +54,7 @@ pub struct Kernel {
     /// Axis groups.
     groups: Vec<Group>,
     /// Per axis, the set values its group's path gives this cycle.
-    group_drive: Vec<Option<KinematicState>>,
+    group_drive: Vec<Option<crate::axis::PathSample>>,
     /// Scratch for MC_GroupEnable's check: every axis as it sees them (filled in place,
     /// so a group command allocates nothing).
     enable_views: Vec<AxisView>,
@@ -323,15 +322,7 @@ impl Kernel {
                             error: crate::axis::command::GroupPathError::ModuloAxis { axis: i },
                         });
                     }
-                    // An axis whose group ended its move this cycle stands, though it
-                    // shows Standstill only from the next one.
-                    let group_just_ended = a.state()
-                        == crate::axis::state::AxisState::SynchronizedMotion
-                        && a.driven_by_group() == Some(g);
-                    if !moving
-                        && a.state() != crate::axis::state::AxisState::Standstill
-                        && !group_just_ended
-                    {
+                    if !moving && a.state() != crate::axis::state::AxisState::Standstill {
                         return Err(CommandError::NotAllowedInState {
                             command: m.name(),
                             state: a.state(),
@@ -684,9 +675,10 @@ impl Kernel {
         }
         for group in &mut self.groups {
             if let Drive::Axes(states) = group.step(self.tick, self.dt, &mut self.handles) {
+                let last = !group.drives_axes();
                 for (s, &i) in states.iter().zip(&group.config().axes) {
                     if let Some(d) = self.group_drive.get_mut(i) {
-                        *d = Some(*s);
+                        *d = Some(crate::axis::PathSample { set: *s, last });
                     }
                 }
             }

@@ -85,18 +85,20 @@ impl Axis {
         self.coordinated = on;
     }
 
-    /// One cycle under a group: its path's set values; none means the group stands now
-    /// (its move or its braking ended), and the axis with it.
-    pub(super) fn group_step(&mut self, path: Option<&KinematicState>) {
-        match path {
-            Some(s) => self.main = *s,
-            None => {
-                self.group = None;
-                self.main = KinematicState::at_rest(self.main.p);
-                if self.state == super::state::AxisState::SynchronizedMotion {
-                    self.enter(Event::MotionDone);
-                }
+    /// One cycle under a group: its path's set values. The cycle the path ends, or one
+    /// without a path, the axis stands with its group: out of SynchronizedMotion in that
+    /// same cycle, so a command sent on the group move's Done finds it standing.
+    pub(super) fn group_step(&mut self, path: Option<&super::PathSample>) {
+        if let Some(s) = path {
+            self.main = s.set;
+            if !s.last {
+                return;
             }
+        }
+        self.group = None;
+        self.main = KinematicState::at_rest(self.main.p);
+        if self.state == super::state::AxisState::SynchronizedMotion {
+            self.enter(Event::MotionDone);
         }
     }
 

@@ -418,9 +418,18 @@ pub(crate) struct Sources<'a> {
     /// The master's values this cycle, if the axis follows one.
     pub master: Option<&'a crate::sync::MasterSample>,
     /// Its group's set values this cycle, if a group moves it.
-    pub path: Option<&'a KinematicState>,
+    pub path: Option<&'a PathSample>,
     /// The kernel's cam tables.
     pub cams: &'a [Option<crate::cam::CamTable>],
+}
+
+/// An axis' set values from its group for one cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PathSample {
+    /// The set values.
+    pub set: KinematicState,
+    /// The group's path ends with this cycle: the axis stands from it on.
+    pub last: bool,
 }
 
 /// Cycles a Reset waits for the drive to clear its fault before it reports failure.

@@ -216,6 +216,9 @@ impl PathProfile {
         if self.ramp_out.is_some() || next.ramp_in.is_some() {
             return None;
         }
+        let wanted = wanted.min(self.axis_speed).min(next.axis_speed);
+        // The next segment brakes with what its axes allow at the speed it comes in with.
+        let stop = next.dynamics_up_to(wanted, axes);
         let inputs = CornerInputs {
             first: &self.segment,
             second: &next.segment,
@@ -224,16 +227,8 @@ impl PathProfile {
             jerk: self.limits.j.min(next.limits.j),
             transition,
             max_deviation,
-            stop_decel: 0.0,
-            stop_jerk: 0.0,
-        };
-        let wanted = wanted.min(self.axis_speed).min(next.axis_speed);
-        // The next segment brakes with what its axes allow at the speed it comes in with.
-        let stop = next.dynamics_up_to(wanted, axes);
-        let inputs = CornerInputs {
             stop_decel: stop.dmax,
             stop_jerk: stop.jmax,
-            ..inputs
         };
         let junction = Junction::new(&inputs);
         let cap = corner_in(&inputs, &junction, wanted)?;
